@@ -1,0 +1,11 @@
+//! An FMI 2.0 co-simulation unit for the cyclic mechanism of `SPEC.md`.
+//!
+//! - [`model`]: the mechanism alone (physics, constraint, projection, energy);
+//! - [`solver`]: integrators that know nothing of the mechanism;
+//! - [`variables`]: the one table of FMI variables, from which both the value-reference
+//!   dispatch and `modelDescription.xml` are derived;
+//! - [`simulation`]: a model instance with its solver, independent of the FMI interface;
+//! - [`fmi2`]: the C ABI, the only `unsafe` code in the crate.
+
+pub mod model;
+pub mod solver;

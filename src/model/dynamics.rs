@@ -1,0 +1,229 @@
+//! Equations of motion in the orthogonal-complement form (SPEC §2, [59], [72]–[78]),
+//! with the paper's sign slips corrected (SPEC §5).
+
+use super::kinematics::{constraint_terms, ConstraintTerms};
+use super::{Inputs, Parameters, State};
+
+/// Motor and load torques after adding the built-in laws (SPEC §4).
+#[inline]
+pub fn applied_torques(p: &Parameters, inputs: &Inputs, omega1: f64) -> (f64, f64) {
+    let motor = inputs.motor_torque + p.Mm_a0 + (p.Mm_a1 + p.Mm_a2 * omega1) * omega1;
+    let load = inputs.load_torque + p.Mr_b0 + p.Mr_b1 * omega1;
+    (motor, load)
+}
+
+/// Generalised forces Q1..Q4 (SPEC §2; the k12 spring sign corrected, SPEC §5).
+#[inline]
+pub fn generalized_forces(p: &Parameters, inputs: &Inputs, y: &State) -> [f64; 4] {
+    let [phi1, phi2, phi3, phi4, w1, w2, w3, w4] = *y;
+    let (motor, load) = applied_torques(p, inputs, w1);
+    let spring12 = p.k12 * (phi2 - phi1) + p.d12 * (w2 - w1);
+    let spring34 = p.k34 * (phi3 - phi4) + p.d34 * (w3 - w4);
+    [
+        motor + spring12,
+        -spring12,
+        -spring34,
+        spring34 - load - p.c4 * w4,
+    ]
+}
+
+/// Accelerations ω̇ with the terms they were computed from.
+#[derive(Clone, Copy, Debug)]
+pub struct Accelerations {
+    pub omega_dot: [f64; 4],
+    pub forces: [f64; 4],
+    pub terms: ConstraintTerms,
+}
+
+/// Solve the four orthogonal-complement equations for ω̇ (SPEC §2):
+///
+/// ```text
+/// J1·ω̇1 = Q1
+/// C1·J2·ω̇2 + B1·J3·ω̇3 = C1·Q2 + B1·Q3      (Lτᵀ(Jω̇ − Q) = 0, [72]–[78])
+/// B1·ω̇2 − C1·ω̇3 = −(Ḃ1·ω2 − Ċ1·ω3)         (acceleration constraint, [49])
+/// J4·ω̇4 = Q4
+/// ```
+///
+/// The 2×2 block has determinant −(C1²·J2 + B1²·J3), zero only at a change point where
+/// B1 = C1 = 0; there the result is not finite, which the caller detects.
+#[inline]
+pub fn accelerations(p: &Parameters, inputs: &Inputs, y: &State) -> Accelerations {
+    let forces = generalized_forces(p, inputs, y);
+    let terms = constraint_terms(p, y[1], y[2], y[5], y[6]);
+    let ConstraintTerms {
+        b1,
+        c1,
+        b1_dot,
+        c1_dot,
+    } = terms;
+    let r1 = c1 * forces[1] + b1 * forces[2];
+    let r2 = -(b1_dot * y[5] - c1_dot * y[6]);
+    let det = -(c1 * c1 * p.J2 + b1 * b1 * p.J3);
+    let omega_dot = [
+        forces[0] / p.J1,
+        (-c1 * r1 - b1 * p.J3 * r2) / det,
+        (c1 * p.J2 * r2 - b1 * r1) / det,
+        forces[3] / p.J4,
+    ];
+    Accelerations {
+        omega_dot,
+        forces,
+        terms,
+    }
+}
+
+/// The state derivative ẏ = (ω, ω̇): the right-hand side integrated by the solver.
+#[inline]
+pub fn state_derivative(p: &Parameters, inputs: &Inputs, y: &State, dy: &mut State) {
+    let a = accelerations(p, inputs, y);
+    dy[..4].copy_from_slice(&y[4..]);
+    dy[4..].copy_from_slice(&a.omega_dot);
+}
+
+/// Rod axial force, tension positive: −λ·L (SPEC §2), with λ from whichever of
+/// λ = (J2·ω̇2 − Q2)/B1 = −(J3·ω̇3 − Q3)/C1 has the larger denominator.
+pub fn rod_force(p: &Parameters, inputs: &Inputs, y: &State) -> f64 {
+    let Accelerations {
+        omega_dot,
+        forces,
+        terms,
+    } = accelerations(p, inputs, y);
+    let lambda = if terms.b1.abs() >= terms.c1.abs() {
+        (p.J2 * omega_dot[1] - forces[1]) / terms.b1
+    } else {
+        -(p.J3 * omega_dot[2] - forces[2]) / terms.c1
+    };
+    -lambda * p.L
+}
+
+/// Mechanical energy E = ½ΣJi·ωi² + ½k12(φ1 − φ2)² + ½k34(φ3 − φ4)² (SPEC §2).
+pub fn energy(p: &Parameters, y: &State) -> f64 {
+    let [phi1, phi2, phi3, phi4, w1, w2, w3, w4] = *y;
+    0.5 * (p.J1 * w1 * w1 + p.J2 * w2 * w2 + p.J3 * w3 * w3 + p.J4 * w4 * w4)
+        + 0.5 * p.k12 * (phi1 - phi2).powi(2)
+        + 0.5 * p.k34 * (phi3 - phi4).powi(2)
+}
+
+/// dE/dt = M_m·ω1 − (M_r + c4·ω4)·ω4 − d12·(ω2 − ω1)² − d34·(ω3 − ω4)² (SPEC §2),
+/// with M_m and M_r the totals including the built-in laws.
+pub fn power(p: &Parameters, inputs: &Inputs, y: &State) -> f64 {
+    let [_, _, _, _, w1, w2, w3, w4] = *y;
+    let (motor, load) = applied_torques(p, inputs, w1);
+    motor * w1 - (load + p.c4 * w4) * w4 - p.d12 * (w2 - w1).powi(2) - p.d34 * (w3 - w4).powi(2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::kinematics::closure;
+
+    fn sample_state(p: &Parameters) -> State {
+        let phi2 = 0.9;
+        let phi3 = crate::model::kinematics::assemble_rocker(p, phi2, 1.5).unwrap();
+        let t = constraint_terms(p, phi2, phi3, 0.0, 0.0);
+        let w2 = 2.5;
+        [
+            phi2 + 0.1,
+            phi2,
+            phi3,
+            phi3 - 0.05,
+            3.0,
+            w2,
+            t.b1 / t.c1 * w2,
+            -1.0,
+        ]
+    }
+
+    #[test]
+    fn accelerations_satisfy_the_constrained_equations() {
+        let mut p = Parameters::default().with_paper_laws();
+        p.d12 = 0.3;
+        p.d34 = 0.2;
+        p.c4 = 0.1;
+        let inputs = Inputs {
+            motor_torque: 1.5,
+            load_torque: -0.5,
+        };
+        let y = sample_state(&p);
+        let a = accelerations(&p, &inputs, &y);
+        let t = a.terms;
+        // Acceleration constraint [49].
+        let acc = t.b1 * a.omega_dot[1] - t.c1 * a.omega_dot[2] + t.b1_dot * y[5] - t.c1_dot * y[6];
+        assert!(acc.abs() < 1e-12, "{acc}");
+        // J·ω̇ − Q lies along Gᵀ = (0, B1, −C1, 0): one multiplier explains both rows.
+        let l2 = (p.J2 * a.omega_dot[1] - a.forces[1]) / t.b1;
+        let l3 = -(p.J3 * a.omega_dot[2] - a.forces[2]) / t.c1;
+        assert!((l2 - l3).abs() < 1e-10 * l2.abs().max(1.0), "{l2} {l3}");
+        assert!((p.J1 * a.omega_dot[0] - a.forces[0]).abs() < 1e-12);
+        assert!((p.J4 * a.omega_dot[3] - a.forces[3]).abs() < 1e-12);
+    }
+
+    #[test]
+    fn restoring_springs_with_corrected_sign() {
+        let p = Parameters::default();
+        // Body 2 ahead of body 1: the k12 spring pulls body 1 forward (SPEC §5).
+        let y = [0.0, 0.1, 1.48, 1.48, 0.0, 0.0, 0.0, 0.0];
+        let q = generalized_forces(&p, &Inputs::default(), &y);
+        assert!(q[0] > 0.0 && q[1] < 0.0);
+        let y = [0.0, 0.0, 1.5, 1.4, 0.0, 0.0, 0.0, 0.0];
+        let q = generalized_forces(&p, &Inputs::default(), &y);
+        assert!(q[2] < 0.0 && q[3] > 0.0);
+    }
+
+    #[test]
+    fn power_is_the_energy_rate() {
+        let mut p = Parameters::default().with_paper_laws();
+        p.d12 = 0.4;
+        p.d34 = 0.7;
+        p.c4 = 0.2;
+        let inputs = Inputs {
+            motor_torque: 2.0,
+            load_torque: 1.0,
+        };
+        let y = sample_state(&p);
+        let mut dy = [0.0; 8];
+        state_derivative(&p, &inputs, &y, &mut dy);
+        let h = 1e-6;
+        let step = |s: f64| -> State { std::array::from_fn(|i| y[i] + s * h * dy[i]) };
+        let rate = (energy(&p, &step(1.0)) - energy(&p, &step(-1.0))) / (2.0 * h);
+        assert!(
+            (rate - power(&p, &inputs, &y)).abs() < 1e-6,
+            "{rate} {}",
+            power(&p, &inputs, &y)
+        );
+        assert!(closure(&p, y[1], y[2]).abs() < 1e-14);
+    }
+
+    #[test]
+    fn rod_force_is_the_tension_that_turns_the_rocker() {
+        // Independent of λ: a tension T pulls pin A3 towards A2 with force T·d/|d|; its
+        // moment about O3 must be the rocker's J3·ω̇3 − Q3, and likewise for the crank.
+        let mut p = Parameters::default().with_paper_laws();
+        p.d34 = 0.3;
+        let inputs = Inputs {
+            motor_torque: 3.0,
+            load_torque: 0.0,
+        };
+        let y = sample_state(&p);
+        let tension = rod_force(&p, &inputs, &y);
+        let a = accelerations(&p, &inputs, &y);
+        let [dx, dy] = crate::model::kinematics::rod_vector(&p, y[1], y[2]);
+        let (ux, uy) = (dx / p.L, dy / p.L);
+        let (s3, c3) = y[2].sin_cos();
+        let rocker_moment = p.l3 * (c3 * tension * uy - s3 * tension * ux);
+        assert!(
+            (rocker_moment - (p.J3 * a.omega_dot[2] - a.forces[2])).abs() < 1e-9,
+            "{rocker_moment}"
+        );
+        let (s2, c2) = y[1].sin_cos();
+        let crank_moment = p.l2 * (c2 * -tension * uy - s2 * -tension * ux);
+        assert!(
+            (crank_moment - (p.J2 * a.omega_dot[1] - a.forces[1])).abs() < 1e-9,
+            "{crank_moment}"
+        );
+        assert!(
+            tension.abs() > 1.0,
+            "a loaded linkage carries rod force: {tension}"
+        );
+    }
+}

@@ -1,0 +1,159 @@
+//! Loop geometry (SPEC §1–§3): pin positions, the closure constraint g(φ), its gradient
+//! G = [0, B1, −C1, 0] and time derivatives, and the assembly of a consistent start.
+
+use super::{ModelError, Parameters};
+
+/// Geometric terms of the constraint at one configuration (SPEC §2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ConstraintTerms {
+    /// B1 = l2·(l·sin φ2 + l3·sin(φ2 − φ3)) = ∂g/∂φ2.
+    pub b1: f64,
+    /// C1 = l3·(l2·sin(φ2 − φ3) + l·sin φ3) = −∂g/∂φ3.
+    pub c1: f64,
+    /// Ḃ1 = l2·(l·cos φ2·ω2 + l3·cos(φ2 − φ3)·(ω2 − ω3)).
+    pub b1_dot: f64,
+    /// Ċ1 = l3·(l2·cos(φ2 − φ3)·(ω2 − ω3) + l·cos φ3·ω3).
+    pub c1_dot: f64,
+}
+
+/// Evaluate B1, C1 (SPEC §2, [44]–[46]) and their time derivatives ([49]).
+#[inline]
+pub fn constraint_terms(
+    p: &Parameters,
+    phi2: f64,
+    phi3: f64,
+    omega2: f64,
+    omega3: f64,
+) -> ConstraintTerms {
+    let (s2, c2) = phi2.sin_cos();
+    let (s3, c3) = phi3.sin_cos();
+    // sin and cos of φ2 − φ3 from the two pairs above: saves a third sin_cos.
+    let s23 = s2 * c3 - c2 * s3;
+    let c23 = c2 * c3 + s2 * s3;
+    let w23 = omega2 - omega3;
+    ConstraintTerms {
+        b1: p.l2 * (p.l * s2 + p.l3 * s23),
+        c1: p.l3 * (p.l2 * s23 + p.l * s3),
+        b1_dot: p.l2 * (p.l * c2 * omega2 + p.l3 * c23 * w23),
+        c1_dot: p.l3 * (p.l2 * c23 * w23 + p.l * c3 * omega3),
+    }
+}
+
+/// d = A2 − A3, the rod vector (SPEC §1).
+#[inline]
+pub fn rod_vector(p: &Parameters, phi2: f64, phi3: f64) -> [f64; 2] {
+    let (s2, c2) = phi2.sin_cos();
+    let (s3, c3) = phi3.sin_cos();
+    [p.l2 * c2 - (p.l + p.l3 * c3), p.l2 * s2 - p.l3 * s3]
+}
+
+/// The closure constraint g(φ) = ½(|d|² − L²) (SPEC §2).
+#[inline]
+pub fn closure(p: &Parameters, phi2: f64, phi3: f64) -> f64 {
+    let [dx, dy] = rod_vector(p, phi2, phi3);
+    0.5 * (dx * dx + dy * dy - p.L * p.L)
+}
+
+/// |A2A3| − L, the `constraint_residual` output (m).
+pub fn length_residual(p: &Parameters, phi2: f64, phi3: f64) -> f64 {
+    let [dx, dy] = rod_vector(p, phi2, phi3);
+    dx.hypot(dy) - p.L
+}
+
+/// The rocker angle φ3 that closes the loop for crank angle φ2 (SPEC §3): of the two
+/// assemblies, the one nearest `guess`, expressed in the 2π-branch nearest `guess`.
+pub fn assemble_rocker(p: &Parameters, phi2: f64, guess: f64) -> Result<f64, ModelError> {
+    // e = A2 − O3; A3 = O3 + l3·(cos φ3, sin φ3) must lie at distance L from A2:
+    // |e|² − 2·l3·(e·u) + l3² = L², so cos(φ3 − θ) = (|e|² + l3² − L²)/(2·l3·|e|).
+    let (s2, c2) = phi2.sin_cos();
+    let (ex, ey) = (p.l2 * c2 - p.l, p.l2 * s2);
+    let r = ex.hypot(ey);
+    let cos_angle = (r * r + p.l3 * p.l3 - p.L * p.L) / (2.0 * p.l3 * r);
+    if !(r > 0.0 && cos_angle.abs() <= 1.0) {
+        return Err(ModelError::new(format!(
+            "the loop cannot be assembled at phi2_0 = {phi2}: with l = {}, l2 = {}, l3 = {}, L = {} \
+             the rod cannot reach the rocker (need |l3 - L| <= |O3 A2| <= l3 + L, |O3 A2| = {r})",
+            p.l, p.l2, p.l3, p.L
+        )));
+    }
+    let theta = ey.atan2(ex);
+    let half = cos_angle.acos();
+    let nearest = |candidate: f64| guess + wrap_angle(candidate - guess);
+    let (a, b) = (nearest(theta + half), nearest(theta - half));
+    Ok(if (a - guess).abs() <= (b - guess).abs() {
+        a
+    } else {
+        b
+    })
+}
+
+/// Angle wrapped into (−π, π].
+pub fn wrap_angle(x: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let w = x.rem_euclid(TAU);
+    if w > PI {
+        w - TAU
+    } else {
+        w
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_assembly_matches_spec() {
+        let p = Parameters::default();
+        let phi3 = assemble_rocker(&p, 0.0, std::f64::consts::FRAC_PI_2).unwrap();
+        assert!((phi3 - 1.4873662401842818).abs() < 1e-15, "{phi3}");
+        assert!(closure(&p, 0.0, phi3).abs() < 1e-15);
+        // The other assembly, below the ground line.
+        let other = assemble_rocker(&p, 0.0, -std::f64::consts::FRAC_PI_2).unwrap();
+        assert!((other - phi3).abs() > 1.0, "{other}");
+        assert!(closure(&p, 0.0, other).abs() < 1e-15);
+    }
+
+    #[test]
+    fn impossible_geometry_names_parameters() {
+        let mut p = Parameters::default();
+        p.L = 2.0;
+        let err = assemble_rocker(&p, 0.0, 1.5).unwrap_err().to_string();
+        assert!(
+            err.contains("L = 2") && err.contains("l3") && err.contains("phi2_0"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences() {
+        let p = Parameters::default();
+        let (phi2, phi3) = (0.7, 1.6);
+        let t = constraint_terms(&p, phi2, phi3, 0.0, 0.0);
+        let h = 1e-6;
+        let dg2 = (closure(&p, phi2 + h, phi3) - closure(&p, phi2 - h, phi3)) / (2.0 * h);
+        let dg3 = (closure(&p, phi2, phi3 + h) - closure(&p, phi2, phi3 - h)) / (2.0 * h);
+        assert!((dg2 - t.b1).abs() < 1e-9, "{dg2} {}", t.b1);
+        assert!((dg3 + t.c1).abs() < 1e-9, "{dg3} {}", t.c1);
+    }
+
+    #[test]
+    fn gradient_rates_match_finite_differences() {
+        let p = Parameters::default();
+        let (phi2, phi3, w2, w3) = (0.7, 1.6, 3.0, -0.4);
+        let t = constraint_terms(&p, phi2, phi3, w2, w3);
+        let h = 1e-6;
+        let fwd = constraint_terms(&p, phi2 + h * w2, phi3 + h * w3, w2, w3);
+        let bwd = constraint_terms(&p, phi2 - h * w2, phi3 - h * w3, w2, w3);
+        assert!(((fwd.b1 - bwd.b1) / (2.0 * h) - t.b1_dot).abs() < 1e-8);
+        assert!(((fwd.c1 - bwd.c1) / (2.0 * h) - t.c1_dot).abs() < 1e-8);
+    }
+
+    #[test]
+    fn wrap_angle_range() {
+        use std::f64::consts::PI;
+        assert!((wrap_angle(3.0 * PI) - PI).abs() < 1e-12);
+        assert!((wrap_angle(-0.5) + 0.5).abs() < 1e-15);
+        assert!((wrap_angle(7.0) - (7.0 - 2.0 * PI)).abs() < 1e-15);
+    }
+}

@@ -1,0 +1,65 @@
+//! The mechanism alone (SPEC.md): parameters, state, right-hand side, constraint,
+//! projection, assembly and energy. Pure Rust; it knows nothing of FMI or of the solver
+//! that drives it, beyond implementing [`crate::solver::OdeSystem`].
+
+pub mod dynamics;
+pub mod kinematics;
+pub mod params;
+pub mod projection;
+
+pub use dynamics::{accelerations, energy, power, rod_force, state_derivative};
+pub use kinematics::length_residual;
+pub use params::{Parameters, PARAMETERS};
+pub use projection::{initial_state, project};
+
+use crate::solver::OdeSystem;
+
+/// The state vector y = (φ1, φ2, φ3, φ4, ω1, ω2, ω3, ω4).
+pub type State = [f64; 8];
+
+/// Number of state components.
+pub const STATE_SIZE: usize = 8;
+
+/// The external torques: the FMU inputs M_m and M_r (N·m), held over a step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Inputs {
+    pub motor_torque: f64,
+    pub load_torque: f64,
+}
+
+/// A model error: the message says which variable and which rule.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelError(String);
+
+impl ModelError {
+    pub fn new(message: impl Into<String>) -> Self {
+        Self(message.into())
+    }
+}
+
+impl std::fmt::Display for ModelError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for ModelError {}
+
+/// The mechanism with its parameters and current inputs, as an ODE on the constraint
+/// manifold: what an integrator needs, and nothing about who drives it.
+#[derive(Clone, Copy, Debug)]
+pub struct Mechanism<'a> {
+    pub params: &'a Parameters,
+    pub inputs: &'a Inputs,
+}
+
+impl OdeSystem<STATE_SIZE> for Mechanism<'_> {
+    #[inline]
+    fn rhs(&self, _t: f64, y: &State, dy: &mut State) {
+        state_derivative(self.params, self.inputs, y, dy);
+    }
+
+    fn project(&self, y: &mut State) -> bool {
+        project(self.params, y).is_ok()
+    }
+}

@@ -1,0 +1,325 @@
+//! Dormand & Prince's explicit Runge–Kutta method of order 8 with the 5(3) error estimator
+//! and step-size control of Hairer's DOP853 (Hairer, Nørsett & Wanner, Solving ODEs I,
+//! II.4 and II.10).
+//!
+//! Differences from the textbook driver, for co-simulation:
+//! - the step size carries over from one `integrate` call to the next (warm restart), so
+//!   the initial-step heuristic runs once, and a step shortened only to land on `t_end`
+//!   does not shrink the next call's step;
+//! - the first stage of a step is reused from the previous step's end (after projection)
+//!   unless [`Dop853::invalidate`] says the state or the problem changed;
+//! - every accepted step is projected by [`OdeSystem::project`].
+
+use super::dop853_tableau::{A, B, C, E3, E5};
+use super::{OdeSystem, SolverError, Statistics, Tolerances};
+
+const STAGES: usize = 12;
+/// Step-size factor bounds per step (Hairer's fac1 = 0.333, fac2 = 6) and safety factor.
+const FACTOR_MIN: f64 = 0.333;
+const FACTOR_MAX: f64 = 6.0;
+const SAFETY: f64 = 0.9;
+/// A runaway guard per call; generous, as one call may span a long communication step.
+const MAX_STEPS_PER_CALL: u64 = 10_000_000;
+
+/// The DOP853 integrator for an `N`-dimensional system. All working storage is inline.
+#[derive(Clone, Debug)]
+pub struct Dop853<const N: usize> {
+    tolerances: Tolerances,
+    /// Proposed size of the next step; `None` until the first step is chosen.
+    next_step: Option<f64>,
+    /// Stages of the current step; `stages[0]` is f(t, y) at the current point.
+    stages: [[f64; N]; STAGES],
+    /// Whether `stages[0]` holds f(t, y) for the current (t, y).
+    first_stage_valid: bool,
+    stats: Statistics,
+}
+
+impl<const N: usize> Dop853<N> {
+    pub fn new(tolerances: Tolerances) -> Self {
+        Self {
+            tolerances,
+            next_step: None,
+            stages: [[0.0; N]; STAGES],
+            first_stage_valid: false,
+            stats: Statistics::default(),
+        }
+    }
+
+    pub fn tolerances(&self) -> Tolerances {
+        self.tolerances
+    }
+
+    pub fn statistics(&self) -> Statistics {
+        self.stats
+    }
+
+    /// The step size the next call will try first, once chosen.
+    pub fn next_step(&self) -> Option<f64> {
+        self.next_step
+    }
+
+    /// The state or the right-hand side changed outside the integrator (new inputs, a
+    /// restored state): the stored first stage no longer applies. The step size stays.
+    pub fn invalidate(&mut self) {
+        self.first_stage_valid = false;
+    }
+
+    /// Integrate from (`*t`, `*y`) to exactly `t_end`, projecting after each accepted step.
+    /// On error, `*t` and `*y` hold the last accepted (projected) step.
+    pub fn integrate<S: OdeSystem<N>>(
+        &mut self,
+        system: &S,
+        t: &mut f64,
+        y: &mut [f64; N],
+        t_end: f64,
+    ) -> Result<(), SolverError> {
+        if !self.first_stage_valid {
+            self.eval(system, *t, y, 0);
+            self.first_stage_valid = true;
+        }
+        let mut h = match self.next_step {
+            Some(h) => h,
+            None => self.initial_step(system, *t, y, t_end - *t),
+        };
+        let mut last_rejected = false;
+        let mut taken = 0u64;
+        let mut y_new = [0.0; N];
+        while *t < t_end {
+            if taken >= MAX_STEPS_PER_CALL {
+                return Err(SolverError::TooManySteps {
+                    t: *t,
+                    limit: MAX_STEPS_PER_CALL,
+                });
+            }
+            taken += 1;
+            // Land exactly on t_end; stretch by up to 1 % rather than leave a sliver.
+            let remaining = t_end - *t;
+            let landing = *t + 1.01 * h >= t_end;
+            let h_step = if landing { remaining } else { h };
+            if h_step <= 16.0 * f64::EPSILON * t.abs().max(1.0) && !landing {
+                return Err(SolverError::StepSizeTooSmall { t: *t, h: h_step });
+            }
+            let error = self.attempt(system, *t, y, h_step, &mut y_new);
+            if !(error <= 1.0) {
+                // Rejected, or a non-finite stage (error is NaN or infinite).
+                self.stats.n_rejected += 1;
+                let factor = if error.is_finite() {
+                    (SAFETY * error.powf(-1.0 / 8.0)).max(FACTOR_MIN)
+                } else {
+                    0.1
+                };
+                h = h_step * factor;
+                last_rejected = true;
+                if h <= 16.0 * f64::EPSILON * t.abs().max(1.0) {
+                    return Err(SolverError::StepSizeTooSmall { t: *t, h });
+                }
+                continue;
+            }
+            if !system.project(&mut y_new) {
+                return Err(SolverError::ProjectionFailed { t: *t + h_step });
+            }
+            self.stats.n_steps += 1;
+            *y = y_new;
+            *t = if landing { t_end } else { *t + h_step };
+            self.eval(system, *t, y, 0);
+            let factor = step_factor(error, last_rejected);
+            // A step cut short to land on t_end says nothing against the longer step.
+            h = if landing {
+                (h_step * factor).max(h)
+            } else {
+                h_step * factor
+            };
+            last_rejected = false;
+        }
+        self.next_step = Some(h);
+        Ok(())
+    }
+
+    /// One trial step of size `h` from (t, y), with `stages[0]` = f(t, y) already in place.
+    /// Writes the 8th-order result to `y_new` and returns the scaled error norm.
+    fn attempt<S: OdeSystem<N>>(
+        &mut self,
+        system: &S,
+        t: f64,
+        y: &[f64; N],
+        h: f64,
+        y_new: &mut [f64; N],
+    ) -> f64 {
+        let mut y_stage = [0.0; N];
+        for i in 1..STAGES {
+            for (n, ys) in y_stage.iter_mut().enumerate() {
+                let mut sum = 0.0;
+                for (j, a) in A[i][..i].iter().enumerate() {
+                    sum += a * self.stages[j][n];
+                }
+                *ys = y[n] + h * sum;
+            }
+            self.eval(system, t + C[i] * h, &y_stage, i);
+        }
+        let Tolerances { rtol, atol } = self.tolerances;
+        let (mut err5, mut err3) = (0.0, 0.0);
+        for n in 0..N {
+            let (mut inc, mut e5, mut e3) = (0.0, 0.0, 0.0);
+            for (j, stage) in self.stages.iter().enumerate() {
+                inc += B[j] * stage[n];
+                e5 += E5[j] * stage[n];
+                e3 += E3[j] * stage[n];
+            }
+            y_new[n] = y[n] + h * inc;
+            let scale = atol + rtol * y[n].abs().max(y_new[n].abs());
+            err5 += (e5 / scale).powi(2);
+            err3 += (e3 / scale).powi(2);
+        }
+        if err5 == 0.0 && err3 == 0.0 {
+            return 0.0;
+        }
+        // Hairer's combination of the 5th- and 3rd-order estimates (dop853.f).
+        h.abs() * err5 / ((err5 + 0.01 * err3) * N as f64).sqrt()
+    }
+
+    /// Hairer's starting step heuristic (HNW I, II.4), bounded by the span to integrate.
+    fn initial_step<S: OdeSystem<N>>(
+        &mut self,
+        system: &S,
+        t: f64,
+        y: &[f64; N],
+        span: f64,
+    ) -> f64 {
+        let Tolerances { rtol, atol } = self.tolerances;
+        let f0 = self.stages[0];
+        let scale = |n: usize| atol + rtol * y[n].abs();
+        let norm_f: f64 = (0..N).map(|n| (f0[n] / scale(n)).powi(2)).sum();
+        let norm_y: f64 = (0..N).map(|n| (y[n] / scale(n)).powi(2)).sum();
+        let mut h = if norm_f <= 1e-10 || norm_y <= 1e-10 {
+            1e-6
+        } else {
+            0.01 * (norm_y / norm_f).sqrt()
+        };
+        h = h.min(span);
+        let y1: [f64; N] = std::array::from_fn(|n| y[n] + h * f0[n]);
+        self.eval(system, t + h, &y1, 1);
+        let f1 = self.stages[1];
+        let second: f64 = (0..N)
+            .map(|n| ((f1[n] - f0[n]) / scale(n)).powi(2))
+            .sum::<f64>()
+            .sqrt()
+            / h;
+        let largest = second.max(norm_f.sqrt());
+        let h1 = if largest <= 1e-15 {
+            (h * 1e-3).max(1e-6)
+        } else {
+            (0.01 / largest).powf(1.0 / 8.0)
+        };
+        (100.0 * h).min(h1).min(span)
+    }
+
+    #[inline]
+    fn eval<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N], stage: usize) {
+        system.rhs(t, y, &mut self.stages[stage]);
+        self.stats.n_rhs += 1;
+    }
+}
+
+/// Step-size factor after an accepted step with scaled error `error` ≤ 1: no growth
+/// right after a rejection (HNW I, II.4).
+fn step_factor(error: f64, after_rejection: bool) -> f64 {
+    let factor = if error == 0.0 {
+        FACTOR_MAX
+    } else {
+        (SAFETY * error.powf(-1.0 / 8.0)).clamp(FACTOR_MIN, FACTOR_MAX)
+    };
+    if after_rejection {
+        factor.min(1.0)
+    } else {
+        factor
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Harmonic oscillator y'' = −y: exact solution (cos t, −sin t).
+    struct Oscillator;
+    impl OdeSystem<2> for Oscillator {
+        fn rhs(&self, _t: f64, y: &[f64; 2], dy: &mut [f64; 2]) {
+            *dy = [y[1], -y[0]];
+        }
+    }
+
+    /// y' = y·cos t: exact solution exp(sin t); non-autonomous, checks the nodes c_i.
+    struct Forced;
+    impl OdeSystem<1> for Forced {
+        fn rhs(&self, t: f64, y: &[f64; 1], dy: &mut [f64; 1]) {
+            dy[0] = y[0] * t.cos();
+        }
+    }
+
+    fn tol(rtol: f64) -> Tolerances {
+        Tolerances { rtol, atol: rtol }
+    }
+
+    #[test]
+    fn oscillator_error_follows_tolerance() {
+        let mut previous = f64::INFINITY;
+        for rtol in [1e-4, 1e-7, 1e-10] {
+            let mut solver = Dop853::new(tol(rtol));
+            let (mut t, mut y) = (0.0, [1.0, 0.0]);
+            solver.integrate(&Oscillator, &mut t, &mut y, 10.0).unwrap();
+            assert_eq!(t, 10.0);
+            let error = (y[0] - 10f64.cos()).abs().max((y[1] + 10f64.sin()).abs());
+            assert!(error < 50.0 * rtol, "rtol {rtol}: error {error}");
+            assert!(error < previous);
+            previous = error;
+        }
+    }
+
+    #[test]
+    fn non_autonomous_and_exact_landing_on_many_points() {
+        let mut solver = Dop853::new(tol(1e-10));
+        let (mut t, mut y) = (0.0, [1.0]);
+        for k in 1..=1000 {
+            let t_end = k as f64 * 7e-3;
+            solver.integrate(&Forced, &mut t, &mut y, t_end).unwrap();
+            assert_eq!(t, t_end);
+        }
+        assert!((y[0] - 7f64.sin().exp()).abs() < 1e-8, "{}", y[0]);
+    }
+
+    #[test]
+    fn step_size_carries_over_between_calls() {
+        let mut solver = Dop853::new(tol(1e-8));
+        let (mut t, mut y) = (0.0, [1.0, 0.0]);
+        solver.integrate(&Oscillator, &mut t, &mut y, 1.0).unwrap();
+        let h = solver.next_step().unwrap();
+        let evaluations = solver.statistics().n_rhs;
+        // Many short calls: one step each, 12 evaluations each, no restart heuristic.
+        for k in 1..=100 {
+            solver
+                .integrate(&Oscillator, &mut t, &mut y, 1.0 + k as f64 * 1e-4)
+                .unwrap();
+        }
+        assert_eq!(solver.statistics().n_rhs - evaluations, 100 * 12);
+        assert!(solver.next_step().unwrap() >= h * 0.999);
+    }
+
+    /// A right-hand side that turns NaN: the solver must stop with an error, not loop.
+    struct Blowup;
+    impl OdeSystem<1> for Blowup {
+        fn rhs(&self, t: f64, _y: &[f64; 1], dy: &mut [f64; 1]) {
+            dy[0] = if t > 0.5 { f64::NAN } else { 1.0 };
+        }
+    }
+
+    #[test]
+    fn non_finite_right_hand_side_is_an_error_and_state_stays_finite() {
+        let mut solver = Dop853::new(tol(1e-8));
+        let (mut t, mut y) = (0.0, [0.0]);
+        let result = solver.integrate(&Blowup, &mut t, &mut y, 1.0);
+        assert!(
+            matches!(result, Err(SolverError::StepSizeTooSmall { .. })),
+            "{result:?}"
+        );
+        assert!(t <= 0.5 && y[0].is_finite() && (y[0] - t).abs() < 1e-12);
+    }
+}
