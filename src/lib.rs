@@ -8,4 +8,6 @@
 //! - [`fmi2`]: the C ABI, the only `unsafe` code in the crate.
 
 pub mod model;
+pub mod simulation;
 pub mod solver;
+pub mod variables;

@@ -114,9 +114,7 @@ impl Parameters {
         let info = PARAMETERS
             .get(index)
             .ok_or_else(|| ModelError::new(format!("no parameter with index {index}")))?;
-        info.rule
-            .check(value)
-            .map_err(|rule| ModelError::new(format!("parameter {} = {value} {rule}", info.name)))?;
+        check_rule(info, value)?;
         if let Some(slot) = self.slot_mut(index) {
             *slot = value;
         }
@@ -148,12 +146,17 @@ impl Parameters {
     /// Check every rule; the first violation is the error.
     pub fn validate(&self) -> Result<(), ModelError> {
         for (info, value) in PARAMETERS.iter().zip((0..).map_while(|i| self.get(i))) {
-            info.rule.check(value).map_err(|rule| {
-                ModelError::new(format!("parameter {} = {value} {rule}", info.name))
-            })?;
+            check_rule(info, value)?;
         }
         Ok(())
     }
+}
+
+/// `Ok` when `value` satisfies the parameter's rule; the error names both.
+pub fn check_rule(info: &ParamInfo, value: f64) -> Result<(), ModelError> {
+    info.rule
+        .check(value)
+        .map_err(|rule| ModelError::new(format!("parameter {} = {value} {rule}", info.name)))
 }
 
 #[cfg(test)]

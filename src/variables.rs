@@ -1,0 +1,291 @@
+//! The one table of FMI variables. Value references are positions in [`variables`]:
+//! inputs, then outputs, then the parameters of [`PARAMETERS`]. The FMI dispatch
+//! (`fmi2GetReal`/`fmi2SetReal`), `modelDescription.xml`, the documentation and the
+//! README's table are all derived from here, so they cannot drift apart.
+
+use crate::model::PARAMETERS;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Causality {
+    Input,
+    Output,
+    Parameter,
+}
+
+impl Causality {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Causality::Input => "input",
+            Causality::Output => "output",
+            Causality::Parameter => "parameter",
+        }
+    }
+}
+
+/// The FMU inputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Input {
+    MotorTorque,
+    LoadTorque,
+}
+
+/// The FMU outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Output {
+    /// φ_i, i = 0..3.
+    Angle(usize),
+    /// ω_i, i = 0..3.
+    Speed(usize),
+    RodForce,
+    ConstraintResidual,
+    Energy,
+}
+
+/// Where a variable's value lives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Slot {
+    Input(Input),
+    Output(Output),
+    /// Index into [`PARAMETERS`].
+    Parameter(usize),
+}
+
+/// One FMI variable (all are Real).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Variable {
+    pub name: &'static str,
+    pub unit: &'static str,
+    pub description: &'static str,
+    pub slot: Slot,
+}
+
+impl Variable {
+    pub fn causality(&self) -> Causality {
+        match self.slot {
+            Slot::Input(_) => Causality::Input,
+            Slot::Output(_) => Causality::Output,
+            Slot::Parameter(_) => Causality::Parameter,
+        }
+    }
+
+    /// FMI variability: parameters are fixed (settable before initialisation ends).
+    pub fn variability(&self) -> &'static str {
+        match self.slot {
+            Slot::Parameter(_) => "fixed",
+            _ => "continuous",
+        }
+    }
+
+    /// FMI `initial` attribute; inputs have none.
+    pub fn initial(&self) -> Option<&'static str> {
+        match self.slot {
+            Slot::Input(_) => None,
+            Slot::Output(_) => Some("calculated"),
+            Slot::Parameter(_) => Some("exact"),
+        }
+    }
+
+    /// The start value, where the variable has one.
+    pub fn start(&self) -> Option<f64> {
+        match self.slot {
+            Slot::Input(_) => Some(0.0),
+            Slot::Output(_) => None,
+            Slot::Parameter(i) => Some(PARAMETERS[i].default),
+        }
+    }
+}
+
+const INPUTS: [Variable; 2] = [
+    Variable {
+        name: "M_m",
+        unit: "N.m",
+        description: "Motor torque on body 1, added to the built-in motor law",
+        slot: Slot::Input(Input::MotorTorque),
+    },
+    Variable {
+        name: "M_r",
+        unit: "N.m",
+        description: "Load torque resisting body 4, added to the built-in load law",
+        slot: Slot::Input(Input::LoadTorque),
+    },
+];
+
+const fn output(
+    name: &'static str,
+    unit: &'static str,
+    description: &'static str,
+    which: Output,
+) -> Variable {
+    Variable {
+        name,
+        unit,
+        description,
+        slot: Slot::Output(which),
+    }
+}
+
+const OUTPUTS: [Variable; 11] = [
+    output(
+        "phi1",
+        "rad",
+        "Angle of body 1, the motor rotor",
+        Output::Angle(0),
+    ),
+    output(
+        "phi2",
+        "rad",
+        "Angle of body 2, the crank",
+        Output::Angle(1),
+    ),
+    output(
+        "phi3",
+        "rad",
+        "Angle of body 3, the rocker",
+        Output::Angle(2),
+    ),
+    output("phi4", "rad", "Angle of body 4, the load", Output::Angle(3)),
+    output("omega1", "rad/s", "Speed of body 1", Output::Speed(0)),
+    output("omega2", "rad/s", "Speed of body 2", Output::Speed(1)),
+    output("omega3", "rad/s", "Speed of body 3", Output::Speed(2)),
+    output("omega4", "rad/s", "Speed of body 4", Output::Speed(3)),
+    output(
+        "rod_force",
+        "N",
+        "Axial force in the rod A2A3, tension positive",
+        Output::RodForce,
+    ),
+    output(
+        "constraint_residual",
+        "m",
+        "Loop closure error |A2A3| - L",
+        Output::ConstraintResidual,
+    ),
+    output(
+        "energy",
+        "J",
+        "Kinetic energy plus spring energy (conserved without torques and dampers)",
+        Output::Energy,
+    ),
+];
+
+/// Number of variables (and one past the largest value reference).
+pub fn count() -> usize {
+    INPUTS.len() + OUTPUTS.len() + PARAMETERS.len()
+}
+
+/// The variable with value reference `vr`.
+pub fn variable(vr: u32) -> Option<Variable> {
+    let i = vr as usize;
+    let parameter = |p: usize| {
+        PARAMETERS.get(p).map(|info| Variable {
+            name: info.name,
+            unit: info.unit,
+            description: info.description,
+            slot: Slot::Parameter(p),
+        })
+    };
+    INPUTS
+        .get(i)
+        .or_else(|| OUTPUTS.get(i.wrapping_sub(INPUTS.len())))
+        .copied()
+        .or_else(|| parameter(i.checked_sub(INPUTS.len() + OUTPUTS.len())?))
+}
+
+/// All variables, with their value references, in value-reference order.
+pub fn variables() -> impl Iterator<Item = (u32, Variable)> {
+    (0..count() as u32).filter_map(|vr| Some((vr, variable(vr)?)))
+}
+
+/// The value reference of the variable called `name`.
+pub fn value_reference(name: &str) -> Option<u32> {
+    variables().find(|(_, v)| v.name == name).map(|(vr, _)| vr)
+}
+
+/// The units used by the variables, each with its SI base-unit exponents
+/// (kg, m, s, rad), for `<UnitDefinitions>`.
+pub const UNITS: &[(&str, [i32; 4])] = &[
+    ("rad", [0, 0, 0, 1]),
+    ("rad/s", [0, 0, -1, 1]),
+    ("N", [1, 1, -2, 0]),
+    ("N.m", [1, 2, -2, 0]),
+    ("J", [1, 2, -2, 0]),
+    ("m", [0, 1, 0, 0]),
+    ("kg.m2", [1, 2, 0, 0]),
+    ("N.m/rad", [1, 2, -2, -1]),
+    ("N.m.s/rad", [1, 2, -1, -1]),
+    ("N.m.s2/rad2", [1, 2, 0, -2]),
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashSet;
+
+    #[test]
+    fn names_are_unique_and_references_dense() {
+        let names: HashSet<_> = variables().map(|(_, v)| v.name).collect();
+        assert_eq!(names.len(), count());
+        assert_eq!(variables().count(), count());
+        assert!(variable(count() as u32).is_none());
+        assert!(variable(u32::MAX).is_none());
+    }
+
+    #[test]
+    fn issue_names_present_with_causality() {
+        for name in ["M_m", "M_r"] {
+            assert_eq!(
+                variable(value_reference(name).unwrap())
+                    .unwrap()
+                    .causality(),
+                Causality::Input
+            );
+        }
+        for name in [
+            "phi1",
+            "phi4",
+            "omega1",
+            "omega4",
+            "rod_force",
+            "constraint_residual",
+            "energy",
+        ] {
+            assert_eq!(
+                variable(value_reference(name).unwrap())
+                    .unwrap()
+                    .causality(),
+                Causality::Output
+            );
+        }
+        for name in [
+            "J1",
+            "k34",
+            "d12",
+            "c4",
+            "L",
+            "phi3_guess",
+            "omega4_0",
+            "Mm_a2",
+            "Mr_b1",
+        ] {
+            assert_eq!(
+                variable(value_reference(name).unwrap())
+                    .unwrap()
+                    .causality(),
+                Causality::Parameter
+            );
+        }
+    }
+
+    #[test]
+    fn every_unit_is_defined() {
+        let defined: HashSet<_> = UNITS.iter().map(|(u, _)| *u).collect();
+        for (_, v) in variables() {
+            assert!(
+                defined.contains(v.unit),
+                "{} has undefined unit {}",
+                v.name,
+                v.unit
+            );
+        }
+    }
+}

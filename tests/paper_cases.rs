@@ -1,0 +1,77 @@
+//! The simulation (without the FMI layer) against SPEC §4's published values.
+
+use cyclic_mechanism::model::{energy, Parameters};
+use cyclic_mechanism::simulation::Simulation;
+use cyclic_mechanism::variables::value_reference;
+
+fn set(sim: &mut Simulation, name: &str, value: f64) {
+    sim.set(value_reference(name).unwrap(), value, true)
+        .unwrap();
+}
+
+fn paper_case(k34: f64, tolerance: f64, step: f64) -> Simulation {
+    let mut sim = Simulation::new();
+    let laws = Parameters::default().with_paper_laws();
+    for (name, value) in [
+        ("Mm_a0", laws.Mm_a0),
+        ("Mm_a1", laws.Mm_a1),
+        ("Mm_a2", laws.Mm_a2),
+    ] {
+        set(&mut sim, name, value);
+    }
+    for (name, value) in [("Mr_b0", laws.Mr_b0), ("Mr_b1", laws.Mr_b1), ("k34", k34)] {
+        set(&mut sim, name, value);
+    }
+    sim.set_tolerance(tolerance).unwrap();
+    sim.initialize(0.0).unwrap();
+    let steps = (10.0 / step).round() as usize;
+    for k in 1..=steps {
+        sim.advance(k as f64 * step).unwrap();
+    }
+    sim
+}
+
+#[test]
+fn case_1_matches_spec_reference_at_ten_seconds() {
+    // SPEC §4: independent solution at tolerance 1e-12, 8 decimals.
+    let expected = [41.24994319, 41.25007318, 1.71429998, 1.60546713];
+    let sim = paper_case(100.0, 1e-10, 1e-2);
+    let y = sim.state();
+    for i in 0..4 {
+        assert!(
+            (y[i] - expected[i]).abs() < 1e-7,
+            "phi{}: {} vs {}",
+            i + 1,
+            y[i],
+            expected[i]
+        );
+    }
+    assert!((y[4] - 4.12779271).abs() < 1e-7, "omega1: {}", y[4]);
+    assert_eq!(sim.time(), 10.0);
+}
+
+#[test]
+fn communication_step_does_not_change_the_answer() {
+    let coarse = paper_case(40.0, 1e-10, 0.5);
+    let fine = paper_case(40.0, 1e-10, 1e-3);
+    for (a, b) in coarse.state().iter().zip(fine.state()) {
+        assert!((a - b).abs() < 1e-7, "{a} vs {b}");
+    }
+}
+
+#[test]
+fn free_run_conserves_energy() {
+    let mut sim = Simulation::new();
+    set(&mut sim, "omega2_0", 6.0);
+    set(&mut sim, "twist12_0", 0.2);
+    set(&mut sim, "twist34_0", -0.1);
+    sim.set_tolerance(1e-10).unwrap();
+    sim.initialize(0.0).unwrap();
+    let e0 = energy(sim.params(), sim.state());
+    let mut worst: f64 = 0.0;
+    for k in 1..=1000 {
+        sim.advance(k as f64 * 0.1).unwrap();
+        worst = worst.max((energy(sim.params(), sim.state()) - e0).abs() / e0);
+    }
+    assert!(worst < 1e-8, "relative energy drift {worst:e}");
+}
