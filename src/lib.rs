@@ -7,6 +7,7 @@
 //! - [`simulation`]: a model instance with its solver, independent of the FMI interface;
 //! - [`fmi2`]: the C ABI, the only `unsafe` code in the crate.
 
+pub mod fmi2;
 pub mod model;
 pub mod simulation;
 pub mod solver;

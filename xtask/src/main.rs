@@ -1,1 +1,210 @@
-fn main() {}
+//! Project tasks: `cargo xtask <fmu|demo|test>`.
+//!
+//! Each task installs what it needs on a fresh Debian machine: libclang for the FMI
+//! bindings (bindgen), and a Python venv in `target/venv` with the pinned packages of
+//! `tests/python/requirements.txt`. This crate deliberately does not depend on the FMU
+//! crate: building that needs libclang, which this program installs first.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+type Result<T = ()> = std::result::Result<T, String>;
+
+const MODEL_IDENTIFIER: &str = "CyclicMechanism";
+
+fn main() {
+    let task = std::env::args().nth(1).unwrap_or_default();
+    let result = match task.as_str() {
+        "fmu" => build_fmu().map(|fmu| println!("FMU: {}", fmu.display())),
+        "demo" => demo(),
+        "test" => test(),
+        _ => Err("usage: cargo xtask <fmu|demo|test>\n  fmu   build and pack target/fmu/CyclicMechanism.fmu\n  \
+                  demo  run the paper's two cases through FMPy: CSV, plots and an animation in target/demo\n  \
+                  test  run every test: cargo test, then the FMPy tests in tests/python"
+            .to_string()),
+    };
+    if let Err(message) = result {
+        eprintln!("xtask {task}: {message}");
+        std::process::exit(1);
+    }
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("xtask lives in the workspace")
+        .to_path_buf()
+}
+
+fn run(command: &mut Command) -> Result {
+    let shown = format!("{command:?}");
+    let status = command
+        .status()
+        .map_err(|e| format!("cannot start {shown}: {e}"))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("{shown} failed ({status})"))
+    }
+}
+
+fn cargo() -> Command {
+    let mut command = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    command.current_dir(root());
+    command
+}
+
+/// libclang (for bindgen in fmi-sys): install Debian's libclang-dev when it is missing.
+fn ensure_libclang() -> Result {
+    let found = [
+        "/usr/lib",
+        "/usr/lib/x86_64-linux-gnu",
+        "/usr/lib/aarch64-linux-gnu",
+    ]
+    .iter()
+    .filter_map(|dir| fs::read_dir(dir).ok())
+    .flat_map(|entries| entries.flatten())
+    .any(|entry| {
+        let path = entry.path();
+        let name = entry.file_name().to_string_lossy().into_owned();
+        name.starts_with("libclang") && name.contains(".so")
+            || name.starts_with("llvm-")
+                && fs::read_dir(path.join("lib")).is_ok_and(|mut libs| {
+                    libs.any(|l| {
+                        l.is_ok_and(|l| l.file_name().to_string_lossy().starts_with("libclang.so"))
+                    })
+                })
+    });
+    if found || std::env::var_os("LIBCLANG_PATH").is_some() {
+        return Ok(());
+    }
+    println!("xtask: installing libclang-dev (needed by bindgen for the FMI headers)");
+    apt_install(&["libclang-dev"])
+}
+
+fn apt_install(packages: &[&str]) -> Result {
+    run(Command::new("apt-get").args(["update", "-qq"]))?;
+    run(Command::new("apt-get")
+        .args(["install", "-y", "-qq"])
+        .args(packages)
+        .env("DEBIAN_FRONTEND", "noninteractive"))
+}
+
+/// The Python venv with the pinned test and demo packages; reinstalled when the pins change.
+fn ensure_venv() -> Result<PathBuf> {
+    let root = root();
+    let venv = root.join("target/venv");
+    let python = venv.join("bin/python");
+    let requirements = root.join("tests/python/requirements.txt");
+    let wanted = fs::read_to_string(&requirements)
+        .map_err(|e| format!("{}: {e}", requirements.display()))?;
+    let stamp = venv.join("requirements.installed");
+    if python.exists() && fs::read_to_string(&stamp).is_ok_and(|installed| installed == wanted) {
+        return Ok(python);
+    }
+    println!("xtask: creating the Python venv in {}", venv.display());
+    if run(Command::new("python3")
+        .args(["-m", "venv", "--clear"])
+        .arg(&venv))
+    .is_err()
+    {
+        apt_install(&["python3-venv"])?;
+        run(Command::new("python3")
+            .args(["-m", "venv", "--clear"])
+            .arg(&venv))?;
+    }
+    run(Command::new(&python)
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+            "-r",
+        ])
+        .arg(&requirements))?;
+    fs::write(&stamp, wanted).map_err(|e| e.to_string())?;
+    Ok(python)
+}
+
+/// Build the library in release, generate the model description and documentation from
+/// the variable table, and pack `target/fmu/CyclicMechanism.fmu`.
+fn build_fmu() -> Result<PathBuf> {
+    ensure_libclang()?;
+    let root = root();
+    run(cargo().args([
+        "build",
+        "--release",
+        "--quiet",
+        "--package",
+        "cyclic-mechanism",
+        "--lib",
+    ]))?;
+    let assets = root.join("target/fmu/assets");
+    run(cargo()
+        .args([
+            "run",
+            "--release",
+            "--quiet",
+            "--package",
+            "cyclic-mechanism",
+            "--bin",
+            "fmu-assets",
+            "--",
+        ])
+        .arg(&assets))?;
+    let fmu = root.join(format!("target/fmu/{MODEL_IDENTIFIER}.fmu"));
+    let library = root.join("target/release/libcyclic_mechanism.so");
+    let files = [
+        (
+            "modelDescription.xml".to_string(),
+            assets.join("modelDescription.xml"),
+        ),
+        (format!("binaries/linux64/{MODEL_IDENTIFIER}.so"), library),
+        (
+            "documentation/index.html".to_string(),
+            assets.join("index.html"),
+        ),
+    ];
+    pack(&fmu, &files)?;
+    Ok(fmu)
+}
+
+fn pack(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
+    let file = fs::File::create(fmu).map_err(|e| format!("{}: {e}", fmu.display()))?;
+    let mut zip = zip::ZipWriter::new(file);
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated);
+    for (name, source) in files {
+        let bytes = fs::read(source).map_err(|e| format!("{}: {e}", source.display()))?;
+        zip.start_file(name.as_str(), options)
+            .map_err(|e| e.to_string())?;
+        zip.write_all(&bytes).map_err(|e| e.to_string())?;
+    }
+    zip.finish().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+fn demo() -> Result {
+    let fmu = build_fmu()?;
+    let python = ensure_venv()?;
+    let out = root().join("target/demo");
+    run(Command::new(python)
+        .arg(root().join("examples/demo.py"))
+        .arg(&fmu)
+        .arg(&out))
+}
+
+fn test() -> Result {
+    ensure_libclang()?;
+    run(cargo().args(["test", "--workspace", "--release"]))?;
+    let fmu = build_fmu()?;
+    let python = ensure_venv()?;
+    run(Command::new(python)
+        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
+        .arg(root().join("tests/python"))
+        .env("CYCLIC_MECHANISM_FMU", fmu)
+        .current_dir(root()))
+}

@@ -1,0 +1,12 @@
+//! Restrict the shared library's exported symbols to the FMI functions.
+fn main() {
+    let os = std::env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
+    if os == "linux" {
+        let map = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/fmi2/exports.map");
+        println!(
+            "cargo:rustc-cdylib-link-arg=-Wl,--version-script={}",
+            map.display()
+        );
+        println!("cargo:rerun-if-changed=src/fmi2/exports.map");
+    }
+}

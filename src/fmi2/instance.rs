@@ -1,0 +1,334 @@
+//! One FMU instance: the simulation, the FMI state, the master's callbacks and the
+//! logging settings. Everything here is safe Rust on slices; `mod.rs` turns C pointers
+//! into these calls.
+
+use std::ffi::CString;
+
+use fmi_sys::fmi2::{
+    fmi2CallbackLogger, fmi2ComponentEnvironment, fmi2Status, fmi2Status_fmi2Discard,
+    fmi2Status_fmi2Error, fmi2Status_fmi2Fatal, fmi2Status_fmi2OK, fmi2Status_fmi2Warning,
+};
+
+use super::model_description::{DEFAULT_EXPERIMENT, LOG_CATEGORIES};
+use super::state_machine::State;
+use crate::simulation::{AccessError, Simulation};
+
+/// Log categories, by their position in [`LOG_CATEGORIES`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Category {
+    Warning = 0,
+    Discard = 1,
+    Error = 2,
+    Fatal = 3,
+    Calls = 4,
+    Solver = 5,
+}
+
+/// Why a call failed: the status to return and the message to log.
+#[derive(Debug)]
+pub struct Failure {
+    pub status: fmi2Status,
+    pub message: String,
+}
+
+impl Failure {
+    pub fn error(message: impl Into<String>) -> Self {
+        Self {
+            status: fmi2Status_fmi2Error,
+            message: message.into(),
+        }
+    }
+
+    pub fn discard(message: impl Into<String>) -> Self {
+        Self {
+            status: fmi2Status_fmi2Discard,
+            message: message.into(),
+        }
+    }
+}
+
+impl From<AccessError> for Failure {
+    fn from(error: AccessError) -> Self {
+        Failure::error(error.to_string())
+    }
+}
+
+pub type Outcome = Result<(), Failure>;
+
+/// Relative mismatch accepted between the master's communication point and the FMU's time.
+const TIME_MATCH: f64 = 1e-12;
+
+pub struct Instance {
+    name: CString,
+    logger: fmi2CallbackLogger,
+    environment: fmi2ComponentEnvironment,
+    /// fmi2SetDebugLogging's switch, and the debug categories it enabled.
+    debug_logging: bool,
+    enabled: [bool; LOG_CATEGORIES.len()],
+    pub state: State,
+    pub sim: Simulation,
+    start_time: f64,
+    stop_time: Option<f64>,
+    /// Whether `sim` holds the assembly for the current parameters (initialization mode).
+    assembled: bool,
+}
+
+impl Instance {
+    pub fn new(
+        name: CString,
+        logger: fmi2CallbackLogger,
+        environment: fmi2ComponentEnvironment,
+        debug_logging: bool,
+    ) -> Self {
+        Self {
+            name,
+            logger,
+            environment,
+            debug_logging,
+            enabled: [true; LOG_CATEGORIES.len()],
+            state: State::Instantiated,
+            sim: Simulation::new(),
+            start_time: DEFAULT_EXPERIMENT.0,
+            stop_time: None,
+            assembled: false,
+        }
+    }
+
+    /// Errors, discards, warnings and fatal errors are always reported; the debug
+    /// categories (calls, solver) only while debug logging is on for them.
+    pub fn log_enabled(&self, category: Category) -> bool {
+        match category {
+            Category::Calls | Category::Solver => {
+                self.debug_logging && self.enabled[category as usize]
+            }
+            _ => true,
+        }
+    }
+
+    /// Send a message to the master's logger, if it gave one.
+    pub fn log(&self, status: fmi2Status, category: Category, message: &str) {
+        if let Some(logger) = self.logger {
+            let category = LOG_CATEGORIES[category as usize].0;
+            send_log(
+                logger,
+                self.environment,
+                &self.name,
+                status,
+                category,
+                message,
+            );
+        }
+    }
+
+    pub fn report(&self, failure: &Failure, function: &str) {
+        let category = match failure.status {
+            s if s == fmi2Status_fmi2Discard => Category::Discard,
+            s if s == fmi2Status_fmi2Warning => Category::Warning,
+            s if s == fmi2Status_fmi2Fatal => Category::Fatal,
+            _ => Category::Error,
+        };
+        self.log(
+            failure.status,
+            category,
+            &format!("{function}: {}", failure.message),
+        );
+    }
+
+    /// FMI 2.0 semantics: no categories switches debug logging on or off altogether;
+    /// with categories and `on`, exactly those are enabled; with `!on`, those are disabled.
+    pub fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> Outcome {
+        let mut listed = [false; LOG_CATEGORIES.len()];
+        for name in categories {
+            let index = LOG_CATEGORIES
+                .iter()
+                .position(|(c, _)| c == name)
+                .ok_or_else(|| {
+                    let known: Vec<_> = LOG_CATEGORIES.iter().map(|(c, _)| *c).collect();
+                    Failure::error(format!(
+                        "unknown log category \"{name}\"; known: {}",
+                        known.join(", ")
+                    ))
+                })?;
+            listed[index] = true;
+        }
+        if categories.is_empty() {
+            self.enabled = [true; LOG_CATEGORIES.len()];
+            self.debug_logging = on;
+        } else if on {
+            self.enabled = listed;
+            self.debug_logging = true;
+        } else {
+            for (enabled, off) in self.enabled.iter_mut().zip(listed) {
+                *enabled &= !off;
+            }
+        }
+        Ok(())
+    }
+
+    pub fn setup_experiment(
+        &mut self,
+        tolerance: Option<f64>,
+        start: f64,
+        stop: Option<f64>,
+    ) -> Outcome {
+        if !start.is_finite() {
+            return Err(Failure::error(format!(
+                "startTime = {start} must be finite"
+            )));
+        }
+        if let Some(stop) = stop {
+            if !(stop.is_finite() && stop >= start) {
+                return Err(Failure::error(format!(
+                    "stopTime = {stop} must be finite and >= startTime = {start}"
+                )));
+            }
+        }
+        if let Some(tolerance) = tolerance {
+            self.sim
+                .set_tolerance(tolerance)
+                .map_err(|e| Failure::error(e.to_string()))?;
+        }
+        self.start_time = start;
+        self.stop_time = stop;
+        Ok(())
+    }
+
+    pub fn enter_initialization_mode(&mut self) -> Outcome {
+        self.state = State::InitializationMode;
+        self.assembled = false;
+        Ok(())
+    }
+
+    pub fn exit_initialization_mode(&mut self) -> Outcome {
+        self.sim
+            .initialize(self.start_time)
+            .map_err(|e| Failure::error(format!("initialisation failed: {e}")))?;
+        self.state = State::StepComplete;
+        Ok(())
+    }
+
+    pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
+        if self.state == State::InitializationMode && !self.assembled {
+            // Outputs in initialization mode reflect the parameters set so far.
+            self.sim
+                .initialize(self.start_time)
+                .map_err(|e| Failure::error(format!("initialisation failed: {e}")))?;
+            self.assembled = true;
+        }
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            *value = self.sim.get(*vr)?;
+        }
+        Ok(())
+    }
+
+    /// Validate every value first, then apply: a rejected batch changes nothing.
+    pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> Outcome {
+        let writable = self.state.parameters_writable();
+        for (vr, value) in vrs.iter().zip(values) {
+            self.sim.check_set(*vr, *value, writable)?;
+        }
+        for (vr, value) in vrs.iter().zip(values) {
+            self.sim.set(*vr, *value, writable)?;
+        }
+        self.assembled = false;
+        Ok(())
+    }
+
+    pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
+        let now = self.sim.time();
+        if !(step.is_finite() && step > 0.0) {
+            return Err(Failure::error(format!(
+                "communicationStepSize = {step} must be finite and > 0"
+            )));
+        }
+        if !current.is_finite() || (current - now).abs() > TIME_MATCH * now.abs().max(step) {
+            return Err(Failure::error(format!(
+                "currentCommunicationPoint = {current} does not match the FMU's time {now}"
+            )));
+        }
+        let target = current + step;
+        if let Some(stop) = self.stop_time {
+            if target > stop + TIME_MATCH * stop.abs().max(step) {
+                return Err(Failure::error(format!(
+                    "a step to t = {target} would pass stopTime = {stop}"
+                )));
+            }
+        }
+        if let Err(error) = self.sim.advance(target) {
+            self.state = State::StepFailed;
+            let y = self.sim.state();
+            return Err(Failure::discard(format!(
+                "step from t = {now} to {target} failed: {error}; state kept at t = {now} \
+                 (phi2 = {}, phi3 = {}, omega2 = {}, omega3 = {})",
+                y[1], y[2], y[5], y[6]
+            )));
+        }
+        if self.log_enabled(Category::Solver) {
+            let s = self.sim.statistics();
+            let message = format!(
+                "t = {target}: {} steps, {} rejected, {} right-hand sides so far",
+                s.n_steps, s.n_rejected, s.n_rhs
+            );
+            self.log(fmi2Status_fmi2OK, Category::Solver, &message);
+        }
+        Ok(())
+    }
+
+    pub fn terminate(&mut self) -> Outcome {
+        self.state = State::Terminated;
+        Ok(())
+    }
+
+    /// Back to the state just after fmi2Instantiate, every variable at its start value.
+    pub fn reset(&mut self) -> Outcome {
+        self.sim = Simulation::new();
+        self.state = State::Instantiated;
+        self.start_time = DEFAULT_EXPERIMENT.0;
+        self.stop_time = None;
+        self.assembled = false;
+        Ok(())
+    }
+
+    pub fn last_successful_time(&self) -> f64 {
+        self.sim.time()
+    }
+}
+
+/// Call the master's logger. The message is passed as the format string with `%` and
+/// `#` escaped (FMI 2.0 gives both a meaning there), so masters that format it and
+/// masters that print it as it is both show it readably.
+pub fn send_log(
+    logger: unsafe extern "C" fn(
+        fmi2ComponentEnvironment,
+        *const std::ffi::c_char,
+        fmi2Status,
+        *const std::ffi::c_char,
+        *const std::ffi::c_char,
+        ...
+    ),
+    environment: fmi2ComponentEnvironment,
+    name: &CString,
+    status: fmi2Status,
+    category: &str,
+    message: &str,
+) {
+    let escaped = message
+        .replace('%', "%%")
+        .replace('#', "##")
+        .replace('\0', " ");
+    let (Ok(category), Ok(text)) = (CString::new(category), CString::new(escaped)) else {
+        return;
+    };
+    // SAFETY: the master supplied `logger` for this purpose; every pointer passed is a
+    // valid NUL-terminated string that outlives the call, and no variadic arguments are
+    // read because the escaped message contains no conversion specification.
+    unsafe {
+        logger(
+            environment,
+            name.as_ptr(),
+            status,
+            category.as_ptr(),
+            text.as_ptr(),
+        )
+    };
+}

@@ -1,0 +1,708 @@
+//! The FMI 2.0 Co-Simulation C ABI: every function of `fmi2Functions.h`, with the
+//! official types of `fmi-sys`. This module holds the crate's only `unsafe` code: it turns
+//! C pointers into safe calls on [`Instance`], enforces the state machine through
+//! [`guarded`], and catches every panic so that none crosses the C boundary (a panic makes
+//! the call return fmi2Fatal with a log message).
+
+// The exported functions keep the argument names of fmi2Functions.h.
+#![allow(non_snake_case)]
+
+pub mod instance;
+pub mod model_description;
+pub mod state_machine;
+
+use std::ffi::{c_char, CStr, CString};
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::ptr::null_mut;
+
+use fmi_sys::fmi2::*;
+
+use instance::{send_log, Category, Failure, Instance, Outcome};
+use model_description::guid;
+use state_machine::{Call, State};
+
+/// Run `body` on the instance behind `c` if the state machine allows `call` now; log and
+/// map its failure to a status; turn a panic into fmi2Fatal.
+fn guarded(
+    c: fmi2Component,
+    call: Call,
+    function: &str,
+    body: impl FnOnce(&mut Instance) -> Outcome,
+) -> fmi2Status {
+    // SAFETY: a non-null component is a pointer returned by fmi2Instantiate and not yet
+    // freed (the master's obligation); instances are never shared between threads by FMI.
+    let Some(instance) = (unsafe { c.cast::<Instance>().as_mut() }) else {
+        return fmi2Status_fmi2Error;
+    };
+    if instance.log_enabled(Category::Calls) {
+        instance.log(fmi2Status_fmi2OK, Category::Calls, function);
+    }
+    if !call.allowed_in(instance.state) {
+        let failure = Failure::error(format!(
+            "not allowed in state {}",
+            instance.state.describe()
+        ));
+        instance.report(&failure, function);
+        return failure.status;
+    }
+    match catch_unwind(AssertUnwindSafe(|| body(instance))) {
+        Ok(Ok(())) => fmi2Status_fmi2OK,
+        Ok(Err(failure)) => {
+            instance.report(&failure, function);
+            failure.status
+        }
+        Err(panic) => {
+            instance.state = State::Fatal;
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            let failure = Failure {
+                status: fmi2Status_fmi2Fatal,
+                message: format!("internal error: {what}"),
+            };
+            instance.report(&failure, function);
+            fmi2Status_fmi2Fatal
+        }
+    }
+}
+
+/// Refuse a call that this FMU does not offer, naming the reason.
+fn refuse(c: fmi2Component, function: &str, reason: &str) -> fmi2Status {
+    guarded(c, Call::Capability, function, |_| {
+        Err(Failure::error(reason.to_string()))
+    })
+}
+
+/// A C array as a slice; `None` for a null pointer with a non-zero length.
+///
+/// # Safety
+/// A non-null `ptr` must point to `n` valid elements that outlive the slice.
+unsafe fn slice<'a, T>(ptr: *const T, n: usize) -> Option<&'a [T]> {
+    match (n, ptr.is_null()) {
+        (0, _) => Some(&[]),
+        (_, true) => None,
+        // SAFETY: guaranteed by the caller.
+        _ => Some(unsafe { std::slice::from_raw_parts(ptr, n) }),
+    }
+}
+
+/// A mutable C array as a slice; `None` for a null pointer with a non-zero length.
+///
+/// # Safety
+/// A non-null `ptr` must point to `n` writable elements that outlive the slice.
+unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize) -> Option<&'a mut [T]> {
+    match (n, ptr.is_null()) {
+        (0, _) => Some(&mut []),
+        (_, true) => None,
+        // SAFETY: guaranteed by the caller.
+        _ => Some(unsafe { std::slice::from_raw_parts_mut(ptr, n) }),
+    }
+}
+
+fn null_argument(name: &str, n: usize) -> Failure {
+    Failure::error(format!("{name} is NULL with {n} elements requested"))
+}
+
+fn unknown_references(kind: &str, vrs: &[fmi2ValueReference]) -> Outcome {
+    match vrs.first() {
+        None => Ok(()),
+        Some(vr) => Err(Failure::error(format!(
+            "no {kind} variable has value reference {vr} (all variables are Real)"
+        ))),
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Common functions
+
+#[no_mangle]
+pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
+    fmi2TypesPlatform.as_ptr().cast()
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2GetVersion() -> *const c_char {
+    fmi2Version.as_ptr().cast()
+}
+
+/// # Safety
+/// `categories` must hold `nCategories` valid C strings (FMI 2.0 contract).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetDebugLogging(
+    c: fmi2Component,
+    loggingOn: fmi2Boolean,
+    nCategories: usize,
+    categories: *const fmi2String,
+) -> fmi2Status {
+    guarded(
+        c,
+        Call::SetDebugLogging,
+        "fmi2SetDebugLogging",
+        |instance| {
+            // SAFETY: FMI contract on `categories`.
+            let pointers = unsafe { slice(categories, nCategories) }
+                .ok_or_else(|| null_argument("categories", nCategories))?;
+            let mut names = Vec::with_capacity(pointers.len());
+            for &pointer in pointers {
+                if pointer.is_null() {
+                    return Err(Failure::error("a category name is NULL"));
+                }
+                // SAFETY: non-null, NUL-terminated by the FMI contract.
+                let name = unsafe { CStr::from_ptr(pointer) }
+                    .to_str()
+                    .map_err(|_| Failure::error("a category name is not UTF-8"))?;
+                names.push(name);
+            }
+            instance.set_debug_logging(loggingOn != 0, &names)
+        },
+    )
+}
+
+/// # Safety
+/// String arguments must be NULL or valid C strings; `functions` NULL or valid.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2Instantiate(
+    instanceName: fmi2String,
+    fmuType: fmi2Type,
+    fmuGUID: fmi2String,
+    _fmuResourceLocation: fmi2String,
+    functions: *const fmi2CallbackFunctions,
+    _visible: fmi2Boolean,
+    loggingOn: fmi2Boolean,
+) -> fmi2Component {
+    // SAFETY: FMI contract on the arguments, checked for NULL inside.
+    catch_unwind(|| unsafe {
+        instantiate(instanceName, fmuType, fmuGUID, functions, loggingOn != 0)
+    })
+    .unwrap_or(null_mut())
+}
+
+/// # Safety
+/// As [`fmi2Instantiate`].
+unsafe fn instantiate(
+    instance_name: fmi2String,
+    fmu_type: fmi2Type,
+    fmu_guid: fmi2String,
+    functions: *const fmi2CallbackFunctions,
+    logging_on: bool,
+) -> fmi2Component {
+    // SAFETY: NULL or valid, by the FMI contract.
+    let functions = unsafe { functions.as_ref() };
+    let logger = functions.and_then(|f| f.logger);
+    let environment = functions.map_or(null_mut(), |f| f.componentEnvironment);
+    let name = if instance_name.is_null() {
+        CString::default()
+    } else {
+        // SAFETY: non-null C string by the FMI contract.
+        unsafe { CStr::from_ptr(instance_name) }.to_owned()
+    };
+    let fail = |message: String| {
+        if let Some(logger) = logger {
+            send_log(
+                logger,
+                environment,
+                &name,
+                fmi2Status_fmi2Error,
+                "logStatusError",
+                &format!("fmi2Instantiate: {message}"),
+            );
+        }
+        null_mut()
+    };
+    if functions.is_none() {
+        return fail("functions is NULL".into());
+    }
+    if name.is_empty() {
+        return fail("instanceName must be a non-empty string".into());
+    }
+    if fmu_type != fmi2Type_fmi2CoSimulation {
+        return fail(format!(
+            "fmuType = {fmu_type}: this FMU implements only fmi2CoSimulation (1)"
+        ));
+    }
+    let expected = guid();
+    // SAFETY: non-null C string by the FMI contract.
+    let given = (!fmu_guid.is_null()).then(|| {
+        unsafe { CStr::from_ptr(fmu_guid) }
+            .to_string_lossy()
+            .into_owned()
+    });
+    if given.as_deref() != Some(expected.as_str()) {
+        return fail(format!(
+            "fmuGUID {} does not match this binary's {expected}: modelDescription.xml and binary are from different builds",
+            given.as_deref().unwrap_or("NULL")
+        ));
+    }
+    Box::into_raw(Box::new(Instance::new(
+        name,
+        logger,
+        environment,
+        logging_on,
+    )))
+    .cast()
+}
+
+/// # Safety
+/// `c` must be NULL or a pointer from fmi2Instantiate, not used afterwards.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
+    if !c.is_null() {
+        // SAFETY: created by Box::into_raw in fmi2Instantiate; the master frees it once.
+        let _ = catch_unwind(|| drop(unsafe { Box::from_raw(c.cast::<Instance>()) }));
+    }
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2SetupExperiment(
+    c: fmi2Component,
+    toleranceDefined: fmi2Boolean,
+    tolerance: fmi2Real,
+    startTime: fmi2Real,
+    stopTimeDefined: fmi2Boolean,
+    stopTime: fmi2Real,
+) -> fmi2Status {
+    guarded(
+        c,
+        Call::SetupExperiment,
+        "fmi2SetupExperiment",
+        |instance| {
+            let tolerance = (toleranceDefined != 0).then_some(tolerance);
+            let stop = (stopTimeDefined != 0).then_some(stopTime);
+            instance.setup_experiment(tolerance, startTime, stop)
+        },
+    )
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
+    guarded(
+        c,
+        Call::EnterInitializationMode,
+        "fmi2EnterInitializationMode",
+        Instance::enter_initialization_mode,
+    )
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
+    guarded(
+        c,
+        Call::ExitInitializationMode,
+        "fmi2ExitInitializationMode",
+        Instance::exit_initialization_mode,
+    )
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
+    guarded(c, Call::Terminate, "fmi2Terminate", Instance::terminate)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
+    guarded(c, Call::Reset, "fmi2Reset", Instance::reset)
+}
+
+// ---------------------------------------------------------------------------------------
+// Getting and setting values
+
+/// # Safety
+/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetReal(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Real,
+) -> fmi2Status {
+    guarded(c, Call::Get, "fmi2GetReal", |instance| {
+        // SAFETY: FMI contract on the arrays.
+        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+        // SAFETY: FMI contract on the arrays.
+        let values = unsafe { slice_mut(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
+        instance.get_real(vrs, values)
+    })
+}
+
+/// # Safety
+/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetReal(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Real,
+) -> fmi2Status {
+    guarded(c, Call::Set, "fmi2SetReal", |instance| {
+        // SAFETY: FMI contract on the arrays.
+        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+        // SAFETY: FMI contract on the arrays.
+        let values = unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
+        instance.set_real(vrs, values)
+    })
+}
+
+/// Integer, Boolean and String accessors: this FMU has only Real variables, so any value
+/// reference is unknown; an empty request succeeds.
+macro_rules! no_variables_of_type {
+    ($name:ident, $call:expr, $kind:literal, $ptr:ty) => {
+        /// # Safety
+        /// `vr` must hold `nvr` elements (FMI 2.0 contract).
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi2Component,
+            vr: *const fmi2ValueReference,
+            nvr: usize,
+            _value: $ptr,
+        ) -> fmi2Status {
+            guarded(c, $call, stringify!($name), |_| {
+                // SAFETY: FMI contract on the array.
+                let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+                unknown_references($kind, vrs)
+            })
+        }
+    };
+}
+
+no_variables_of_type!(fmi2GetInteger, Call::Get, "Integer", *mut fmi2Integer);
+no_variables_of_type!(fmi2GetBoolean, Call::Get, "Boolean", *mut fmi2Boolean);
+no_variables_of_type!(fmi2GetString, Call::Get, "String", *mut fmi2String);
+no_variables_of_type!(fmi2SetInteger, Call::Set, "Integer", *const fmi2Integer);
+no_variables_of_type!(fmi2SetBoolean, Call::Set, "Boolean", *const fmi2Boolean);
+no_variables_of_type!(fmi2SetString, Call::Set, "String", *const fmi2String);
+
+// ---------------------------------------------------------------------------------------
+// Optional capabilities, not declared in modelDescription.xml: refused with a reason.
+
+const NO_FMU_STATE: &str = "canGetAndSetFMUstate and canSerializeFMUstate are false for this FMU";
+
+#[no_mangle]
+pub extern "C" fn fmi2GetFMUstate(c: fmi2Component, _state: *mut fmi2FMUstate) -> fmi2Status {
+    refuse(c, "fmi2GetFMUstate", NO_FMU_STATE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2SetFMUstate(c: fmi2Component, _state: fmi2FMUstate) -> fmi2Status {
+    refuse(c, "fmi2SetFMUstate", NO_FMU_STATE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2FreeFMUstate(c: fmi2Component, _state: *mut fmi2FMUstate) -> fmi2Status {
+    refuse(c, "fmi2FreeFMUstate", NO_FMU_STATE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2SerializedFMUstateSize(
+    c: fmi2Component,
+    _state: fmi2FMUstate,
+    _size: *mut usize,
+) -> fmi2Status {
+    refuse(c, "fmi2SerializedFMUstateSize", NO_FMU_STATE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2SerializeFMUstate(
+    c: fmi2Component,
+    _state: fmi2FMUstate,
+    _bytes: *mut fmi2Byte,
+    _size: usize,
+) -> fmi2Status {
+    refuse(c, "fmi2SerializeFMUstate", NO_FMU_STATE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2DeSerializeFMUstate(
+    c: fmi2Component,
+    _bytes: *const fmi2Byte,
+    _size: usize,
+    _state: *mut fmi2FMUstate,
+) -> fmi2Status {
+    refuse(c, "fmi2DeSerializeFMUstate", NO_FMU_STATE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2GetDirectionalDerivative(
+    c: fmi2Component,
+    _unknowns: *const fmi2ValueReference,
+    _n_unknowns: usize,
+    _knowns: *const fmi2ValueReference,
+    _n_knowns: usize,
+    _seed: *const fmi2Real,
+    _sensitivity: *mut fmi2Real,
+) -> fmi2Status {
+    refuse(
+        c,
+        "fmi2GetDirectionalDerivative",
+        "providesDirectionalDerivative is false for this FMU",
+    )
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2SetRealInputDerivatives(
+    c: fmi2Component,
+    _vr: *const fmi2ValueReference,
+    _nvr: usize,
+    _order: *const fmi2Integer,
+    _value: *const fmi2Real,
+) -> fmi2Status {
+    refuse(
+        c,
+        "fmi2SetRealInputDerivatives",
+        "canInterpolateInputs is false for this FMU",
+    )
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2GetRealOutputDerivatives(
+    c: fmi2Component,
+    _vr: *const fmi2ValueReference,
+    _nvr: usize,
+    _order: *const fmi2Integer,
+    _value: *mut fmi2Real,
+) -> fmi2Status {
+    refuse(
+        c,
+        "fmi2GetRealOutputDerivatives",
+        "maxOutputDerivativeOrder is 0 for this FMU",
+    )
+}
+
+// ---------------------------------------------------------------------------------------
+// Co-simulation stepping and status
+
+#[no_mangle]
+pub extern "C" fn fmi2DoStep(
+    c: fmi2Component,
+    currentCommunicationPoint: fmi2Real,
+    communicationStepSize: fmi2Real,
+    _noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
+) -> fmi2Status {
+    guarded(c, Call::DoStep, "fmi2DoStep", |instance| {
+        instance.do_step(currentCommunicationPoint, communicationStepSize)
+    })
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
+    guarded(c, Call::CancelStep, "fmi2CancelStep", |_| Ok(()))
+}
+
+/// # Safety
+/// `value` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    _value: *mut fmi2Status,
+) -> fmi2Status {
+    guarded(c, Call::GetStatus, "fmi2GetStatus", |_| {
+        Err(Failure::error(format!(
+            "status kind {s}: this FMU never returns fmi2Pending, so no asynchronous step status exists"
+        )))
+    })
+}
+
+/// # Safety
+/// `value` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetRealStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Real,
+) -> fmi2Status {
+    guarded(c, Call::GetStatus, "fmi2GetRealStatus", |instance| {
+        if s != fmi2StatusKind_fmi2LastSuccessfulTime {
+            return Err(Failure::error(format!(
+                "status kind {s} has no Real value; use fmi2LastSuccessfulTime (2)"
+            )));
+        }
+        // SAFETY: NULL or writable by the FMI contract.
+        let value = unsafe { value.as_mut() }.ok_or_else(|| null_argument("value", 1))?;
+        *value = instance.last_successful_time();
+        Ok(())
+    })
+}
+
+/// # Safety
+/// `value` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetIntegerStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    _value: *mut fmi2Integer,
+) -> fmi2Status {
+    guarded(c, Call::GetStatus, "fmi2GetIntegerStatus", |_| {
+        Err(Failure::error(format!(
+            "status kind {s} has no Integer value"
+        )))
+    })
+}
+
+/// # Safety
+/// `value` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetBooleanStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
+    guarded(c, Call::GetStatus, "fmi2GetBooleanStatus", |_| {
+        if s != fmi2StatusKind_fmi2Terminated {
+            return Err(Failure::error(format!(
+                "status kind {s} has no Boolean value; use fmi2Terminated (3)"
+            )));
+        }
+        // SAFETY: NULL or writable by the FMI contract.
+        let value = unsafe { value.as_mut() }.ok_or_else(|| null_argument("value", 1))?;
+        // The FMU never asks the master to end the simulation.
+        *value = fmi2False as fmi2Boolean;
+        Ok(())
+    })
+}
+
+/// # Safety
+/// `value` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetStringStatus(
+    c: fmi2Component,
+    s: fmi2StatusKind,
+    _value: *mut fmi2String,
+) -> fmi2Status {
+    guarded(c, Call::GetStatus, "fmi2GetStringStatus", |_| {
+        Err(Failure::error(format!(
+            "status kind {s}: this FMU never returns fmi2Pending, so there is no pending status"
+        )))
+    })
+}
+
+// ---------------------------------------------------------------------------------------
+// Model Exchange functions: exported because fmi2Functions.h declares them; this is a
+// co-simulation FMU, so each is refused with a message.
+
+const NOT_MODEL_EXCHANGE: &str =
+    "this FMU implements only Co-Simulation; this is a Model Exchange function";
+
+#[no_mangle]
+pub extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
+    refuse(c, "fmi2EnterEventMode", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2NewDiscreteStates(c: fmi2Component, _info: *mut fmi2EventInfo) -> fmi2Status {
+    refuse(c, "fmi2NewDiscreteStates", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
+    refuse(c, "fmi2EnterContinuousTimeMode", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2CompletedIntegratorStep(
+    c: fmi2Component,
+    _no_set_prior: fmi2Boolean,
+    _enter_event_mode: *mut fmi2Boolean,
+    _terminate: *mut fmi2Boolean,
+) -> fmi2Status {
+    refuse(c, "fmi2CompletedIntegratorStep", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2SetTime(c: fmi2Component, _time: fmi2Real) -> fmi2Status {
+    refuse(c, "fmi2SetTime", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2SetContinuousStates(
+    c: fmi2Component,
+    _x: *const fmi2Real,
+    _nx: usize,
+) -> fmi2Status {
+    refuse(c, "fmi2SetContinuousStates", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2GetDerivatives(
+    c: fmi2Component,
+    _dx: *mut fmi2Real,
+    _nx: usize,
+) -> fmi2Status {
+    refuse(c, "fmi2GetDerivatives", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2GetEventIndicators(
+    c: fmi2Component,
+    _z: *mut fmi2Real,
+    _ni: usize,
+) -> fmi2Status {
+    refuse(c, "fmi2GetEventIndicators", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2GetContinuousStates(
+    c: fmi2Component,
+    _x: *mut fmi2Real,
+    _nx: usize,
+) -> fmi2Status {
+    refuse(c, "fmi2GetContinuousStates", NOT_MODEL_EXCHANGE)
+}
+
+#[no_mangle]
+pub extern "C" fn fmi2GetNominalsOfContinuousStates(
+    c: fmi2Component,
+    _x: *mut fmi2Real,
+    _nx: usize,
+) -> fmi2Status {
+    refuse(c, "fmi2GetNominalsOfContinuousStates", NOT_MODEL_EXCHANGE)
+}
+
+/// Every export has exactly the type the official header declares: the build fails if not.
+const _: () = {
+    let _: fmi2GetTypesPlatformTYPE = Some(fmi2GetTypesPlatform);
+    let _: fmi2GetVersionTYPE = Some(fmi2GetVersion);
+    let _: fmi2SetDebugLoggingTYPE = Some(fmi2SetDebugLogging);
+    let _: fmi2InstantiateTYPE = Some(fmi2Instantiate);
+    let _: fmi2FreeInstanceTYPE = Some(fmi2FreeInstance);
+    let _: fmi2SetupExperimentTYPE = Some(fmi2SetupExperiment);
+    let _: fmi2EnterInitializationModeTYPE = Some(fmi2EnterInitializationMode);
+    let _: fmi2ExitInitializationModeTYPE = Some(fmi2ExitInitializationMode);
+    let _: fmi2TerminateTYPE = Some(fmi2Terminate);
+    let _: fmi2ResetTYPE = Some(fmi2Reset);
+    let _: fmi2GetRealTYPE = Some(fmi2GetReal);
+    let _: fmi2GetIntegerTYPE = Some(fmi2GetInteger);
+    let _: fmi2GetBooleanTYPE = Some(fmi2GetBoolean);
+    let _: fmi2GetStringTYPE = Some(fmi2GetString);
+    let _: fmi2SetRealTYPE = Some(fmi2SetReal);
+    let _: fmi2SetIntegerTYPE = Some(fmi2SetInteger);
+    let _: fmi2SetBooleanTYPE = Some(fmi2SetBoolean);
+    let _: fmi2SetStringTYPE = Some(fmi2SetString);
+    let _: fmi2GetFMUstateTYPE = Some(fmi2GetFMUstate);
+    let _: fmi2SetFMUstateTYPE = Some(fmi2SetFMUstate);
+    let _: fmi2FreeFMUstateTYPE = Some(fmi2FreeFMUstate);
+    let _: fmi2SerializedFMUstateSizeTYPE = Some(fmi2SerializedFMUstateSize);
+    let _: fmi2SerializeFMUstateTYPE = Some(fmi2SerializeFMUstate);
+    let _: fmi2DeSerializeFMUstateTYPE = Some(fmi2DeSerializeFMUstate);
+    let _: fmi2GetDirectionalDerivativeTYPE = Some(fmi2GetDirectionalDerivative);
+    let _: fmi2EnterEventModeTYPE = Some(fmi2EnterEventMode);
+    let _: fmi2NewDiscreteStatesTYPE = Some(fmi2NewDiscreteStates);
+    let _: fmi2EnterContinuousTimeModeTYPE = Some(fmi2EnterContinuousTimeMode);
+    let _: fmi2CompletedIntegratorStepTYPE = Some(fmi2CompletedIntegratorStep);
+    let _: fmi2SetTimeTYPE = Some(fmi2SetTime);
+    let _: fmi2SetContinuousStatesTYPE = Some(fmi2SetContinuousStates);
+    let _: fmi2GetDerivativesTYPE = Some(fmi2GetDerivatives);
+    let _: fmi2GetEventIndicatorsTYPE = Some(fmi2GetEventIndicators);
+    let _: fmi2GetContinuousStatesTYPE = Some(fmi2GetContinuousStates);
+    let _: fmi2GetNominalsOfContinuousStatesTYPE = Some(fmi2GetNominalsOfContinuousStates);
+    let _: fmi2SetRealInputDerivativesTYPE = Some(fmi2SetRealInputDerivatives);
+    let _: fmi2GetRealOutputDerivativesTYPE = Some(fmi2GetRealOutputDerivatives);
+    let _: fmi2DoStepTYPE = Some(fmi2DoStep);
+    let _: fmi2CancelStepTYPE = Some(fmi2CancelStep);
+    let _: fmi2GetStatusTYPE = Some(fmi2GetStatus);
+    let _: fmi2GetRealStatusTYPE = Some(fmi2GetRealStatus);
+    let _: fmi2GetIntegerStatusTYPE = Some(fmi2GetIntegerStatus);
+    let _: fmi2GetBooleanStatusTYPE = Some(fmi2GetBooleanStatus);
+    let _: fmi2GetStringStatusTYPE = Some(fmi2GetStringStatus);
+};

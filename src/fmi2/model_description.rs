@@ -1,0 +1,303 @@
+//! `modelDescription.xml`, generated with quick-xml from the variable table, the declared
+//! capabilities and the log categories: the binary and the XML share one source.
+//! The GUID is a hash of everything in the XML that defines the interface, so it changes
+//! whenever the interface does.
+
+use quick_xml::events::{BytesDecl, Event};
+use quick_xml::Writer;
+use std::io;
+
+use crate::simulation::DEFAULT_TOLERANCE;
+use crate::variables::{variables, Causality, Variable, UNITS};
+
+pub const MODEL_IDENTIFIER: &str = "CyclicMechanism";
+pub const MODEL_NAME: &str = "CyclicMechanism";
+pub const FMI_VERSION: &str = "2.0";
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// DefaultExperiment: startTime, stopTime, stepSize (tolerance is DEFAULT_TOLERANCE).
+pub const DEFAULT_EXPERIMENT: (f64, f64, f64) = (0.0, 10.0, 1e-3);
+
+/// Co-simulation capability flags, as declared; the FMI functions refuse what is false.
+pub const CAPABILITIES: &[(&str, bool)] = &[
+    ("needsExecutionTool", false),
+    ("canHandleVariableCommunicationStepSize", true),
+    ("canInterpolateInputs", false),
+    ("canRunAsynchronuously", false),
+    ("canBeInstantiatedOnlyOncePerProcess", false),
+    ("canNotUseMemoryManagementFunctions", true),
+    ("canGetAndSetFMUstate", false),
+    ("canSerializeFMUstate", false),
+    ("providesDirectionalDerivative", false),
+];
+
+/// maxOutputDerivativeOrder (0: fmi2GetRealOutputDerivatives is not offered).
+pub const MAX_OUTPUT_DERIVATIVE_ORDER: u32 = 0;
+
+/// Log categories for fmi2SetDebugLogging.
+pub const LOG_CATEGORIES: &[(&str, &str)] = &[
+    ("logStatusWarning", "Warnings"),
+    (
+        "logStatusDiscard",
+        "Steps that could not be completed (fmi2Discard)",
+    ),
+    (
+        "logStatusError",
+        "Errors: illegal calls and invalid arguments or values",
+    ),
+    (
+        "logStatusFatal",
+        "Internal errors; the instance cannot be used further",
+    ),
+    ("logCalls", "Every FMI function call with its arguments"),
+    ("logSolver", "Integrator statistics after each fmi2DoStep"),
+];
+
+/// The GUID: a 128-bit FNV-1a hash of the interface, formatted as a UUID.
+pub fn guid() -> String {
+    let mut text = format!("{MODEL_IDENTIFIER} {FMI_VERSION} {MAX_OUTPUT_DERIVATIVE_ORDER}");
+    for (name, value) in CAPABILITIES {
+        text += &format!(" {name}={value}");
+    }
+    for (vr, v) in variables() {
+        text += &format!(
+            " {vr}:{}:{}:{}:{}:{:?}",
+            v.name,
+            v.causality().as_str(),
+            v.variability(),
+            v.unit,
+            v.start()
+        );
+    }
+    let hash = fnv1a_128(text.as_bytes());
+    let hex = format!("{hash:032x}");
+    format!(
+        "{{{}-{}-{}-{}-{}}}",
+        &hex[..8],
+        &hex[8..12],
+        &hex[12..16],
+        &hex[16..20],
+        &hex[20..]
+    )
+}
+
+fn fnv1a_128(bytes: &[u8]) -> u128 {
+    const OFFSET: u128 = 0x6c62272e07bb014262b821756295c58d;
+    const PRIME: u128 = 0x0000000001000000000000000000013B;
+    bytes
+        .iter()
+        .fold(OFFSET, |hash, &b| (hash ^ b as u128).wrapping_mul(PRIME))
+}
+
+/// The complete `modelDescription.xml`.
+pub fn xml() -> String {
+    let mut writer = Writer::new_with_indent(Vec::new(), b' ', 2);
+    write_model_description(&mut writer).expect("writing to a Vec cannot fail");
+    let mut text = String::from_utf8(writer.into_inner()).expect("quick-xml writes UTF-8");
+    text.push('\n');
+    text
+}
+
+fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None)))?;
+    let guid = guid();
+    w.create_element("fmiModelDescription")
+        .with_attributes([
+            ("fmiVersion", FMI_VERSION),
+            ("modelName", MODEL_NAME),
+            ("guid", guid.as_str()),
+            (
+                "description",
+                "Four-bar cyclic mechanism with two torsional springs (Tataru), orthogonal-complement method",
+            ),
+            ("version", VERSION),
+            ("generationTool", "cyclic-mechanism (Rust)"),
+            ("variableNamingConvention", "flat"),
+            ("numberOfEventIndicators", "0"),
+        ])
+        .write_inner_content(|w| {
+            write_co_simulation(w)?;
+            write_units(w)?;
+            write_log_categories(w)?;
+            write_default_experiment(w)?;
+            write_variables(w)?;
+            write_structure(w)
+        })?;
+    Ok(())
+}
+
+fn write_co_simulation(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    let order = MAX_OUTPUT_DERIVATIVE_ORDER.to_string();
+    let mut element = w
+        .create_element("CoSimulation")
+        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
+    for (name, value) in CAPABILITIES {
+        element = element.with_attribute((*name, if *value { "true" } else { "false" }));
+    }
+    element
+        .with_attribute(("maxOutputDerivativeOrder", order.as_str()))
+        .write_empty()?;
+    Ok(())
+}
+
+fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    w.create_element("UnitDefinitions")
+        .write_inner_content(|w| {
+            for (name, exponents) in UNITS {
+                w.create_element("Unit")
+                    .with_attribute(("name", *name))
+                    .write_inner_content(|w| {
+                        let mut base = w.create_element("BaseUnit");
+                        for (unit, exponent) in ["kg", "m", "s", "rad"].iter().zip(exponents) {
+                            if *exponent != 0 {
+                                base = base.with_attribute((*unit, exponent.to_string().as_str()));
+                            }
+                        }
+                        base.write_empty()?;
+                        Ok(())
+                    })?;
+            }
+            Ok(())
+        })?;
+    Ok(())
+}
+
+fn write_log_categories(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    w.create_element("LogCategories").write_inner_content(|w| {
+        for (name, description) in LOG_CATEGORIES {
+            w.create_element("Category")
+                .with_attributes([("name", *name), ("description", *description)])
+                .write_empty()?;
+        }
+        Ok(())
+    })?;
+    Ok(())
+}
+
+fn write_default_experiment(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    let (start, stop, step) = DEFAULT_EXPERIMENT;
+    w.create_element("DefaultExperiment")
+        .with_attributes([
+            ("startTime", start.to_string().as_str()),
+            ("stopTime", stop.to_string().as_str()),
+            ("tolerance", format!("{DEFAULT_TOLERANCE:e}").as_str()),
+            ("stepSize", format!("{step:e}").as_str()),
+        ])
+        .write_empty()?;
+    Ok(())
+}
+
+fn write_variables(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    w.create_element("ModelVariables")
+        .write_inner_content(|w| {
+            for (vr, v) in variables() {
+                write_variable(w, vr, &v)?;
+            }
+            Ok(())
+        })?;
+    Ok(())
+}
+
+fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<()> {
+    let vr = vr.to_string();
+    let mut element = w.create_element("ScalarVariable").with_attributes([
+        ("name", v.name),
+        ("valueReference", vr.as_str()),
+        ("description", v.description),
+        ("causality", v.causality().as_str()),
+        ("variability", v.variability()),
+    ]);
+    if let Some(initial) = v.initial() {
+        element = element.with_attribute(("initial", initial));
+    }
+    element.write_inner_content(|w| {
+        let mut real = w.create_element("Real").with_attribute(("unit", v.unit));
+        let start = v.start().map(|s| s.to_string());
+        if let Some(start) = &start {
+            real = real.with_attribute(("start", start.as_str()));
+        }
+        real.write_empty()?;
+        Ok(())
+    })?;
+    Ok(())
+}
+
+/// Outputs and initial unknowns, by 1-based index into ModelVariables.
+fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    let outputs: Vec<String> = variables()
+        .enumerate()
+        .filter(|(_, (_, v))| v.causality() == Causality::Output)
+        .map(|(i, _)| (i + 1).to_string())
+        .collect();
+    let unknowns = |w: &mut Writer<Vec<u8>>, list: &str| -> io::Result<()> {
+        w.create_element(list).write_inner_content(|w| {
+            for index in &outputs {
+                w.create_element("Unknown")
+                    .with_attribute(("index", index.as_str()))
+                    .write_empty()?;
+            }
+            Ok(())
+        })?;
+        Ok(())
+    };
+    w.create_element("ModelStructure")
+        .write_inner_content(|w| {
+            unknowns(w, "Outputs")?;
+            unknowns(w, "InitialUnknowns")
+        })?;
+    Ok(())
+}
+
+/// One row per variable: name, causality, unit, start, description (for the tables of the
+/// README and of `documentation/index.html`).
+pub fn variable_rows() -> Vec<[String; 5]> {
+    variables()
+        .map(|(_, v)| {
+            let start = v
+                .start()
+                .map_or("calculated".to_string(), |s| s.to_string());
+            [
+                v.name,
+                v.causality().as_str(),
+                v.unit,
+                &start,
+                v.description,
+            ]
+            .map(str::to_string)
+        })
+        .collect()
+}
+
+/// The variables as a Markdown table.
+pub fn variables_markdown() -> String {
+    let mut text = String::from(
+        "| name | causality | unit | start | description |\n| --- | --- | --- | --- | --- |\n",
+    );
+    for [name, causality, unit, start, description] in variable_rows() {
+        text += &format!("| `{name}` | {causality} | {unit} | {start} | {description} |\n");
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn guid_is_stable_and_well_formed() {
+        let g = guid();
+        assert_eq!(g, guid());
+        assert_eq!(g.len(), 38);
+        assert!(g.starts_with('{') && g.ends_with('}'));
+    }
+
+    #[test]
+    fn xml_lists_every_variable_once() {
+        let text = xml();
+        for (vr, v) in variables() {
+            let needle = format!("name=\"{}\" valueReference=\"{vr}\"", v.name);
+            assert_eq!(text.matches(&needle).count(), 1, "{needle}");
+        }
+        assert!(text.contains(&guid()));
+    }
+}
