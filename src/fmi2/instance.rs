@@ -297,7 +297,7 @@ impl Instance {
 /// Call the master's logger. The message is passed as the format string with `%` and
 /// `#` escaped (FMI 2.0 gives both a meaning there), so masters that format it and
 /// masters that print it as it is both show it readably.
-pub fn send_log(
+pub(crate) fn send_log(
     logger: unsafe extern "C" fn(
         fmi2ComponentEnvironment,
         *const std::ffi::c_char,

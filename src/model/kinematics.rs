@@ -116,8 +116,7 @@ mod tests {
 
     #[test]
     fn impossible_geometry_names_parameters() {
-        let mut p = Parameters::default();
-        p.L = 2.0;
+        let p = Parameters { L: 2.0, ..Parameters::default() };
         let err = assemble_rocker(&p, 0.0, 1.5).unwrap_err().to_string();
         assert!(
             err.contains("L = 2") && err.contains("l3") && err.contains("phi2_0"),

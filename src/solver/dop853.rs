@@ -100,7 +100,7 @@ impl<const N: usize> Dop853<N> {
                 return Err(SolverError::StepSizeTooSmall { t: *t, h: h_step });
             }
             let error = self.attempt(system, *t, y, h_step, &mut y_new);
-            if !(error <= 1.0) {
+            if error.is_nan() || error > 1.0 {
                 // Rejected, or a non-finite stage (error is NaN or infinite).
                 self.stats.n_rejected += 1;
                 let factor = if error.is_finite() {

@@ -1,0 +1,56 @@
+"""Shared fixtures: the packed FMU (built by `cargo xtask test`), unpacked once."""
+
+import json
+import os
+import pathlib
+
+import fmpy
+import numpy as np
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+STATES = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4"]
+
+
+@pytest.fixture(scope="session")
+def fmu_path():
+    path = pathlib.Path(os.environ.get("CYCLIC_MECHANISM_FMU", ROOT / "target/fmu/CyclicMechanism.fmu"))
+    if not path.exists():
+        pytest.fail(f"{path} does not exist: run `cargo xtask fmu` (or `cargo xtask test`)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def unzipped(fmu_path, tmp_path_factory):
+    return fmpy.extract(str(fmu_path), unzipdir=str(tmp_path_factory.mktemp("fmu")))
+
+
+@pytest.fixture(scope="session")
+def model_description(unzipped):
+    return fmpy.read_model_description(unzipped)
+
+
+def simulate(unzipped, start_values, stop_time, step, tolerance=1e-10, outputs=None):
+    """Run the FMU through FMPy's high-level API, as users do."""
+    return fmpy.simulate_fmu(
+        unzipped,
+        start_values=start_values,
+        stop_time=stop_time,
+        output_interval=step,
+        relative_tolerance=tolerance,
+        output=outputs,
+    )
+
+
+def states(result):
+    return np.column_stack([result[name] for name in STATES])
+
+
+@pytest.fixture(scope="session")
+def report():
+    """Measured figures, written to target/test-reports/measurements.json at the end."""
+    figures = {}
+    yield figures
+    out = ROOT / "target/test-reports"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "measurements.json").write_text(json.dumps(figures, indent=2, sort_keys=True))

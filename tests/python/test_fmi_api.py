@@ -1,0 +1,279 @@
+"""The FMI 2.0 API of the packed FMU, driven through FMPy's low-level FMU2Slave and raw
+ctypes: the state machine, argument checks, messages that name the variable and the rule,
+and that a refused call changes nothing."""
+
+import ctypes
+import math
+import subprocess
+
+import fmpy.fmi2 as fmi2
+import numpy as np
+import pytest
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import FMU2Slave
+from fmpy.validation import validate_fmu
+
+OK, DISCARD, ERROR = 0, 2, 3
+
+
+class Harness:
+    """An FMU2Slave whose log messages are collected."""
+
+    def __init__(self, unzipped, model_description, guid=None):
+        self.vr = {v.name: v.valueReference for v in model_description.modelVariables}
+        self.messages = []
+        self._logger = fmi2.fmi2CallbackLoggerTYPE(self._log)
+        self.callbacks = fmi2.fmi2CallbackFunctions()
+        self.callbacks.logger = self._logger
+        self.callbacks.allocateMemory = fmi2.fmi2CallbackAllocateMemoryTYPE(fmi2.calloc)
+        self.callbacks.freeMemory = fmi2.fmi2CallbackFreeMemoryTYPE(fmi2.free)
+        self.slave = FMU2Slave(guid=guid or model_description.guid, unzipDirectory=unzipped,
+                               modelIdentifier="CyclicMechanism", instanceName="probe")
+
+    def _log(self, env, name, status, category, message):
+        self.messages.append((status, category.decode(), message.decode()))
+
+    def instantiate(self):
+        self.slave.instantiate(callbacks=self.callbacks)
+        return self
+
+    def initialise(self, stop_time=None, tolerance=1e-8, **parameters):
+        self.slave.setupExperiment(tolerance=tolerance, startTime=0.0, stopTime=stop_time)
+        self.slave.enterInitializationMode()
+        for name, value in parameters.items():
+            self.set(name, value)
+        self.slave.exitInitializationMode()
+        return self
+
+    def get(self, *names):
+        values = self.slave.getReal([self.vr[n] for n in names])
+        return values[0] if len(names) == 1 else values
+
+    def set(self, name, value):
+        self.slave.setReal([self.vr[name]], [value])
+
+    def expect(self, status, call, *args):
+        """Call and expect `status`; returns the messages logged by the call."""
+        before = len(self.messages)
+        with pytest.raises(FMICallException) as failure:
+            call(*args)
+        assert failure.value.status == status
+        return " | ".join(m for _, _, m in self.messages[before:])
+
+    def raw(self, name, restype=ctypes.c_int):
+        function = getattr(self.slave.dll, name)
+        function.restype = restype
+        return function
+
+    def free(self):
+        if self.slave.component:
+            self.slave.freeInstance()
+
+
+@pytest.fixture
+def fmu(unzipped, model_description):
+    harness = Harness(unzipped, model_description).instantiate()
+    yield harness
+    harness.free()
+
+
+def test_validate_fmu_reports_no_problems(fmu_path):
+    assert validate_fmu(str(fmu_path)) == []
+
+
+def test_only_fmi_functions_are_exported(unzipped):
+    library = f"{unzipped}/binaries/linux64/CyclicMechanism.so"
+    symbols = subprocess.run(["nm", "-D", "--defined-only", library], check=True,
+                             capture_output=True, text=True).stdout.split("\n")
+    names = [line.split()[-1] for line in symbols if line.strip()]
+    assert len(names) == 44, names  # every function of fmi2Functions.h
+    assert all(name.startswith("fmi2") for name in names), names
+
+
+def test_step_before_initialisation_is_an_error(fmu):
+    message = fmu.expect(ERROR, fmu.slave.doStep, 0.0, 1e-3)
+    assert "fmi2DoStep" in message and "instantiated" in message
+
+
+def test_invalid_parameter_names_the_rule_and_nothing_is_applied(fmu):
+    fmu.slave.enterInitializationMode()
+    message = fmu.expect(ERROR, fmu.slave.setReal, [fmu.vr["J2"], fmu.vr["J3"]], [0.4, -1.0])
+    assert "J3" in message and "> 0" in message
+    assert fmu.get("J2") == 0.2, "a rejected batch must not apply its valid part"
+    for name, bad, rule in (("k12", -5.0, ">= 0"), ("L", 0.0, "> 0"), ("d34", -1.0, ">= 0")):
+        message = fmu.expect(ERROR, fmu.set, name, bad)
+        assert name in message and rule in message
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+def test_non_finite_values_are_refused_and_the_instance_keeps_working(fmu, bad):
+    fmu.initialise(Mm_a0=100.0)
+    fmu.slave.doStep(0.0, 1e-2)
+    fmu.set("M_m", 2.0)
+    message = fmu.expect(ERROR, fmu.set, "M_m", bad)
+    assert "M_m" in message and "finite" in message
+    assert fmu.get("M_m") == 2.0
+    fmu.slave.doStep(1e-2, 1e-2)
+    assert all(np.isfinite(fmu.get("phi1", "omega1", "rod_force", "energy")))
+
+
+def test_unknown_value_reference_is_an_error(fmu, model_description):
+    fmu.initialise()
+    largest = max(v.valueReference for v in model_description.modelVariables)
+    message = fmu.expect(ERROR, fmu.slave.getReal, [largest + 1])
+    assert f"unknown value reference {largest + 1}" in message
+    fmu.expect(ERROR, fmu.slave.setReal, [4_000_000_000], [1.0])
+    fmu.expect(ERROR, fmu.slave.getInteger, [0])
+    fmu.expect(ERROR, fmu.slave.getBoolean, [0])
+    assert fmu.slave.getInteger([]) == []
+
+
+def test_outputs_and_fixed_parameters_cannot_be_set_while_stepping(fmu):
+    fmu.initialise()
+    assert "phi1 is an output" in fmu.expect(ERROR, fmu.set, "phi1", 1.0)
+    message = fmu.expect(ERROR, fmu.set, "k12", 50.0)
+    assert "k12" in message and "fixed parameter" in message
+    assert fmu.get("k12") == 100.0
+
+
+@pytest.mark.parametrize("step", [0.0, -1e-3, math.nan, math.inf])
+def test_bad_step_sizes_are_errors(fmu, step):
+    fmu.initialise()
+    assert "communicationStepSize" in fmu.expect(ERROR, fmu.slave.doStep, 0.0, step)
+    fmu.slave.doStep(0.0, 1e-3)  # and the instance still steps
+
+
+def test_communication_point_must_match_the_fmu_time(fmu):
+    fmu.initialise()
+    fmu.slave.doStep(0.0, 0.1)
+    message = fmu.expect(ERROR, fmu.slave.doStep, 0.5, 0.1)
+    assert "currentCommunicationPoint = 0.5" in message
+    fmu.slave.doStep(0.1 + 1e-15, 0.1)  # rounding-level mismatch is accepted
+    assert abs(fmu.slave.getRealStatus(fmi2.fmi2LastSuccessfulTime) - 0.2) < 1e-14
+
+
+def test_stepping_past_stop_time_is_an_error(fmu):
+    fmu.initialise(stop_time=0.3)
+    for k in range(3):
+        fmu.slave.doStep(k * 0.1, 0.1)
+    assert "stopTime" in fmu.expect(ERROR, fmu.slave.doStep, 0.30000000000000004, 0.1)
+
+
+def test_tolerance_out_of_range_is_an_error(fmu):
+    message = fmu.expect(ERROR, fmu.slave.setupExperiment, 0.0, 0.0, None)
+    assert "tolerance" in message
+
+
+def test_geometry_that_cannot_assemble_fails_initialisation_by_name(fmu):
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    fmu.set("L", 2.0)
+    message = fmu.expect(ERROR, fmu.slave.exitInitializationMode)
+    assert "L = 2" in message and "l3" in message and "phi2_0" in message
+    fmu.set("L", 0.7)  # fixing the parameter lets initialisation succeed
+    fmu.slave.exitInitializationMode()
+    assert abs(fmu.get("phi3") - 1.4873662401842818) < 1e-15
+
+
+def test_outputs_in_initialisation_mode_follow_the_parameters(fmu):
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    fmu.set("twist12_0", 0.25)
+    assert fmu.get("phi1") == 0.25
+    assert abs(fmu.get("phi3") - 1.4873662401842818) < 1e-15
+
+
+def test_wrong_guid_is_refused_with_a_message(unzipped, model_description):
+    harness = Harness(unzipped, model_description, guid="{00000000-0000-0000-0000-000000000000}")
+    with pytest.raises(Exception, match="Failed to instantiate"):
+        harness.instantiate()
+    assert any("fmuGUID" in m for _, _, m in harness.messages)
+    harness.slave.freeLibrary()
+
+
+def test_model_exchange_instantiation_is_refused(fmu, model_description):
+    instantiate = fmu.raw("fmi2Instantiate", ctypes.c_void_p)
+    instantiate.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p,
+                            ctypes.c_void_p, ctypes.c_int, ctypes.c_int]
+    callbacks = ctypes.addressof(fmu.callbacks)
+    guid = model_description.guid.encode()
+    assert instantiate(b"me", 0, guid, b"", callbacks, 0, 0) is None
+    assert any("fmuType" in m for _, _, m in fmu.messages)
+    assert instantiate(b"", 1, guid, b"", callbacks, 0, 0) is None  # empty name
+    assert instantiate(b"x", 1, guid, b"", None, 0, 0) is None  # no callbacks
+
+
+def test_null_pointers_are_errors(fmu):
+    fmu.initialise()
+    get_real = fmu.raw("fmi2GetReal")
+    get_real.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p]
+    assert get_real(fmu.slave.component, None, 2, None) == ERROR
+    assert any("vr is NULL" in m for _, _, m in fmu.messages)
+    assert get_real(None, None, 0, None) == ERROR
+    do_step = fmu.raw("fmi2DoStep")
+    do_step.argtypes = [ctypes.c_void_p, ctypes.c_double, ctypes.c_double, ctypes.c_int]
+    assert do_step(None, 0.0, 1e-3, 1) == ERROR
+
+
+def test_undeclared_capabilities_are_refused_with_a_reason(fmu):
+    fmu.initialise()
+    assert "canGetAndSetFMUstate" in fmu.expect(ERROR, fmu.slave.getFMUstate)
+    assert "canInterpolateInputs" in fmu.expect(ERROR, fmu.slave.setRealInputDerivatives,
+                                                [fmu.vr["M_m"]], [1], [0.0])
+    assert "maxOutputDerivativeOrder" in fmu.expect(ERROR, fmu.slave.getRealOutputDerivatives,
+                                                    [fmu.vr["phi1"]], [1])
+    for name in ("fmi2EnterEventMode", "fmi2EnterContinuousTimeMode"):
+        function = fmu.raw(name)
+        function.argtypes = [ctypes.c_void_p]
+        assert function(fmu.slave.component) == ERROR
+    assert "Model Exchange" in fmu.messages[-1][2]
+    assert fmu.expect(ERROR, fmu.slave.cancelStep) != ""
+    fmu.slave.doStep(0.0, 1e-3)  # none of that disturbed the instance
+
+
+def test_terminate_then_reset_restores_start_values(fmu):
+    fmu.initialise(k34=40.0, Mm_a0=100.0)
+    fmu.slave.doStep(0.0, 0.5)
+    fmu.slave.terminate()
+    fmu.expect(ERROR, fmu.slave.doStep, 0.5, 0.1)
+    fmu.expect(ERROR, fmu.set, "M_m", 1.0)
+    assert fmu.get("phi1") > 0.0  # outputs remain readable after terminate
+    assert fmu.slave.getBooleanStatus(fmi2.fmi2Terminated) is False
+    fmu.slave.reset()
+    fmu.initialise()
+    assert fmu.get("k34") == 100.0 and fmu.get("Mm_a0") == 0.0 and fmu.get("phi1") == 0.0
+    fmu.slave.doStep(0.0, 0.1)
+    assert fmu.slave.getRealStatus(fmi2.fmi2LastSuccessfulTime) == 0.1
+
+
+def test_debug_logging_categories(fmu):
+    message = fmu.expect(ERROR, fmu.slave.setDebugLogging, True, ["logNonsense"])
+    assert "logNonsense" in message and "logCalls" in message
+    fmu.slave.setDebugLogging(True, ["logCalls", "logSolver"])
+    fmu.initialise()
+    fmu.slave.doStep(0.0, 1e-3)
+    categories = [c for _, c, _ in fmu.messages]
+    assert "logCalls" in categories and "logSolver" in categories
+    fmu.slave.setDebugLogging(False, [])
+    count = len(fmu.messages)
+    fmu.slave.doStep(1e-3, 1e-3)
+    assert len(fmu.messages) == count
+
+
+def test_instances_are_independent(unzipped, model_description):
+    """Two instances in one process, interleaved, give what each gives alone."""
+    def run(k34, interleave_with=None):
+        h = Harness(unzipped, model_description).instantiate().initialise(k34=k34, Mm_a0=50.0)
+        for k in range(20):
+            h.slave.doStep(k * 0.05, 0.05)
+            if interleave_with is not None:
+                interleave_with.slave.doStep(k * 0.05, 0.05)
+        values = h.get("phi3", "omega4")
+        h.free()
+        return values
+
+    alone = run(40.0)
+    other = Harness(unzipped, model_description).instantiate().initialise(k34=100.0, Mm_a0=50.0)
+    together = run(40.0, interleave_with=other)
+    other.free()
+    assert alone == together

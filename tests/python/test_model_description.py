@@ -1,0 +1,72 @@
+"""The packed modelDescription.xml and the binary agree, and the interface is the one the
+issue asks for (names, causalities, units, defaults, DefaultExperiment)."""
+
+import math
+
+import pytest
+
+from test_fmi_api import ERROR, Harness
+
+# The interface as specified (issue 2, SPEC §1–§4), written out independently of the code.
+INPUTS = {"M_m": "N.m", "M_r": "N.m"}
+OUTPUTS = {**{f"phi{i}": "rad" for i in range(1, 5)}, **{f"omega{i}": "rad/s" for i in range(1, 5)},
+           "rod_force": "N", "constraint_residual": "m", "energy": "J"}
+PARAMETERS = {"J1": 0.5, "J2": 0.2, "J3": 0.3, "J4": 0.7, "k12": 100.0, "k34": 100.0, "d12": 0.0,
+              "d34": 0.0, "c4": 0.0, "l": 0.5, "l2": 0.05, "l3": 0.5, "L": 0.7, "phi2_0": 0.0,
+              "phi3_guess": math.pi / 2, "twist12_0": 0.0, "twist34_0": 0.0, "omega1_0": 0.0,
+              "omega2_0": 0.0, "omega4_0": 0.0, "Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0,
+              "Mr_b0": 0.0, "Mr_b1": 0.0}
+
+
+def by_name(model_description):
+    return {v.name: v for v in model_description.modelVariables}
+
+
+def test_interface_is_as_specified(model_description):
+    variables = by_name(model_description)
+    assert set(variables) == set(INPUTS) | set(OUTPUTS) | set(PARAMETERS)
+    for name, unit in INPUTS.items():
+        v = variables[name]
+        assert (v.causality, v.variability, v.unit, float(v.start)) == ("input", "continuous", unit, 0.0)
+    for name, unit in OUTPUTS.items():
+        v = variables[name]
+        assert (v.causality, v.unit, v.initial) == ("output", unit, "calculated"), name
+    for name, default in PARAMETERS.items():
+        v = variables[name]
+        assert (v.causality, v.variability) == ("parameter", "fixed"), name
+        assert float(v.start) == default, name
+    for v in variables.values():
+        assert v.description, f"{v.name} has no description"
+    outputs = {u.variable.name for u in model_description.outputs}
+    assert outputs == set(OUTPUTS)
+
+
+def test_default_experiment_and_capabilities(model_description):
+    experiment = model_description.defaultExperiment
+    assert (float(experiment.startTime), float(experiment.stopTime)) == (0.0, 10.0)
+    assert (float(experiment.stepSize), float(experiment.tolerance)) == (1e-3, 1e-8)
+    cs = model_description.coSimulation
+    assert cs.modelIdentifier == "CyclicMechanism"
+    assert cs.canHandleVariableCommunicationStepSize
+    categories = {c.name for c in model_description.logCategories}
+    assert {"logStatusError", "logCalls"} <= categories
+
+
+def test_binary_serves_every_declared_variable_with_its_start(unzipped, model_description):
+    fmu = Harness(unzipped, model_description).instantiate()
+    fmu.slave.setupExperiment(startTime=0.0)
+    fmu.slave.enterInitializationMode()
+    for v in model_description.modelVariables:
+        value = fmu.slave.getReal([v.valueReference])[0]
+        if v.start is not None:
+            assert value == float(v.start), v.name
+        assert math.isfinite(value), v.name
+        if v.causality == "output":
+            with pytest.raises(Exception):
+                fmu.slave.setReal([v.valueReference], [1.0])
+        else:
+            fmu.slave.setReal([v.valueReference], [value])  # writable in initialisation mode
+    references = sorted(v.valueReference for v in model_description.modelVariables)
+    assert references == list(range(len(references))), "the binary's table is dense"
+    assert "unknown value reference" in fmu.expect(ERROR, fmu.slave.getReal, [len(references)])
+    fmu.free()
