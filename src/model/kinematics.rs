@@ -116,7 +116,10 @@ mod tests {
 
     #[test]
     fn impossible_geometry_names_parameters() {
-        let p = Parameters { L: 2.0, ..Parameters::default() };
+        let p = Parameters {
+            L: 2.0,
+            ..Parameters::default()
+        };
         let err = assemble_rocker(&p, 0.0, 1.5).unwrap_err().to_string();
         assert!(
             err.contains("L = 2") && err.contains("l3") && err.contains("phi2_0"),

@@ -58,30 +58,38 @@ fn cargo() -> Command {
 
 /// libclang (for bindgen in fmi-sys): install Debian's libclang-dev when it is missing.
 fn ensure_libclang() -> Result {
-    let found = [
+    let dirs = [
         "/usr/lib",
         "/usr/lib/x86_64-linux-gnu",
         "/usr/lib/aarch64-linux-gnu",
-    ]
-    .iter()
-    .filter_map(|dir| fs::read_dir(dir).ok())
-    .flat_map(|entries| entries.flatten())
-    .any(|entry| {
-        let path = entry.path();
-        let name = entry.file_name().to_string_lossy().into_owned();
-        name.starts_with("libclang") && name.contains(".so")
-            || name.starts_with("llvm-")
-                && fs::read_dir(path.join("lib")).is_ok_and(|mut libs| {
-                    libs.any(|l| {
-                        l.is_ok_and(|l| l.file_name().to_string_lossy().starts_with("libclang.so"))
-                    })
-                })
-    });
+    ];
+    let llvm_libs = fs::read_dir("/usr/lib")
+        .into_iter()
+        .flat_map(|entries| entries.flatten())
+        .filter(|entry| entry.file_name().to_string_lossy().starts_with("llvm-"))
+        .map(|entry| entry.path().join("lib"));
+    let found = dirs
+        .iter()
+        .map(PathBuf::from)
+        .chain(llvm_libs)
+        .filter_map(|dir| fs::read_dir(dir).ok())
+        .flat_map(|entries| entries.flatten())
+        .any(|entry| is_libclang(&entry.file_name().to_string_lossy()));
     if found || std::env::var_os("LIBCLANG_PATH").is_some() {
         return Ok(());
     }
     println!("xtask: installing libclang-dev (needed by bindgen for the FMI headers)");
     apt_install(&["libclang-dev"])
+}
+
+/// `libclang.so*` or `libclang-<version>.so*`, the names bindgen loads; not libclang-cpp.
+fn is_libclang(name: &str) -> bool {
+    name.strip_prefix("libclang").is_some_and(|rest| {
+        rest.starts_with(".so")
+            || rest
+                .strip_prefix('-')
+                .is_some_and(|v| v.starts_with(|c: char| c.is_ascii_digit()))
+    })
 }
 
 fn apt_install(packages: &[&str]) -> Result {
