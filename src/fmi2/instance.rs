@@ -95,8 +95,12 @@ impl Instance {
     }
 
     /// Errors, discards, warnings and fatal errors are always reported; the debug
-    /// categories (calls, solver) only while debug logging is on for them.
+    /// categories (calls, solver) only while debug logging is on for them. Nothing is
+    /// reported (or formatted) without a logger callback.
     pub fn log_enabled(&self, category: Category) -> bool {
+        if self.logger.is_none() {
+            return false;
+        }
         match category {
             Category::Calls | Category::Solver => {
                 self.debug_logging && self.enabled[category as usize]

@@ -1,0 +1,107 @@
+//! fmi2DoStep, fmi2SetReal of inputs and fmi2GetReal of outputs do not allocate: counted
+//! by a global allocator around calls through the exported C functions. One test only
+//! in this binary, so that no other test allocates concurrently.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::ffi::CString;
+use std::ptr::{null, null_mut};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use cyclic_mechanism::fmi2::model_description::guid;
+use cyclic_mechanism::fmi2::*;
+use cyclic_mechanism::variables::{value_reference, variables, Causality};
+use fmi_sys::fmi2::*;
+
+struct Counting;
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+fn vr(name: &str) -> u32 {
+    value_reference(name).unwrap()
+}
+
+#[test]
+fn stepping_and_exchanging_values_does_not_allocate() {
+    let functions = fmi2CallbackFunctions {
+        logger: None,
+        allocateMemory: None,
+        freeMemory: None,
+        stepFinished: None,
+        componentEnvironment: null_mut(),
+    };
+    let guid = CString::new(guid()).unwrap();
+    let c = unsafe {
+        fmi2Instantiate(
+            c"probe".as_ptr(),
+            fmi2Type_fmi2CoSimulation,
+            guid.as_ptr(),
+            null(),
+            &functions,
+            0,
+            0,
+        )
+    };
+    assert!(!c.is_null());
+    let laws = [
+        ("Mm_a0", 100.0),
+        ("Mm_a1", -20.0),
+        ("Mm_a2", -1.0),
+        ("Mr_b0", 20.0),
+        ("Mr_b1", -0.05),
+    ];
+    let (refs, values): (Vec<u32>, Vec<f64>) = laws.iter().map(|(n, v)| (vr(n), *v)).unzip();
+    let outputs: Vec<u32> = variables()
+        .filter(|(_, v)| v.causality() == Causality::Output)
+        .map(|(r, _)| r)
+        .collect();
+    let mut read = vec![0.0; outputs.len()];
+    unsafe {
+        assert_eq!(
+            fmi2SetupExperiment(c, 1, 1e-8, 0.0, 0, 0.0),
+            fmi2Status_fmi2OK
+        );
+        assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
+        assert_eq!(
+            fmi2SetReal(c, refs.as_ptr(), refs.len(), values.as_ptr()),
+            fmi2Status_fmi2OK
+        );
+        assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
+        assert_eq!(fmi2DoStep(c, 0.0, 1e-3, 1), fmi2Status_fmi2OK);
+    }
+    let torque = vr("M_m");
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    for k in 1..2000 {
+        let t = k as f64 * 1e-3;
+        let input = [0.5 * (t * 3.0).sin()];
+        unsafe {
+            assert_eq!(
+                fmi2SetReal(c, &torque, 1, input.as_ptr()),
+                fmi2Status_fmi2OK
+            );
+            assert_eq!(fmi2DoStep(c, t, 1e-3, 1), fmi2Status_fmi2OK);
+            assert_eq!(
+                fmi2GetReal(c, outputs.as_ptr(), outputs.len(), read.as_mut_ptr()),
+                fmi2Status_fmi2OK
+            );
+        }
+    }
+    let allocations = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    assert!(
+        read.iter().all(|v| v.is_finite()) && read[0] > 1.0,
+        "the run moved: {read:?}"
+    );
+    assert_eq!(allocations, 0, "allocations during 1999 steps");
+    unsafe { fmi2FreeInstance(c) };
+}
