@@ -1,5 +1,6 @@
 //! The one table of FMI variables. Value references are positions in [`variables`]:
-//! inputs, then outputs, then the parameters of [`PARAMETERS`]. The FMI dispatch
+//! inputs, outputs, the parameters of [`PARAMETERS`], then the solver statistics
+//! (Integer outputs) and the solver choice (an Enumeration parameter). The FMI dispatch
 //! (`fmi2GetReal`/`fmi2SetReal`), `modelDescription.xml`, the documentation and the
 //! README's table are all derived from here, so they cannot drift apart.
 
@@ -41,6 +42,14 @@ pub enum Output {
     Energy,
 }
 
+/// Cumulative solver statistics since initialisation (Integer outputs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Statistic {
+    Steps,
+    Rejected,
+    RightHandSides,
+}
+
 /// Where a variable's value lives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Slot {
@@ -48,9 +57,47 @@ pub enum Slot {
     Output(Output),
     /// Index into [`PARAMETERS`].
     Parameter(usize),
+    Statistic(Statistic),
+    /// The `solver` parameter, one of [`SOLVER_ITEMS`].
+    SolverChoice,
 }
 
-/// One FMI variable (all are Real).
+/// FMI base types used here.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VarType {
+    Real,
+    Integer,
+    Enumeration,
+}
+
+impl VarType {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            VarType::Real => "Real",
+            VarType::Integer => "Integer",
+            VarType::Enumeration => "Enumeration",
+        }
+    }
+}
+
+/// The `solver` enumeration: name, value, description. The name of its type in the XML is
+/// [`SOLVER_TYPE`].
+pub const SOLVER_ITEMS: [(&str, i32, &str); 3] = [
+    ("auto", 1, "Choose automatically (currently always dop853)"),
+    (
+        "dop853",
+        2,
+        "Explicit Runge-Kutta 8(5,3) of Dormand and Prince, for non-stiff settings",
+    ),
+    (
+        "implicit",
+        3,
+        "Implicit method for stiff springs (not available yet: fmi2Error)",
+    ),
+];
+pub const SOLVER_TYPE: &str = "SolverKind";
+
+/// One FMI variable.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Variable {
     pub name: &'static str,
@@ -63,34 +110,45 @@ impl Variable {
     pub fn causality(&self) -> Causality {
         match self.slot {
             Slot::Input(_) => Causality::Input,
-            Slot::Output(_) => Causality::Output,
-            Slot::Parameter(_) => Causality::Parameter,
+            Slot::Output(_) | Slot::Statistic(_) => Causality::Output,
+            Slot::Parameter(_) | Slot::SolverChoice => Causality::Parameter,
+        }
+    }
+
+    pub fn var_type(&self) -> VarType {
+        match self.slot {
+            Slot::Statistic(_) => VarType::Integer,
+            Slot::SolverChoice => VarType::Enumeration,
+            _ => VarType::Real,
         }
     }
 
     /// FMI variability: parameters are fixed (settable before initialisation ends).
     pub fn variability(&self) -> &'static str {
         match self.slot {
-            Slot::Parameter(_) => "fixed",
+            Slot::Parameter(_) | Slot::SolverChoice => "fixed",
+            Slot::Statistic(_) => "discrete",
             _ => "continuous",
         }
     }
 
     /// FMI `initial` attribute; inputs have none.
     pub fn initial(&self) -> Option<&'static str> {
-        match self.slot {
-            Slot::Input(_) => None,
-            Slot::Output(_) => Some("calculated"),
-            Slot::Parameter(_) => Some("exact"),
+        match self.causality() {
+            Causality::Input => None,
+            Causality::Output => Some("calculated"),
+            Causality::Parameter => Some("exact"),
         }
     }
 
-    /// The start value, where the variable has one.
+    /// The start value, where the variable has one (Integer and Enumeration values are
+    /// whole numbers).
     pub fn start(&self) -> Option<f64> {
         match self.slot {
             Slot::Input(_) => Some(0.0),
-            Slot::Output(_) => None,
+            Slot::Output(_) | Slot::Statistic(_) => None,
             Slot::Parameter(i) => Some(PARAMETERS[i].default),
+            Slot::SolverChoice => Some(SOLVER_ITEMS[0].1 as f64),
         }
     }
 }
@@ -168,9 +226,36 @@ const OUTPUTS: [Variable; 11] = [
     ),
 ];
 
+const SOLVER_VARIABLES: [Variable; 4] = [
+    Variable {
+        name: "n_steps",
+        unit: "",
+        description: "Accepted integration steps since initialisation",
+        slot: Slot::Statistic(Statistic::Steps),
+    },
+    Variable {
+        name: "n_rejected",
+        unit: "",
+        description: "Rejected integration steps since initialisation",
+        slot: Slot::Statistic(Statistic::Rejected),
+    },
+    Variable {
+        name: "n_rhs",
+        unit: "",
+        description: "Right-hand-side evaluations since initialisation",
+        slot: Slot::Statistic(Statistic::RightHandSides),
+    },
+    Variable {
+        name: "solver",
+        unit: "",
+        description: "Integration method: auto (1), dop853 (2), implicit (3)",
+        slot: Slot::SolverChoice,
+    },
+];
+
 /// Number of variables (and one past the largest value reference).
 pub fn count() -> usize {
-    INPUTS.len() + OUTPUTS.len() + PARAMETERS.len()
+    INPUTS.len() + OUTPUTS.len() + PARAMETERS.len() + SOLVER_VARIABLES.len()
 }
 
 /// The variable with value reference `vr`.
@@ -184,9 +269,11 @@ pub fn variable(vr: u32) -> Option<Variable> {
             slot: Slot::Parameter(p),
         })
     };
+    let after_parameters = INPUTS.len() + OUTPUTS.len() + PARAMETERS.len();
     INPUTS
         .get(i)
         .or_else(|| OUTPUTS.get(i.wrapping_sub(INPUTS.len())))
+        .or_else(|| SOLVER_VARIABLES.get(i.wrapping_sub(after_parameters)))
         .copied()
         .or_else(|| parameter(i.checked_sub(INPUTS.len() + OUTPUTS.len())?))
 }
@@ -279,7 +366,7 @@ mod tests {
     #[test]
     fn every_unit_is_defined() {
         let defined: HashSet<_> = UNITS.iter().map(|(u, _)| *u).collect();
-        for (_, v) in variables() {
+        for (_, v) in variables().filter(|(_, v)| v.var_type() == VarType::Real) {
             assert!(
                 defined.contains(v.unit),
                 "{} has undefined unit {}",

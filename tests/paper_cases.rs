@@ -1,11 +1,11 @@
 //! The simulation (without the FMI layer) against SPEC §4's published values.
 
 use cyclic_mechanism::model::{energy, Parameters};
-use cyclic_mechanism::simulation::Simulation;
+use cyclic_mechanism::simulation::{Simulation, Value};
 use cyclic_mechanism::variables::value_reference;
 
 fn set(sim: &mut Simulation, name: &str, value: f64) {
-    sim.set(value_reference(name).unwrap(), value, true)
+    sim.set(value_reference(name).unwrap(), Value::Real(value), true)
         .unwrap();
 }
 
@@ -74,4 +74,55 @@ fn free_run_conserves_energy() {
         worst = worst.max((energy(sim.params(), sim.state()) - e0).abs() / e0);
     }
     assert!(worst < 1e-8, "relative energy drift {worst:e}");
+}
+
+#[test]
+fn unchanged_inputs_cost_about_the_same_at_any_communication_step() {
+    // Issue 3, §4: with nothing changed between steps, outputs come from dense output.
+    let fine = paper_case(100.0, 1e-8, 1e-3).statistics();
+    let coarse = paper_case(100.0, 1e-8, 0.1).statistics();
+    let ratio = fine.n_rhs as f64 / coarse.n_rhs as f64;
+    assert!(
+        ratio <= 1.5,
+        "H = 1e-3 needs {ratio:.2} x the evaluations of H = 0.1: {fine:?} vs {coarse:?}"
+    );
+}
+
+#[test]
+fn only_a_changed_input_restarts_the_integrator() {
+    let run = |torque: &dyn Fn(usize) -> f64| {
+        let mut sim = Simulation::new();
+        set(&mut sim, "Mm_a0", 100.0);
+        sim.initialize(0.0).unwrap();
+        for k in 1..=1000 {
+            sim.set(
+                value_reference("M_m").unwrap(),
+                Value::Real(torque(k)),
+                false,
+            )
+            .unwrap();
+            sim.advance(k as f64 * 1e-3).unwrap();
+        }
+        (sim.statistics().n_rhs, sim.state()[0])
+    };
+    let (held, phi_held) = run(&|_| 0.0);
+    let (varying, _) = run(&|k| if k % 2 == 0 { 0.0 } else { 1e-9 });
+    assert!(
+        varying > 5 * held,
+        "a changed input must restart: {varying} vs {held}"
+    );
+    let (baseline, phi_baseline) = {
+        let mut sim = Simulation::new();
+        set(&mut sim, "Mm_a0", 100.0);
+        sim.initialize(0.0).unwrap();
+        for k in 1..=1000 {
+            sim.advance(k as f64 * 1e-3).unwrap();
+        }
+        (sim.statistics().n_rhs, sim.state()[0])
+    };
+    assert_eq!(
+        held, baseline,
+        "setting an input to its current value must not restart"
+    );
+    assert_eq!(phi_held, phi_baseline);
 }

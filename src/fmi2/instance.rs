@@ -11,7 +11,8 @@ use fmi_sys::fmi2::{
 
 use super::model_description::{DEFAULT_EXPERIMENT, LOG_CATEGORIES};
 use super::state_machine::State;
-use crate::simulation::{AccessError, Simulation};
+use crate::simulation::{expect_type, AccessError, Simulation, Value};
+use crate::variables::VarType;
 
 /// Log categories, by their position in [`LOG_CATEGORIES`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -194,6 +195,7 @@ impl Instance {
         }
         self.start_time = start;
         self.stop_time = stop;
+        self.sim.set_stop_time(stop);
         Ok(())
     }
 
@@ -211,28 +213,51 @@ impl Instance {
         Ok(())
     }
 
-    pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
+    /// Outputs in initialization mode reflect the parameters set so far.
+    fn assemble_if_needed(&mut self) -> Outcome {
         if self.state == State::InitializationMode && !self.assembled {
-            // Outputs in initialization mode reflect the parameters set so far.
             self.sim
                 .initialize(self.start_time)
                 .map_err(|e| Failure::error(format!("initialisation failed: {e}")))?;
             self.assembled = true;
         }
+        Ok(())
+    }
+
+    pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
+        self.assemble_if_needed()?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            *value = self.sim.get(*vr)?;
+            expect_type(*vr, VarType::Real)?;
+            if let Value::Real(v) = self.sim.get(*vr)? {
+                *value = v;
+            }
+        }
+        Ok(())
+    }
+
+    pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> Outcome {
+        self.assemble_if_needed()?;
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            expect_type(*vr, VarType::Integer)?;
+            if let Value::Integer(v) = self.sim.get(*vr)? {
+                *value = v;
+            }
         }
         Ok(())
     }
 
     /// Validate every value first, then apply: a rejected batch changes nothing.
-    pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> Outcome {
+    pub fn set_values(
+        &mut self,
+        vrs: &[u32],
+        values: impl Iterator<Item = Value> + Clone,
+    ) -> Outcome {
         let writable = self.state.parameters_writable();
-        for (vr, value) in vrs.iter().zip(values) {
-            self.sim.check_set(*vr, *value, writable)?;
+        for (vr, value) in vrs.iter().zip(values.clone()) {
+            self.sim.check_set(*vr, value, writable)?;
         }
         for (vr, value) in vrs.iter().zip(values) {
-            self.sim.set(*vr, *value, writable)?;
+            self.sim.set(*vr, value, writable)?;
         }
         self.assembled = false;
         Ok(())

@@ -17,6 +17,7 @@ use std::ptr::null_mut;
 
 use fmi_sys::fmi2::*;
 
+use crate::simulation::Value;
 use instance::{send_log, Category, Failure, Instance, Outcome};
 use model_description::guid;
 use state_machine::{Call, State};
@@ -340,12 +341,48 @@ pub unsafe extern "C" fn fmi2SetReal(
         let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
         // SAFETY: FMI contract on the arrays.
         let values = unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
-        instance.set_real(vrs, values)
+        instance.set_values(vrs, values.iter().map(|v| Value::Real(*v)))
     })
 }
 
-/// Integer, Boolean and String accessors: this FMU has only Real variables, so any value
-/// reference is unknown; an empty request succeeds.
+/// # Safety
+/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetInteger(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Integer,
+) -> fmi2Status {
+    guarded(c, Call::Get, "fmi2GetInteger", |instance| {
+        // SAFETY: FMI contract on the arrays.
+        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+        // SAFETY: FMI contract on the arrays.
+        let values = unsafe { slice_mut(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
+        instance.get_integer(vrs, values)
+    })
+}
+
+/// # Safety
+/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetInteger(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Integer,
+) -> fmi2Status {
+    guarded(c, Call::Set, "fmi2SetInteger", |instance| {
+        // SAFETY: FMI contract on the arrays.
+        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+        // SAFETY: FMI contract on the arrays.
+        let values = unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
+        instance.set_values(vrs, values.iter().map(|v| Value::Integer(*v)))
+    })
+}
+
+/// Boolean and String accessors: this FMU has no such variables, so any value reference is
+/// unknown; an empty request succeeds.
 macro_rules! no_variables_of_type {
     ($name:ident, $call:expr, $kind:literal, $ptr:ty) => {
         /// # Safety
@@ -366,10 +403,8 @@ macro_rules! no_variables_of_type {
     };
 }
 
-no_variables_of_type!(fmi2GetInteger, Call::Get, "Integer", *mut fmi2Integer);
 no_variables_of_type!(fmi2GetBoolean, Call::Get, "Boolean", *mut fmi2Boolean);
 no_variables_of_type!(fmi2GetString, Call::Get, "String", *mut fmi2String);
-no_variables_of_type!(fmi2SetInteger, Call::Set, "Integer", *const fmi2Integer);
 no_variables_of_type!(fmi2SetBoolean, Call::Set, "Boolean", *const fmi2Boolean);
 no_variables_of_type!(fmi2SetString, Call::Set, "String", *const fmi2String);
 

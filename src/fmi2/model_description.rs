@@ -8,7 +8,7 @@ use quick_xml::Writer;
 use std::io;
 
 use crate::simulation::DEFAULT_TOLERANCE;
-use crate::variables::{variables, Causality, Variable, UNITS};
+use crate::variables::{variables, Causality, VarType, Variable, SOLVER_ITEMS, SOLVER_TYPE, UNITS};
 
 pub const MODEL_IDENTIFIER: &str = "CyclicMechanism";
 pub const MODEL_NAME: &str = "CyclicMechanism";
@@ -61,8 +61,9 @@ pub fn guid() -> String {
     }
     for (vr, v) in variables() {
         text += &format!(
-            " {vr}:{}:{}:{}:{}:{:?}",
+            " {vr}:{}:{}:{}:{}:{}:{:?}",
             v.name,
+            v.var_type().as_str(),
             v.causality().as_str(),
             v.variability(),
             v.unit,
@@ -118,6 +119,7 @@ fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
         .write_inner_content(|w| {
             write_co_simulation(w)?;
             write_units(w)?;
+            write_types(w)?;
             write_log_categories(w)?;
             write_default_experiment(w)?;
             write_variables(w)?;
@@ -157,6 +159,31 @@ fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
                         Ok(())
                     })?;
             }
+            Ok(())
+        })?;
+    Ok(())
+}
+
+fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    w.create_element("TypeDefinitions")
+        .write_inner_content(|w| {
+            w.create_element("SimpleType")
+                .with_attribute(("name", SOLVER_TYPE))
+                .write_inner_content(|w| {
+                    w.create_element("Enumeration").write_inner_content(|w| {
+                        for (name, value, description) in SOLVER_ITEMS {
+                            w.create_element("Item")
+                                .with_attributes([
+                                    ("name", name),
+                                    ("value", value.to_string().as_str()),
+                                    ("description", description),
+                                ])
+                                .write_empty()?;
+                        }
+                        Ok(())
+                    })?;
+                    Ok(())
+                })?;
             Ok(())
         })?;
     Ok(())
@@ -211,12 +238,17 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
         element = element.with_attribute(("initial", initial));
     }
     element.write_inner_content(|w| {
-        let mut real = w.create_element("Real").with_attribute(("unit", v.unit));
+        let mut typed = w.create_element(v.var_type().as_str());
+        match v.var_type() {
+            VarType::Real => typed = typed.with_attribute(("unit", v.unit)),
+            VarType::Enumeration => typed = typed.with_attribute(("declaredType", SOLVER_TYPE)),
+            VarType::Integer => {}
+        }
         let start = v.start().map(|s| s.to_string());
         if let Some(start) = &start {
-            real = real.with_attribute(("start", start.as_str()));
+            typed = typed.with_attribute(("start", start.as_str()));
         }
-        real.write_empty()?;
+        typed.write_empty()?;
         Ok(())
     })?;
     Ok(())

@@ -4,16 +4,23 @@
 //!
 //! Differences from the textbook driver, for co-simulation:
 //! - the step size carries over from one `integrate` call to the next (warm restart), so
-//!   the initial-step heuristic runs once, and a step shortened only to land on `t_end`
+//!   the initial-step heuristic runs once, and a step shortened only to land on a limit
 //!   does not shrink the next call's step;
 //! - the first stage of a step is reused from the previous step's end (after projection)
 //!   unless [`Dop853::invalidate`] says the state or the problem changed;
-//! - every accepted step is projected by [`OdeSystem::project`].
+//! - every accepted step is projected by [`OdeSystem::project`];
+//! - `integrate` may step past its target (up to a limit) and the caller reads the solution
+//!   at the target from the 7th-order dense output of the last step, whose three extra
+//!   stages are evaluated only when asked for.
 
-use super::dop853_tableau::{A, B, C, E3, E5};
+use super::dop853_tableau::{A, A_DENSE, B, C, C_DENSE, D, E3, E5};
 use super::{OdeSystem, SolverError, Statistics, Tolerances};
 
 const STAGES: usize = 12;
+/// Stage slots: the twelve stages, f(t + h, y_new) (the next step's first stage), and the
+/// three extra stages of the dense output.
+const SLOTS: usize = 16;
+const NEXT_FIRST: usize = 12;
 /// Step-size factor bounds per step (Hairer's fac1 = 0.333, fac2 = 6) and safety factor.
 const FACTOR_MIN: f64 = 0.333;
 const FACTOR_MAX: f64 = 6.0;
@@ -21,16 +28,31 @@ const SAFETY: f64 = 0.9;
 /// A runaway guard per call; generous, as one call may span a long communication step.
 const MAX_STEPS_PER_CALL: u64 = 10_000_000;
 
+/// The last accepted step: start time, size, and the states at both ends (the end as
+/// projected).
+#[derive(Clone, Copy, Debug)]
+struct LastStep<const N: usize> {
+    t_old: f64,
+    h: f64,
+    y_old: [f64; N],
+    y_new: [f64; N],
+}
+
 /// The DOP853 integrator for an `N`-dimensional system. All working storage is inline.
 #[derive(Clone, Debug)]
 pub struct Dop853<const N: usize> {
     tolerances: Tolerances,
     /// Proposed size of the next step; `None` until the first step is chosen.
     next_step: Option<f64>,
-    /// Stages of the current step; `stages[0]` is f(t, y) at the current point.
-    stages: [[f64; N]; STAGES],
-    /// Whether `stages[0]` holds f(t, y) for the current (t, y).
+    /// Stages of the last step (slots 0..12), f at its end (slot 12) and the dense
+    /// output's extra stages (13..16).
+    stages: [[f64; N]; SLOTS],
+    /// Whether slot 12 holds f(t, y) for the current (t, y).
     first_stage_valid: bool,
+    /// The last accepted step, while its stages are intact.
+    last_step: Option<LastStep<N>>,
+    /// Dense-output coefficients of the last step, computed on first use.
+    dense: Option<[[f64; N]; 7]>,
     stats: Statistics,
 }
 
@@ -39,8 +61,10 @@ impl<const N: usize> Dop853<N> {
         Self {
             tolerances,
             next_step: None,
-            stages: [[0.0; N]; STAGES],
+            stages: [[0.0; N]; SLOTS],
             first_stage_valid: false,
+            last_step: None,
+            dense: None,
             stats: Statistics::default(),
         }
     }
@@ -62,29 +86,37 @@ impl<const N: usize> Dop853<N> {
     /// restored state): the stored first stage no longer applies. The step size stays.
     pub fn invalidate(&mut self) {
         self.first_stage_valid = false;
+        self.last_step = None;
     }
 
-    /// Integrate from (`*t`, `*y`) to exactly `t_end`, projecting after each accepted step.
-    /// On error, `*t` and `*y` hold the last accepted (projected) step.
+    /// Integrate from (`*t`, `*y`) until `*t >= target`, never stepping past `limit`
+    /// (a step that would, lands on it exactly); `target == limit` lands exactly on the
+    /// target. The solution in between comes from [`Dop853::dense_output`]. On error,
+    /// `*t` and `*y` hold the last accepted (projected) step.
     pub fn integrate<S: OdeSystem<N>>(
         &mut self,
         system: &S,
         t: &mut f64,
         y: &mut [f64; N],
-        t_end: f64,
+        target: f64,
+        limit: f64,
     ) -> Result<(), SolverError> {
+        debug_assert!(target <= limit);
+        if *t >= target {
+            return Ok(());
+        }
         if !self.first_stage_valid {
-            self.eval(system, *t, y, 0);
+            self.eval(system, *t, y, NEXT_FIRST);
             self.first_stage_valid = true;
         }
         let mut h = match self.next_step {
             Some(h) => h,
-            None => self.initial_step(system, *t, y, t_end - *t),
+            None => self.initial_step(system, *t, y, target - *t),
         };
         let mut last_rejected = false;
         let mut taken = 0u64;
         let mut y_new = [0.0; N];
-        while *t < t_end {
+        while *t < target {
             if taken >= MAX_STEPS_PER_CALL {
                 return Err(SolverError::TooManySteps {
                     t: *t,
@@ -92,13 +124,14 @@ impl<const N: usize> Dop853<N> {
                 });
             }
             taken += 1;
-            // Land exactly on t_end; stretch by up to 1 % rather than leave a sliver.
-            let remaining = t_end - *t;
-            let landing = *t + 1.01 * h >= t_end;
-            let h_step = if landing { remaining } else { h };
+            // Land exactly on the limit; stretch by up to 1 % rather than leave a sliver.
+            let landing = *t + 1.01 * h >= limit;
+            let h_step = if landing { limit - *t } else { h };
             if h_step <= 16.0 * f64::EPSILON * t.abs().max(1.0) && !landing {
                 return Err(SolverError::StepSizeTooSmall { t: *t, h: h_step });
             }
+            self.last_step = None;
+            self.dense = None;
             let error = self.attempt(system, *t, y, h_step, &mut y_new);
             if error.is_nan() || error > 1.0 {
                 // Rejected, or a non-finite stage (error is NaN or infinite).
@@ -116,14 +149,21 @@ impl<const N: usize> Dop853<N> {
                 continue;
             }
             if !system.project(&mut y_new) {
+                self.first_stage_valid = false;
                 return Err(SolverError::ProjectionFailed { t: *t + h_step });
             }
             self.stats.n_steps += 1;
+            self.last_step = Some(LastStep {
+                t_old: *t,
+                h: h_step,
+                y_old: *y,
+                y_new,
+            });
             *y = y_new;
-            *t = if landing { t_end } else { *t + h_step };
-            self.eval(system, *t, y, 0);
+            *t = if landing { limit } else { *t + h_step };
+            self.eval(system, *t, y, NEXT_FIRST);
             let factor = step_factor(error, last_rejected);
-            // A step cut short to land on t_end says nothing against the longer step.
+            // A step cut short to land on the limit says nothing against the longer step.
             h = if landing {
                 (h_step * factor).max(h)
             } else {
@@ -135,7 +175,74 @@ impl<const N: usize> Dop853<N> {
         Ok(())
     }
 
-    /// One trial step of size `h` from (t, y), with `stages[0]` = f(t, y) already in place.
+    /// The solution at `t` within the last accepted step, from the 7th-order continuous
+    /// extension of DOP853 (HNW I, II.6). Its three extra stages are evaluated on the
+    /// first request after a step. `None` when no step is available (none taken since the
+    /// last [`Dop853::invalidate`]) or `t` lies outside it.
+    pub fn dense_output<S: OdeSystem<N>>(&mut self, system: &S, t: f64) -> Option<[f64; N]> {
+        let step = self.last_step?;
+        let x = (t - step.t_old) / step.h;
+        if !(-1e-12..=1.0 + 1e-12).contains(&x) {
+            return None;
+        }
+        let coefficients = match self.dense {
+            Some(coefficients) => coefficients,
+            None => {
+                let coefficients = self.dense_coefficients(system, &step);
+                self.dense = Some(coefficients);
+                coefficients
+            }
+        };
+        // Horner-like evaluation of the interpolant in x and 1 − x.
+        let mut y = [0.0; N];
+        for (i, row) in coefficients.iter().rev().enumerate() {
+            let weight = if i % 2 == 0 { x } else { 1.0 - x };
+            for (yn, c) in y.iter_mut().zip(row) {
+                *yn = (*yn + c) * weight;
+            }
+        }
+        for (yn, y0) in y.iter_mut().zip(&step.y_old) {
+            *yn += y0;
+        }
+        Some(y)
+    }
+
+    /// Evaluate the extra stages and form the interpolant's seven coefficient vectors.
+    fn dense_coefficients<S: OdeSystem<N>>(
+        &mut self,
+        system: &S,
+        step: &LastStep<N>,
+    ) -> [[f64; N]; 7] {
+        let LastStep {
+            t_old,
+            h,
+            y_old,
+            y_new,
+        } = *step;
+        for (extra, (a, c)) in A_DENSE.iter().zip(C_DENSE).enumerate() {
+            let slot = NEXT_FIRST + 1 + extra;
+            let y_stage: [f64; N] = std::array::from_fn(|n| {
+                y_old[n] + h * (0..slot).map(|j| a[j] * self.stages[j][n]).sum::<f64>()
+            });
+            self.eval(system, t_old + c * h, &y_stage, slot);
+        }
+        let (f_old, f_new) = (self.stages[0], self.stages[NEXT_FIRST]);
+        let mut coefficients = [[0.0; N]; 7];
+        for n in 0..N {
+            let delta = y_new[n] - y_old[n];
+            coefficients[0][n] = delta;
+            coefficients[1][n] = h * f_old[n] - delta;
+            coefficients[2][n] = 2.0 * delta - h * (f_new[n] + f_old[n]);
+            for (row, d) in D.iter().enumerate() {
+                coefficients[3 + row][n] =
+                    h * (0..SLOTS).map(|j| d[j] * self.stages[j][n]).sum::<f64>();
+            }
+        }
+        coefficients
+    }
+
+    /// One trial step of size `h` from (t, y), with f(t, y) in slot 12 (the previous
+    /// step's end, or a fresh evaluation).
     /// Writes the 8th-order result to `y_new` and returns the scaled error norm.
     fn attempt<S: OdeSystem<N>>(
         &mut self,
@@ -145,6 +252,7 @@ impl<const N: usize> Dop853<N> {
         h: f64,
         y_new: &mut [f64; N],
     ) -> f64 {
+        self.stages[0] = self.stages[NEXT_FIRST];
         let mut y_stage = [0.0; N];
         for i in 1..STAGES {
             for (n, ys) in y_stage.iter_mut().enumerate() {
@@ -160,7 +268,7 @@ impl<const N: usize> Dop853<N> {
         let (mut err5, mut err3) = (0.0, 0.0);
         for n in 0..N {
             let (mut inc, mut e5, mut e3) = (0.0, 0.0, 0.0);
-            for (j, stage) in self.stages.iter().enumerate() {
+            for (j, stage) in self.stages[..STAGES].iter().enumerate() {
                 inc += B[j] * stage[n];
                 e5 += E5[j] * stage[n];
                 e3 += E3[j] * stage[n];
@@ -186,7 +294,7 @@ impl<const N: usize> Dop853<N> {
         span: f64,
     ) -> f64 {
         let Tolerances { rtol, atol } = self.tolerances;
-        let f0 = self.stages[0];
+        let f0 = self.stages[NEXT_FIRST];
         let scale = |n: usize| atol + rtol * y[n].abs();
         let norm_f: f64 = (0..N).map(|n| (f0[n] / scale(n)).powi(2)).sum();
         let norm_y: f64 = (0..N).map(|n| (y[n] / scale(n)).powi(2)).sum();
@@ -265,7 +373,9 @@ mod tests {
         for rtol in [1e-4, 1e-7, 1e-10] {
             let mut solver = Dop853::new(tol(rtol));
             let (mut t, mut y) = (0.0, [1.0, 0.0]);
-            solver.integrate(&Oscillator, &mut t, &mut y, 10.0).unwrap();
+            solver
+                .integrate(&Oscillator, &mut t, &mut y, 10.0, 10.0)
+                .unwrap();
             assert_eq!(t, 10.0);
             let error = (y[0] - 10f64.cos()).abs().max((y[1] + 10f64.sin()).abs());
             assert!(error < 50.0 * rtol, "rtol {rtol}: error {error}");
@@ -280,7 +390,9 @@ mod tests {
         let (mut t, mut y) = (0.0, [1.0]);
         for k in 1..=1000 {
             let t_end = k as f64 * 7e-3;
-            solver.integrate(&Forced, &mut t, &mut y, t_end).unwrap();
+            solver
+                .integrate(&Forced, &mut t, &mut y, t_end, t_end)
+                .unwrap();
             assert_eq!(t, t_end);
         }
         assert!((y[0] - 7f64.sin().exp()).abs() < 1e-8, "{}", y[0]);
@@ -290,13 +402,16 @@ mod tests {
     fn step_size_carries_over_between_calls() {
         let mut solver = Dop853::new(tol(1e-8));
         let (mut t, mut y) = (0.0, [1.0, 0.0]);
-        solver.integrate(&Oscillator, &mut t, &mut y, 1.0).unwrap();
+        solver
+            .integrate(&Oscillator, &mut t, &mut y, 1.0, 1.0)
+            .unwrap();
         let h = solver.next_step().unwrap();
         let evaluations = solver.statistics().n_rhs;
         // Many short calls: one step each, 12 evaluations each, no restart heuristic.
         for k in 1..=100 {
+            let t_end = 1.0 + k as f64 * 1e-4;
             solver
-                .integrate(&Oscillator, &mut t, &mut y, 1.0 + k as f64 * 1e-4)
+                .integrate(&Oscillator, &mut t, &mut y, t_end, t_end)
                 .unwrap();
         }
         assert_eq!(solver.statistics().n_rhs - evaluations, 100 * 12);
@@ -315,11 +430,68 @@ mod tests {
     fn non_finite_right_hand_side_is_an_error_and_state_stays_finite() {
         let mut solver = Dop853::new(tol(1e-8));
         let (mut t, mut y) = (0.0, [0.0]);
-        let result = solver.integrate(&Blowup, &mut t, &mut y, 1.0);
+        let result = solver.integrate(&Blowup, &mut t, &mut y, 1.0, 1.0);
         assert!(
             matches!(result, Err(SolverError::StepSizeTooSmall { .. })),
             "{result:?}"
         );
         assert!(t <= 0.5 && y[0].is_finite() && (y[0] - t).abs() < 1e-12);
+    }
+
+    #[test]
+    fn dense_output_is_accurate_inside_the_step() {
+        let mut solver = Dop853::new(tol(1e-10));
+        let (mut t, mut y) = (0.0, [1.0, 0.0]);
+        let mut worst: f64 = 0.0;
+        let mut k = 1;
+        // Communication points every 1e-3 s; the integrator steps freely past them.
+        while k <= 5000 {
+            let target = k as f64 * 1e-3;
+            solver
+                .integrate(&Oscillator, &mut t, &mut y, target, f64::INFINITY)
+                .unwrap();
+            assert!(t >= target);
+            let at = solver.dense_output(&Oscillator, target).unwrap();
+            worst = worst
+                .max((at[0] - target.cos()).abs())
+                .max((at[1] + target.sin()).abs());
+            k += 1;
+        }
+        assert!(worst < 1e-9, "dense output error {worst:e}");
+        // Far fewer steps than communication points.
+        assert!(
+            solver.statistics().n_steps < 500,
+            "{:?}",
+            solver.statistics()
+        );
+        // Outside the last step there is no dense output.
+        assert!(solver.dense_output(&Oscillator, t + 1.0).is_none());
+    }
+
+    #[test]
+    fn dense_output_matches_the_step_end_points() {
+        let mut solver = Dop853::new(tol(1e-6));
+        let (mut t, mut y) = (0.0, [1.0]);
+        solver
+            .integrate(&Forced, &mut t, &mut y, 0.3, f64::INFINITY)
+            .unwrap();
+        let end = solver.dense_output(&Forced, t).unwrap();
+        assert!((end[0] - y[0]).abs() < 1e-14);
+        solver.invalidate();
+        assert!(solver.dense_output(&Forced, t).is_none());
+    }
+
+    #[test]
+    fn a_limit_is_never_passed() {
+        let mut solver = Dop853::new(tol(1e-6));
+        let (mut t, mut y) = (0.0, [1.0, 0.0]);
+        solver
+            .integrate(&Oscillator, &mut t, &mut y, 0.25, 0.3)
+            .unwrap();
+        assert!((0.25..=0.3).contains(&t), "{t}");
+        solver
+            .integrate(&Oscillator, &mut t, &mut y, 0.3, 0.3)
+            .unwrap();
+        assert_eq!(t, 0.3);
     }
 }

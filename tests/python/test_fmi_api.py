@@ -277,3 +277,38 @@ def test_instances_are_independent(unzipped, model_description):
     together = run(40.0, interleave_with=other)
     other.free()
     assert alone == together
+
+
+def test_solver_statistics_and_choice(fmu):
+    steps, rejected, rhs, solver = (fmu.vr[n] for n in ("n_steps", "n_rejected", "n_rhs", "solver"))
+    fmu.slave.enterInitializationMode()
+    message = fmu.expect(ERROR, fmu.slave.setInteger, [solver], [3])
+    assert "solver = 3" in message and "not available" in message
+    assert "solver = 7" in fmu.expect(ERROR, fmu.slave.setInteger, [solver], [7])
+    fmu.slave.setInteger([solver], [2])
+    fmu.set("Mm_a0", 100.0)
+    fmu.slave.exitInitializationMode()
+    assert fmu.slave.getInteger([steps, rejected, rhs, solver]) == [0, 0, 0, 2]
+    for k in range(100):
+        fmu.slave.doStep(k * 1e-2, 1e-2)
+    n_steps, n_rejected, n_rhs = fmu.slave.getInteger([steps, rejected, rhs])
+    assert n_steps > 10 and n_rejected >= 0
+    assert n_rhs >= 12 * n_steps  # twelve stages a step, plus the first and dense stages
+    assert "fixed parameter" in fmu.expect(ERROR, fmu.slave.setInteger, [solver], [1])
+
+
+def test_communication_step_hardly_changes_the_work(unzipped, model_description, report):
+    """Issue 3 §4: with unchanged inputs, H = 1e-3 costs within 1.5x of H = 0.1."""
+    def evaluations(step):
+        h = Harness(unzipped, model_description).instantiate()
+        h.initialise(Mm_a0=100.0, Mm_a1=-20.0, Mm_a2=-1.0, Mr_b0=20.0, Mr_b1=-0.05)
+        n = round(10.0 / step)
+        for k in range(n):
+            h.slave.doStep(k * step, step)
+        count = h.slave.getInteger([h.vr["n_rhs"]])[0]
+        h.free()
+        return count
+
+    fine, coarse = evaluations(1e-3), evaluations(0.1)
+    report["n_rhs_case1_H1e-3_over_H0.1"] = fine / coarse
+    assert fine <= 1.5 * coarse, (fine, coarse)

@@ -16,6 +16,7 @@ PARAMETERS = {"J1": 0.5, "J2": 0.2, "J3": 0.3, "J4": 0.7, "k12": 100.0, "k34": 1
               "phi3_guess": math.pi / 2, "twist12_0": 0.0, "twist34_0": 0.0, "omega1_0": 0.0,
               "omega2_0": 0.0, "omega4_0": 0.0, "Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0,
               "Mr_b0": 0.0, "Mr_b1": 0.0}
+INTEGER_OUTPUTS = {"n_steps", "n_rejected", "n_rhs"}
 
 
 def by_name(model_description):
@@ -24,7 +25,7 @@ def by_name(model_description):
 
 def test_interface_is_as_specified(model_description):
     variables = by_name(model_description)
-    assert set(variables) == set(INPUTS) | set(OUTPUTS) | set(PARAMETERS)
+    assert set(variables) == set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS | {"solver"}
     for name, unit in INPUTS.items():
         v = variables[name]
         assert (v.causality, v.variability, v.unit, float(v.start)) == ("input", "continuous", unit, 0.0)
@@ -37,8 +38,14 @@ def test_interface_is_as_specified(model_description):
         assert float(v.start) == default, name
     for v in variables.values():
         assert v.description, f"{v.name} has no description"
+    for name in INTEGER_OUTPUTS:
+        v = variables[name]
+        assert (v.type, v.causality, v.variability, v.initial) == ("Integer", "output", "discrete", "calculated")
+    solver = variables["solver"]
+    assert (solver.type, solver.causality, solver.variability, int(solver.start)) == ("Enumeration", "parameter", "fixed", 1)
+    assert [(i.name, int(i.value)) for i in solver.declaredType.items] == [("auto", 1), ("dop853", 2), ("implicit", 3)]
     outputs = {u.variable.name for u in model_description.outputs}
-    assert outputs == set(OUTPUTS)
+    assert outputs == set(OUTPUTS) | INTEGER_OUTPUTS
 
 
 def test_default_experiment_and_capabilities(model_description):
@@ -57,15 +64,20 @@ def test_binary_serves_every_declared_variable_with_its_start(unzipped, model_de
     fmu.slave.setupExperiment(startTime=0.0)
     fmu.slave.enterInitializationMode()
     for v in model_description.modelVariables:
-        value = fmu.slave.getReal([v.valueReference])[0]
+        real = v.type == "Real"
+        get, set_ = (fmu.slave.getReal, fmu.slave.setReal) if real else (fmu.slave.getInteger, fmu.slave.setInteger)
+        value = get([v.valueReference])[0]
         if v.start is not None:
-            assert value == float(v.start), v.name
+            assert value == (float(v.start) if real else int(v.start)), v.name
         assert math.isfinite(value), v.name
         if v.causality == "output":
             with pytest.raises(Exception):
-                fmu.slave.setReal([v.valueReference], [1.0])
+                set_([v.valueReference], [1])
         else:
-            fmu.slave.setReal([v.valueReference], [value])  # writable in initialisation mode
+            set_([v.valueReference], [value])  # writable in initialisation mode
+        # The other accessor type is refused.
+        wrong = fmu.slave.getInteger if real else fmu.slave.getReal
+        assert f"{v.name} is of type" in fmu.expect(ERROR, wrong, [v.valueReference])
     references = sorted(v.valueReference for v in model_description.modelVariables)
     assert references == list(range(len(references))), "the binary's table is dense"
     assert "unknown value reference" in fmu.expect(ERROR, fmu.slave.getReal, [len(references)])
