@@ -20,9 +20,11 @@ fn main() {
         "fmu" => build_fmu().map(|fmu| println!("FMU: {}", fmu.display())),
         "demo" => demo(),
         "test" => test(),
+        "bench" => bench(std::env::args().any(|a| a == "--quick")),
         _ => Err("usage: cargo xtask <fmu|demo|test>\n  fmu   build and pack target/fmu/CyclicMechanism.fmu\n  \
                   demo  run the paper's two cases through FMPy: CSV, plots and an animation in target/demo\n  \
-                  test  run every test: cargo test, then the FMPy tests in tests/python"
+                  test  run every test: cargo test, then the FMPy tests in tests/python\n  \
+                  bench the work-precision benchmark into target/bench (--quick: a small subset)"
             .to_string()),
     };
     if let Err(message) = result {
@@ -207,7 +209,7 @@ fn demo() -> Result {
 
 fn test() -> Result {
     ensure_libclang()?;
-    run(cargo().args(["test", "--workspace", "--release"]))?;
+    run(cargo().args(["test", "--release"]))?;
     let fmu = build_fmu()?;
     let python = ensure_venv()?;
     run(Command::new(python)
@@ -215,4 +217,27 @@ fn test() -> Result {
         .arg(root().join("tests/python"))
         .env("CYCLIC_MECHANISM_FMU", fmu)
         .current_dir(root()))
+}
+
+/// The work-precision study: the Rust harness (FMU through its C ABI, Rust crates, ns per
+/// right-hand side), then the Python driver (reference, scipy, FMPy, table and plot).
+fn bench(quick: bool) -> Result {
+    let fmu = build_fmu()?;
+    let python = ensure_venv()?;
+    run(cargo().args(["build", "--release", "--quiet", "--package", "bench"]))?;
+    let out = root().join("target/bench");
+    fs::create_dir_all(&out).map_err(|e| e.to_string())?;
+    let harness = out.join("harness.json");
+    let mut command = Command::new(root().join("target/release/bench"));
+    command.arg(&fmu).arg(&harness);
+    if quick {
+        command.arg("--quick");
+    }
+    run(&mut command)?;
+    let mut driver = Command::new(python);
+    driver.arg(root().join("bench/bench.py")).arg(&harness).arg(&fmu).arg(&out);
+    if quick {
+        driver.arg("--quick");
+    }
+    run(&mut driver)
 }

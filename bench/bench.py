@@ -1,0 +1,259 @@
+"""Work-precision study (issue 3), driven by `cargo xtask bench`:
+
+    python bench/bench.py <harness.json> <CyclicMechanism.fmu> <output directory> [--quick]
+
+Takes the Rust harness's timings and sampled states (the FMU through its C ABI, and the
+Rust ODE crates), adds scipy's solve_ivp methods on the same equations and FMPy's wall
+time for the same FMU runs, computes errors against a reference at rtol 1e-13 (the
+independent formulation of tests/python/reference.py), and writes results.json,
+results.md and work_precision.png.
+"""
+
+import json
+import math
+import pathlib
+import platform
+import sys
+import time
+
+import matplotlib
+
+matplotlib.use("Agg")
+import fmpy  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from scipy.integrate import solve_ivp  # noqa: E402
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests/python"))
+import reference  # noqa: E402
+
+SCENARIOS = {
+    "case1": dict(stop=10.0, values=dict(reference.PAPER_LAWS)),
+    "free": dict(stop=100.0, values=dict(omega2_0=6.0, twist12_0=0.2, twist34_0=-0.1, omega4_0=-1.0)),
+}
+SCIPY_METHODS = ["RK45", "DOP853", "LSODA", "Radau"]
+SCIPY_BUDGET = 20.0  # seconds for one run; tighter tolerances are skipped after that
+
+
+def spec_rhs(p):
+    """SPEC §2's orthogonal-complement right-hand side in plain Python: what a Python
+    user writes (scalar math, no arrays inside)."""
+    J1, J2, J3, J4 = p.J
+    l, l2, l3 = p.l, p.l2, p.l3
+
+    def rhs(t, y):
+        phi1, phi2, phi3, phi4, w1, w2, w3, w4 = y
+        s2, c2, s3, c3 = math.sin(phi2), math.cos(phi2), math.sin(phi3), math.cos(phi3)
+        s23, c23 = math.sin(phi2 - phi3), math.cos(phi2 - phi3)
+        b1 = l2 * (l * s2 + l3 * s23)
+        c1 = l3 * (l2 * s23 + l * s3)
+        b1d = l2 * (l * c2 * w2 + l3 * c23 * (w2 - w3))
+        c1d = l3 * (l2 * c23 * (w2 - w3) + l * c3 * w3)
+        motor = p.M_m + p.Mm_a0 + p.Mm_a1 * w1 + p.Mm_a2 * w1 * w1
+        load = p.M_r + p.Mr_b0 + p.Mr_b1 * w1
+        s12 = p.k12 * (phi2 - phi1) + p.d12 * (w2 - w1)
+        s34 = p.k34 * (phi3 - phi4) + p.d34 * (w3 - w4)
+        q1, q2, q3, q4 = motor + s12, -s12, -s34, s34 - load - p.c4 * w4
+        r1 = c1 * q2 + b1 * q3
+        r2 = -(b1d * w2 - c1d * w3)
+        det = -(c1 * c1 * J2 + b1 * b1 * J3)
+        return [w1, w2, w3, w4, q1 / J1, (-c1 * r1 - b1 * J3 * r2) / det,
+                (c1 * J2 * r2 - b1 * r1) / det, q4 / J4]
+
+    return rhs
+
+
+def sample_times(stop, samples):
+    return stop * np.arange(1, samples + 1) / samples
+
+
+def reference_states(out, samples):
+    cache = out / "reference.json"
+    if cache.exists():
+        stored = json.loads(cache.read_text())
+        if stored.get("samples") == samples:
+            return {k: np.array(v) for k, v in stored["states"].items()}
+    states = {}
+    for name, s in SCENARIOS.items():
+        p = reference.Params(**s["values"])
+        times = np.concatenate([[0.0], sample_times(s["stop"], samples)])
+        start = time.perf_counter()
+        states[name] = reference.solve(p, times, rtol=1e-13)[1:]
+        print(f"reference {name}: {time.perf_counter() - start:.1f} s", flush=True)
+    cache.write_text(json.dumps({"samples": samples, "states": {k: v.tolist() for k, v in states.items()}}))
+    return states
+
+
+def errors(states, ref):
+    """Final-time max error, RMS over the samples, and the final error in units of each
+    component's scale (max(1, max |y_i|))."""
+    states = np.asarray(states)
+    diff = np.abs(states - ref)
+    scale = np.maximum(1.0, np.abs(ref).max(axis=0))
+    return float(diff[-1].max()), float(np.sqrt(np.mean(diff ** 2))), float((diff[-1] / scale).max())
+
+
+def run_scipy(samples, refs, quick):
+    rows = []
+    tolerances = [1e-4, 1e-8] if quick else [10.0 ** -e for e in range(3, 13)]
+    for name, s in SCENARIOS.items():
+        p = reference.Params(**s["values"])
+        rhs, y0 = spec_rhs(p), reference.initial_state(p)
+        t_eval = sample_times(s["stop"], samples)
+        for method in SCIPY_METHODS:
+            for tol in tolerances:
+                best, runs, sol = math.inf, 0, None
+                while runs < 3 and (runs == 0 or best * (runs + 1) < SCIPY_BUDGET):
+                    start = time.perf_counter()
+                    sol = solve_ivp(rhs, (0.0, s["stop"]), y0, method=method, t_eval=t_eval, rtol=tol, atol=tol)
+                    best, runs = min(best, time.perf_counter() - start), runs + 1
+                if not sol.success or sol.y.shape[1] != samples:
+                    rows.append(dict(method=f"scipy_{method}", scenario=name, tol=tol, failed=sol.message))
+                    continue
+                final, rms, scaled = errors(sol.y.T, refs[name])
+                rows.append(dict(method=f"scipy_{method}", scenario=name, H=None, tol=tol, seconds=best, runs=runs,
+                                 n_rhs=int(sol.nfev), final_error=final, rms_error=rms, scaled_error=scaled))
+                print(f"scipy {method:6} {name} tol={tol:.0e}: {best:.3f} s, error {final:.1e}", flush=True)
+                if best > SCIPY_BUDGET / 2:
+                    break
+    return rows
+
+
+def run_fmpy(fmu, quick):
+    """FMPy's wall time for some of the harness's FMU configurations (case 1)."""
+    rows = []
+    unzipped = fmpy.extract(str(fmu))
+    values = SCENARIOS["case1"]["values"]
+    for h in ([1e-3] if quick else [1e-3, 1e-2]):
+        for tol in ([1e-8] if quick else [1e-4, 1e-6, 1e-8, 1e-10]):
+            best = math.inf
+            for _ in range(3):
+                start = time.perf_counter()
+                fmpy.simulate_fmu(unzipped, start_values=values, stop_time=10.0, output_interval=h,
+                                  relative_tolerance=tol)
+                best = min(best, time.perf_counter() - start)
+            rows.append(dict(scenario="case1", H=h, tol=tol, fmpy_seconds=best))
+            print(f"FMPy case1 H={h:.0e} tol={tol:.0e}: {best:.3f} s", flush=True)
+    return rows
+
+
+def fastest_at_least_as_accurate(rows, scenario, error, prefix, h=None):
+    """The fastest run of a method family with final error ≤ `error` (same H if given)."""
+    candidates = [r for r in rows if r["method"].startswith(prefix) and r["scenario"] == scenario
+                  and "failed" not in r and r["final_error"] <= error and (h is None or r["H"] == h)]
+    return min(candidates, key=lambda r: r["seconds"], default=None)
+
+
+def slope(tols, errs):
+    x, y = np.log10(tols), np.log10(errs)
+    return float(np.polyfit(x, y, 1)[0])
+
+
+def main(harness_json, fmu, out, quick):
+    out.mkdir(parents=True, exist_ok=True)
+    harness = json.loads(pathlib.Path(harness_json).read_text())
+    samples = harness["samples"]
+    refs = reference_states(out, samples)
+    rows = []
+    for r in harness["results"]:
+        final, rms, scaled = errors(r.pop("states"), refs[r["scenario"]])
+        rows.append(dict(r, final_error=final, rms_error=rms, scaled_error=scaled))
+    rows += run_scipy(samples, refs, quick)
+    fmpy_rows = run_fmpy(fmu, quick)
+
+    fmu_rows = [r for r in rows if r["method"] == "fmu"]
+    comparisons = []
+    for r in fmu_rows:
+        scipy = fastest_at_least_as_accurate(rows, r["scenario"], r["final_error"], "scipy_")
+        crate = fastest_at_least_as_accurate(rows, r["scenario"], r["final_error"], "ode_solvers", r["H"])
+        diffsol = fastest_at_least_as_accurate(rows, r["scenario"], r["final_error"], "diffsol", r["H"])
+        crates = [c for c in (crate, diffsol) if c is not None]
+        best_crate = min(crates, key=lambda c: c["seconds"], default=None)
+        comparisons.append(dict(
+            scenario=r["scenario"], H=r["H"], tol=r["tol"], fmu_seconds=r["seconds"], fmu_error=r["final_error"],
+            scipy_method=scipy and scipy["method"], scipy_ratio=scipy and scipy["seconds"] / r["seconds"],
+            crate_method=best_crate and best_crate["method"],
+            crate_ratio=best_crate and best_crate["seconds"] / r["seconds"]))
+    for f in fmpy_rows:
+        match = next(r for r in fmu_rows if r["scenario"] == f["scenario"] and r["H"] == f["H"] and r["tol"] == f["tol"])
+        f["fmu_share"] = match["seconds"] / f["fmpy_seconds"]
+
+    proportionality = {}
+    for name in SCENARIOS:
+        for h in sorted({r["H"] for r in fmu_rows}):
+            pts = [(r["tol"], r["scaled_error"]) for r in fmu_rows
+                   if r["scenario"] == name and r["H"] == h and r["tol"] >= 1e-10]
+            if len(pts) >= 2:
+                tols, errs = zip(*sorted(pts))
+                proportionality[f"{name} H={h:g}"] = dict(
+                    slope=slope(tols, errs), worst_error_over_tol=max(e / t for t, e in pts))
+
+    machine = dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
+                   cpus=__import__("os").cpu_count(), python=platform.python_version())
+    summary = dict(machine=machine, ns_per_rhs=harness["ns_per_rhs"], proportionality=proportionality,
+                   comparisons=comparisons, fmpy=fmpy_rows, results=rows)
+    (out / "results.json").write_text(json.dumps(summary, indent=1))
+    (out / "results.md").write_text(markdown(summary))
+    plot(rows, out / "work_precision.png")
+    print((out / "results.md").read_text())
+
+
+def fmt_ratio(value, method):
+    return "—" if value is None else f"{value:,.0f}× ({method.replace('scipy_', '')})" if value >= 10 \
+        else f"{value:.1f}× ({method})"
+
+
+def markdown(s):
+    lines = [f"Machine: {s['machine']['processor']}, {s['machine']['cpus']} cores, {s['machine']['platform']}; "
+             f"one run of `cargo xtask bench`.", "",
+             f"Right-hand side with its 2×2 solve: **{s['ns_per_rhs']:.1f} ns per evaluation**.", "",
+             "FMU through the C ABI against the fastest peer that reaches an equal or smaller final-time error "
+             "(scipy: any method; Rust crates: same H). Ratio = peer time / FMU time; — means no peer run was "
+             "that accurate.", "",
+             "| scenario | H (s) | tol | FMU time (s) | final error | vs scipy | vs Rust crates |",
+             "| --- | --- | --- | --- | --- | --- | --- |"]
+    for c in s["comparisons"]:
+        lines.append(f"| {c['scenario']} | {c['H']:g} | {c['tol']:.0e} | {c['fmu_seconds']:.2e} | "
+                     f"{c['fmu_error']:.1e} | {fmt_ratio(c['scipy_ratio'], c['scipy_method'])} | "
+                     f"{fmt_ratio(c['crate_ratio'], c['crate_method'])} |")
+    lines += ["", "Tolerance proportionality (final error in units of the solution's scale, tol 1e-3…1e-10):", "",
+              "| run | slope | worst error / tol |", "| --- | --- | --- |"]
+    for k, v in s["proportionality"].items():
+        lines.append(f"| {k} | {v['slope']:.2f} | {v['worst_error_over_tol']:.1f} |")
+    lines += ["", "FMPy's wall time for the same FMU runs (case 1), and the FMU's share of it:", "",
+              "| H (s) | tol | FMPy (s) | FMU share |", "| --- | --- | --- | --- |"]
+    for f in s["fmpy"]:
+        lines.append(f"| {f['H']:g} | {f['tol']:.0e} | {f['fmpy_seconds']:.3f} | {100 * f['fmu_share']:.1f} % |")
+    failed = sorted({(r["method"], r["scenario"]) for r in s["results"] if "failed" in r})
+    if failed:
+        lines += ["", "Runs that failed: " + ", ".join(f"{m} ({sc})" for m, sc in failed) + "."]
+    return "\n".join(lines) + "\n"
+
+
+def plot(rows, path):
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
+    for ax, name in zip(axes, SCENARIOS):
+        methods = sorted({r["method"] for r in rows if r["scenario"] == name})
+        for method in methods:
+            for h in sorted({r.get("H") for r in rows if r["method"] == method}, key=lambda x: -1 if x is None else x):
+                if method != "fmu" and h not in (None, 1e-3):
+                    continue
+                pts = sorted((r["final_error"], r["seconds"]) for r in rows if r["method"] == method
+                             and r["scenario"] == name and r.get("H") == h and "failed" not in r)
+                if pts:
+                    label = method if h is None else f"{method} H={h:g}"
+                    style = "-o" if method == "fmu" else "--s" if method.startswith("scipy") else ":^"
+                    ax.loglog([p[0] for p in pts], [p[1] for p in pts], style, ms=4, label=label)
+        ax.set(xlabel="final-time error (max over φ, ω)", ylabel="run time (s)", title=name)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle("Work-precision: the FMU through its C ABI against scipy and Rust ODE crates")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 4:
+        sys.exit("usage: bench.py <harness.json> <CyclicMechanism.fmu> <output directory> [--quick]")
+    main(sys.argv[1], pathlib.Path(sys.argv[2]), pathlib.Path(sys.argv[3]), "--quick" in sys.argv)

@@ -1,0 +1,198 @@
+//! Work-precision harness (issue 3). `bench <CyclicMechanism.fmu> <out.json> [--quick]`
+//!
+//! Runs each scenario × communication step H × tolerance through
+//! - the packed FMU, loaded from the `.fmu` with libloading (fmi-sys's `Fmi2Binding`),
+//!   driven by a master loop that reads every output after every step (minimum of ≥ 10
+//!   runs);
+//! - the Rust crates ode_solvers (Dop853) and diffsol (tsit45, bdf, esdirk34) with the
+//!   same right-hand side, stepped between the same communication points as a doStep
+//!   would: ode_solvers restarted for each interval (its API integrates one span), diffsol
+//!   kept alive and stopped at each point.
+//!
+//! and measures the right-hand side alone (ns per evaluation). It records timings and the
+//! states at 100 evenly spaced points; the Python driver computes the errors against the
+//! reference and writes the table and plot.
+
+mod fmu;
+mod peers;
+
+use std::fmt::Write as _;
+use std::time::{Duration, Instant};
+
+use cyclic_mechanism::model::{self, Inputs, Parameters, State};
+
+/// A benchmark scenario: parameters by FMI name, and the stop time.
+pub struct Scenario {
+    pub name: &'static str,
+    pub stop: f64,
+    pub values: &'static [(&'static str, f64)],
+}
+
+pub const SCENARIOS: [Scenario; 2] = [
+    Scenario {
+        name: "case1",
+        stop: 10.0,
+        values: &[("Mm_a0", 100.0), ("Mm_a1", -20.0), ("Mm_a2", -1.0), ("Mr_b0", 20.0), ("Mr_b1", -0.05)],
+    },
+    Scenario {
+        name: "free",
+        stop: 100.0,
+        values: &[("omega2_0", 6.0), ("twist12_0", 0.2), ("twist34_0", -0.1), ("omega4_0", -1.0)],
+    },
+];
+
+/// Number of evenly spaced sample points recorded per run (the last is the final time).
+pub const SAMPLES: usize = 100;
+
+impl Scenario {
+    pub fn parameters(&self) -> Parameters {
+        let mut p = Parameters::default();
+        for (name, value) in self.values {
+            p.set_by_name(name, *value).expect("scenario parameters are valid");
+        }
+        p
+    }
+
+    pub fn initial_state(&self) -> State {
+        model::initial_state(&self.parameters()).expect("scenario assembles")
+    }
+}
+
+/// What one method did on one configuration.
+pub struct Outcome {
+    pub seconds: f64,
+    pub runs: usize,
+    /// State at each sample point, in order.
+    pub samples: Vec<State>,
+    pub max_residual: f64,
+    pub max_energy_drift: f64,
+    pub n_rhs: u64,
+}
+
+/// Time `run` repeatedly: at least `min_runs` times, fewer when one run is long (the
+/// budget), and return the fastest with its result.
+pub fn timed<T>(min_runs: usize, budget: Duration, mut run: impl FnMut() -> Option<T>) -> Option<(f64, usize, T)> {
+    let mut best = f64::INFINITY;
+    let mut result = None;
+    let started = Instant::now();
+    let mut runs = 0;
+    while runs < min_runs && (runs == 0 || started.elapsed() < budget) {
+        let start = Instant::now();
+        let outcome = run()?;
+        best = best.min(start.elapsed().as_secs_f64());
+        result = Some(outcome);
+        runs += 1;
+    }
+    result.map(|r| (best, runs, r))
+}
+
+fn ns_per_rhs() -> f64 {
+    let scenario = &SCENARIOS[0];
+    let p = scenario.parameters();
+    let inputs = Inputs::default();
+    let mut y = scenario.initial_state();
+    y[5] = 3.0;
+    let mut dy = [0.0; 8];
+    let n = 20_000_000u64;
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let start = Instant::now();
+        for k in 0..n {
+            // Vary the angles so nothing is hoisted out of the loop.
+            y[1] = (k % 1000) as f64 * 6.283e-3;
+            model::state_derivative(&p, &inputs, std::hint::black_box(&y), &mut dy);
+            std::hint::black_box(&dy);
+        }
+        best = best.min(start.elapsed().as_secs_f64() * 1e9 / n as f64);
+    }
+    best
+}
+
+/// A number for JSON: non-finite values (e.g. a relative energy drift from zero energy)
+/// become null.
+fn number(value: f64) -> String {
+    if value.is_finite() {
+        format!("{value:e}")
+    } else {
+        "null".to_string()
+    }
+}
+
+fn json_states(samples: &[State]) -> String {
+    let rows: Vec<String> =
+        samples.iter().map(|y| format!("[{}]", y.iter().map(|v| number(*v)).collect::<Vec<_>>().join(","))).collect();
+    format!("[{}]", rows.join(","))
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() < 3 {
+        eprintln!("usage: bench <CyclicMechanism.fmu> <out.json> [--quick]");
+        std::process::exit(2);
+    }
+    let quick = args.iter().any(|a| a == "--quick");
+    let fmu = match fmu::Fmu::load(std::path::Path::new(&args[1])) {
+        Ok(fmu) => fmu,
+        Err(e) => {
+            eprintln!("bench: cannot load {}: {e}", args[1]);
+            std::process::exit(1);
+        }
+    };
+    let tolerances: Vec<f64> = if quick { vec![1e-4, 1e-8] } else { (3..=12).map(|e| 10f64.powi(-e)).collect() };
+    let steps: Vec<f64> = if quick { vec![1e-3, 1e-1] } else { vec![1e-4, 1e-3, 1e-2, 1e-1] };
+    let rhs_ns = ns_per_rhs();
+    eprintln!("right-hand side: {rhs_ns:.1} ns per evaluation");
+    let mut out = String::new();
+    write!(out, "{{\"ns_per_rhs\": {rhs_ns}, \"samples\": {SAMPLES}, \"results\": [").unwrap();
+    let mut first = true;
+    for scenario in &SCENARIOS {
+        for &h in &steps {
+            let methods = peers::METHODS.iter().map(|m| m.to_string());
+            for method in std::iter::once("fmu".to_string()).chain(methods) {
+                let mut too_slow = false;
+                for &tol in &tolerances {
+                    if too_slow {
+                        continue;
+                    }
+                    let (min_runs, budget) = if method == "fmu" { (10, 60.0) } else { (3, 20.0) };
+                    let run = || {
+                        if method == "fmu" {
+                            fmu.run(scenario, h, tol)
+                        } else {
+                            peers::run(&method, scenario, h, tol)
+                        }
+                    };
+                    let Some((seconds, runs, outcome)) = timed(min_runs, Duration::from_secs_f64(budget), run) else {
+                        eprintln!("{method} {} H={h:e} tol={tol:e}: failed", scenario.name);
+                        continue;
+                    };
+                    // One run over the budget: tighter tolerances would only be slower.
+                    too_slow = seconds > budget / 2.0;
+                    eprintln!("{method:>10} {:>5} H={h:e} tol={tol:e}: {seconds:.4} s ({runs} runs)", scenario.name);
+                    let o = Outcome { seconds, runs, ..outcome };
+                    write!(
+                        out,
+                        "{}\n{{\"method\": \"{method}\", \"scenario\": \"{}\", \"H\": {h:e}, \"tol\": {tol:e}, \
+                         \"seconds\": {:e}, \"runs\": {}, \"n_rhs\": {}, \"max_residual\": {}, \
+                         \"max_energy_drift\": {}, \"states\": {}}}",
+                        if first { "" } else { "," },
+                        scenario.name,
+                        o.seconds,
+                        o.runs,
+                        o.n_rhs,
+                        number(o.max_residual),
+                        number(o.max_energy_drift),
+                        json_states(&o.samples)
+                    )
+                    .unwrap();
+                    first = false;
+                }
+            }
+        }
+    }
+    out.push_str("\n]}\n");
+    if let Err(e) = std::fs::write(&args[2], out) {
+        eprintln!("bench: cannot write {}: {e}", args[2]);
+        std::process::exit(1);
+    }
+}
