@@ -68,6 +68,9 @@ pub struct Simulation {
     /// The last communication point and the state there (projected).
     time: f64,
     state: State,
+    /// |A2A3| − L at `state`, from the projection's last closure evaluation: the
+    /// `constraint_residual` output without another pair of sin_cos per step.
+    residual: f64,
     /// The integrator's own point, at or ahead of `time`.
     integrator_time: f64,
     integrator_state: State,
@@ -95,6 +98,7 @@ impl Simulation {
             tolerance: DEFAULT_TOLERANCE,
             time: 0.0,
             state: [0.0; STATE_SIZE],
+            residual: 0.0,
             integrator_time: 0.0,
             integrator_state: [0.0; STATE_SIZE],
             restart: true,
@@ -139,6 +143,7 @@ impl Simulation {
     /// The consistent initial state at `start_time` (SPEC §3); resets the solver.
     pub fn initialize(&mut self, start_time: f64) -> Result<(), ModelError> {
         self.state = model::initial_state(&self.params)?;
+        self.residual = model::length_residual(&self.params, self.state[1], self.state[2]);
         self.time = start_time;
         self.restart = true;
         self.solver = Dop853::new(tolerances(self.tolerance));
@@ -172,34 +177,65 @@ impl Simulation {
             let interpolated = self.solver.dense_output(&system, t_end);
             interpolated.ok_or(SolverError::ProjectionFailed { t: t_end })?
         };
-        if model::project(&self.params, &mut y).is_err() || y.iter().any(|v| !v.is_finite()) {
-            self.restart = true;
-            return Err(SolverError::ProjectionFailed { t: t_end });
-        }
+        let g = match model::project(&self.params, &mut y) {
+            Ok(g) if y.iter().all(|v| v.is_finite()) => g,
+            _ => {
+                self.restart = true;
+                return Err(SolverError::ProjectionFailed { t: t_end });
+            }
+        };
         self.time = t_end;
         self.state = y;
+        self.residual = model::length_residual_from_closure(&self.params, g);
         Ok(())
     }
 
     /// The current value of variable `vr`.
     pub fn get(&self, vr: u32) -> Result<Value, AccessError> {
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
+        Ok(self.value_of(var.slot))
+    }
+
+    /// The current value of `vr` read through an accessor of type `accessor` (Real; or
+    /// Integer, for Integer and Enumeration variables): one lookup, type checked.
+    pub fn read(&self, vr: u32, accessor: VarType) -> Result<Value, AccessError> {
+        let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
+        let probe = if accessor == VarType::Real {
+            Value::Real(0.0)
+        } else {
+            Value::Integer(0)
+        };
+        check_type(var, probe)?;
+        Ok(self.value_of(var.slot))
+    }
+
+    /// A Real variable's value: the hot path of fmi2GetReal, one lookup and one match.
+    #[inline]
+    pub fn read_real(&self, vr: u32) -> Result<f64, AccessError> {
+        let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
+        match var.slot {
+            Slot::Output(output) => Ok(self.output(output)),
+            Slot::Input(Input::MotorTorque) => Ok(self.inputs.motor_torque),
+            Slot::Input(Input::LoadTorque) => Ok(self.inputs.load_torque),
+            Slot::Parameter(i) => Ok(self.params.get(i).unwrap_or(f64::NAN)),
+            Slot::Statistic(_) | Slot::SolverChoice => {
+                Err(check_type(var, Value::Real(0.0)).unwrap_err())
+            }
+        }
+    }
+
+    fn value_of(&self, slot: Slot) -> Value {
         let statistic = |count: u64| Value::Integer(count.min(i32::MAX as u64) as i32);
-        let stats = self.solver.statistics();
-        Ok(match var.slot {
+        match slot {
             Slot::Input(Input::MotorTorque) => Value::Real(self.inputs.motor_torque),
             Slot::Input(Input::LoadTorque) => Value::Real(self.inputs.load_torque),
-            Slot::Parameter(i) => Value::Real(
-                self.params
-                    .get(i)
-                    .ok_or(AccessError::UnknownReference(vr))?,
-            ),
+            Slot::Parameter(i) => Value::Real(self.params.get(i).unwrap_or(f64::NAN)),
             Slot::Output(output) => Value::Real(self.output(output)),
-            Slot::Statistic(Statistic::Steps) => statistic(stats.n_steps),
-            Slot::Statistic(Statistic::Rejected) => statistic(stats.n_rejected),
-            Slot::Statistic(Statistic::RightHandSides) => statistic(stats.n_rhs),
+            Slot::Statistic(Statistic::Steps) => statistic(self.solver.statistics().n_steps),
+            Slot::Statistic(Statistic::Rejected) => statistic(self.solver.statistics().n_rejected),
+            Slot::Statistic(Statistic::RightHandSides) => statistic(self.solver.statistics().n_rhs),
             Slot::SolverChoice => Value::Integer(self.solver_kind as i32),
-        })
+        }
     }
 
     /// Set input or parameter `vr`; `parameters_writable` says whether parameters may
@@ -239,7 +275,7 @@ impl Simulation {
         parameters_writable: bool,
     ) -> Result<Slot, AccessError> {
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
-        check_type(&var, value)?;
+        check_type(var, value)?;
         if let Value::Real(v) = value {
             if !v.is_finite() {
                 return Err(AccessError::NotAllowed(format!(
@@ -287,13 +323,14 @@ impl Simulation {
     }
 
     /// An output, computed from the current state and inputs; diagnostics only on demand.
+    #[inline]
     pub fn output(&self, output: Output) -> f64 {
         let (p, y) = (&self.params, &self.state);
         match output {
             Output::Angle(i) => y[i],
             Output::Speed(i) => y[4 + i],
             Output::RodForce => model::rod_force(p, &self.inputs, y),
-            Output::ConstraintResidual => model::length_residual(p, y[1], y[2]),
+            Output::ConstraintResidual => self.residual,
             Output::Energy => model::energy(p, y),
         }
     }
@@ -330,17 +367,6 @@ fn solver_kind(value: i32) -> Option<SolverKind> {
             2 => SolverKind::Dop853,
             _ => SolverKind::Implicit,
         })
-}
-
-/// Check a value's type for reading through an accessor of type `wanted`.
-pub fn expect_type(vr: u32, wanted: VarType) -> Result<(), AccessError> {
-    let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
-    let probe = if wanted == VarType::Real {
-        Value::Real(0.0)
-    } else {
-        Value::Integer(0)
-    };
-    check_type(&var, probe)
 }
 
 /// The integrator's tolerances for the master's relative tolerance `rtol`; the absolute

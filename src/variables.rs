@@ -254,33 +254,56 @@ const SOLVER_VARIABLES: [Variable; 4] = [
 ];
 
 /// Number of variables (and one past the largest value reference).
-pub fn count() -> usize {
-    INPUTS.len() + OUTPUTS.len() + PARAMETERS.len() + SOLVER_VARIABLES.len()
-}
+pub const COUNT: usize = INPUTS.len() + OUTPUTS.len() + PARAMETERS.len() + SOLVER_VARIABLES.len();
 
-/// The variable with value reference `vr`.
-pub fn variable(vr: u32) -> Option<Variable> {
-    let i = vr as usize;
-    let parameter = |p: usize| {
-        PARAMETERS.get(p).map(|info| Variable {
+/// The table itself, built at compile time: position = value reference.
+static TABLE: [Variable; COUNT] = build_table();
+
+const fn build_table() -> [Variable; COUNT] {
+    let mut table = [INPUTS[0]; COUNT];
+    let mut i = 0;
+    while i < INPUTS.len() {
+        table[i] = INPUTS[i];
+        i += 1;
+    }
+    let mut k = 0;
+    while k < OUTPUTS.len() {
+        table[i] = OUTPUTS[k];
+        (i, k) = (i + 1, k + 1);
+    }
+    k = 0;
+    while k < PARAMETERS.len() {
+        let info = &PARAMETERS[k];
+        table[i] = Variable {
             name: info.name,
             unit: info.unit,
             description: info.description,
-            slot: Slot::Parameter(p),
-        })
-    };
-    let after_parameters = INPUTS.len() + OUTPUTS.len() + PARAMETERS.len();
-    INPUTS
-        .get(i)
-        .or_else(|| OUTPUTS.get(i.wrapping_sub(INPUTS.len())))
-        .or_else(|| SOLVER_VARIABLES.get(i.wrapping_sub(after_parameters)))
-        .copied()
-        .or_else(|| parameter(i.checked_sub(INPUTS.len() + OUTPUTS.len())?))
+            slot: Slot::Parameter(k),
+        };
+        (i, k) = (i + 1, k + 1);
+    }
+    k = 0;
+    while k < SOLVER_VARIABLES.len() {
+        table[i] = SOLVER_VARIABLES[k];
+        (i, k) = (i + 1, k + 1);
+    }
+    table
+}
+
+/// Number of variables (and one past the largest value reference).
+pub fn count() -> usize {
+    COUNT
+}
+
+/// The variable with value reference `vr`.
+#[inline]
+pub fn variable(vr: u32) -> Option<&'static Variable> {
+    TABLE.get(vr as usize)
 }
 
 /// All variables, with their value references, in value-reference order.
 pub fn variables() -> impl Iterator<Item = (u32, Variable)> {
-    (0..count() as u32).filter_map(|vr| Some((vr, variable(vr)?)))
+    (0..count() as u32).filter_map(|vr| Some((vr, *variable(vr)?)))
 }
 
 /// The value reference of the variable called `name`.

@@ -39,7 +39,12 @@ fn parse_description(xml: &str) -> (String, Vec<(String, u32)>) {
     let references = xml
         .split("<ScalarVariable")
         .skip(1)
-        .filter_map(|v| Some((attribute(v, "name")?, attribute(v, "valueReference")?.parse().ok()?)))
+        .filter_map(|v| {
+            Some((
+                attribute(v, "name")?,
+                attribute(v, "valueReference")?.parse().ok()?,
+            ))
+        })
         .collect();
     (guid, references)
 }
@@ -56,18 +61,31 @@ impl Fmu {
         let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
         let mut archive = zip::ZipArchive::new(file).map_err(|e| e.to_string())?;
         let mut xml = String::new();
-        archive.by_name("modelDescription.xml").map_err(|e| e.to_string())?.read_to_string(&mut xml).map_err(|e| e.to_string())?;
+        archive
+            .by_name("modelDescription.xml")
+            .map_err(|e| e.to_string())?
+            .read_to_string(&mut xml)
+            .map_err(|e| e.to_string())?;
         let (guid, references) = parse_description(&xml);
         let dir = std::env::temp_dir().join(format!("cyclic-bench-{}", std::process::id()));
         archive.extract(&dir).map_err(|e| e.to_string())?;
         let library = dir.join("binaries/linux64/CyclicMechanism.so");
         // SAFETY: loading the FMU's own library, whose initialisers are Rust's defaults.
         let binding = unsafe { Fmi2Binding::new(&library) }.map_err(|e| e.to_string())?;
-        Ok(Self { binding, guid: CString::new(guid).map_err(|e| e.to_string())?, references, _unpacked: tempdir::Dir(dir) })
+        Ok(Self {
+            binding,
+            guid: CString::new(guid).map_err(|e| e.to_string())?,
+            references,
+            _unpacked: tempdir::Dir(dir),
+        })
     }
 
     fn vr(&self, name: &str) -> u32 {
-        self.references.iter().find(|(n, _)| n == name).map(|(_, vr)| *vr).expect("variable in the description")
+        self.references
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, vr)| *vr)
+            .expect("variable in the description")
     }
 
     /// One simulation: instantiate, initialise, step with H to the stop time reading every
@@ -83,8 +101,15 @@ impl Fmu {
         let b = &self.binding;
         // SAFETY: FMI calls with valid arguments, on an instance created and freed here.
         unsafe {
-            let c: fmi2Component =
-                b.fmi2Instantiate(c"bench".as_ptr(), fmi2Type_fmi2CoSimulation, self.guid.as_ptr(), null(), &functions, 0, 0);
+            let c: fmi2Component = b.fmi2Instantiate(
+                c"bench".as_ptr(),
+                fmi2Type_fmi2CoSimulation,
+                self.guid.as_ptr(),
+                null(),
+                &functions,
+                0,
+                0,
+            );
             if c.is_null() {
                 eprintln!("fmi2Instantiate failed");
                 return None;
@@ -97,39 +122,84 @@ impl Fmu {
 
     /// # Safety
     /// `c` must be a live instance of this binding.
-    unsafe fn simulate(&self, c: fmi2Component, scenario: &Scenario, h: f64, tol: f64) -> Option<Outcome> {
+    unsafe fn simulate(
+        &self,
+        c: fmi2Component,
+        scenario: &Scenario,
+        h: f64,
+        tol: f64,
+    ) -> Option<Outcome> {
         let b = &self.binding;
-        let outputs: Vec<u32> = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4", "constraint_residual", "energy"]
-            .iter()
-            .map(|n| self.vr(n))
-            .collect();
+        let outputs: Vec<u32> = [
+            "phi1",
+            "phi2",
+            "phi3",
+            "phi4",
+            "omega1",
+            "omega2",
+            "omega3",
+            "omega4",
+            "constraint_residual",
+            "energy",
+        ]
+        .iter()
+        .map(|n| self.vr(n))
+        .collect();
         let mut values = [0.0; 10];
         unsafe {
-            check(b.fmi2SetupExperiment(c, 1, tol, 0.0, 1, scenario.stop), "fmi2SetupExperiment")?;
-            check(b.fmi2EnterInitializationMode(c), "fmi2EnterInitializationMode")?;
+            check(
+                b.fmi2SetupExperiment(c, 1, tol, 0.0, 1, scenario.stop),
+                "fmi2SetupExperiment",
+            )?;
+            check(
+                b.fmi2EnterInitializationMode(c),
+                "fmi2EnterInitializationMode",
+            )?;
             for (name, value) in scenario.values {
                 check(b.fmi2SetReal(c, &self.vr(name), 1, value), "fmi2SetReal")?;
             }
-            check(b.fmi2ExitInitializationMode(c), "fmi2ExitInitializationMode")?;
-            check(b.fmi2GetReal(c, outputs.as_ptr(), outputs.len(), values.as_mut_ptr()), "fmi2GetReal")?;
+            check(
+                b.fmi2ExitInitializationMode(c),
+                "fmi2ExitInitializationMode",
+            )?;
+            check(
+                b.fmi2GetReal(c, outputs.as_ptr(), outputs.len(), values.as_mut_ptr()),
+                "fmi2GetReal",
+            )?;
         }
         let energy0 = values[9];
         let n = (scenario.stop / h).round() as usize;
         let every = n / SAMPLES;
-        let (mut samples, mut max_residual, mut max_drift) = (Vec::with_capacity(SAMPLES), 0.0f64, 0.0f64);
+        let (mut samples, mut max_residual, mut max_drift) =
+            (Vec::with_capacity(SAMPLES), 0.0f64, 0.0f64);
         for k in 0..n {
             unsafe {
                 check(b.fmi2DoStep(c, k as f64 * h, h, 1), "fmi2DoStep")?;
-                check(b.fmi2GetReal(c, outputs.as_ptr(), outputs.len(), values.as_mut_ptr()), "fmi2GetReal")?;
+                check(
+                    b.fmi2GetReal(c, outputs.as_ptr(), outputs.len(), values.as_mut_ptr()),
+                    "fmi2GetReal",
+                )?;
             }
             max_residual = max_residual.max(values[8].abs());
             max_drift = max_drift.max((values[9] - energy0).abs() / energy0.abs().max(1e-300));
-            if (k + 1) % every == 0 {
+            if (k + 1).is_multiple_of(every) {
                 samples.push(std::array::from_fn(|i| values[i]));
             }
         }
         let mut rhs = 0;
-        unsafe { check(b.fmi2GetInteger(c, &self.vr("n_rhs"), 1, &mut rhs), "fmi2GetInteger")? };
-        Some(Outcome { seconds: 0.0, runs: 0, samples, max_residual, max_energy_drift: max_drift, n_rhs: rhs as u64 })
+        unsafe {
+            check(
+                b.fmi2GetInteger(c, &self.vr("n_rhs"), 1, &mut rhs),
+                "fmi2GetInteger",
+            )?
+        };
+        Some(Outcome {
+            seconds: 0.0,
+            runs: 0,
+            samples,
+            max_residual,
+            max_energy_drift: max_drift,
+            n_rhs: rhs as u64,
+        })
     }
 }

@@ -32,12 +32,23 @@ pub const SCENARIOS: [Scenario; 2] = [
     Scenario {
         name: "case1",
         stop: 10.0,
-        values: &[("Mm_a0", 100.0), ("Mm_a1", -20.0), ("Mm_a2", -1.0), ("Mr_b0", 20.0), ("Mr_b1", -0.05)],
+        values: &[
+            ("Mm_a0", 100.0),
+            ("Mm_a1", -20.0),
+            ("Mm_a2", -1.0),
+            ("Mr_b0", 20.0),
+            ("Mr_b1", -0.05),
+        ],
     },
     Scenario {
         name: "free",
         stop: 100.0,
-        values: &[("omega2_0", 6.0), ("twist12_0", 0.2), ("twist34_0", -0.1), ("omega4_0", -1.0)],
+        values: &[
+            ("omega2_0", 6.0),
+            ("twist12_0", 0.2),
+            ("twist34_0", -0.1),
+            ("omega4_0", -1.0),
+        ],
     },
 ];
 
@@ -48,7 +59,8 @@ impl Scenario {
     pub fn parameters(&self) -> Parameters {
         let mut p = Parameters::default();
         for (name, value) in self.values {
-            p.set_by_name(name, *value).expect("scenario parameters are valid");
+            p.set_by_name(name, *value)
+                .expect("scenario parameters are valid");
         }
         p
     }
@@ -71,7 +83,11 @@ pub struct Outcome {
 
 /// Time `run` repeatedly: at least `min_runs` times, fewer when one run is long (the
 /// budget), and return the fastest with its result.
-pub fn timed<T>(min_runs: usize, budget: Duration, mut run: impl FnMut() -> Option<T>) -> Option<(f64, usize, T)> {
+pub fn timed<T>(
+    min_runs: usize,
+    budget: Duration,
+    mut run: impl FnMut() -> Option<T>,
+) -> Option<(f64, usize, T)> {
     let mut best = f64::INFINITY;
     let mut result = None;
     let started = Instant::now();
@@ -119,18 +135,26 @@ fn number(value: f64) -> String {
 }
 
 fn json_states(samples: &[State]) -> String {
-    let rows: Vec<String> =
-        samples.iter().map(|y| format!("[{}]", y.iter().map(|v| number(*v)).collect::<Vec<_>>().join(","))).collect();
+    let rows: Vec<String> = samples
+        .iter()
+        .map(|y| {
+            format!(
+                "[{}]",
+                y.iter().map(|v| number(*v)).collect::<Vec<_>>().join(",")
+            )
+        })
+        .collect();
     format!("[{}]", rows.join(","))
 }
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
-        eprintln!("usage: bench <CyclicMechanism.fmu> <out.json> [--quick]");
+        eprintln!("usage: bench <CyclicMechanism.fmu> <out.json> [--quick] [--fmu-only]");
         std::process::exit(2);
     }
     let quick = args.iter().any(|a| a == "--quick");
+    let fmu_only = args.iter().any(|a| a == "--fmu-only");
     let fmu = match fmu::Fmu::load(std::path::Path::new(&args[1])) {
         Ok(fmu) => fmu,
         Err(e) => {
@@ -138,23 +162,42 @@ fn main() {
             std::process::exit(1);
         }
     };
-    let tolerances: Vec<f64> = if quick { vec![1e-4, 1e-8] } else { (3..=12).map(|e| 10f64.powi(-e)).collect() };
-    let steps: Vec<f64> = if quick { vec![1e-3, 1e-1] } else { vec![1e-4, 1e-3, 1e-2, 1e-1] };
-    let rhs_ns = ns_per_rhs();
+    let tolerances: Vec<f64> = if quick {
+        vec![1e-4, 1e-8]
+    } else {
+        (3..=12).map(|e| 10f64.powi(-e)).collect()
+    };
+    let steps: Vec<f64> = if quick {
+        vec![1e-3, 1e-1]
+    } else {
+        vec![1e-4, 1e-3, 1e-2, 1e-1]
+    };
+    let rhs_ns = if fmu_only { f64::NAN } else { ns_per_rhs() };
     eprintln!("right-hand side: {rhs_ns:.1} ns per evaluation");
     let mut out = String::new();
-    write!(out, "{{\"ns_per_rhs\": {rhs_ns}, \"samples\": {SAMPLES}, \"results\": [").unwrap();
+    write!(
+        out,
+        "{{\"ns_per_rhs\": {rhs_ns}, \"samples\": {SAMPLES}, \"results\": ["
+    )
+    .unwrap();
     let mut first = true;
     for scenario in &SCENARIOS {
         for &h in &steps {
-            let methods = peers::METHODS.iter().map(|m| m.to_string());
+            let methods = peers::METHODS
+                .iter()
+                .filter(|_| !fmu_only)
+                .map(|m| m.to_string());
             for method in std::iter::once("fmu".to_string()).chain(methods) {
                 let mut too_slow = false;
                 for &tol in &tolerances {
                     if too_slow {
                         continue;
                     }
-                    let (min_runs, budget) = if method == "fmu" { (10, 60.0) } else { (3, 20.0) };
+                    let (min_runs, budget) = if method == "fmu" {
+                        (10, 60.0)
+                    } else {
+                        (3, 20.0)
+                    };
                     let run = || {
                         if method == "fmu" {
                             fmu.run(scenario, h, tol)
@@ -162,14 +205,23 @@ fn main() {
                             peers::run(&method, scenario, h, tol)
                         }
                     };
-                    let Some((seconds, runs, outcome)) = timed(min_runs, Duration::from_secs_f64(budget), run) else {
+                    let Some((seconds, runs, outcome)) =
+                        timed(min_runs, Duration::from_secs_f64(budget), run)
+                    else {
                         eprintln!("{method} {} H={h:e} tol={tol:e}: failed", scenario.name);
                         continue;
                     };
                     // One run over the budget: tighter tolerances would only be slower.
                     too_slow = seconds > budget / 2.0;
-                    eprintln!("{method:>10} {:>5} H={h:e} tol={tol:e}: {seconds:.4} s ({runs} runs)", scenario.name);
-                    let o = Outcome { seconds, runs, ..outcome };
+                    eprintln!(
+                        "{method:>10} {:>5} H={h:e} tol={tol:e}: {seconds:.4} s ({runs} runs)",
+                        scenario.name
+                    );
+                    let o = Outcome {
+                        seconds,
+                        runs,
+                        ..outcome
+                    };
                     write!(
                         out,
                         "{}\n{{\"method\": \"{method}\", \"scenario\": \"{}\", \"H\": {h:e}, \"tol\": {tol:e}, \

@@ -11,7 +11,12 @@ use ode_solvers::{SVector, System};
 
 use crate::{Outcome, Scenario, SAMPLES};
 
-pub const METHODS: [&str; 4] = ["ode_solvers_dop853", "diffsol_tsit45", "diffsol_bdf", "diffsol_esdirk34"];
+pub const METHODS: [&str; 4] = [
+    "ode_solvers_dop853",
+    "diffsol_tsit45",
+    "diffsol_bdf",
+    "diffsol_esdirk34",
+];
 
 pub fn run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Outcome> {
     match method {
@@ -48,8 +53,10 @@ impl Recorder {
         let residual = cyclic_mechanism::model::length_residual(&self.params, y[1], y[2]);
         self.max_residual = self.max_residual.max(residual.abs());
         let energy = cyclic_mechanism::model::energy(&self.params, y);
-        self.max_drift = self.max_drift.max((energy - self.energy0).abs() / self.energy0.abs());
-        if k % self.every == 0 {
+        self.max_drift = self
+            .max_drift
+            .max((energy - self.energy0).abs() / self.energy0.abs());
+        if k.is_multiple_of(self.every) {
             self.samples.push(*y);
         }
     }
@@ -85,7 +92,10 @@ impl System<f64, SVector<f64, 8>> for Mechanism<'_> {
 /// ode_solvers' Dop853 integrates one span per solver: a new one for every interval.
 fn ode_solvers_dop853(scenario: &Scenario, h: f64, tol: f64) -> Option<Outcome> {
     let counter = Cell::new(0);
-    let system = Mechanism { params: scenario.parameters(), counter: &counter };
+    let system = Mechanism {
+        params: scenario.parameters(),
+        counter: &counter,
+    };
     let mut y = scenario.initial_state();
     let mut recorder = Recorder::new(scenario, h, &y);
     let n = (scenario.stop / h).round() as usize;
@@ -176,9 +186,13 @@ fn diffsol_run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Ou
     let outcome = match method {
         "diffsol_tsit45" => step_through!(problem.tsit45().ok()?, scenario, h, &y0),
         "diffsol_bdf" => step_through!(problem.bdf::<NalgebraLU<f64>>().ok()?, scenario, h, &y0),
-        "diffsol_esdirk34" => step_through!(problem.esdirk34::<NalgebraLU<f64>>().ok()?, scenario, h, &y0),
+        "diffsol_esdirk34" => step_through!(
+            problem.esdirk34::<NalgebraLU<f64>>().ok()?,
+            scenario,
+            h,
+            &y0
+        ),
         _ => None,
     }?;
     Some(outcome.finish(counter.get()))
 }
-

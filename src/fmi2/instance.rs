@@ -11,7 +11,7 @@ use fmi_sys::fmi2::{
 
 use super::model_description::{DEFAULT_EXPERIMENT, LOG_CATEGORIES};
 use super::state_machine::State;
-use crate::simulation::{expect_type, AccessError, Simulation, Value};
+use crate::simulation::{AccessError, Simulation, Value};
 use crate::variables::VarType;
 
 /// Log categories, by their position in [`LOG_CATEGORIES`].
@@ -227,10 +227,7 @@ impl Instance {
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
         self.assemble_if_needed()?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            expect_type(*vr, VarType::Real)?;
-            if let Value::Real(v) = self.sim.get(*vr)? {
-                *value = v;
-            }
+            *value = self.sim.read_real(*vr)?;
         }
         Ok(())
     }
@@ -238,8 +235,7 @@ impl Instance {
     pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> Outcome {
         self.assemble_if_needed()?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            expect_type(*vr, VarType::Integer)?;
-            if let Value::Integer(v) = self.sim.get(*vr)? {
+            if let Value::Integer(v) = self.sim.read(*vr, VarType::Integer)? {
                 *value = v;
             }
         }

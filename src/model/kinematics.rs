@@ -39,6 +39,49 @@ pub fn constraint_terms(
     }
 }
 
+/// The closure g(φ) = ½(|d|² − L²) with its gradient terms B1, C1, from one pair of
+/// sin_cos (what the projection needs at every Newton iteration).
+#[inline]
+pub fn closure_with_gradient(p: &Parameters, phi2: f64, phi3: f64) -> (f64, f64, f64) {
+    closure_with_gradient_from(p, phi2.sin_cos(), phi3.sin_cos())
+}
+
+/// [`closure_with_gradient`] from the sines and cosines of φ2 and φ3.
+#[inline]
+pub fn closure_with_gradient_from(
+    p: &Parameters,
+    (s2, c2): (f64, f64),
+    (s3, c3): (f64, f64),
+) -> (f64, f64, f64) {
+    let (dx, dy) = (p.l2 * c2 - (p.l + p.l3 * c3), p.l2 * s2 - p.l3 * s3);
+    let s23 = s2 * c3 - c2 * s3;
+    let g = 0.5 * (dx * dx + dy * dy - p.L * p.L);
+    (
+        g,
+        p.l2 * (p.l * s2 + p.l3 * s23),
+        p.l3 * (p.l2 * s23 + p.l * s3),
+    )
+}
+
+/// (sin, cos) of `angle`, given (sin, cos) of `angle − delta`: a rotation by the small
+/// `delta` with Taylor terms exact in double precision for |delta| < 1e-4 (the next terms
+/// are below 1e-22); larger turns are evaluated directly.
+#[inline]
+pub fn rotate((s, c): (f64, f64), delta: f64, angle: f64) -> (f64, f64) {
+    if delta.abs() >= 1e-4 {
+        return angle.sin_cos();
+    }
+    let d2 = delta * delta;
+    let (sd, cd) = (delta * (1.0 - d2 / 6.0), 1.0 - d2 / 2.0 + d2 * d2 / 24.0);
+    (s * cd + c * sd, c * cd - s * sd)
+}
+
+/// |A2A3| − L from g = ½(|d|² − L²), without cancellation: 2g/(|d| + L).
+#[inline]
+pub fn length_residual_from_closure(p: &Parameters, g: f64) -> f64 {
+    2.0 * g / ((p.L * p.L + 2.0 * g).max(0.0).sqrt() + p.L)
+}
+
 /// d = A2 − A3, the rod vector (SPEC §1).
 #[inline]
 pub fn rod_vector(p: &Parameters, phi2: f64, phi3: f64) -> [f64; 2] {
@@ -149,6 +192,39 @@ mod tests {
         let bwd = constraint_terms(&p, phi2 - h * w2, phi3 - h * w3, w2, w3);
         assert!(((fwd.b1 - bwd.b1) / (2.0 * h) - t.b1_dot).abs() < 1e-8);
         assert!(((fwd.c1 - bwd.c1) / (2.0 * h) - t.c1_dot).abs() < 1e-8);
+    }
+
+    #[test]
+    fn closure_with_gradient_agrees_with_the_separate_functions() {
+        let p = Parameters::default();
+        let (g, b1, c1) = closure_with_gradient(&p, 0.4, 1.7);
+        let t = constraint_terms(&p, 0.4, 1.7, 0.0, 0.0);
+        assert!((g - closure(&p, 0.4, 1.7)).abs() < 1e-16);
+        assert!((b1 - t.b1).abs() < 1e-16 && (c1 - t.c1).abs() < 1e-16);
+        let direct = length_residual(&p, 0.4, 1.7);
+        assert!(
+            (length_residual_from_closure(&p, g) - direct).abs() < 1e-15,
+            "{direct}"
+        );
+    }
+
+    #[test]
+    fn small_rotations_match_direct_evaluation() {
+        for (angle, delta) in [
+            (41.25f64, 3e-9f64),
+            (1.487, -7e-6),
+            (-2.0, 9.9e-5),
+            (0.3, 2e-3),
+        ] {
+            // As in the projection: the difference of two stored angles, exact.
+            let start = angle - delta;
+            let (s, c) = rotate(start.sin_cos(), angle - start, angle);
+            let (s0, c0) = angle.sin_cos();
+            assert!(
+                (s - s0).abs() < 4e-16 && (c - c0).abs() < 4e-16,
+                "{angle} {delta}"
+            );
+        }
     }
 
     #[test]

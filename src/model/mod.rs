@@ -8,7 +8,7 @@ pub mod params;
 pub mod projection;
 
 pub use dynamics::{accelerations, energy, power, rod_force, state_derivative};
-pub use kinematics::length_residual;
+pub use kinematics::{length_residual, length_residual_from_closure};
 pub use params::{Parameters, PARAMETERS};
 pub use projection::{initial_state, project};
 

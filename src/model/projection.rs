@@ -1,58 +1,54 @@
 //! Projection back onto the constraint manifold after each accepted step (SPEC §2,
 //! "Projection"), and the consistent initial state (SPEC §3).
 
-use super::kinematics::{assemble_rocker, closure, constraint_terms};
+use super::kinematics::{
+    assemble_rocker, closure, closure_with_gradient_from, constraint_terms, rotate,
+};
 use super::{ModelError, Parameters, State};
 
 /// Newton iterations allowed for the position projection; two suffice after a step.
 const MAX_POSITION_ITERATIONS: usize = 8;
 
-/// Project positions onto g(φ) = 0 with the mass-weighted minimum-norm correction
-/// Δφ = −J⁻¹Gᵀ·g/(G·J⁻¹·Gᵀ), iterated (Newton along J⁻¹Gᵀ). Only φ2 and φ3 move.
-/// Fails when G vanishes (change point) or Newton does not converge.
-pub fn project_positions(p: &Parameters, y: &mut State) -> Result<(), ModelError> {
+/// Project onto the constraint manifold (SPEC §2, "Projection"): positions onto g(φ) = 0
+/// with the mass-weighted minimum-norm correction Δφ = −J⁻¹Gᵀ·g/(G·J⁻¹·Gᵀ), iterated
+/// (Newton along J⁻¹Gᵀ); then velocities onto B1·ω2 − C1·ω3 = 0 with the J-weighted
+/// projection ω ← ω − J⁻¹Gᵀ(G·J⁻¹·Gᵀ)⁻¹·G·ω at the final positions. Only φ2, φ3, ω2, ω3
+/// move. One pair of sin_cos serves the whole projection: Newton's corrections are tiny,
+/// so each iteration rotates the previous sines and cosines by the change of the stored
+/// angles ([`rotate`]). Returns g at the result; fails where G vanishes (a change point)
+/// or Newton does not converge.
+pub fn project(p: &Parameters, y: &mut State) -> Result<f64, ModelError> {
     let tolerance = 4.0 * f64::EPSILON * p.L * p.L;
-    for _ in 0..MAX_POSITION_ITERATIONS {
-        let g = closure(p, y[1], y[2]);
-        if g.abs() <= tolerance {
-            return Ok(());
+    let (mut sc2, mut sc3) = (y[1].sin_cos(), y[2].sin_cos());
+    for iteration in 0..=MAX_POSITION_ITERATIONS {
+        let (g, b1, c1) = closure_with_gradient_from(p, sc2, sc3);
+        let weight = b1 * b1 / p.J2 + c1 * c1 / p.J3;
+        let converged = g.abs() <= tolerance
+            || iteration == MAX_POSITION_ITERATIONS && g.abs() <= 1e3 * tolerance;
+        if converged {
+            let scale = (b1 * y[5] - c1 * y[6]) / weight;
+            if scale.is_finite() {
+                y[5] -= b1 / p.J2 * scale;
+                y[6] += c1 / p.J3 * scale;
+            }
+            return Ok(g);
         }
-        let t = constraint_terms(p, y[1], y[2], 0.0, 0.0);
-        let weight = t.b1 * t.b1 / p.J2 + t.c1 * t.c1 / p.J3;
         let scale = g / weight;
         if !scale.is_finite() {
             break;
         }
-        y[1] -= t.b1 / p.J2 * scale;
-        y[2] += t.c1 / p.J3 * scale;
+        let (old2, old3) = (y[1], y[2]);
+        y[1] -= b1 / p.J2 * scale;
+        y[2] += c1 / p.J3 * scale;
+        // The differences of the stored angles are exact: the sines and cosines match them.
+        sc2 = rotate(sc2, y[1] - old2, y[1]);
+        sc3 = rotate(sc3, y[2] - old3, y[2]);
     }
     let g = closure(p, y[1], y[2]);
-    if g.abs() <= 1e3 * tolerance {
-        return Ok(());
-    }
     Err(ModelError::new(format!(
         "position projection failed at phi2 = {}, phi3 = {}: closure residual {g:e}",
         y[1], y[2]
     )))
-}
-
-/// Project velocities onto B1·ω2 − C1·ω3 = 0 with the J-weighted projection
-/// ω ← ω − J⁻¹Gᵀ(G·J⁻¹·Gᵀ)⁻¹·G·ω (SPEC §2). Only ω2 and ω3 move.
-pub fn project_velocities(p: &Parameters, y: &mut State) {
-    let t = constraint_terms(p, y[1], y[2], 0.0, 0.0);
-    let weight = t.b1 * t.b1 / p.J2 + t.c1 * t.c1 / p.J3;
-    let scale = (t.b1 * y[5] - t.c1 * y[6]) / weight;
-    if scale.is_finite() {
-        y[5] -= t.b1 / p.J2 * scale;
-        y[6] += t.c1 / p.J3 * scale;
-    }
-}
-
-/// Positions, then velocities at the projected positions.
-pub fn project(p: &Parameters, y: &mut State) -> Result<(), ModelError> {
-    project_positions(p, y)?;
-    project_velocities(p, y);
-    Ok(())
 }
 
 /// The consistent initial state of SPEC §3: φ3 from the assembly nearest `phi3_guess`,

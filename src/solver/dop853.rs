@@ -180,19 +180,16 @@ impl<const N: usize> Dop853<N> {
     /// first request after a step. `None` when no step is available (none taken since the
     /// last [`Dop853::invalidate`]) or `t` lies outside it.
     pub fn dense_output<S: OdeSystem<N>>(&mut self, system: &S, t: f64) -> Option<[f64; N]> {
-        let step = self.last_step?;
+        let step = self.last_step.as_ref()?;
         let x = (t - step.t_old) / step.h;
         if !(-1e-12..=1.0 + 1e-12).contains(&x) {
             return None;
         }
-        let coefficients = match self.dense {
-            Some(coefficients) => coefficients,
-            None => {
-                let coefficients = self.dense_coefficients(system, &step);
-                self.dense = Some(coefficients);
-                coefficients
-            }
-        };
+        if self.dense.is_none() {
+            let step = *step;
+            self.dense = Some(self.dense_coefficients(system, &step));
+        }
+        let (step, coefficients) = (self.last_step.as_ref()?, self.dense.as_ref()?);
         // Horner-like evaluation of the interpolant in x and 1 − x.
         let mut y = [0.0; N];
         for (i, row) in coefficients.iter().rev().enumerate() {

@@ -235,7 +235,11 @@ fn bench(quick: bool) -> Result {
     }
     run(&mut command)?;
     let mut driver = Command::new(python);
-    driver.arg(root().join("bench/bench.py")).arg(&harness).arg(&fmu).arg(&out);
+    driver
+        .arg(root().join("bench/bench.py"))
+        .arg(&harness)
+        .arg(&fmu)
+        .arg(&out);
     if quick {
         driver.arg("--quick");
     }
