@@ -10,5 +10,6 @@
 pub mod fmi2;
 pub mod model;
 pub mod simulation;
+pub mod snapshot;
 pub mod solver;
 pub mod variables;

@@ -11,6 +11,7 @@
 
 use crate::model::params::check_rule;
 use crate::model::{self, Inputs, Mechanism, ModelError, Parameters, State, STATE_SIZE};
+use crate::snapshot::{FormatError, Reader, Writer};
 use crate::solver::{Dop853, SolverError, Statistics, Tolerances};
 use crate::variables::{variable, Input, Output, Slot, Statistic, VarType, Variable, SOLVER_ITEMS};
 
@@ -333,6 +334,61 @@ impl Simulation {
             Output::ConstraintResidual => self.residual,
             Output::Energy => model::energy(p, y),
         }
+    }
+}
+
+impl Simulation {
+    /// Everything that determines the simulation's future, for a serialized FMU state.
+    pub fn serialize_into(&self, w: &mut Writer) {
+        for i in 0..model::PARAMETERS.len() {
+            w.f64(self.params.get(i).unwrap_or(f64::NAN));
+        }
+        w.f64s(&[self.inputs.motor_torque, self.inputs.load_torque]);
+        w.u8(self.solver_kind as u8);
+        w.f64s(&[self.tolerance, self.time]);
+        w.f64s(&self.state);
+        w.f64s(&[self.residual, self.integrator_time]);
+        w.f64s(&self.integrator_state);
+        w.bool(self.restart);
+        w.f64(self.limit);
+        self.solver.serialize_into(w);
+    }
+
+    /// The simulation written by [`Simulation::serialize_into`]; parameters are checked again.
+    pub fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
+        let invalid = |e: ModelError| FormatError(format!("invalid serialized state: {e}"));
+        let mut params = Parameters::default();
+        for i in 0..model::PARAMETERS.len() {
+            params.set(i, r.f64()?).map_err(invalid)?;
+        }
+        let [motor_torque, load_torque] = r.f64s()?;
+        let kind = r.u8()?;
+        let solver_kind = solver_kind(kind as i32)
+            .ok_or_else(|| FormatError(format!("invalid serialized state: solver = {kind}")))?;
+        let [tolerance, time] = r.f64s()?;
+        let state = r.f64s()?;
+        let [residual, integrator_time] = r.f64s()?;
+        let integrator_state = r.f64s()?;
+        let restart = r.bool()?;
+        let limit = r.f64()?;
+        let solver = Dop853::deserialize_from(r)?;
+        Ok(Self {
+            params,
+            inputs: Inputs {
+                motor_torque,
+                load_torque,
+            },
+            solver_kind,
+            tolerance,
+            time,
+            state,
+            residual,
+            integrator_time,
+            integrator_state,
+            restart,
+            limit,
+            solver,
+        })
     }
 }
 

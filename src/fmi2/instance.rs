@@ -9,9 +9,10 @@ use fmi_sys::fmi2::{
     fmi2Status_fmi2Error, fmi2Status_fmi2Fatal, fmi2Status_fmi2OK, fmi2Status_fmi2Warning,
 };
 
-use super::model_description::{DEFAULT_EXPERIMENT, LOG_CATEGORIES};
+use super::model_description::{guid, DEFAULT_EXPERIMENT, LOG_CATEGORIES};
 use super::state_machine::State;
 use crate::simulation::{AccessError, Simulation, Value};
+use crate::snapshot::{fnv1a_64, Reader, Writer};
 use crate::variables::VarType;
 
 /// Log categories, by their position in [`LOG_CATEGORIES`].
@@ -72,6 +73,61 @@ pub struct Instance {
     stop_time: Option<f64>,
     /// Whether `sim` holds the assembly for the current parameters (initialization mode).
     assembled: bool,
+    /// Addresses of the FMU states this instance has handed out and not yet freed.
+    issued_states: Vec<usize>,
+}
+
+/// A saved FMU state: everything fmi2SetFMUstate restores (the simulation with its solver
+/// memory, the FMI state and the experiment's times); not the logging settings, which
+/// belong to the instance.
+#[derive(Clone, Debug)]
+pub struct FmuState {
+    sim: Simulation,
+    state: State,
+    start_time: f64,
+    stop_time: Option<f64>,
+    assembled: bool,
+}
+
+impl FmuState {
+    /// The versioned, position-independent byte form (see [`crate::snapshot`]).
+    pub fn serialize(&self) -> Vec<u8> {
+        let mut w = Writer::default();
+        w.u8(self.state.code());
+        w.f64(self.start_time);
+        w.bool(self.stop_time.is_some());
+        w.f64(self.stop_time.unwrap_or(0.0));
+        w.bool(self.assembled);
+        self.sim.serialize_into(&mut w);
+        w.finish(interface_hash())
+    }
+
+    pub fn deserialize(bytes: &[u8]) -> Result<Self, Failure> {
+        let fail = |e: crate::snapshot::FormatError| Failure::error(e.to_string());
+        let mut r = Reader::open(bytes, interface_hash()).map_err(fail)?;
+        let code = r.u8().map_err(fail)?;
+        let state = State::from_code(code).ok_or_else(|| {
+            Failure::error(format!("invalid serialized state: FMI state code {code}"))
+        })?;
+        let start_time = r.f64().map_err(fail)?;
+        let has_stop = r.bool().map_err(fail)?;
+        let stop = r.f64().map_err(fail)?;
+        let assembled = r.bool().map_err(fail)?;
+        let sim = Simulation::deserialize_from(&mut r).map_err(fail)?;
+        r.finish().map_err(fail)?;
+        Ok(Self {
+            sim,
+            state,
+            start_time,
+            stop_time: has_stop.then_some(stop),
+            assembled,
+        })
+    }
+}
+
+/// Serialized states carry this hash of the GUID: a state of another FMU is refused.
+fn interface_hash() -> u64 {
+    fnv1a_64(guid().as_bytes())
 }
 
 impl Instance {
@@ -92,6 +148,7 @@ impl Instance {
             start_time: DEFAULT_EXPERIMENT.0,
             stop_time: None,
             assembled: false,
+            issued_states: Vec::new(),
         }
     }
 
@@ -316,6 +373,68 @@ impl Instance {
 
     pub fn last_successful_time(&self) -> f64 {
         self.sim.time()
+    }
+
+    pub fn save(&self) -> FmuState {
+        FmuState {
+            sim: self.sim.clone(),
+            state: self.state,
+            start_time: self.start_time,
+            stop_time: self.stop_time,
+            assembled: self.assembled,
+        }
+    }
+
+    pub fn restore(&mut self, saved: &FmuState) {
+        self.sim = saved.sim.clone();
+        self.state = saved.state;
+        self.start_time = saved.start_time;
+        self.stop_time = saved.stop_time;
+        self.assembled = saved.assembled;
+    }
+
+    /// Hand out `saved` as a new FMU state pointer.
+    pub fn issue_state(&mut self, saved: FmuState) -> *mut FmuState {
+        let pointer = Box::into_raw(Box::new(saved));
+        self.issued_states.push(pointer as usize);
+        pointer
+    }
+
+    /// The state behind `pointer`, if this instance issued it and has not freed it.
+    pub fn issued_state(
+        &mut self,
+        pointer: *mut std::ffi::c_void,
+    ) -> Result<&mut FmuState, Failure> {
+        if pointer.is_null() {
+            return Err(Failure::error("the FMU state is NULL"));
+        }
+        if !self.issued_states.contains(&(pointer as usize)) {
+            return Err(Failure::error(
+                "the FMU state was not created by this instance, or was freed already",
+            ));
+        }
+        // SAFETY: the pointer came from Box::into_raw in issue_state and is still owned
+        // by this instance (it is in the registry).
+        Ok(unsafe { &mut *pointer.cast::<FmuState>() })
+    }
+
+    /// Free a state this instance issued.
+    pub fn free_state(&mut self, pointer: *mut std::ffi::c_void) -> Outcome {
+        self.issued_state(pointer)?;
+        self.issued_states.retain(|p| *p != pointer as usize);
+        // SAFETY: issued by issue_state (checked above) and now removed from the registry.
+        drop(unsafe { Box::from_raw(pointer.cast::<FmuState>()) });
+        Ok(())
+    }
+}
+
+impl Drop for Instance {
+    /// States the master did not free go with their instance.
+    fn drop(&mut self) {
+        for pointer in self.issued_states.drain(..) {
+            // SAFETY: every registered address came from Box::into_raw and is freed once.
+            drop(unsafe { Box::from_raw(pointer as *mut FmuState) });
+        }
     }
 }
 

@@ -18,7 +18,7 @@ use std::ptr::null_mut;
 use fmi_sys::fmi2::*;
 
 use crate::simulation::Value;
-use instance::{send_log, Category, Failure, Instance, Outcome};
+use instance::{send_log, Category, Failure, FmuState, Instance, Outcome};
 use model_description::guid;
 use state_machine::{Call, State};
 
@@ -411,50 +411,126 @@ no_variables_of_type!(fmi2SetString, Call::Set, "String", *const fmi2String);
 // ---------------------------------------------------------------------------------------
 // Optional capabilities, not declared in modelDescription.xml: refused with a reason.
 
-const NO_FMU_STATE: &str = "canGetAndSetFMUstate and canSerializeFMUstate are false for this FMU";
-
+/// # Safety
+/// `FMUstate` must be NULL or point to a writable pointer (NULL, or a state of `c`).
 #[no_mangle]
-pub extern "C" fn fmi2GetFMUstate(c: fmi2Component, _state: *mut fmi2FMUstate) -> fmi2Status {
-    refuse(c, "fmi2GetFMUstate", NO_FMU_STATE)
-}
-
-#[no_mangle]
-pub extern "C" fn fmi2SetFMUstate(c: fmi2Component, _state: fmi2FMUstate) -> fmi2Status {
-    refuse(c, "fmi2SetFMUstate", NO_FMU_STATE)
-}
-
-#[no_mangle]
-pub extern "C" fn fmi2FreeFMUstate(c: fmi2Component, _state: *mut fmi2FMUstate) -> fmi2Status {
-    refuse(c, "fmi2FreeFMUstate", NO_FMU_STATE)
-}
-
-#[no_mangle]
-pub extern "C" fn fmi2SerializedFMUstateSize(
+pub unsafe extern "C" fn fmi2GetFMUstate(
     c: fmi2Component,
-    _state: fmi2FMUstate,
-    _size: *mut usize,
+    FMUstate: *mut fmi2FMUstate,
 ) -> fmi2Status {
-    refuse(c, "fmi2SerializedFMUstateSize", NO_FMU_STATE)
+    guarded(c, Call::FmuState, "fmi2GetFMUstate", |instance| {
+        // SAFETY: NULL or writable by the FMI contract.
+        let slot = unsafe { FMUstate.as_mut() }.ok_or_else(|| null_argument("FMUstate", 1))?;
+        let saved = instance.save();
+        if slot.is_null() {
+            *slot = instance.issue_state(saved).cast();
+        } else {
+            // A non-NULL entry is a state to overwrite (FMI 2.0, 2.1.8).
+            *instance.issued_state(*slot)? = saved;
+        }
+        Ok(())
+    })
 }
 
 #[no_mangle]
-pub extern "C" fn fmi2SerializeFMUstate(
-    c: fmi2Component,
-    _state: fmi2FMUstate,
-    _bytes: *mut fmi2Byte,
-    _size: usize,
-) -> fmi2Status {
-    refuse(c, "fmi2SerializeFMUstate", NO_FMU_STATE)
+pub extern "C" fn fmi2SetFMUstate(c: fmi2Component, FMUstate: fmi2FMUstate) -> fmi2Status {
+    guarded(c, Call::FmuState, "fmi2SetFMUstate", |instance| {
+        let saved = instance.issued_state(FMUstate)?.clone();
+        instance.restore(&saved);
+        Ok(())
+    })
 }
 
+/// # Safety
+/// `FMUstate` must be NULL or point to a writable pointer.
 #[no_mangle]
-pub extern "C" fn fmi2DeSerializeFMUstate(
+pub unsafe extern "C" fn fmi2FreeFMUstate(
     c: fmi2Component,
-    _bytes: *const fmi2Byte,
-    _size: usize,
-    _state: *mut fmi2FMUstate,
+    FMUstate: *mut fmi2FMUstate,
 ) -> fmi2Status {
-    refuse(c, "fmi2DeSerializeFMUstate", NO_FMU_STATE)
+    guarded(c, Call::FmuState, "fmi2FreeFMUstate", |instance| {
+        // SAFETY: NULL or writable by the FMI contract.
+        let Some(slot) = (unsafe { FMUstate.as_mut() }) else {
+            return Ok(());
+        };
+        if !slot.is_null() {
+            instance.free_state(*slot)?;
+            *slot = null_mut();
+        }
+        Ok(())
+    })
+}
+
+/// # Safety
+/// `size` must be NULL or writable.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
+    c: fmi2Component,
+    FMUstate: fmi2FMUstate,
+    size: *mut usize,
+) -> fmi2Status {
+    guarded(
+        c,
+        Call::FmuState,
+        "fmi2SerializedFMUstateSize",
+        |instance| {
+            let length = instance.issued_state(FMUstate)?.serialize().len();
+            // SAFETY: NULL or writable by the FMI contract.
+            *unsafe { size.as_mut() }.ok_or_else(|| null_argument("size", 1))? = length;
+            Ok(())
+        },
+    )
+}
+
+/// # Safety
+/// `serializedState` must hold `size` writable bytes.
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SerializeFMUstate(
+    c: fmi2Component,
+    FMUstate: fmi2FMUstate,
+    serializedState: *mut fmi2Byte,
+    size: usize,
+) -> fmi2Status {
+    guarded(c, Call::FmuState, "fmi2SerializeFMUstate", |instance| {
+        let bytes = instance.issued_state(FMUstate)?.serialize();
+        if size < bytes.len() {
+            return Err(Failure::error(format!(
+                "size = {size} is too small: the state needs {} bytes (fmi2SerializedFMUstateSize)",
+                bytes.len()
+            )));
+        }
+        // SAFETY: FMI contract on the buffer.
+        let target = unsafe { slice_mut(serializedState.cast::<u8>(), size) }
+            .ok_or_else(|| null_argument("serializedState", size))?;
+        target[..bytes.len()].copy_from_slice(&bytes);
+        Ok(())
+    })
+}
+
+/// # Safety
+/// `serializedState` must hold `size` readable bytes; `FMUstate` must be NULL or point to
+/// a writable pointer (NULL, or a state of `c`).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
+    c: fmi2Component,
+    serializedState: *const fmi2Byte,
+    size: usize,
+    FMUstate: *mut fmi2FMUstate,
+) -> fmi2Status {
+    guarded(c, Call::FmuState, "fmi2DeSerializeFMUstate", |instance| {
+        // SAFETY: FMI contract on the buffer.
+        let bytes = unsafe { slice(serializedState.cast::<u8>(), size) }
+            .ok_or_else(|| null_argument("serializedState", size))?;
+        let restored = FmuState::deserialize(bytes)?;
+        // SAFETY: NULL or writable by the FMI contract.
+        let slot = unsafe { FMUstate.as_mut() }.ok_or_else(|| null_argument("FMUstate", 1))?;
+        if slot.is_null() {
+            *slot = instance.issue_state(restored).cast();
+        } else {
+            *instance.issued_state(*slot)? = restored;
+        }
+        Ok(())
+    })
 }
 
 #[no_mangle]

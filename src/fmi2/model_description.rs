@@ -26,8 +26,8 @@ pub const CAPABILITIES: &[(&str, bool)] = &[
     ("canRunAsynchronuously", false),
     ("canBeInstantiatedOnlyOncePerProcess", false),
     ("canNotUseMemoryManagementFunctions", true),
-    ("canGetAndSetFMUstate", false),
-    ("canSerializeFMUstate", false),
+    ("canGetAndSetFMUstate", true),
+    ("canSerializeFMUstate", true),
     ("providesDirectionalDerivative", false),
 ];
 

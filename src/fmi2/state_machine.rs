@@ -7,6 +7,7 @@
 
 /// States of a co-simulation slave.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
 pub enum State {
     Instantiated,
     InitializationMode,
@@ -41,6 +42,8 @@ pub enum Call {
     GetStatus,
     /// Model Exchange functions: never allowed in a co-simulation FMU.
     ModelExchange,
+    /// Getting, setting, freeing and (de)serializing FMU states.
+    FmuState,
 }
 
 impl Call {
@@ -64,11 +67,31 @@ impl Call {
             Call::CancelStep => false,
             Call::GetStatus => matches!(state, StepComplete | StepFailed | Terminated),
             Call::ModelExchange => false,
+            Call::FmuState => true,
         }
     }
 }
 
 impl State {
+    /// A byte for serialized FMU states.
+    pub fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The state with [`State::code`] `code`; Fatal is never restored.
+    pub fn from_code(code: u8) -> Option<State> {
+        use State::*;
+        [
+            Instantiated,
+            InitializationMode,
+            StepComplete,
+            StepFailed,
+            Terminated,
+        ]
+        .into_iter()
+        .find(|s| s.code() == code)
+    }
+
     /// Parameters of variability "fixed" may change only before initialisation ends.
     pub fn parameters_writable(self) -> bool {
         matches!(self, State::Instantiated | State::InitializationMode)

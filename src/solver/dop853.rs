@@ -15,6 +15,7 @@
 
 use super::dop853_tableau::{A, A_DENSE, B, C, C_DENSE, D, E3, E5};
 use super::{OdeSystem, SolverError, Statistics, Tolerances};
+use crate::snapshot::{FormatError, Reader, Writer};
 
 const STAGES: usize = 12;
 /// Stage slots: the twelve stages, f(t + h, y_new) (the next step's first stage), and the
@@ -322,6 +323,66 @@ impl<const N: usize> Dop853<N> {
     fn eval<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N], stage: usize) {
         system.rhs(t, y, &mut self.stages[stage]);
         self.stats.n_rhs += 1;
+    }
+}
+
+impl<const N: usize> Dop853<N> {
+    /// Everything the integrator remembers (step size, stages, dense output, counters),
+    /// for a serialized FMU state: restoring it continues bit for bit.
+    pub fn serialize_into(&self, w: &mut Writer) {
+        w.f64s(&[self.tolerances.rtol, self.tolerances.atol]);
+        w.bool(self.next_step.is_some());
+        w.f64(self.next_step.unwrap_or(0.0));
+        self.stages.iter().for_each(|stage| w.f64s(stage));
+        w.bool(self.first_stage_valid);
+        w.bool(self.last_step.is_some());
+        if let Some(step) = &self.last_step {
+            w.f64s(&[step.t_old, step.h]);
+            w.f64s(&step.y_old);
+            w.f64s(&step.y_new);
+        }
+        w.bool(self.dense.is_some());
+        if let Some(dense) = &self.dense {
+            dense.iter().for_each(|row| w.f64s(row));
+        }
+        w.u64(self.stats.n_steps);
+        w.u64(self.stats.n_rejected);
+        w.u64(self.stats.n_rhs);
+    }
+
+    /// The integrator written by [`Dop853::serialize_into`].
+    pub fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
+        let [rtol, atol] = r.f64s()?;
+        let mut solver = Self::new(Tolerances { rtol, atol });
+        let has_step = r.bool()?;
+        let step = r.f64()?;
+        solver.next_step = has_step.then_some(step);
+        for stage in solver.stages.iter_mut() {
+            *stage = r.f64s()?;
+        }
+        solver.first_stage_valid = r.bool()?;
+        if r.bool()? {
+            let [t_old, h] = r.f64s()?;
+            solver.last_step = Some(LastStep {
+                t_old,
+                h,
+                y_old: r.f64s()?,
+                y_new: r.f64s()?,
+            });
+        }
+        if r.bool()? {
+            let mut dense = [[0.0; N]; 7];
+            for row in dense.iter_mut() {
+                *row = r.f64s()?;
+            }
+            solver.dense = Some(dense);
+        }
+        solver.stats = Statistics {
+            n_steps: r.u64()?,
+            n_rejected: r.u64()?,
+            n_rhs: r.u64()?,
+        };
+        Ok(solver)
     }
 }
 

@@ -217,7 +217,6 @@ def test_null_pointers_are_errors(fmu):
 
 def test_undeclared_capabilities_are_refused_with_a_reason(fmu):
     fmu.initialise()
-    assert "canGetAndSetFMUstate" in fmu.expect(ERROR, fmu.slave.getFMUstate)
     assert "canInterpolateInputs" in fmu.expect(ERROR, fmu.slave.setRealInputDerivatives,
                                                 [fmu.vr["M_m"]], [1], [0.0])
     assert "maxOutputDerivativeOrder" in fmu.expect(ERROR, fmu.slave.getRealOutputDerivatives,
