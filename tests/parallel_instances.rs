@@ -23,22 +23,41 @@ fn run(k34: f64) -> Vec<f64> {
     let names = ["k34", "Mm_a0", "Mm_a1", "Mm_a2", "Mr_b0", "Mr_b1"];
     let refs: Vec<u32> = names.iter().map(|n| value_reference(n).unwrap()).collect();
     let values = [k34, 100.0, -20.0, -1.0, 20.0, -0.05];
-    let outputs: Vec<u32> = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4"]
-        .iter()
-        .map(|n| value_reference(n).unwrap())
-        .collect();
+    let outputs: Vec<u32> = [
+        "phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4",
+    ]
+    .iter()
+    .map(|n| value_reference(n).unwrap())
+    .collect();
     let mut result = vec![0.0; outputs.len()];
     unsafe {
-        let c = fmi2Instantiate(name.as_ptr(), fmi2Type_fmi2CoSimulation, guid.as_ptr(), null(), &functions, 0, 0);
+        let c = fmi2Instantiate(
+            name.as_ptr(),
+            fmi2Type_fmi2CoSimulation,
+            guid.as_ptr(),
+            null(),
+            &functions,
+            0,
+            0,
+        );
         assert!(!c.is_null());
-        assert_eq!(fmi2SetupExperiment(c, 1, 1e-9, 0.0, 1, 5.0), fmi2Status_fmi2OK);
+        assert_eq!(
+            fmi2SetupExperiment(c, 1, 1e-9, 0.0, 1, 5.0),
+            fmi2Status_fmi2OK
+        );
         assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
-        assert_eq!(fmi2SetReal(c, refs.as_ptr(), refs.len(), values.as_ptr()), fmi2Status_fmi2OK);
+        assert_eq!(
+            fmi2SetReal(c, refs.as_ptr(), refs.len(), values.as_ptr()),
+            fmi2Status_fmi2OK
+        );
         assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
         for k in 0..5000 {
             assert_eq!(fmi2DoStep(c, k as f64 * 1e-3, 1e-3, 1), fmi2Status_fmi2OK);
         }
-        assert_eq!(fmi2GetReal(c, outputs.as_ptr(), outputs.len(), result.as_mut_ptr()), fmi2Status_fmi2OK);
+        assert_eq!(
+            fmi2GetReal(c, outputs.as_ptr(), outputs.len(), result.as_mut_ptr()),
+            fmi2Status_fmi2OK
+        );
         fmi2FreeInstance(c);
     }
     result
@@ -49,7 +68,10 @@ fn eight_threads_match_serial_runs_bit_for_bit() {
     let stiffnesses: Vec<f64> = (0..8).map(|i| 40.0 + 10.0 * i as f64).collect();
     let serial: Vec<Vec<f64>> = stiffnesses.iter().map(|k| run(*k)).collect();
     let parallel: Vec<Vec<f64>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = stiffnesses.iter().map(|k| scope.spawn(move || run(*k))).collect();
+        let handles: Vec<_> = stiffnesses
+            .iter()
+            .map(|k| scope.spawn(move || run(*k)))
+            .collect();
         handles.into_iter().map(|h| h.join().unwrap()).collect()
     });
     assert_eq!(serial, parallel);

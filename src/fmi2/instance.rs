@@ -316,6 +316,35 @@ impl Instance {
         Ok(())
     }
 
+    /// Validate every derivative first, then apply: a rejected batch changes nothing.
+    pub fn set_input_derivatives(
+        &mut self,
+        vrs: &[u32],
+        orders: &[i32],
+        values: &[f64],
+    ) -> Outcome {
+        for ((vr, order), value) in vrs.iter().zip(orders).zip(values) {
+            self.sim.check_input_derivative(*vr, *order, *value)?;
+        }
+        for ((vr, order), value) in vrs.iter().zip(orders).zip(values) {
+            self.sim.set_input_derivative(*vr, *order, *value)?;
+        }
+        Ok(())
+    }
+
+    pub fn get_output_derivatives(
+        &mut self,
+        vrs: &[u32],
+        orders: &[i32],
+        values: &mut [f64],
+    ) -> Outcome {
+        self.assemble_if_needed()?;
+        for ((vr, order), value) in vrs.iter().zip(orders).zip(values.iter_mut()) {
+            *value = self.sim.output_derivative(*vr, *order)?;
+        }
+        Ok(())
+    }
+
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
         let now = self.sim.time();
         if !(step.is_finite() && step > 0.0) {

@@ -409,7 +409,8 @@ no_variables_of_type!(fmi2SetBoolean, Call::Set, "Boolean", *const fmi2Boolean);
 no_variables_of_type!(fmi2SetString, Call::Set, "String", *const fmi2String);
 
 // ---------------------------------------------------------------------------------------
-// Optional capabilities, not declared in modelDescription.xml: refused with a reason.
+// Optional capabilities: FMU state, input and output derivatives (directional derivatives
+// are not declared in modelDescription.xml and are refused with a reason).
 
 /// # Safety
 /// `FMUstate` must be NULL or point to a writable pointer (NULL, or a state of `c`).
@@ -550,34 +551,46 @@ pub extern "C" fn fmi2GetDirectionalDerivative(
     )
 }
 
+/// # Safety
+/// `vr`, `order` and `value` must hold `nvr` elements (FMI 2.0 contract).
 #[no_mangle]
-pub extern "C" fn fmi2SetRealInputDerivatives(
+pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
     c: fmi2Component,
-    _vr: *const fmi2ValueReference,
-    _nvr: usize,
-    _order: *const fmi2Integer,
-    _value: *const fmi2Real,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    order: *const fmi2Integer,
+    value: *const fmi2Real,
 ) -> fmi2Status {
-    refuse(
-        c,
-        "fmi2SetRealInputDerivatives",
-        "canInterpolateInputs is false for this FMU",
-    )
+    guarded(c, Call::Set, "fmi2SetRealInputDerivatives", |instance| {
+        // SAFETY: FMI contract on the arrays.
+        let (vrs, orders, values) =
+            unsafe { (slice(vr, nvr), slice(order, nvr), slice(value, nvr)) };
+        let vrs = vrs.ok_or_else(|| null_argument("vr", nvr))?;
+        let orders = orders.ok_or_else(|| null_argument("order", nvr))?;
+        let values = values.ok_or_else(|| null_argument("value", nvr))?;
+        instance.set_input_derivatives(vrs, orders, values)
+    })
 }
 
+/// # Safety
+/// `vr` and `order` must hold `nvr` elements, `value` `nvr` writable ones.
 #[no_mangle]
-pub extern "C" fn fmi2GetRealOutputDerivatives(
+pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
     c: fmi2Component,
-    _vr: *const fmi2ValueReference,
-    _nvr: usize,
-    _order: *const fmi2Integer,
-    _value: *mut fmi2Real,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    order: *const fmi2Integer,
+    value: *mut fmi2Real,
 ) -> fmi2Status {
-    refuse(
-        c,
-        "fmi2GetRealOutputDerivatives",
-        "maxOutputDerivativeOrder is 0 for this FMU",
-    )
+    guarded(c, Call::Get, "fmi2GetRealOutputDerivatives", |instance| {
+        // SAFETY: FMI contract on the arrays.
+        let (vrs, orders, values) =
+            unsafe { (slice(vr, nvr), slice(order, nvr), slice_mut(value, nvr)) };
+        let vrs = vrs.ok_or_else(|| null_argument("vr", nvr))?;
+        let orders = orders.ok_or_else(|| null_argument("order", nvr))?;
+        let values = values.ok_or_else(|| null_argument("value", nvr))?;
+        instance.get_output_derivatives(vrs, orders, values)
+    })
 }
 
 // ---------------------------------------------------------------------------------------

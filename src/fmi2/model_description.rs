@@ -22,7 +22,7 @@ pub const DEFAULT_EXPERIMENT: (f64, f64, f64) = (0.0, 10.0, 1e-3);
 pub const CAPABILITIES: &[(&str, bool)] = &[
     ("needsExecutionTool", false),
     ("canHandleVariableCommunicationStepSize", true),
-    ("canInterpolateInputs", false),
+    ("canInterpolateInputs", true),
     ("canRunAsynchronuously", false),
     ("canBeInstantiatedOnlyOncePerProcess", false),
     ("canNotUseMemoryManagementFunctions", true),
@@ -31,8 +31,8 @@ pub const CAPABILITIES: &[(&str, bool)] = &[
     ("providesDirectionalDerivative", false),
 ];
 
-/// maxOutputDerivativeOrder (0: fmi2GetRealOutputDerivatives is not offered).
-pub const MAX_OUTPUT_DERIVATIVE_ORDER: u32 = 0;
+/// maxOutputDerivativeOrder: fmi2GetRealOutputDerivatives serves orders 1 and 2.
+pub const MAX_OUTPUT_DERIVATIVE_ORDER: u32 = 2;
 
 /// Log categories for fmi2SetDebugLogging.
 pub const LOG_CATEGORIES: &[(&str, &str)] = &[

@@ -1,6 +1,6 @@
 //! The mechanism alone (SPEC.md): parameters, state, right-hand side, constraint,
 //! projection, assembly and energy. Pure Rust; it knows nothing of FMI or of the solver
-//! that drives it, beyond implementing [`crate::solver::OdeSystem`].
+//! that drives it.
 
 pub mod dynamics;
 pub mod kinematics;
@@ -11,8 +11,6 @@ pub use dynamics::{accelerations, energy, power, rod_force, state_derivative};
 pub use kinematics::{length_residual, length_residual_from_closure};
 pub use params::{Parameters, PARAMETERS};
 pub use projection::{initial_state, project};
-
-use crate::solver::OdeSystem;
 
 /// The state vector y = (φ1, φ2, φ3, φ4, ω1, ω2, ω3, ω4).
 pub type State = [f64; 8];
@@ -44,22 +42,3 @@ impl std::fmt::Display for ModelError {
 }
 
 impl std::error::Error for ModelError {}
-
-/// The mechanism with its parameters and current inputs, as an ODE on the constraint
-/// manifold: what an integrator needs, and nothing about who drives it.
-#[derive(Clone, Copy, Debug)]
-pub struct Mechanism<'a> {
-    pub params: &'a Parameters,
-    pub inputs: &'a Inputs,
-}
-
-impl OdeSystem<STATE_SIZE> for Mechanism<'_> {
-    #[inline]
-    fn rhs(&self, _t: f64, y: &State, dy: &mut State) {
-        state_derivative(self.params, self.inputs, y, dy);
-    }
-
-    fn project(&self, y: &mut State) -> bool {
-        project(self.params, y).is_ok()
-    }
-}

@@ -217,10 +217,10 @@ def test_null_pointers_are_errors(fmu):
 
 def test_undeclared_capabilities_are_refused_with_a_reason(fmu):
     fmu.initialise()
-    assert "canInterpolateInputs" in fmu.expect(ERROR, fmu.slave.setRealInputDerivatives,
-                                                [fmu.vr["M_m"]], [1], [0.0])
-    assert "maxOutputDerivativeOrder" in fmu.expect(ERROR, fmu.slave.getRealOutputDerivatives,
-                                                    [fmu.vr["phi1"]], [1])
+    directional = fmu.raw("fmi2GetDirectionalDerivative")
+    directional.argtypes = [ctypes.c_void_p] + [ctypes.c_void_p, ctypes.c_size_t] * 2 + [ctypes.c_void_p] * 2
+    assert directional(fmu.slave.component, None, 0, None, 0, None, None) == ERROR
+    assert "providesDirectionalDerivative" in fmu.messages[-1][2]
     for name in ("fmi2EnterEventMode", "fmi2EnterContinuousTimeMode"):
         function = fmu.raw(name)
         function.argtypes = [ctypes.c_void_p]

@@ -1,0 +1,117 @@
+"""Coupling (issue 5 §1, §2): output derivatives against their definitions, input
+derivatives, and the convergence order of a master-closed motor/load law: about 1 with
+held inputs, about 2 when the master passes first-order input derivatives computed from
+the output derivatives."""
+
+import math
+
+import numpy as np
+import pytest
+
+from test_fmi_api import ERROR, Harness
+
+LAWS = dict(Mm_a0=100.0, Mm_a1=-20.0, Mm_a2=-1.0, Mr_b0=20.0, Mr_b1=-0.05)
+STATES = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4"]
+
+
+def derivative(fmu, name, order):
+    return fmu.slave.getRealOutputDerivatives([fmu.vr[name]], [order])[0]
+
+
+@pytest.fixture
+def running(unzipped, model_description):
+    fmu = Harness(unzipped, model_description).instantiate().initialise(tolerance=1e-12, d34=0.3, **LAWS)
+    for k in range(50):
+        fmu.slave.doStep(k * 0.01, 0.01)
+    yield fmu
+    fmu.free()
+
+
+def test_output_derivatives_follow_their_definitions(running):
+    fmu = running
+    for i in range(1, 5):
+        assert derivative(fmu, f"phi{i}", 1) == fmu.get(f"omega{i}")
+        assert derivative(fmu, f"phi{i}", 2) == derivative(fmu, f"omega{i}", 1)
+    assert abs(derivative(fmu, "constraint_residual", 1)) < 1e-13
+    # Rates against difference quotients of the trajectory itself (FMU state for rewinding).
+    names = ["omega1", "omega3", "energy", "rod_force"]
+    first = {n: derivative(fmu, n, 1) for n in names}
+    second = {n: derivative(fmu, n, 2) for n in names}
+    state = fmu.slave.getFMUstate()
+    h, t = 1e-5, 0.5  # small enough that the h² term of the quotient is negligible
+    before = fmu.get(*names)
+    fmu.slave.doStep(t, h)
+    after = fmu.get(*names)
+    later = {n: derivative(fmu, n, 1) for n in names}
+    later_second = {n: derivative(fmu, n, 2) for n in names}
+    for n, a, b in zip(names, before, after):
+        quotient = (b - a) / h  # first derivative at t + h/2
+        expected = first[n] + 0.5 * h * second[n]
+        assert abs(quotient - expected) < 1e-6 * max(1.0, abs(first[n])), (n, quotient, expected)
+        # (f'(t + h) - f'(t))/h equals the mean of f'' at both ends to O(h²).
+        mean_second = 0.5 * (second[n] + later_second[n])
+        assert abs((later[n] - first[n]) / h - mean_second) < 1e-4 * max(1.0, abs(mean_second)), n
+    fmu.slave.setFMUstate(state)
+    fmu.slave.freeFMUstate(state)
+
+
+def test_bad_derivative_requests_are_errors(running):
+    fmu = running
+    assert "order = 3" in fmu.expect(ERROR, fmu.slave.getRealOutputDerivatives, [fmu.vr["phi1"]], [3])
+    assert "not a Real output" in fmu.expect(ERROR, fmu.slave.getRealOutputDerivatives, [fmu.vr["k12"]], [1])
+    assert "not an input" in fmu.expect(ERROR, fmu.slave.setRealInputDerivatives, [fmu.vr["phi1"]], [1], [0.0])
+    assert "order = 0" in fmu.expect(ERROR, fmu.slave.setRealInputDerivatives, [fmu.vr["M_m"]], [0], [1.0])
+    message = fmu.expect(ERROR, fmu.slave.setRealInputDerivatives, [fmu.vr["M_m"], fmu.vr["M_r"]], [1, 1], [1.0, math.nan])
+    assert "M_r" in message and "finite" in message
+
+
+def test_input_derivatives_drive_a_ramp(unzipped, model_description):
+    """A torque ramp given as a derivative equals the same ramp sampled finely."""
+    def run(h, with_derivative):
+        fmu = Harness(unzipped, model_description).instantiate().initialise(tolerance=1e-11)
+        for k in range(round(1.0 / h)):
+            t = k * h
+            fmu.set("M_m", 5.0 * t)
+            if with_derivative:
+                fmu.slave.setRealInputDerivatives([fmu.vr["M_m"]], [1], [5.0])
+            fmu.slave.doStep(t, h)
+        values = np.array(fmu.get(*STATES))
+        fmu.free()
+        return values
+
+    exact = run(0.1, True)
+    fine = run(1e-3, False)
+    coarse = run(0.1, False)
+    assert np.max(np.abs(exact - fine)) < 0.02 * np.max(np.abs(coarse - fine))
+
+
+def coupled(unzipped, model_description, h, with_derivatives, stop=2.0):
+    """Paper case 1 with the laws closed by the master through M_m and M_r."""
+    fmu = Harness(unzipped, model_description).instantiate().initialise(tolerance=1e-11)
+    for k in range(round(stop / h)):
+        w1 = fmu.get("omega1")
+        fmu.slave.setReal([fmu.vr["M_m"], fmu.vr["M_r"]], [100.0 - 20.0 * w1 - w1 * w1, 20.0 - 0.05 * w1])
+        if with_derivatives:
+            a1 = derivative(fmu, "omega1", 1)
+            fmu.slave.setRealInputDerivatives([fmu.vr["M_m"], fmu.vr["M_r"]], [1, 1],
+                                              [(-20.0 - 2.0 * w1) * a1, -0.05 * a1])
+        fmu.slave.doStep(k * h, h)
+    values = np.array(fmu.get(*STATES))
+    fmu.free()
+    return values
+
+
+def test_coupling_orders(unzipped, model_description, report):
+    reference = Harness(unzipped, model_description).instantiate().initialise(tolerance=1e-12, **LAWS)
+    for k in range(200):
+        reference.slave.doStep(k * 0.01, 0.01)
+    exact = np.array(reference.get(*STATES))
+    reference.free()
+    steps = [0.01, 0.005, 0.0025]
+    for with_derivatives, (low, high) in ((False, (0.8, 1.2)), (True, (1.7, 2.5))):
+        errors = [np.max(np.abs(coupled(unzipped, model_description, h, with_derivatives) - exact)) for h in steps]
+        orders = [math.log2(a / b) for a, b in zip(errors, errors[1:])]
+        key = "derivatives" if with_derivatives else "held"
+        report[f"coupling_{key}_errors_H_0.01_0.005_0.0025"] = errors
+        report[f"coupling_{key}_orders"] = orders
+        assert all(low < q < high for q in orders), (key, errors, orders)
