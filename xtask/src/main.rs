@@ -211,6 +211,15 @@ fn test() -> Result {
     ensure_libclang()?;
     run(cargo().args(["test", "--release"]))?;
     let fmu = build_fmu()?;
+    // The benchmark harness builds and drives the packed FMU (a smoke run, no timings
+    // judged), so that `cargo xtask bench` keeps working from a fresh clone.
+    run(cargo().args(["build", "--release", "--quiet", "--package", "bench"]))?;
+    let smoke = root().join("target/bench/smoke.json");
+    fs::create_dir_all(root().join("target/bench")).map_err(|e| e.to_string())?;
+    run(Command::new(root().join("target/release/bench"))
+        .arg(&fmu)
+        .arg(&smoke)
+        .args(["--quick", "--fmu-only"]))?;
     let python = ensure_venv()?;
     run(Command::new(python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
