@@ -210,6 +210,7 @@ fn demo() -> Result {
 fn test() -> Result {
     ensure_libclang()?;
     run(cargo().args(["test", "--release"]))?;
+    fuzz_under_valgrind()?;
     let fmu = build_fmu()?;
     // The benchmark harness builds and drives the packed FMU (a smoke run, no timings
     // judged), so that `cargo xtask bench` keeps working from a fresh clone.
@@ -226,6 +227,22 @@ fn test() -> Result {
         .arg(root().join("tests/python"))
         .env("CYCLIC_MECHANISM_FMU", fmu)
         .current_dir(root()))
+}
+
+/// The fuzzed FMI call sequences again, under valgrind memcheck: no invalid access, no
+/// use of uninitialised memory, no definite leak (issue 4 §6).
+fn fuzz_under_valgrind() -> Result {
+    if Command::new("valgrind").arg("--version").output().is_err() {
+        println!("xtask: installing valgrind");
+        apt_install(&["valgrind"])?;
+    }
+    let runner = "valgrind --error-exitcode=9 --leak-check=full --errors-for-leak-kinds=definite \
+                  --show-leak-kinds=definite --quiet";
+    run(cargo()
+        .args(["test", "--release", "--quiet", "--test", "fuzz_api"])
+        .env("CARGO_TARGET_X86_64_UNKNOWN_LINUX_GNU_RUNNER", runner)
+        .env("CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER", runner)
+        .env("FUZZ_SEQUENCES", "300"))
 }
 
 /// The work-precision study: the Rust harness (FMU through its C ABI, Rust crates, ns per

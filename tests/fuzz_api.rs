@@ -1,0 +1,337 @@
+//! Random FMI call sequences with random, often invalid, arguments through the exported C
+//! functions (issue 4 §6): never a crash, never fmi2Fatal (a caught panic, i.e. a bug),
+//! only documented statuses, and finite values whenever a read succeeds. Deterministic
+//! (a fixed seed), and run under valgrind memcheck by `cargo xtask test`.
+
+use std::ffi::{c_char, CString};
+use std::ptr::{null, null_mut};
+
+use cyclic_mechanism::fmi2::model_description::guid;
+use cyclic_mechanism::fmi2::*;
+use cyclic_mechanism::variables::count;
+use fmi_sys::fmi2::*;
+
+/// xorshift64*: a small deterministic generator, enough for fuzzing.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545F4914F6CDD1D)
+    }
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+    fn chance(&mut self, percent: u64) -> bool {
+        self.below(100) < percent
+    }
+    fn real(&mut self) -> f64 {
+        match self.below(10) {
+            0 => f64::NAN,
+            1 => f64::INFINITY,
+            2 => -1.0,
+            3 => 0.0,
+            4 => 1e9,
+            _ => (self.below(2000) as f64 - 500.0) / 100.0,
+        }
+    }
+    fn vr(&mut self) -> u32 {
+        if self.chance(10) {
+            self.next() as u32
+        } else {
+            self.below(count() as u64 + 3) as u32
+        }
+    }
+}
+
+struct Fuzz {
+    rng: Rng,
+    c: fmi2Component,
+    time: f64,
+    states: Vec<fmi2FMUstate>,
+    calls: u64,
+}
+
+fn documented(status: fmi2Status) -> bool {
+    [
+        fmi2Status_fmi2OK,
+        fmi2Status_fmi2Warning,
+        fmi2Status_fmi2Discard,
+        fmi2Status_fmi2Error,
+    ]
+    .contains(&status)
+}
+
+impl Fuzz {
+    fn check(&mut self, status: fmi2Status, what: &str) -> fmi2Status {
+        self.calls += 1;
+        assert!(
+            documented(status),
+            "{what} returned status {status} (never fmi2Fatal or undocumented)"
+        );
+        status
+    }
+
+    fn arrays(&mut self) -> (Vec<u32>, usize) {
+        let n = self.rng.below(5) as usize;
+        ((0..n).map(|_| self.rng.vr()).collect(), n)
+    }
+
+    /// One random call.
+    unsafe fn call(&mut self) {
+        let c = self.c;
+        let r = &mut self.rng;
+        let choice = r.below(20);
+        unsafe {
+            match choice {
+                0 => {
+                    let s = fmi2SetupExperiment(
+                        c,
+                        r.below(2) as i32,
+                        r.real().abs() * 1e-9,
+                        0.0,
+                        r.below(2) as i32,
+                        r.real(),
+                    );
+                    self.check(s, "fmi2SetupExperiment");
+                }
+                1 => {
+                    let s = fmi2EnterInitializationMode(c);
+                    self.check(s, "fmi2EnterInitializationMode");
+                }
+                2 => {
+                    let s = fmi2ExitInitializationMode(c);
+                    self.check(s, "fmi2ExitInitializationMode");
+                }
+                3..=5 => {
+                    // Short steps: random parameters can make the model very stiff, and the
+                    // point here is the API, not long integrations (tested elsewhere).
+                    let h = match r.below(6) {
+                        0 => r.real().min(0.05),
+                        1 => 0.05,
+                        2 => 1e-9,
+                        _ => 0.01,
+                    };
+                    let t = if r.chance(85) { self.time } else { r.real() };
+                    let s = fmi2DoStep(c, t, h, 1);
+                    if self.check(s, "fmi2DoStep") == fmi2Status_fmi2OK {
+                        self.time = t + h;
+                    }
+                }
+                6..=7 => {
+                    let (vrs, n) = self.arrays();
+                    let mut values = vec![0.0; n];
+                    let pointer = if self.rng.chance(5) {
+                        null_mut()
+                    } else {
+                        values.as_mut_ptr()
+                    };
+                    let s = fmi2GetReal(c, vrs.as_ptr(), n, pointer);
+                    if self.check(s, "fmi2GetReal") == fmi2Status_fmi2OK {
+                        assert!(
+                            values.iter().all(|v| v.is_finite()),
+                            "non-finite output {values:?}"
+                        );
+                    }
+                }
+                8..=9 => {
+                    let (vrs, n) = self.arrays();
+                    let values: Vec<f64> = (0..n).map(|_| self.rng.real()).collect();
+                    let s = fmi2SetReal(c, vrs.as_ptr(), n, values.as_ptr());
+                    self.check(s, "fmi2SetReal");
+                }
+                10 => {
+                    let (vrs, n) = self.arrays();
+                    let values: Vec<i32> = (0..n).map(|_| self.rng.below(5) as i32 - 1).collect();
+                    let s = fmi2SetInteger(c, vrs.as_ptr(), n, values.as_ptr());
+                    self.check(s, "fmi2SetInteger");
+                    let mut read = vec![0; n];
+                    let s = fmi2GetInteger(c, vrs.as_ptr(), n, read.as_mut_ptr());
+                    self.check(s, "fmi2GetInteger");
+                }
+                11 => {
+                    let mut state: fmi2FMUstate = null_mut();
+                    if self.check(fmi2GetFMUstate(c, &mut state), "fmi2GetFMUstate")
+                        == fmi2Status_fmi2OK
+                    {
+                        self.states.push(state);
+                    }
+                }
+                12 => {
+                    let state = self.pick_state();
+                    let s = fmi2SetFMUstate(c, state);
+                    if self.check(s, "fmi2SetFMUstate") == fmi2Status_fmi2OK {
+                        let mut t = 0.0;
+                        fmi2GetRealStatus(c, fmi2StatusKind_fmi2LastSuccessfulTime, &mut t);
+                        self.time = t;
+                    }
+                }
+                13 => {
+                    if !self.states.is_empty() {
+                        let i = self.rng.below(self.states.len() as u64) as usize;
+                        let mut state = self.states.swap_remove(i);
+                        self.check(fmi2FreeFMUstate(c, &mut state), "fmi2FreeFMUstate");
+                    }
+                }
+                14 => self.round_trip_serialized(),
+                15 => {
+                    let names = [
+                        c"logCalls".as_ptr(),
+                        c"logSolver".as_ptr(),
+                        c"nonsense".as_ptr(),
+                        null(),
+                    ];
+                    let n = self.rng.below(3) as usize;
+                    let chosen: Vec<*const c_char> =
+                        (0..n).map(|_| names[self.rng.below(4) as usize]).collect();
+                    let s = fmi2SetDebugLogging(c, self.rng.below(2) as i32, n, chosen.as_ptr());
+                    self.check(s, "fmi2SetDebugLogging");
+                }
+                16 => {
+                    let (vrs, n) = self.arrays();
+                    let orders: Vec<i32> = (0..n).map(|_| self.rng.below(4) as i32).collect();
+                    let mut values = vec![0.0; n];
+                    let s = fmi2GetRealOutputDerivatives(
+                        c,
+                        vrs.as_ptr(),
+                        n,
+                        orders.as_ptr(),
+                        values.as_mut_ptr(),
+                    );
+                    if self.check(s, "fmi2GetRealOutputDerivatives") == fmi2Status_fmi2OK {
+                        assert!(
+                            values.iter().all(|v| v.is_finite()),
+                            "non-finite derivative {values:?}"
+                        );
+                    }
+                    let values: Vec<f64> = (0..n).map(|_| self.rng.real()).collect();
+                    let s = fmi2SetRealInputDerivatives(
+                        c,
+                        vrs.as_ptr(),
+                        n,
+                        orders.as_ptr(),
+                        values.as_ptr(),
+                    );
+                    self.check(s, "fmi2SetRealInputDerivatives");
+                }
+                17 => {
+                    let s = fmi2Terminate(c);
+                    self.check(s, "fmi2Terminate");
+                }
+                18 => {
+                    if self.rng.chance(30) {
+                        self.check(fmi2Reset(c), "fmi2Reset");
+                        self.time = 0.0;
+                    }
+                }
+                _ => {
+                    let mut flag = 0;
+                    self.check(
+                        fmi2GetBooleanStatus(c, fmi2StatusKind_fmi2Terminated, &mut flag),
+                        "fmi2GetBooleanStatus",
+                    );
+                    self.check(fmi2CancelStep(c), "fmi2CancelStep");
+                    self.check(fmi2GetDerivatives(c, null_mut(), 0), "fmi2GetDerivatives");
+                }
+            }
+        }
+    }
+
+    fn pick_state(&mut self) -> fmi2FMUstate {
+        if self.states.is_empty() || self.rng.chance(10) {
+            // A pointer this instance never issued: must be refused, not dereferenced.
+            return 0x1000 as fmi2FMUstate;
+        }
+        self.states[self.rng.below(self.states.len() as u64) as usize]
+    }
+
+    /// Serialize a state, damage the bytes sometimes, and deserialize.
+    unsafe fn round_trip_serialized(&mut self) {
+        let state = self.pick_state();
+        let c = self.c;
+        let mut size = 0usize;
+        unsafe {
+            if self.check(
+                fmi2SerializedFMUstateSize(c, state, &mut size),
+                "fmi2SerializedFMUstateSize",
+            ) != fmi2Status_fmi2OK
+            {
+                return;
+            }
+            let mut bytes = vec![0 as c_char; size];
+            let given = if self.rng.chance(10) { size / 2 } else { size };
+            if self.check(
+                fmi2SerializeFMUstate(c, state, bytes.as_mut_ptr(), given),
+                "fmi2SerializeFMUstate",
+            ) != fmi2Status_fmi2OK
+            {
+                return;
+            }
+            match self.rng.below(4) {
+                0 => bytes.truncate(self.rng.below(size as u64 + 1) as usize),
+                1 => {
+                    let i = self.rng.below(size as u64) as usize;
+                    bytes[i] ^= 1 << self.rng.below(8);
+                }
+                _ => {}
+            }
+            let mut restored: fmi2FMUstate = null_mut();
+            let s = fmi2DeSerializeFMUstate(c, bytes.as_ptr(), bytes.len(), &mut restored);
+            if self.check(s, "fmi2DeSerializeFMUstate") == fmi2Status_fmi2OK {
+                self.states.push(restored);
+            }
+        }
+    }
+}
+
+#[test]
+fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
+    let sequences = std::env::var("FUZZ_SEQUENCES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2000u64);
+    let guid = CString::new(guid()).unwrap();
+    let functions = fmi2CallbackFunctions {
+        logger: None,
+        allocateMemory: None,
+        freeMemory: None,
+        stepFinished: None,
+        componentEnvironment: null_mut(),
+    };
+    let mut rng = Rng(0x9E3779B97F4A7C15);
+    let mut total_calls = 0;
+    for _ in 0..sequences {
+        let c = unsafe {
+            fmi2Instantiate(
+                c"fuzz".as_ptr(),
+                fmi2Type_fmi2CoSimulation,
+                guid.as_ptr(),
+                null(),
+                &functions,
+                0,
+                0,
+            )
+        };
+        assert!(!c.is_null());
+        let mut fuzz = Fuzz {
+            rng: Rng(rng.next() | 1),
+            c,
+            time: 0.0,
+            states: Vec::new(),
+            calls: 0,
+        };
+        for _ in 0..40 {
+            unsafe { fuzz.call() };
+        }
+        // Free some states explicitly; the rest go with the instance.
+        for mut state in fuzz.states.drain(..).step_by(2) {
+            unsafe { fmi2FreeFMUstate(c, &mut state) };
+        }
+        total_calls += fuzz.calls;
+        unsafe { fmi2FreeInstance(c) };
+    }
+    eprintln!("fuzzed {sequences} sequences, {total_calls} calls");
+    assert!(total_calls > sequences * 30);
+}
