@@ -93,8 +93,9 @@ impl OdeSystem<STATE_SIZE> for Driven<'_> {
         model::state_derivative(self.params, &self.inputs_at(t), y, dy);
     }
 
-    fn project(&self, y: &mut State) -> bool {
-        model::project(self.params, y).is_ok()
+    fn project(&self, previous: &State, y: &mut State) -> bool {
+        model::project(self.params, y)
+            .is_ok_and(|at| model::check_passage(self.params, previous, y, &at).is_ok())
     }
 }
 
@@ -245,7 +246,7 @@ impl Simulation {
             interpolated.ok_or(SolverError::ProjectionFailed { t: t_end })?
         };
         let g = match model::project(&self.params, &mut y) {
-            Ok(g) if y.iter().all(|v| v.is_finite()) => g,
+            Ok(at) if y.iter().all(|v| v.is_finite()) => at.closure,
             _ => {
                 self.restart = true;
                 return Err(SolverError::ProjectionFailed { t: t_end });

@@ -6,6 +6,20 @@ use super::kinematics::{
 };
 use super::{ModelError, Parameters, State};
 
+/// The constraint's conditioning (B1²/J2 + C1²/J3, normalised by its largest possible
+/// value) below which the configuration counts as singular: |G| at 1e-4 of its scale,
+/// where the accelerations lose about four digits. Regular crank-rockers stay far above
+/// (the default linkage: 0.64 at worst over a revolution).
+pub const MIN_CONDITIONING: f64 = 1e-8;
+
+/// The result of a projection: g and the gradient terms at the projected state.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Projected {
+    pub closure: f64,
+    pub b1: f64,
+    pub c1: f64,
+}
+
 /// Newton iterations allowed for the position projection; two suffice after a step.
 const MAX_POSITION_ITERATIONS: usize = 8;
 
@@ -15,9 +29,9 @@ const MAX_POSITION_ITERATIONS: usize = 8;
 /// projection ω ← ω − J⁻¹Gᵀ(G·J⁻¹·Gᵀ)⁻¹·G·ω at the final positions. Only φ2, φ3, ω2, ω3
 /// move. One pair of sin_cos serves the whole projection: Newton's corrections are tiny,
 /// so each iteration rotates the previous sines and cosines by the change of the stored
-/// angles ([`rotate`]). Returns g at the result; fails where G vanishes (a change point)
-/// or Newton does not converge.
-pub fn project(p: &Parameters, y: &mut State) -> Result<f64, ModelError> {
+/// angles ([`rotate`]). Returns g, B1 and C1 at the result; fails where G vanishes (a
+/// change point) or Newton does not converge.
+pub fn project(p: &Parameters, y: &mut State) -> Result<Projected, ModelError> {
     let tolerance = 4.0 * f64::EPSILON * p.L * p.L;
     let (mut sc2, mut sc3) = (y[1].sin_cos(), y[2].sin_cos());
     for iteration in 0..=MAX_POSITION_ITERATIONS {
@@ -31,7 +45,7 @@ pub fn project(p: &Parameters, y: &mut State) -> Result<f64, ModelError> {
                 y[5] -= b1 / p.J2 * scale;
                 y[6] += c1 / p.J3 * scale;
             }
-            return Ok(g);
+            return Ok(Projected { closure: g, b1, c1 });
         }
         let scale = g / weight;
         if !scale.is_finite() {
@@ -49,6 +63,42 @@ pub fn project(p: &Parameters, y: &mut State) -> Result<f64, ModelError> {
         "position projection failed at phi2 = {}, phi3 = {}: closure residual {g:e}",
         y[1], y[2]
     )))
+}
+
+/// The step from `previous` to `y` (projected, with `at` its projection) stayed where the
+/// motion is determined: the constraint is not singular at `y` (SPEC §2: the 2×2 block
+/// is singular only where B1 = C1 = 0, a change point), and the assembly mode, the sign
+/// of C1 (on which side of the rocker the rod lies), did not flip. A flip means the
+/// linkage went through a change point and took one of two possible continuations: the
+/// equations no longer say which, so the step is refused rather than guessed.
+pub fn check_passage(
+    p: &Parameters,
+    previous: &State,
+    y: &State,
+    at: &Projected,
+) -> Result<(), ModelError> {
+    let scale = (p.l2 * (p.l + p.l3)).powi(2) / p.J2 + (p.l3 * (p.l2 + p.l)).powi(2) / p.J3;
+    let conditioning = (at.b1 * at.b1 / p.J2 + at.c1 * at.c1 / p.J3) / scale;
+    let singular = |what: &str| {
+        ModelError::new(format!(
+            "{what} at phi2 = {}, phi3 = {} (B1 = {:e}, C1 = {:e}): crank, rod and rocker are \
+             (nearly) collinear, a change point of this geometry (l = {}, l2 = {}, l3 = {}, L = {})",
+            y[1], y[2], at.b1, at.c1, p.l, p.l2, p.l3, p.L
+        ))
+    };
+    if !(conditioning >= MIN_CONDITIONING) {
+        return Err(singular("singular configuration"));
+    }
+    // C1 moves at most l3·(l2 + l) per radian of φ2 and φ3: only a C1 that small can have
+    // changed sign during the step, so only then is the start's C1 worth computing.
+    let reach = p.l3 * (p.l2 + p.l) * ((y[1] - previous[1]).abs() + (y[2] - previous[2]).abs());
+    if at.c1.abs() <= 1.01 * reach {
+        let before = constraint_terms(p, previous[1], previous[2], 0.0, 0.0).c1;
+        if before * at.c1 < 0.0 {
+            return Err(singular("the assembly mode changed during the step"));
+        }
+    }
+    Ok(())
 }
 
 /// The consistent initial state of SPEC §3: φ3 from the assembly nearest `phi3_guess`,
@@ -117,8 +167,10 @@ mod tests {
         y[2] -= 2e-5;
         y[5] += 1e-4;
         let before = y;
-        project(&p, &mut y).unwrap();
+        let at = project(&p, &mut y).unwrap();
         assert!(closure(&p, y[1], y[2]).abs() < 1e-15);
+        assert!((at.closure - closure(&p, y[1], y[2])).abs() < 1e-16);
+        check_passage(&p, &before, &y, &at).unwrap();
         let t = constraint_terms(&p, y[1], y[2], 0.0, 0.0);
         assert!((t.b1 * y[5] - t.c1 * y[6]).abs() < 1e-14);
         // Bodies 1 and 4 are not touched.

@@ -151,7 +151,7 @@ impl<const N: usize> Dop853<N> {
                 }
                 continue;
             }
-            if !system.project(&mut y_new) {
+            if !system.project(y, &mut y_new) {
                 self.first_stage_valid = false;
                 return Err(SolverError::ProjectionFailed { t: *t + h_step });
             }

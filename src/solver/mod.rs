@@ -11,9 +11,10 @@ pub trait OdeSystem<const N: usize> {
     /// Evaluate f(t, y) into `dy`.
     fn rhs(&self, t: f64, y: &[f64; N], dy: &mut [f64; N]);
 
-    /// Called on every accepted step's result: bring `y` back onto the manifold.
-    /// Returns `false` when that is impossible (the step is then an error).
-    fn project(&self, _y: &mut [f64; N]) -> bool {
+    /// Called on every accepted step's result `y` (the step started from `previous`): bring
+    /// `y` back onto the manifold. Returns `false` when that is impossible or the step left
+    /// the region where the solution is determined; the step is then an error.
+    fn project(&self, _previous: &[f64; N], _y: &mut [f64; N]) -> bool {
         true
     }
 }
@@ -57,12 +58,11 @@ impl std::fmt::Display for SolverError {
                     "step size {h:e} too small at t = {t} (stiff, singular or non-finite dynamics)"
                 )
             }
-            SolverError::ProjectionFailed { t } => {
-                write!(
-                    f,
-                    "the state could not be projected onto the constraint at t = {t}"
-                )
-            }
+            SolverError::ProjectionFailed { t } => write!(
+                f,
+                "at t = {t} the state could not be projected onto the constraint, or the \
+                 motion reached a singular configuration"
+            ),
             SolverError::TooManySteps { t, limit } => {
                 write!(f, "more than {limit} steps in one call, stopped at t = {t}")
             }

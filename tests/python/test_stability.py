@@ -65,3 +65,33 @@ def test_rounding_level_time_mismatch_is_accepted_larger_is_not(unzipped, model_
     else:
         assert "does not match" in fmu.expect(ERROR, fmu.slave.doStep, 0.5 * (1 + offset), 0.5)
     fmu.free()
+
+
+def test_change_point_geometry_is_discarded_not_guessed(unzipped, model_description):
+    """l2 + L = l + l3 (L = 0.95): the linkage reaches a configuration where crank, rod and
+    rocker are collinear and the motion could continue on either assembly (issue 4 §2)."""
+    fmu = Harness(unzipped, model_description).instantiate().initialise(L=0.95, phi2_0=1.0, omega2_0=3.0,
+                                                                        Mm_a0=20.0)
+    with pytest.raises(Exception):
+        for k in range(2000):
+            fmu.slave.doStep(k * 0.005, 0.005)
+    status, category, message = fmu.messages[-1]
+    assert category == "logStatusDiscard" and "singular configuration" in message
+    assert "phi2 = " in message and "state kept at t = " in message
+    values = fmu.get("phi1", "phi2", "phi3", "omega2", "constraint_residual")
+    assert all(np.isfinite(values)) and abs(values[-1]) < 1e-12
+    fmu.free()
+
+
+@pytest.mark.parametrize("rod", [0.94, 0.949])
+def test_near_singular_regular_passages_integrate_correctly(unzipped, model_description, rod):
+    """Crank-rockers close to the change point: no spurious Discard, energy conserved."""
+    fmu = Harness(unzipped, model_description).instantiate().initialise(tolerance=1e-10, L=rod, phi2_0=1.0,
+                                                                        omega2_0=3.0)
+    e0 = fmu.get("energy")
+    for k in range(1000):
+        fmu.slave.doStep(k * 0.01, 0.01)
+    energy, residual, phi2 = fmu.get("energy", "constraint_residual", "phi2")
+    fmu.free()
+    assert abs(energy - e0) < 1e-6 * e0 and abs(residual) < 1e-12
+    assert phi2 > 1.0 + 2 * np.pi, "the crank turned"
