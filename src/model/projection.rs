@@ -86,7 +86,7 @@ pub fn check_passage(
             y[1], y[2], at.b1, at.c1, p.l, p.l2, p.l3, p.L
         ))
     };
-    if !(conditioning >= MIN_CONDITIONING) {
+    if conditioning.is_nan() || conditioning < MIN_CONDITIONING {
         return Err(singular("singular configuration"));
     }
     // C1 moves at most l3·(l2 + l) per radian of φ2 and φ3: only a C1 that small can have
