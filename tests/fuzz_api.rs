@@ -3,10 +3,11 @@
 //! only documented statuses, and finite values whenever a read succeeds. Deterministic
 //! (a fixed seed), and run under valgrind memcheck by `cargo xtask test`.
 
-use std::ffi::{c_char, CString};
+use std::ffi::c_char;
 use std::ptr::{null, null_mut};
 
-use cyclic_mechanism::fmi2::model_description::guid;
+mod common;
+
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::variables::count;
 use fmi_sys::fmi2::*;
@@ -292,29 +293,10 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(2000u64);
-    let guid = CString::new(guid()).unwrap();
-    let functions = fmi2CallbackFunctions {
-        logger: None,
-        allocateMemory: None,
-        freeMemory: None,
-        stepFinished: None,
-        componentEnvironment: null_mut(),
-    };
     let mut rng = Rng(0x9E3779B97F4A7C15);
     let mut total_calls = 0;
     for _ in 0..sequences {
-        let c = unsafe {
-            fmi2Instantiate(
-                c"fuzz".as_ptr(),
-                fmi2Type_fmi2CoSimulation,
-                guid.as_ptr(),
-                null(),
-                &functions,
-                0,
-                0,
-            )
-        };
-        assert!(!c.is_null());
+        let c = common::instantiate(c"fuzz");
         let mut fuzz = Fuzz {
             rng: Rng(rng.next() | 1),
             c,

@@ -4,11 +4,10 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
-use std::ffi::CString;
-use std::ptr::{null, null_mut};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use cyclic_mechanism::fmi2::model_description::guid;
+mod common;
+
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::variables::{value_reference, variables, Causality, VarType};
 use fmi_sys::fmi2::*;
@@ -41,26 +40,7 @@ fn vr(name: &str) -> u32 {
 
 #[test]
 fn stepping_and_exchanging_values_does_not_allocate() {
-    let functions = fmi2CallbackFunctions {
-        logger: None,
-        allocateMemory: None,
-        freeMemory: None,
-        stepFinished: None,
-        componentEnvironment: null_mut(),
-    };
-    let guid = CString::new(guid()).unwrap();
-    let c = unsafe {
-        fmi2Instantiate(
-            c"probe".as_ptr(),
-            fmi2Type_fmi2CoSimulation,
-            guid.as_ptr(),
-            null(),
-            &functions,
-            0,
-            0,
-        )
-    };
-    assert!(!c.is_null());
+    let c = common::instantiate(c"probe");
     let laws = [
         ("Mm_a0", 100.0),
         ("Mm_a1", -20.0),

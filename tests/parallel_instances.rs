@@ -2,23 +2,15 @@
 //! runs one after another (no global mutable state), through the exported C functions.
 
 use std::ffi::CString;
-use std::ptr::{null, null_mut};
 
-use cyclic_mechanism::fmi2::model_description::guid;
+mod common;
+
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::variables::value_reference;
 use fmi_sys::fmi2::*;
 
 /// One simulation of paper case 1 with spring k34, returning the final angles and speeds.
 fn run(k34: f64) -> Vec<f64> {
-    let functions = fmi2CallbackFunctions {
-        logger: None,
-        allocateMemory: None,
-        freeMemory: None,
-        stepFinished: None,
-        componentEnvironment: null_mut(),
-    };
-    let guid = CString::new(guid()).unwrap();
     let name = CString::new(format!("k34={k34}")).unwrap();
     let names = ["k34", "Mm_a0", "Mm_a1", "Mm_a2", "Mr_b0", "Mr_b1"];
     let refs: Vec<u32> = names.iter().map(|n| value_reference(n).unwrap()).collect();
@@ -31,16 +23,7 @@ fn run(k34: f64) -> Vec<f64> {
     .collect();
     let mut result = vec![0.0; outputs.len()];
     unsafe {
-        let c = fmi2Instantiate(
-            name.as_ptr(),
-            fmi2Type_fmi2CoSimulation,
-            guid.as_ptr(),
-            null(),
-            &functions,
-            0,
-            0,
-        );
-        assert!(!c.is_null());
+        let c = common::instantiate(&name);
         assert_eq!(
             fmi2SetupExperiment(c, 1, 1e-9, 0.0, 1, 5.0),
             fmi2Status_fmi2OK
