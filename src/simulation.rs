@@ -93,9 +93,9 @@ impl OdeSystem<STATE_SIZE> for Driven<'_> {
         model::state_derivative(self.params, &self.inputs_at(t), y, dy);
     }
 
-    fn project(&self, previous: &State, y: &mut State) -> bool {
-        model::project(self.params, y)
-            .is_ok_and(|at| model::check_passage(self.params, previous, y, &at).is_ok())
+    fn project(&self, previous: &State, y: &mut State) -> Result<(), String> {
+        let at = model::project(self.params, y).map_err(|e| e.to_string())?;
+        model::check_passage(self.params, previous, y, &at).map_err(|e| e.to_string())
     }
 }
 
@@ -243,13 +243,21 @@ impl Simulation {
             self.integrator_state
         } else {
             let interpolated = self.solver.dense_output(&system, t_end);
-            interpolated.ok_or(SolverError::ProjectionFailed { t: t_end })?
+            interpolated.ok_or_else(|| SolverError::ProjectionFailed {
+                t: t_end,
+                reason: "no dense output covers this time".into(),
+            })?
         };
+        let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
         let g = match model::project(&self.params, &mut y) {
             Ok(at) if y.iter().all(|v| v.is_finite()) => at.closure,
-            _ => {
+            Ok(_) => {
                 self.restart = true;
-                return Err(SolverError::ProjectionFailed { t: t_end });
+                return Err(refused("the interpolated state is not finite".into()));
+            }
+            Err(error) => {
+                self.restart = true;
+                return Err(refused(error.to_string()));
             }
         };
         self.time = t_end;

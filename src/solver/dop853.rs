@@ -151,9 +151,12 @@ impl<const N: usize> Dop853<N> {
                 }
                 continue;
             }
-            if !system.project(y, &mut y_new) {
+            if let Err(reason) = system.project(y, &mut y_new) {
                 self.first_stage_valid = false;
-                return Err(SolverError::ProjectionFailed { t: *t + h_step });
+                return Err(SolverError::ProjectionFailed {
+                    t: *t + h_step,
+                    reason,
+                });
             }
             self.stats.n_steps += 1;
             self.last_step = Some(LastStep {

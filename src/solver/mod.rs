@@ -12,10 +12,10 @@ pub trait OdeSystem<const N: usize> {
     fn rhs(&self, t: f64, y: &[f64; N], dy: &mut [f64; N]);
 
     /// Called on every accepted step's result `y` (the step started from `previous`): bring
-    /// `y` back onto the manifold. Returns `false` when that is impossible or the step left
-    /// the region where the solution is determined; the step is then an error.
-    fn project(&self, _previous: &[f64; N], _y: &mut [f64; N]) -> bool {
-        true
+    /// `y` back onto the manifold. Fails, saying why, when that is impossible or the step
+    /// left the region where the solution is determined; the step is then an error.
+    fn project(&self, _previous: &[f64; N], _y: &mut [f64; N]) -> Result<(), String> {
+        Ok(())
     }
 }
 
@@ -39,12 +39,12 @@ pub struct Statistics {
 
 /// Why an integration stopped short of its end time. The caller's state is left at the
 /// last accepted step that succeeded.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum SolverError {
     /// The step size fell below what t's precision resolves.
     StepSizeTooSmall { t: f64, h: f64 },
-    /// The system could not project an accepted state back onto its manifold.
-    ProjectionFailed { t: f64 },
+    /// The system refused an accepted state (could not project it, or it is singular).
+    ProjectionFailed { t: f64, reason: String },
     /// Too many steps in one call (a runaway).
     TooManySteps { t: f64, limit: u64 },
 }
@@ -58,11 +58,7 @@ impl std::fmt::Display for SolverError {
                     "step size {h:e} too small at t = {t} (stiff, singular or non-finite dynamics)"
                 )
             }
-            SolverError::ProjectionFailed { t } => write!(
-                f,
-                "at t = {t} the state could not be projected onto the constraint, or the \
-                 motion reached a singular configuration"
-            ),
+            SolverError::ProjectionFailed { t, reason } => write!(f, "at t = {t}: {reason}"),
             SolverError::TooManySteps { t, limit } => {
                 write!(f, "more than {limit} steps in one call, stopped at t = {t}")
             }
