@@ -12,9 +12,14 @@ use fmi_sys::fmi2::*;
 /// One simulation of paper case 1 with spring k34, returning the final angles and speeds.
 fn run(k34: f64) -> Vec<f64> {
     let name = CString::new(format!("k34={k34}")).unwrap();
-    let names = ["k34", "Mm_a0", "Mm_a1", "Mm_a2", "Mr_b0", "Mr_b1"];
-    let refs: Vec<u32> = names.iter().map(|n| value_reference(n).unwrap()).collect();
-    let values = [k34, 100.0, -20.0, -1.0, 20.0, -0.05];
+    let parameters = [
+        ("k34", k34),
+        ("Mm_a0", 100.0),
+        ("Mm_a1", -20.0),
+        ("Mm_a2", -1.0),
+        ("Mr_b0", 20.0),
+        ("Mr_b1", -0.05),
+    ];
     let outputs: Vec<u32> = [
         "phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4",
     ]
@@ -24,16 +29,7 @@ fn run(k34: f64) -> Vec<f64> {
     let mut result = vec![0.0; outputs.len()];
     unsafe {
         let c = common::instantiate(&name);
-        assert_eq!(
-            fmi2SetupExperiment(c, 1, 1e-9, 0.0, 1, 5.0),
-            fmi2Status_fmi2OK
-        );
-        assert_eq!(fmi2EnterInitializationMode(c), fmi2Status_fmi2OK);
-        assert_eq!(
-            fmi2SetReal(c, refs.as_ptr(), refs.len(), values.as_ptr()),
-            fmi2Status_fmi2OK
-        );
-        assert_eq!(fmi2ExitInitializationMode(c), fmi2Status_fmi2OK);
+        common::initialise(c, 1e-9, Some(5.0), &parameters);
         for k in 0..5000 {
             assert_eq!(fmi2DoStep(c, k as f64 * 1e-3, 1e-3, 1), fmi2Status_fmi2OK);
         }

@@ -1,3 +1,6 @@
+// Each test crate uses part of this module.
+#![allow(dead_code)]
+
 //! Shared by the integration tests that drive the exported C functions directly.
 
 use std::ffi::{CStr, CString};
@@ -32,4 +35,33 @@ pub fn instantiate(name: &CStr) -> fmi2Component {
     };
     assert!(!c.is_null(), "fmi2Instantiate failed");
     c
+}
+
+/// Set up (tolerance, optional stop time), set parameters by name, and leave
+/// initialisation mode, asserting every status.
+pub fn initialise(c: fmi2Component, tolerance: f64, stop: Option<f64>, parameters: &[(&str, f64)]) {
+    use cyclic_mechanism::fmi2::{
+        fmi2EnterInitializationMode, fmi2ExitInitializationMode, fmi2SetReal, fmi2SetupExperiment,
+    };
+    use cyclic_mechanism::variables::value_reference;
+    use fmi_sys::fmi2::fmi2Status_fmi2OK as OK;
+    let refs: Vec<u32> = parameters
+        .iter()
+        .map(|(n, _)| value_reference(n).expect("a known name"))
+        .collect();
+    let values: Vec<f64> = parameters.iter().map(|(_, v)| *v).collect();
+    let (stop_defined, stop_time) = (stop.is_some() as i32, stop.unwrap_or(0.0));
+    // SAFETY: `c` is a live instance; the arrays hold `refs.len()` elements.
+    unsafe {
+        assert_eq!(
+            fmi2SetupExperiment(c, 1, tolerance, 0.0, stop_defined, stop_time),
+            OK
+        );
+        assert_eq!(fmi2EnterInitializationMode(c), OK);
+        assert_eq!(
+            fmi2SetReal(c, refs.as_ptr(), refs.len(), values.as_ptr()),
+            OK
+        );
+        assert_eq!(fmi2ExitInitializationMode(c), OK);
+    }
 }
