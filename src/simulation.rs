@@ -12,7 +12,7 @@
 use crate::model::params::check_rule;
 use crate::model::{self, Inputs, ModelError, Parameters, State, STATE_SIZE};
 use crate::snapshot::{FormatError, Reader, Writer};
-use crate::solver::{Dop853, OdeSystem, SolverError, Statistics, Tolerances};
+use crate::solver::{Choice, Integrator, Method, OdeSystem, SolverError, Statistics, Tolerances};
 use crate::variables::{variable, Input, Output, Slot, Statistic, VarType, Variable, SOLVER_ITEMS};
 
 /// Relative tolerance when the master gives none (the DefaultExperiment's).
@@ -44,6 +44,16 @@ pub enum SolverKind {
     Auto = 1,
     Dop853 = 2,
     Implicit = 3,
+}
+
+impl SolverKind {
+    fn choice(self) -> Choice {
+        match self {
+            SolverKind::Auto => Choice::Auto,
+            SolverKind::Dop853 => Choice::Fixed(Method::Dop853),
+            SolverKind::Implicit => Choice::Fixed(Method::Radau5),
+        }
+    }
 }
 
 /// First and second time derivatives of the inputs (fmi2SetRealInputDerivatives): within a
@@ -139,7 +149,7 @@ pub struct Simulation {
     restart: bool,
     /// The integrator never steps past this (the experiment's stop time, if defined).
     limit: f64,
-    solver: Dop853<STATE_SIZE>,
+    solver: Integrator<STATE_SIZE>,
 }
 
 impl Default for Simulation {
@@ -164,7 +174,7 @@ impl Simulation {
             integrator_state: [0.0; STATE_SIZE],
             restart: true,
             limit: f64::INFINITY,
-            solver: Dop853::new(tolerances(DEFAULT_TOLERANCE)),
+            solver: Integrator::new(Choice::Auto, tolerances(DEFAULT_TOLERANCE)),
         }
     }
 
@@ -207,13 +217,17 @@ impl Simulation {
         self.residual = model::length_residual(&self.params, self.state[1], self.state[2]);
         self.time = start_time;
         self.restart = true;
-        self.solver = Dop853::new(tolerances(self.tolerance));
+        self.solver = Integrator::new(self.solver_kind.choice(), tolerances(self.tolerance));
         Ok(())
     }
 
     /// Advance the communication point to `t_end`. On error the time and state stay as
     /// they were.
     pub fn advance(&mut self, t_end: f64) -> Result<(), SolverError> {
+        if self.solver.reconsider() {
+            // `auto` changed method: the new one starts from the communication point.
+            self.restart = true;
+        }
         if !self.input_derivatives.is_zero() {
             // The input polynomials are anchored at this step's start: a new right-hand side.
             self.restart = true;
@@ -440,6 +454,12 @@ impl Simulation {
             Slot::Statistic(Statistic::Steps) => statistic(self.solver.statistics().n_steps),
             Slot::Statistic(Statistic::Rejected) => statistic(self.solver.statistics().n_rejected),
             Slot::Statistic(Statistic::RightHandSides) => statistic(self.solver.statistics().n_rhs),
+            Slot::Statistic(Statistic::ActiveSolver) => {
+                Value::Integer(match self.solver.method() {
+                    Method::Dop853 => SolverKind::Dop853 as i32,
+                    Method::Radau5 => SolverKind::Implicit as i32,
+                })
+            }
             Slot::SolverChoice => Value::Integer(self.solver_kind as i32),
         }
     }
@@ -505,17 +525,10 @@ impl Simulation {
                 check_rule(&model::PARAMETERS[i], v).map_err(AccessError::Invalid)?
             }
             (Slot::SolverChoice, Value::Integer(v)) => {
-                match solver_kind(v) {
-                    None => {
-                        return Err(AccessError::NotAllowed(format!(
-                            "solver = {v}: must be 1 (auto), 2 (dop853) or 3 (implicit)"
-                        )))
-                    }
-                    Some(SolverKind::Implicit) => return Err(AccessError::NotAllowed(
-                        "solver = 3 (implicit) is not available yet: use 1 (auto) or 2 (dop853)"
-                            .into(),
-                    )),
-                    Some(_) => {}
+                if solver_kind(v).is_none() {
+                    return Err(AccessError::NotAllowed(format!(
+                        "solver = {v}: must be 1 (auto), 2 (dop853) or 3 (implicit)"
+                    )));
                 }
             }
             _ => {
@@ -582,7 +595,7 @@ impl Simulation {
         let integrator_state = r.f64s()?;
         let restart = r.bool()?;
         let limit = r.f64()?;
-        let solver = Dop853::deserialize_from(r)?;
+        let solver = Integrator::deserialize_from(r)?;
         Ok(Self {
             params,
             inputs: Inputs {

@@ -48,6 +48,8 @@ pub enum Statistic {
     Steps,
     Rejected,
     RightHandSides,
+    /// The method integrating now (2 = dop853, 3 = implicit): what `auto` chose.
+    ActiveSolver,
 }
 
 /// Where a variable's value lives.
@@ -83,7 +85,11 @@ impl VarType {
 /// The `solver` enumeration: name, value, description. The name of its type in the XML is
 /// [`SOLVER_TYPE`].
 pub const SOLVER_ITEMS: [(&str, i32, &str); 3] = [
-    ("auto", 1, "Choose automatically (currently always dop853)"),
+    (
+        "auto",
+        1,
+        "dop853, switching to implicit while a stiffness test finds the step limited by stability",
+    ),
     (
         "dop853",
         2,
@@ -92,7 +98,7 @@ pub const SOLVER_ITEMS: [(&str, i32, &str); 3] = [
     (
         "implicit",
         3,
-        "Implicit method for stiff springs (not available yet: fmi2Error)",
+        "Radau IIA of order 5 (implicit), for stiff springs and dampers",
     ),
 ];
 pub const SOLVER_TYPE: &str = "SolverKind";
@@ -226,7 +232,7 @@ const OUTPUTS: [Variable; 11] = [
     ),
 ];
 
-const SOLVER_VARIABLES: [Variable; 4] = [
+const SOLVER_VARIABLES: [Variable; 5] = [
     Variable {
         name: "n_steps",
         unit: "",
@@ -250,6 +256,12 @@ const SOLVER_VARIABLES: [Variable; 4] = [
         unit: "",
         description: "Integration method: auto (1), dop853 (2), implicit (3)",
         slot: Slot::SolverChoice,
+    },
+    Variable {
+        name: "active_solver",
+        unit: "",
+        description: "Method integrating now: dop853 (2) or implicit (3); what auto chose",
+        slot: Slot::Statistic(Statistic::ActiveSolver),
     },
 ];
 

@@ -38,22 +38,37 @@ fn vr(name: &str) -> u32 {
     value_reference(name).unwrap()
 }
 
+const LAWS: [(&str, f64); 5] = [
+    ("Mm_a0", 100.0),
+    ("Mm_a1", -20.0),
+    ("Mm_a2", -1.0),
+    ("Mr_b0", 20.0),
+    ("Mr_b1", -0.05),
+];
+
 #[test]
 fn stepping_and_exchanging_values_does_not_allocate() {
+    let active = run_counting(&LAWS);
+    assert_eq!(active, 2, "DOP853 throughout");
+}
+
+#[test]
+fn the_implicit_method_and_the_auto_switch_do_not_allocate() {
+    let stiff = [("k12", 1e7), ("k34", 1e7), ("d12", 1e3), ("d34", 1e3)];
+    let parameters: Vec<_> = LAWS.iter().chain(&stiff).copied().collect();
+    let active = run_counting(&parameters);
+    assert_eq!(active, 3, "auto switched to the implicit method");
+}
+
+/// Run 1999 steps with `parameters`, counting allocations; returns `active_solver`.
+fn run_counting(parameters: &[(&str, f64)]) -> i32 {
     let c = common::instantiate(c"probe");
-    let laws = [
-        ("Mm_a0", 100.0),
-        ("Mm_a1", -20.0),
-        ("Mm_a2", -1.0),
-        ("Mr_b0", 20.0),
-        ("Mr_b1", -0.05),
-    ];
     let outputs: Vec<u32> = variables()
         .filter(|(_, v)| v.causality() == Causality::Output && v.var_type() == VarType::Real)
         .map(|(r, _)| r)
         .collect();
     let mut read = vec![0.0; outputs.len()];
-    common::initialise(c, 1e-8, None, &laws);
+    common::initialise(c, 1e-8, None, parameters);
     assert_eq!(fmi2DoStep(c, 0.0, 1e-3, 1), fmi2Status_fmi2OK);
     let torque = vr("M_m");
     COUNTING.with(|c| c.set(true));
@@ -80,5 +95,14 @@ fn stepping_and_exchanging_values_does_not_allocate() {
         "the run moved: {read:?}"
     );
     assert_eq!(allocations, 0, "allocations during 1999 steps");
-    unsafe { fmi2FreeInstance(c) };
+    let mut active = 0;
+    let active_vr = vr("active_solver");
+    unsafe {
+        assert_eq!(
+            fmi2GetInteger(c, &active_vr, 1, &mut active),
+            fmi2Status_fmi2OK
+        );
+        fmi2FreeInstance(c);
+    }
+    active
 }

@@ -3,8 +3,13 @@
 
 pub mod dop853;
 mod dop853_tableau;
+mod linear;
+pub mod radau5;
+pub mod switching;
 
 pub use dop853::Dop853;
+pub use radau5::Radau5;
+pub use switching::{Choice, Integrator, Method};
 
 /// An ODE y' = f(t, y) on a manifold the system can project onto.
 pub trait OdeSystem<const N: usize> {
@@ -17,6 +22,38 @@ pub trait OdeSystem<const N: usize> {
     fn project(&self, _previous: &[f64; N], _y: &mut [f64; N]) -> Result<(), String> {
         Ok(())
     }
+}
+
+/// A runaway guard per `integrate` call: a legitimate long call needs far fewer steps (a
+/// 100 s step of a k = 1e7 spring takes about 2.5e5 explicit ones), while a runaway (a
+/// blow-up, a model made stiff beyond the explicit method) is stopped after about half a
+/// second of work.
+const MAX_STEPS_PER_CALL: u64 = 1_000_000;
+
+/// The next step to try from `t` with proposed size `h`, the `taken`-th of this call: its
+/// size and whether it lands on `limit` (a step that would pass the limit, or leave less
+/// than 1 % of a step before it, is cut or stretched to end exactly there).
+fn plan_step(t: f64, h: f64, limit: f64, taken: u64) -> Result<(f64, bool), SolverError> {
+    if taken >= MAX_STEPS_PER_CALL {
+        return Err(SolverError::TooManySteps {
+            t,
+            limit: MAX_STEPS_PER_CALL,
+        });
+    }
+    let landing = t + 1.01 * h >= limit;
+    let h_step = if landing { limit - t } else { h };
+    if !landing {
+        check_step_size(t, h_step)?;
+    }
+    Ok((h_step, landing))
+}
+
+/// A step size must stay resolvable in t's precision.
+fn check_step_size(t: f64, h: f64) -> Result<(), SolverError> {
+    if h <= 16.0 * f64::EPSILON * t.abs().max(1.0) {
+        return Err(SolverError::StepSizeTooSmall { t, h });
+    }
+    Ok(())
 }
 
 /// Error-control settings: a component's error is scaled by atol + rtol·|y_i|.
@@ -67,3 +104,41 @@ impl std::fmt::Display for SolverError {
 }
 
 impl std::error::Error for SolverError {}
+
+/// Hairer's starting step size (HNW I, II.4) for a method of order `order` at (t, y) with
+/// f(t, y) = `f0`, bounded by the span to integrate. Costs one evaluation.
+pub(crate) fn initial_step<S: OdeSystem<N>, const N: usize>(
+    system: &S,
+    (t, y, f0): (f64, &[f64; N], &[f64; N]),
+    span: f64,
+    tolerances: Tolerances,
+    order: i32,
+    stats: &mut Statistics,
+) -> f64 {
+    let Tolerances { rtol, atol } = tolerances;
+    let scale = |n: usize| atol + rtol * y[n].abs();
+    let norm_f: f64 = (0..N).map(|n| (f0[n] / scale(n)).powi(2)).sum();
+    let norm_y: f64 = (0..N).map(|n| (y[n] / scale(n)).powi(2)).sum();
+    let mut h = if norm_f <= 1e-10 || norm_y <= 1e-10 {
+        1e-6
+    } else {
+        0.01 * (norm_y / norm_f).sqrt()
+    };
+    h = h.min(span);
+    let y1: [f64; N] = std::array::from_fn(|n| y[n] + h * f0[n]);
+    let mut f1 = [0.0; N];
+    system.rhs(t + h, &y1, &mut f1);
+    stats.n_rhs += 1;
+    let second: f64 = (0..N)
+        .map(|n| ((f1[n] - f0[n]) / scale(n)).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        / h;
+    let largest = second.max(norm_f.sqrt());
+    let h1 = if largest <= 1e-15 {
+        (h * 1e-3).max(1e-6)
+    } else {
+        (0.01 / largest).powf(1.0 / order as f64)
+    };
+    (100.0 * h).min(h1).min(span)
+}

@@ -116,10 +116,10 @@ def energy(p, y):
         + 0.5 * p.k34 * (phi3 - phi4) ** 2
 
 
-def solve(p, times, rtol=1e-12):
+def solve(p, times, rtol=1e-12, method="DOP853"):
     """Reference states at `times` (rows: time, columns: φ1..φ4, ω1..ω4)."""
     y0 = initial_state(p)
-    sol = solve_ivp(rhs, (times[0], times[-1]), y0, method="DOP853", t_eval=times,
+    sol = solve_ivp(rhs, (times[0], times[-1]), y0, method=method, t_eval=times,
                     rtol=rtol, atol=rtol, args=(p,))
     assert sol.success, sol.message
     return sol.y.T

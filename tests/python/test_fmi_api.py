@@ -279,15 +279,17 @@ def test_instances_are_independent(unzipped, model_description):
 
 
 def test_solver_statistics_and_choice(fmu):
-    steps, rejected, rhs, solver = (fmu.vr[n] for n in ("n_steps", "n_rejected", "n_rhs", "solver"))
+    steps, rejected, rhs, solver, active = (fmu.vr[n] for n in ("n_steps", "n_rejected", "n_rhs", "solver",
+                                                                 "active_solver"))
     fmu.slave.enterInitializationMode()
-    message = fmu.expect(ERROR, fmu.slave.setInteger, [solver], [3])
-    assert "solver = 3" in message and "not available" in message
-    assert "solver = 7" in fmu.expect(ERROR, fmu.slave.setInteger, [solver], [7])
+    for bad in (0, 4, 7, -1):
+        message = fmu.expect(ERROR, fmu.slave.setInteger, [solver], [bad])
+        assert f"solver = {bad}" in message and "must be 1 (auto), 2 (dop853) or 3 (implicit)" in message
+    assert "active_solver is an output" in fmu.expect(ERROR, fmu.slave.setInteger, [active], [3])
     fmu.slave.setInteger([solver], [2])
     fmu.set("Mm_a0", 100.0)
     fmu.slave.exitInitializationMode()
-    assert fmu.slave.getInteger([steps, rejected, rhs, solver]) == [0, 0, 0, 2]
+    assert fmu.slave.getInteger([steps, rejected, rhs, solver, active]) == [0, 0, 0, 2, 2]
     for k in range(100):
         fmu.slave.doStep(k * 1e-2, 1e-2)
     n_steps, n_rejected, n_rhs = fmu.slave.getInteger([steps, rejected, rhs])

@@ -16,7 +16,7 @@ PARAMETERS = {"J1": 0.5, "J2": 0.2, "J3": 0.3, "J4": 0.7, "k12": 100.0, "k34": 1
               "phi3_guess": math.pi / 2, "twist12_0": 0.0, "twist34_0": 0.0, "omega1_0": 0.0,
               "omega2_0": 0.0, "omega4_0": 0.0, "Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0,
               "Mr_b0": 0.0, "Mr_b1": 0.0}
-INTEGER_OUTPUTS = {"n_steps", "n_rejected", "n_rhs"}
+INTEGER_OUTPUTS = {"n_steps", "n_rejected", "n_rhs", "active_solver"}
 
 
 def by_name(model_description):

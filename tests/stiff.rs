@@ -1,0 +1,111 @@
+//! Stiff springs and dampers (issue #4 §1): k12 = k34 = 1e7 N·m/rad, d12 = d34 = 1e3
+//! N·m·s/rad with the paper's laws, 1 s at H = 1e-2, tolerance 1e-6. The implicit method
+//! and `auto` against DOP853. Evaluation counts are deterministic, so the work ratio is a
+//! test here, not a benchmark.
+
+use cyclic_mechanism::model::Parameters;
+use cyclic_mechanism::simulation::{Simulation, Value};
+use cyclic_mechanism::variables::value_reference;
+
+const AUTO: i32 = 1;
+const DOP853: i32 = 2;
+const IMPLICIT: i32 = 3;
+/// Issue #4's stiff couplings, and paper case 1's (undamped).
+const STIFF: (f64, f64) = (1e7, 1e3);
+const PAPER: (f64, f64) = (100.0, 0.0);
+
+fn set(sim: &mut Simulation, name: &str, value: f64) {
+    sim.set(value_reference(name).unwrap(), Value::Real(value), true)
+        .unwrap();
+}
+
+fn integer(sim: &Simulation, name: &str) -> i32 {
+    match sim.get(value_reference(name).unwrap()).unwrap() {
+        Value::Integer(v) => v,
+        other => panic!("{name}: {other:?}"),
+    }
+}
+
+/// Paper case 1's laws with `solver` = `kind`, stiffness `k` and damping `d` in both
+/// couplings, run to `t_end` at communication step `h`.
+fn run(kind: i32, (k, d): (f64, f64), tolerance: f64, t_end: f64, h: f64) -> Simulation {
+    let mut sim = Simulation::new();
+    let laws = Parameters::default().with_paper_laws();
+    for (name, value) in [
+        ("Mm_a0", laws.Mm_a0),
+        ("Mm_a1", laws.Mm_a1),
+        ("Mm_a2", laws.Mm_a2),
+        ("Mr_b0", laws.Mr_b0),
+        ("Mr_b1", laws.Mr_b1),
+        ("k12", k),
+        ("k34", k),
+        ("d12", d),
+        ("d34", d),
+    ] {
+        set(&mut sim, name, value);
+    }
+    sim.set(
+        value_reference("solver").unwrap(),
+        Value::Integer(kind),
+        true,
+    )
+    .unwrap();
+    sim.set_tolerance(tolerance).unwrap();
+    sim.initialize(0.0).unwrap();
+    let steps = (t_end / h).round() as usize;
+    for step in 1..=steps {
+        sim.advance(step as f64 * h).unwrap();
+    }
+    sim
+}
+
+fn max_difference(a: &Simulation, b: &Simulation) -> f64 {
+    let pairs = a.state().iter().zip(b.state());
+    pairs.map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+#[test]
+fn auto_is_accurate_and_ten_times_cheaper_than_dop853_on_stiff_springs() {
+    // The reference: DOP853 at 1e-12, a different method from the implicit one.
+    let reference = run(DOP853, STIFF, 1e-12, 1.0, 1e-2);
+    let explicit = run(DOP853, STIFF, 1e-6, 1.0, 1e-2);
+    let auto = run(AUTO, STIFF, 1e-6, 1.0, 1e-2);
+    let implicit = run(IMPLICIT, STIFF, 1e-6, 1.0, 1e-2);
+    let work = |sim: &Simulation| integer(sim, "n_rhs");
+    eprintln!(
+        "n_rhs: dop853 {}, auto {}, implicit {}; errors {:e}, {:e}, {:e}",
+        work(&explicit),
+        work(&auto),
+        work(&implicit),
+        max_difference(&explicit, &reference),
+        max_difference(&auto, &reference),
+        max_difference(&implicit, &reference)
+    );
+    for sim in [&explicit, &auto, &implicit] {
+        assert!(max_difference(sim, &reference) <= 1e-5);
+        assert!(sim.state().iter().all(|v| v.is_finite()));
+    }
+    assert!(10 * work(&auto) <= work(&explicit));
+    assert!(10 * work(&implicit) <= work(&explicit));
+    assert_eq!(integer(&auto, "active_solver"), IMPLICIT);
+    assert_eq!(integer(&explicit, "active_solver"), DOP853);
+}
+
+#[test]
+fn auto_keeps_dop853_on_the_paper_case_bit_for_bit() {
+    // Not stiff: auto never leaves DOP853, so it is DOP853 exactly.
+    let auto = run(AUTO, PAPER, 1e-8, 2.0, 1e-2);
+    let explicit = run(DOP853, PAPER, 1e-8, 2.0, 1e-2);
+    assert_eq!(integer(&auto, "active_solver"), DOP853);
+    assert_eq!(auto.state(), explicit.state());
+    assert_eq!(auto.statistics(), explicit.statistics());
+}
+
+#[test]
+fn implicit_method_matches_the_paper_case() {
+    let reference = run(DOP853, PAPER, 1e-11, 2.0, 1e-2);
+    let implicit = run(IMPLICIT, PAPER, 1e-8, 2.0, 1e-2);
+    let error = max_difference(&implicit, &reference);
+    assert!(error < 1e-6, "{error:e}");
+    assert!(implicit.state().iter().all(|v| v.is_finite()));
+}
