@@ -191,7 +191,7 @@ def main(harness_json, fmu, out, quick):
     machine = dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
                    cpus=__import__("os").cpu_count(), python=platform.python_version())
     summary = dict(machine=machine, ns_per_rhs=harness["ns_per_rhs"], proportionality=proportionality,
-                   comparisons=comparisons, fmpy=fmpy_rows, results=rows)
+                   comparisons=comparisons, fmpy=fmpy_rows, stiff=harness.get("stiff", []), results=rows)
     (out / "results.json").write_text(json.dumps(summary, indent=1))
     (out / "results.md").write_text(markdown(summary))
     plot(rows, out / "work_precision.png")
@@ -224,6 +224,15 @@ def markdown(s):
               "| H (s) | tol | FMPy (s) | FMU share |", "| --- | --- | --- | --- |"]
     for f in s["fmpy"]:
         lines.append(f"| {f['H']:g} | {f['tol']:.0e} | {f['fmpy_seconds']:.3f} | {100 * f['fmu_share']:.1f} % |")
+    if s["stiff"]:
+        dop853 = next((r["n_rhs"] for r in s["stiff"] if r["solver"] == "dop853"), None)
+        lines += ["", "Stiff couplings (k12 = k34 = 1e7, d12 = d34 = 1e3, paper laws, 1 s, H = 0.01, tol 1e-6), "
+                  "through the C ABI; error against the FMU's DOP853 at tol 1e-12:", "",
+                  "| solver | n_rhs (Jacobians included) | fewer than dop853 | final error | time (s) |",
+                  "| --- | --- | --- | --- | --- |"]
+        for r in s["stiff"]:
+            fewer = f"{dop853 / r['n_rhs']:.1f}×" if dop853 else "—"
+            lines.append(f"| {r['solver']} | {r['n_rhs']} | {fewer} | {r['error']:.1e} | {r['seconds']:.2e} |")
     failed = sorted({(r["method"], r["scenario"]) for r in s["results"] if "failed" in r})
     if failed:
         lines += ["", "Runs that failed: " + ", ".join(f"{m} ({sc})" for m, sc in failed) + "."]

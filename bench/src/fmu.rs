@@ -159,6 +159,10 @@ impl Fmu {
                 check(b.fmi2SetReal(c, &self.vr(name), 1, value), "fmi2SetReal")?;
             }
             check(
+                b.fmi2SetInteger(c, &self.vr("solver"), 1, &scenario.solver),
+                "fmi2SetInteger",
+            )?;
+            check(
                 b.fmi2ExitInitializationMode(c),
                 "fmi2ExitInitializationMode",
             )?;

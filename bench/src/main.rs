@@ -21,11 +21,13 @@ use std::time::{Duration, Instant};
 
 use cyclic_mechanism::model::{self, Inputs, Parameters, State};
 
-/// A benchmark scenario: parameters by FMI name, and the stop time.
+/// A benchmark scenario: parameters by FMI name, the stop time, and the FMU's `solver`
+/// (1 auto, 2 dop853, 3 implicit).
 pub struct Scenario {
     pub name: &'static str,
     pub stop: f64,
     pub values: &'static [(&'static str, f64)],
+    pub solver: i32,
 }
 
 pub const SCENARIOS: [Scenario; 2] = [
@@ -39,6 +41,7 @@ pub const SCENARIOS: [Scenario; 2] = [
             ("Mr_b0", 20.0),
             ("Mr_b1", -0.05),
         ],
+        solver: 1,
     },
     Scenario {
         name: "free",
@@ -49,8 +52,59 @@ pub const SCENARIOS: [Scenario; 2] = [
             ("twist34_0", -0.1),
             ("omega4_0", -1.0),
         ],
+        solver: 1,
     },
 ];
+
+/// Issue #4's stiff couplings: k12 = k34 = 1e7, d12 = d34 = 1e3, paper laws, 1 s.
+const STIFF_VALUES: &[(&str, f64)] = &[
+    ("Mm_a0", 100.0),
+    ("Mm_a1", -20.0),
+    ("Mm_a2", -1.0),
+    ("Mr_b0", 20.0),
+    ("Mr_b1", -0.05),
+    ("k12", 1e7),
+    ("k34", 1e7),
+    ("d12", 1e3),
+    ("d34", 1e3),
+];
+
+/// The stiff case with each `solver` choice, at H = 1e-2 and tolerance 1e-6.
+fn stiff_study(fmu: &fmu::Fmu, out: &mut String) {
+    let scenario = |name, solver| Scenario {
+        name,
+        stop: 1.0,
+        values: STIFF_VALUES,
+        solver,
+    };
+    // The reference: DOP853 at 1e-12 (the implicit method's error is then independent).
+    let Some(reference) = fmu.run(&scenario("reference", 2), 1e-2, 1e-12) else {
+        eprintln!("stiff reference failed");
+        return;
+    };
+    let exact = reference.samples.last().copied().unwrap_or_default();
+    out.push_str(", \"stiff\": [");
+    for (i, (name, solver)) in [("auto", 1), ("dop853", 2), ("implicit", 3)].iter().enumerate() {
+        let case = scenario(name, *solver);
+        let run = || fmu.run(&case, 1e-2, 1e-6);
+        let Some((seconds, runs, o)) = timed(10, Duration::from_secs(20), run) else {
+            eprintln!("stiff {name}: failed");
+            continue;
+        };
+        let last = o.samples.last().copied().unwrap_or_default();
+        let error = last.iter().zip(&exact).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        eprintln!("stiff {name}: n_rhs {} error {error:e} {seconds:.4} s", o.n_rhs);
+        write!(
+            out,
+            "{}{{\"solver\": \"{name}\", \"seconds\": {seconds:e}, \"runs\": {runs}, \"n_rhs\": {}, \"error\": {}}}",
+            if i == 0 { "" } else { ", " },
+            o.n_rhs,
+            number(error)
+        )
+        .unwrap();
+    }
+    out.push(']');
+}
 
 /// Number of evenly spaced sample points recorded per run (the last is the final time).
 pub const SAMPLES: usize = 100;
@@ -242,7 +296,9 @@ fn main() {
             }
         }
     }
-    out.push_str("\n]}\n");
+    out.push_str("\n]");
+    stiff_study(&fmu, &mut out);
+    out.push_str("}\n");
     if let Err(e) = std::fs::write(&args[2], out) {
         eprintln!("bench: cannot write {}: {e}", args[2]);
         std::process::exit(1);
