@@ -224,7 +224,7 @@ impl Simulation {
     /// Advance the communication point to `t_end`. On error the time and state stay as
     /// they were.
     pub fn advance(&mut self, t_end: f64) -> Result<(), SolverError> {
-        if self.solver.reconsider() {
+        if self.solver.reconsider(t_end - self.time) {
             // `auto` changed method: the new one starts from the communication point.
             self.restart = true;
         }

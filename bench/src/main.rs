@@ -84,7 +84,10 @@ fn stiff_study(fmu: &fmu::Fmu, out: &mut String) {
     };
     let exact = reference.samples.last().copied().unwrap_or_default();
     out.push_str(", \"stiff\": [");
-    for (i, (name, solver)) in [("auto", 1), ("dop853", 2), ("implicit", 3)].iter().enumerate() {
+    for (i, (name, solver)) in [("auto", 1), ("dop853", 2), ("implicit", 3)]
+        .iter()
+        .enumerate()
+    {
         let case = scenario(name, *solver);
         let run = || fmu.run(&case, 1e-2, 1e-6);
         let Some((seconds, runs, o)) = timed(10, Duration::from_secs(20), run) else {
@@ -92,8 +95,15 @@ fn stiff_study(fmu: &fmu::Fmu, out: &mut String) {
             continue;
         };
         let last = o.samples.last().copied().unwrap_or_default();
-        let error = last.iter().zip(&exact).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-        eprintln!("stiff {name}: n_rhs {} error {error:e} {seconds:.4} s", o.n_rhs);
+        let error = last
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "stiff {name}: n_rhs {} error {error:e} {seconds:.4} s",
+            o.n_rhs
+        );
         write!(
             out,
             "{}{{\"solver\": \"{name}\", \"seconds\": {seconds:e}, \"runs\": {runs}, \"n_rhs\": {}, \"error\": {}}}",
