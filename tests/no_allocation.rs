@@ -38,24 +38,16 @@ fn vr(name: &str) -> u32 {
     value_reference(name).unwrap()
 }
 
-const LAWS: [(&str, f64); 5] = [
-    ("Mm_a0", 100.0),
-    ("Mm_a1", -20.0),
-    ("Mm_a2", -1.0),
-    ("Mr_b0", 20.0),
-    ("Mr_b1", -0.05),
-];
-
 #[test]
 fn stepping_and_exchanging_values_does_not_allocate() {
-    let active = run_counting(&LAWS, 1e-3);
+    let active = run_counting(&common::paper_laws(), 1e-3);
     assert_eq!(active, 2, "DOP853 throughout");
 }
 
 #[test]
 fn the_implicit_method_and_the_auto_switch_do_not_allocate() {
     let stiff = [("k12", 1e7), ("k34", 1e7), ("d12", 1e3), ("d34", 1e3)];
-    let parameters: Vec<_> = LAWS.iter().chain(&stiff).copied().collect();
+    let parameters: Vec<_> = common::paper_laws().into_iter().chain(stiff).collect();
     let active = run_counting(&parameters, 1e-2);
     assert_eq!(active, 3, "auto switched to the implicit method");
 }

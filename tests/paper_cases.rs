@@ -1,8 +1,10 @@
 //! The simulation (without the FMI layer) against SPEC §4's published values.
 
-use cyclic_mechanism::model::{energy, Parameters};
+use cyclic_mechanism::model::energy;
 use cyclic_mechanism::simulation::{Simulation, Value};
 use cyclic_mechanism::variables::value_reference;
+
+mod common;
 
 fn set(sim: &mut Simulation, name: &str, value: f64) {
     sim.set(value_reference(name).unwrap(), Value::Real(value), true)
@@ -10,24 +12,12 @@ fn set(sim: &mut Simulation, name: &str, value: f64) {
 }
 
 fn paper_case(k34: f64, tolerance: f64, step: f64) -> Simulation {
-    let mut sim = Simulation::new();
-    let laws = Parameters::default().with_paper_laws();
-    for (name, value) in [
-        ("Mm_a0", laws.Mm_a0),
-        ("Mm_a1", laws.Mm_a1),
-        ("Mm_a2", laws.Mm_a2),
-    ] {
-        set(&mut sim, name, value);
-    }
-    for (name, value) in [("Mr_b0", laws.Mr_b0), ("Mr_b1", laws.Mr_b1), ("k34", k34)] {
-        set(&mut sim, name, value);
-    }
-    sim.set_tolerance(tolerance).unwrap();
-    sim.initialize(0.0).unwrap();
-    let steps = (10.0 / step).round() as usize;
-    for k in 1..=steps {
-        sim.advance(k as f64 * step).unwrap();
-    }
+    let parameters: Vec<_> = common::paper_laws()
+        .into_iter()
+        .chain([("k34", k34)])
+        .collect();
+    let mut sim = common::simulation(&parameters, 1, tolerance);
+    common::advance(&mut sim, 10.0, step);
     sim
 }
 

@@ -3,9 +3,10 @@
 //! and `auto` against DOP853. Evaluation counts are deterministic, so the work ratio is a
 //! test here, not a benchmark.
 
-use cyclic_mechanism::model::Parameters;
 use cyclic_mechanism::simulation::{Simulation, Value};
 use cyclic_mechanism::variables::value_reference;
+
+mod common;
 
 const AUTO: i32 = 1;
 const DOP853: i32 = 2;
@@ -13,11 +14,6 @@ const IMPLICIT: i32 = 3;
 /// Issue #4's stiff couplings, and paper case 1's (undamped).
 const STIFF: (f64, f64) = (1e7, 1e3);
 const PAPER: (f64, f64) = (100.0, 0.0);
-
-fn set(sim: &mut Simulation, name: &str, value: f64) {
-    sim.set(value_reference(name).unwrap(), Value::Real(value), true)
-        .unwrap();
-}
 
 fn integer(sim: &Simulation, name: &str) -> i32 {
     match sim.get(value_reference(name).unwrap()).unwrap() {
@@ -29,33 +25,10 @@ fn integer(sim: &Simulation, name: &str) -> i32 {
 /// Paper case 1's laws with `solver` = `kind`, stiffness `k` and damping `d` in both
 /// couplings, run to `t_end` at communication step `h`.
 fn run(kind: i32, (k, d): (f64, f64), tolerance: f64, t_end: f64, h: f64) -> Simulation {
-    let mut sim = Simulation::new();
-    let laws = Parameters::default().with_paper_laws();
-    for (name, value) in [
-        ("Mm_a0", laws.Mm_a0),
-        ("Mm_a1", laws.Mm_a1),
-        ("Mm_a2", laws.Mm_a2),
-        ("Mr_b0", laws.Mr_b0),
-        ("Mr_b1", laws.Mr_b1),
-        ("k12", k),
-        ("k34", k),
-        ("d12", d),
-        ("d34", d),
-    ] {
-        set(&mut sim, name, value);
-    }
-    sim.set(
-        value_reference("solver").unwrap(),
-        Value::Integer(kind),
-        true,
-    )
-    .unwrap();
-    sim.set_tolerance(tolerance).unwrap();
-    sim.initialize(0.0).unwrap();
-    let steps = (t_end / h).round() as usize;
-    for step in 1..=steps {
-        sim.advance(step as f64 * h).unwrap();
-    }
+    let couplings = [("k12", k), ("k34", k), ("d12", d), ("d34", d)];
+    let parameters: Vec<_> = common::paper_laws().into_iter().chain(couplings).collect();
+    let mut sim = common::simulation(&parameters, kind, tolerance);
+    common::advance(&mut sim, t_end, h);
     sim
 }
 

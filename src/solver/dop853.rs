@@ -15,7 +15,8 @@
 
 use super::dop853_tableau::{A, A_DENSE, B, C, C_DENSE, D, E3, E5};
 use super::{
-    check_step_size, initial_step, plan_step, OdeSystem, SolverError, Statistics, Tolerances,
+    check_step_size, initial_step, plan_step, read_settings, write_settings, OdeSystem,
+    SolverError, Statistics, Tolerances,
 };
 use crate::snapshot::{FormatError, Reader, Writer};
 
@@ -54,10 +55,8 @@ pub struct Dop853<const N: usize> {
     last_step: Option<LastStep<N>>,
     /// Dense-output coefficients of the last step, computed on first use.
     dense: Option<[[f64; N]; 7]>,
-    /// The argument of the last stage of the last attempt (at t + h, like y_new): with
-    /// f there and at y_new it estimates |hλ| along the step (the stiffness test).
-    last_stage_y: [f64; N],
-    stiffness: StiffnessTest,
+    /// The stiffness test, when asked for (see [`Dop853::with_stiffness_test`]).
+    stiffness: Option<StiffnessTest>,
     stats: Statistics,
 }
 
@@ -99,16 +98,22 @@ impl<const N: usize> Dop853<N> {
             first_stage_valid: false,
             last_step: None,
             dense: None,
-            last_stage_y: [0.0; N],
-            stiffness: StiffnessTest::default(),
+            stiffness: None,
             stats: Statistics::default(),
         }
     }
 
+    /// Run the stiffness test after every accepted step (a few flops each; only a caller
+    /// that may change method needs it).
+    pub fn with_stiffness_test(mut self) -> Self {
+        self.stiffness = Some(StiffnessTest::default());
+        self
+    }
+
     /// Whether the stiffness test says the step size is limited by stability: an
-    /// implicit method would take far fewer evaluations.
+    /// implicit method would take far fewer evaluations. Always false without the test.
     pub fn is_stiff(&self) -> bool {
-        self.stiffness.is_stiff()
+        self.stiffness.is_some_and(|test| test.is_stiff())
     }
 
     pub fn tolerances(&self) -> Tolerances {
@@ -124,16 +129,11 @@ impl<const N: usize> Dop853<N> {
         self.next_step
     }
 
-    /// Propose the first step size (e.g. the step of the method this one takes over from).
-    pub fn set_next_step(&mut self, h: f64) {
-        if h.is_finite() && h > 0.0 {
-            self.next_step = Some(h);
-        }
-    }
-
-    /// Start the counters from `stats` (when taking over from another method).
-    pub fn continue_statistics(&mut self, stats: Statistics) {
+    /// Take over from another method: its counters continue, and its proposed step size
+    /// is this one's first guess.
+    pub fn take_over(&mut self, stats: Statistics, next_step: Option<f64>) {
         self.stats = stats;
+        self.next_step = next_step.filter(|h| h.is_finite() && *h > 0.0);
     }
 
     /// The state or the right-hand side changed outside the integrator (new inputs, a
@@ -179,13 +179,13 @@ impl<const N: usize> Dop853<N> {
         };
         let mut last_rejected = false;
         let mut taken = 0u64;
-        let mut y_new = [0.0; N];
+        let (mut y_new, mut last_stage) = ([0.0; N], [0.0; N]);
         while *t < target {
             let (h_step, landing) = plan_step(*t, h, limit, taken)?;
             taken += 1;
             self.last_step = None;
             self.dense = None;
-            let error = self.attempt(system, *t, y, h_step, &mut y_new);
+            let error = self.attempt(system, *t, y, h_step, &mut y_new, &mut last_stage);
             if error.is_nan() || error > 1.0 {
                 // Rejected, or a non-finite stage (error is NaN or infinite).
                 self.stats.n_rejected += 1;
@@ -216,8 +216,10 @@ impl<const N: usize> Dop853<N> {
             *y = y_new;
             *t = if landing { limit } else { *t + h_step };
             self.eval(system, *t, y, NEXT_FIRST);
-            let h_lambda = self.stiffness_estimate(h_step, y);
-            self.stiffness.record(h_lambda);
+            if let Some(mut test) = self.stiffness {
+                test.record(self.stiffness_estimate(h_step, y, &last_stage));
+                self.stiffness = Some(test);
+            }
             let factor = step_factor(error, last_rejected);
             // A step cut short to land on the limit says nothing against the longer step.
             h = if landing {
@@ -296,7 +298,8 @@ impl<const N: usize> Dop853<N> {
 
     /// One trial step of size `h` from (t, y), with f(t, y) in slot 12 (the previous
     /// step's end, or a fresh evaluation).
-    /// Writes the 8th-order result to `y_new` and returns the scaled error norm.
+    /// Writes the 8th-order result to `y_new`, leaves the last stage's argument (at t + h)
+    /// in `y_stage` for the stiffness test, and returns the scaled error norm.
     fn attempt<S: OdeSystem<N>>(
         &mut self,
         system: &S,
@@ -304,9 +307,9 @@ impl<const N: usize> Dop853<N> {
         y: &[f64; N],
         h: f64,
         y_new: &mut [f64; N],
+        y_stage: &mut [f64; N],
     ) -> f64 {
         self.stages[0] = self.stages[NEXT_FIRST];
-        let mut y_stage = [0.0; N];
         for i in 1..STAGES {
             for (n, ys) in y_stage.iter_mut().enumerate() {
                 let mut sum = 0.0;
@@ -315,9 +318,8 @@ impl<const N: usize> Dop853<N> {
                 }
                 *ys = y[n] + h * sum;
             }
-            self.eval(system, t + C[i] * h, &y_stage, i);
+            self.eval(system, t + C[i] * h, y_stage, i);
         }
-        self.last_stage_y = y_stage;
         let Tolerances { rtol, atol } = self.tolerances;
         let (mut err5, mut err3) = (0.0, 0.0);
         for n in 0..N {
@@ -340,14 +342,14 @@ impl<const N: usize> Dop853<N> {
     }
 
     /// |hλ| along the last step: f at its end `y_end` (slot 12) against f at its last stage
-    /// (slot 11), over the distance between the two points.
-    fn stiffness_estimate(&self, h: f64, y_end: &[f64; N]) -> f64 {
+    /// (slot 11, argument `y_stage`), over the distance between the two points.
+    fn stiffness_estimate(&self, h: f64, y_end: &[f64; N], y_stage: &[f64; N]) -> f64 {
         let (mut num, mut den) = (0.0, 0.0);
         let (f_end, f_stage) = (&self.stages[NEXT_FIRST], &self.stages[STAGES - 1]);
         for n in 0..N {
             num += (f_end[n] - f_stage[n]).powi(2);
         }
-        for (end, stage) in y_end.iter().zip(&self.last_stage_y) {
+        for (end, stage) in y_end.iter().zip(y_stage) {
             den += (end - stage).powi(2);
         }
         if den > 0.0 {
@@ -368,9 +370,7 @@ impl<const N: usize> Dop853<N> {
     /// Everything the integrator remembers (step size, stages, dense output, counters),
     /// for a serialized FMU state: restoring it continues bit for bit.
     pub fn serialize_into(&self, w: &mut Writer) {
-        w.f64s(&[self.tolerances.rtol, self.tolerances.atol]);
-        w.bool(self.next_step.is_some());
-        w.f64(self.next_step.unwrap_or(0.0));
+        write_settings(w, self.tolerances, self.next_step);
         self.stages.iter().for_each(|stage| w.f64s(stage));
         w.bool(self.first_stage_valid);
         w.bool(self.last_step.is_some());
@@ -383,20 +383,16 @@ impl<const N: usize> Dop853<N> {
         if let Some(dense) = &self.dense {
             dense.iter().for_each(|row| w.f64s(row));
         }
-        w.f64s(&self.last_stage_y);
-        w.u64(self.stiffness.history as u64);
-        w.u64(self.stats.n_steps);
-        w.u64(self.stats.n_rejected);
-        w.u64(self.stats.n_rhs);
+        w.bool(self.stiffness.is_some());
+        w.u64(self.stiffness.map_or(0, |test| test.history) as u64);
+        self.stats.serialize_into(w);
     }
 
     /// The integrator written by [`Dop853::serialize_into`].
     pub fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
-        let [rtol, atol] = r.f64s()?;
-        let mut solver = Self::new(Tolerances { rtol, atol });
-        let has_step = r.bool()?;
-        let step = r.f64()?;
-        solver.next_step = has_step.then_some(step);
+        let (tolerances, next_step) = read_settings(r)?;
+        let mut solver = Self::new(tolerances);
+        solver.next_step = next_step;
         for stage in solver.stages.iter_mut() {
             *stage = r.f64s()?;
         }
@@ -417,15 +413,10 @@ impl<const N: usize> Dop853<N> {
             }
             solver.dense = Some(dense);
         }
-        solver.last_stage_y = r.f64s()?;
-        solver.stiffness = StiffnessTest {
-            history: r.u64()? as u32,
-        };
-        solver.stats = Statistics {
-            n_steps: r.u64()?,
-            n_rejected: r.u64()?,
-            n_rhs: r.u64()?,
-        };
+        let tested = r.bool()?;
+        let history = r.u64()? as u32;
+        solver.stiffness = tested.then_some(StiffnessTest { history });
+        solver.stats = Statistics::deserialize_from(r)?;
         Ok(solver)
     }
 }

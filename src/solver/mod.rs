@@ -11,6 +11,8 @@ pub use dop853::Dop853;
 pub use radau5::Radau5;
 pub use switching::{Choice, Integrator, Method};
 
+use crate::snapshot::{FormatError, Reader, Writer};
+
 /// An ODE y' = f(t, y) on a manifold the system can project onto.
 pub trait OdeSystem<const N: usize> {
     /// Evaluate f(t, y) into `dy`.
@@ -72,6 +74,37 @@ pub struct Statistics {
     pub n_rejected: u64,
     /// Right-hand-side evaluations.
     pub n_rhs: u64,
+}
+
+impl Statistics {
+    pub(crate) fn serialize_into(&self, w: &mut Writer) {
+        w.u64(self.n_steps);
+        w.u64(self.n_rejected);
+        w.u64(self.n_rhs);
+    }
+
+    pub(crate) fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
+        Ok(Self {
+            n_steps: r.u64()?,
+            n_rejected: r.u64()?,
+            n_rhs: r.u64()?,
+        })
+    }
+}
+
+/// How every integrator's serialized form begins: its tolerances and proposed next step.
+fn write_settings(w: &mut Writer, tolerances: Tolerances, next_step: Option<f64>) {
+    w.f64s(&[tolerances.rtol, tolerances.atol]);
+    w.bool(next_step.is_some());
+    w.f64(next_step.unwrap_or(0.0));
+}
+
+/// What [`write_settings`] wrote.
+fn read_settings(r: &mut Reader) -> Result<(Tolerances, Option<f64>), FormatError> {
+    let [rtol, atol] = r.f64s()?;
+    let has_step = r.bool()?;
+    let step = r.f64()?;
+    Ok((Tolerances { rtol, atol }, has_step.then_some(step)))
 }
 
 /// Why an integration stopped short of its end time. The caller's state is left at the

@@ -65,3 +65,48 @@ pub fn initialise(c: fmi2Component, tolerance: f64, stop: Option<f64>, parameter
         assert_eq!(fmi2ExitInitializationMode(c), OK);
     }
 }
+
+/// The paper's built-in motor and load laws (SPEC §4), as (FMI name, value) pairs, taken
+/// from the model's own definition.
+pub fn paper_laws() -> [(&'static str, f64); 5] {
+    let laws = cyclic_mechanism::model::Parameters::default().with_paper_laws();
+    [
+        ("Mm_a0", laws.Mm_a0),
+        ("Mm_a1", laws.Mm_a1),
+        ("Mm_a2", laws.Mm_a2),
+        ("Mr_b0", laws.Mr_b0),
+        ("Mr_b1", laws.Mr_b1),
+    ]
+}
+
+/// A simulation without the FMI layer: `parameters` set by name, `solver` (1 auto,
+/// 2 dop853, 3 implicit) and `tolerance`, initialised at t = 0.
+pub fn simulation(
+    parameters: &[(&str, f64)],
+    solver: i32,
+    tolerance: f64,
+) -> cyclic_mechanism::simulation::Simulation {
+    use cyclic_mechanism::simulation::{Simulation, Value};
+    use cyclic_mechanism::variables::value_reference;
+    let mut sim = Simulation::new();
+    for (name, value) in parameters {
+        sim.set(value_reference(name).unwrap(), Value::Real(*value), true)
+            .unwrap();
+    }
+    sim.set(
+        value_reference("solver").unwrap(),
+        Value::Integer(solver),
+        true,
+    )
+    .unwrap();
+    sim.set_tolerance(tolerance).unwrap();
+    sim.initialize(0.0).unwrap();
+    sim
+}
+
+/// Advance `sim` from t = 0 to `t_end` in communication steps of `h`.
+pub fn advance(sim: &mut cyclic_mechanism::simulation::Simulation, t_end: f64, h: f64) {
+    for k in 1..=(t_end / h).round() as usize {
+        sim.advance(k as f64 * h).unwrap();
+    }
+}

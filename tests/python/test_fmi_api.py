@@ -37,9 +37,11 @@ class Harness:
         self.slave.instantiate(callbacks=self.callbacks)
         return self
 
-    def initialise(self, stop_time=None, tolerance=1e-8, **parameters):
+    def initialise(self, stop_time=None, tolerance=1e-8, solver=None, **parameters):
         self.slave.setupExperiment(tolerance=tolerance, startTime=0.0, stopTime=stop_time)
         self.slave.enterInitializationMode()
+        if solver is not None:
+            self.slave.setInteger([self.vr["solver"]], [solver])
         for name, value in parameters.items():
             self.set(name, value)
         self.slave.exitInitializationMode()

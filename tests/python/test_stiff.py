@@ -14,13 +14,8 @@ STATE = ("phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4")
 
 
 def run(unzipped, model_description, solver, t_end=1.0, h=1e-2, tolerance=1e-6):
-    fmu = Harness(unzipped, model_description).instantiate()
-    fmu.slave.setupExperiment(tolerance=tolerance, startTime=0.0)
-    fmu.slave.enterInitializationMode()
-    fmu.slave.setInteger([fmu.vr["solver"]], [solver])
-    for name, value in STIFF.items():
-        fmu.set(name, value)
-    fmu.slave.exitInitializationMode()
+    fmu = Harness(unzipped, model_description).instantiate().initialise(tolerance=tolerance, solver=solver,
+                                                                        **STIFF)
     for k in range(round(t_end / h)):
         fmu.slave.doStep(k * h, h)
     state = np.array(fmu.get(*STATE))
@@ -48,12 +43,7 @@ def test_auto_is_accurate_and_ten_times_cheaper_than_dop853(unzipped, model_desc
 
 
 def test_fmu_state_with_the_implicit_method_restores_bit_for_bit(unzipped, model_description):
-    fmu = Harness(unzipped, model_description).instantiate()
-    fmu.slave.setupExperiment(tolerance=1e-6, startTime=0.0)
-    fmu.slave.enterInitializationMode()
-    for name, value in STIFF.items():
-        fmu.set(name, value)
-    fmu.slave.exitInitializationMode()
+    fmu = Harness(unzipped, model_description).instantiate().initialise(tolerance=1e-6, **STIFF)
     for k in range(20):
         fmu.slave.doStep(k * 1e-2, 1e-2)
     assert fmu.slave.getInteger([fmu.vr["active_solver"]]) == [IMPLICIT]
