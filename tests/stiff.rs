@@ -54,8 +54,13 @@ fn auto_is_accurate_and_ten_times_cheaper_than_dop853_on_stiff_springs() {
         max_difference(&auto, &reference),
         max_difference(&implicit, &reference)
     );
+    for sim in [&auto, &implicit] {
+        assert!(max_difference(sim, &reference) <= 1e-8);
+    }
+    // DOP853 at its stability limit: the stiff modes carry noise its error estimate does
+    // not see, 2.5e-4 in ω2 (about 16 x tol relative to ω2) at t = 1; why `auto` switches.
+    assert!(max_difference(&explicit, &reference) <= 1e-3);
     for sim in [&explicit, &auto, &implicit] {
-        assert!(max_difference(sim, &reference) <= 1e-5);
         assert!(sim.state().iter().all(|v| v.is_finite()));
     }
     assert!(10 * work(&auto) <= work(&explicit));

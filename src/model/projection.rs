@@ -33,27 +33,30 @@ const MAX_POSITION_ITERATIONS: usize = 8;
 /// change point) or Newton does not converge.
 pub fn project(p: &Parameters, y: &mut State) -> Result<Projected, ModelError> {
     let tolerance = 4.0 * f64::EPSILON * p.L * p.L;
+    // Three divisions per call instead of five per iteration: they dominate its cost.
+    let (inverse_j2, inverse_j3) = (1.0 / p.J2, 1.0 / p.J3);
     let (mut sc2, mut sc3) = (y[1].sin_cos(), y[2].sin_cos());
     for iteration in 0..=MAX_POSITION_ITERATIONS {
         let (g, b1, c1) = closure_with_gradient_from(p, sc2, sc3);
-        let weight = b1 * b1 / p.J2 + c1 * c1 / p.J3;
+        let (move2, move3) = (b1 * inverse_j2, c1 * inverse_j3);
+        let inverse_weight = 1.0 / (b1 * move2 + c1 * move3);
         let converged = g.abs() <= tolerance
             || iteration == MAX_POSITION_ITERATIONS && g.abs() <= 1e3 * tolerance;
         if converged {
-            let scale = (b1 * y[5] - c1 * y[6]) / weight;
+            let scale = (b1 * y[5] - c1 * y[6]) * inverse_weight;
             if scale.is_finite() {
-                y[5] -= b1 / p.J2 * scale;
-                y[6] += c1 / p.J3 * scale;
+                y[5] -= move2 * scale;
+                y[6] += move3 * scale;
             }
             return Ok(Projected { closure: g, b1, c1 });
         }
-        let scale = g / weight;
+        let scale = g * inverse_weight;
         if !scale.is_finite() {
             break;
         }
         let (old2, old3) = (y[1], y[2]);
-        y[1] -= b1 / p.J2 * scale;
-        y[2] += c1 / p.J3 * scale;
+        y[1] -= move2 * scale;
+        y[2] += move3 * scale;
         // The differences of the stored angles are exact: the sines and cosines match them.
         sc2 = rotate(sc2, y[1] - old2, y[1]);
         sc3 = rotate(sc3, y[2] - old3, y[2]);

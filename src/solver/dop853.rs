@@ -276,22 +276,21 @@ impl<const N: usize> Dop853<N> {
         } = *step;
         for (extra, (a, c)) in A_DENSE.iter().zip(C_DENSE).enumerate() {
             let slot = NEXT_FIRST + 1 + extra;
-            let y_stage: [f64; N] = std::array::from_fn(|n| {
-                y_old[n] + h * (0..slot).map(|j| a[j] * self.stages[j][n]).sum::<f64>()
-            });
+            let increment = combine(&a[..slot], &self.stages);
+            let y_stage: [f64; N] = std::array::from_fn(|n| y_old[n] + h * increment[n]);
             self.eval(system, t_old + c * h, &y_stage, slot);
         }
         let (f_old, f_new) = (self.stages[0], self.stages[NEXT_FIRST]);
         let mut coefficients = [[0.0; N]; 7];
+        for (row, d) in D.iter().enumerate() {
+            let sum = combine(d, &self.stages);
+            coefficients[3 + row] = std::array::from_fn(|n| h * sum[n]);
+        }
         for n in 0..N {
             let delta = y_new[n] - y_old[n];
             coefficients[0][n] = delta;
             coefficients[1][n] = h * f_old[n] - delta;
             coefficients[2][n] = 2.0 * delta - h * (f_new[n] + f_old[n]);
-            for (row, d) in D.iter().enumerate() {
-                coefficients[3 + row][n] =
-                    h * (0..SLOTS).map(|j| d[j] * self.stages[j][n]).sum::<f64>();
-            }
         }
         coefficients
     }
@@ -311,28 +310,25 @@ impl<const N: usize> Dop853<N> {
     ) -> f64 {
         self.stages[0] = self.stages[NEXT_FIRST];
         for i in 1..STAGES {
-            for (n, ys) in y_stage.iter_mut().enumerate() {
-                let mut sum = 0.0;
-                for (j, a) in A[i][..i].iter().enumerate() {
-                    sum += a * self.stages[j][n];
-                }
-                *ys = y[n] + h * sum;
+            let increment = combine(&A[i][..i], &self.stages);
+            for n in 0..N {
+                y_stage[n] = y[n] + h * increment[n];
             }
             self.eval(system, t + C[i] * h, y_stage, i);
         }
+        let stages = &self.stages[..STAGES];
+        let (increment, e5, e3) = (
+            combine(&B, stages),
+            combine(&E5, stages),
+            combine(&E3, stages),
+        );
         let Tolerances { rtol, atol } = self.tolerances;
         let (mut err5, mut err3) = (0.0, 0.0);
         for n in 0..N {
-            let (mut inc, mut e5, mut e3) = (0.0, 0.0, 0.0);
-            for (j, stage) in self.stages[..STAGES].iter().enumerate() {
-                inc += B[j] * stage[n];
-                e5 += E5[j] * stage[n];
-                e3 += E3[j] * stage[n];
-            }
-            y_new[n] = y[n] + h * inc;
+            y_new[n] = y[n] + h * increment[n];
             let scale = atol + rtol * y[n].abs().max(y_new[n].abs());
-            err5 += (e5 / scale).powi(2);
-            err3 += (e3 / scale).powi(2);
+            err5 += (e5[n] / scale).powi(2);
+            err3 += (e3[n] / scale).powi(2);
         }
         if err5 == 0.0 && err3 == 0.0 {
             return 0.0;
@@ -364,6 +360,23 @@ impl<const N: usize> Dop853<N> {
         system.rhs(t, y, &mut self.stages[stage]);
         self.stats.n_rhs += 1;
     }
+}
+
+/// Σ_j weights[j]·stages[j], component by component: one accumulator per component, so
+/// the sums run side by side instead of as one long dependent chain per component (the
+/// stage combinations were the largest cost outside the right-hand side), and the
+/// tableau's zero entries are skipped.
+#[inline(always)]
+fn combine<const N: usize>(weights: &[f64], stages: &[[f64; N]]) -> [f64; N] {
+    let mut sum = [0.0; N];
+    for (w, stage) in weights.iter().zip(stages) {
+        if *w != 0.0 {
+            for (s, k) in sum.iter_mut().zip(stage) {
+                *s += w * k;
+            }
+        }
+    }
+    sum
 }
 
 impl<const N: usize> Dop853<N> {

@@ -77,8 +77,8 @@ const FACTOR_MAX: f64 = 8.0;
 const KEEP_STEP: f64 = 1.2;
 /// The Jacobian is kept for the next step unless the last Newton iteration contracted more
 /// slowly than this. Hairer's default is 0.001; here a Jacobian costs N evaluations against
-/// 3 per Newton iteration. On the stiff case of tests/stiff.rs `auto` took 1926 evaluations
-/// with 0.001, 1502 with 0.01, 1568 with 0.1 and 1611 with 0.3.
+/// 3 per Newton iteration. On the stiff case of tests/stiff.rs `auto` took 2263 evaluations
+/// with 0.001, 1772 with 0.01, 1819 with 0.1 and 1833 with 0.3.
 const JACOBIAN_REUSE_RATE: f64 = 1e-2;
 /// Power iterations for the spectral-radius estimate of J (the non-stiffness test).
 const POWER_ITERATIONS: usize = 12;
