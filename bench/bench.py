@@ -188,10 +188,24 @@ def main(harness_json, fmu, out, quick):
                 proportionality[f"{name} H={h:g}"] = dict(
                     slope=slope(tols, errs), worst_error_over_tol=max(e / t for t, e in pts))
 
+    per_evaluation = {}
+    for r in rows:
+        if "failed" in r or not r.get("n_rhs"):
+            continue
+        key = r["method"] if r.get("H") is None else f"{r['method']} H={r['H']:g}"
+        per_evaluation.setdefault(key, []).append(r["seconds"] / r["n_rhs"])
+    per_evaluation = {k: float(np.median(v)) for k, v in sorted(per_evaluation.items())}
+    warm = []
+    for tol in sorted({r["tol"] for r in fmu_rows}, reverse=True):
+        n = {r["H"]: r["n_rhs"] for r in fmu_rows if r["scenario"] == "case1" and r["tol"] == tol}
+        if 1e-3 in n and 0.1 in n:
+            warm.append(dict(tol=tol, n_rhs_h_1e_3=n[1e-3], n_rhs_h_0_1=n[0.1], ratio=n[1e-3] / n[0.1]))
+
     machine = dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
                    cpus=__import__("os").cpu_count(), python=platform.python_version())
     summary = dict(machine=machine, ns_per_rhs=harness["ns_per_rhs"], proportionality=proportionality,
-                   comparisons=comparisons, fmpy=fmpy_rows, stiff=harness.get("stiff", []), results=rows)
+                   comparisons=comparisons, fmpy=fmpy_rows,
+                   seconds_per_evaluation=per_evaluation, warm_restarts=warm, stiff=harness.get("stiff", []), results=rows)
     (out / "results.json").write_text(json.dumps(summary, indent=1))
     (out / "results.md").write_text(markdown(summary))
     plot(rows, out / "work_precision.png")
@@ -220,6 +234,15 @@ def markdown(s):
               "| run | slope | worst error / tol |", "| --- | --- | --- |"]
     for k, v in s["proportionality"].items():
         lines.append(f"| {k} | {v['slope']:.2f} | {v['worst_error_over_tol']:.1f} |")
+    lines += ["", "Run time per right-hand-side evaluation, everything included (median over the tolerances; "
+              "the Rust peers and the FMU call the same right-hand side):", "",
+              "| method | time per evaluation |", "| --- | --- |"]
+    for k, v in s["seconds_per_evaluation"].items():
+        lines.append(f"| {k} | {v * 1e9:,.0f} ns |")
+    lines += ["", "Case 1 with unchanged inputs: evaluations at H = 1e-3 against H = 0.1 (issue #3 §4, target ≤ 1.5):",
+              "", "| tol | n_rhs at H = 1e-3 | n_rhs at H = 0.1 | ratio |", "| --- | --- | --- | --- |"]
+    for w in s["warm_restarts"]:
+        lines.append(f"| {w['tol']:.0e} | {w['n_rhs_h_1e_3']} | {w['n_rhs_h_0_1']} | {w['ratio']:.2f} |")
     lines += ["", "FMPy's wall time for the same FMU runs (case 1), and the FMU's share of it:", "",
               "| H (s) | tol | FMPy (s) | FMU share |", "| --- | --- | --- | --- |"]
     for f in s["fmpy"]:
