@@ -435,24 +435,28 @@ impl Simulation {
     #[inline]
     pub fn read_real(&self, vr: u32) -> Result<f64, AccessError> {
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
-        match var.slot {
-            Slot::Output(output) => Ok(self.output(output)),
-            Slot::Input(Input::MotorTorque) => Ok(self.inputs.motor_torque),
-            Slot::Input(Input::LoadTorque) => Ok(self.inputs.load_torque),
-            Slot::Parameter(i) => Ok(self.params.get(i).unwrap_or(f64::NAN)),
-            Slot::Statistic(_) | Slot::SolverChoice => {
-                Err(check_type(var, Value::Real(0.0)).unwrap_err())
-            }
+        self.real_of(var.slot)
+            .ok_or_else(|| check_type(var, Value::Real(0.0)).unwrap_err())
+    }
+
+    /// The value in a Real slot; `None` for the Integer and Enumeration slots.
+    #[inline]
+    fn real_of(&self, slot: Slot) -> Option<f64> {
+        match slot {
+            Slot::Output(output) => Some(self.output(output)),
+            Slot::Input(Input::MotorTorque) => Some(self.inputs.motor_torque),
+            Slot::Input(Input::LoadTorque) => Some(self.inputs.load_torque),
+            Slot::Parameter(i) => Some(self.params.get(i).unwrap_or(f64::NAN)),
+            Slot::Statistic(_) | Slot::SolverChoice => None,
         }
     }
 
     fn value_of(&self, slot: Slot) -> Value {
+        if let Some(value) = self.real_of(slot) {
+            return Value::Real(value);
+        }
         let statistic = |count: u64| Value::Integer(count.min(i32::MAX as u64) as i32);
         match slot {
-            Slot::Input(Input::MotorTorque) => Value::Real(self.inputs.motor_torque),
-            Slot::Input(Input::LoadTorque) => Value::Real(self.inputs.load_torque),
-            Slot::Parameter(i) => Value::Real(self.params.get(i).unwrap_or(f64::NAN)),
-            Slot::Output(output) => Value::Real(self.output(output)),
             Slot::Statistic(Statistic::Steps) => statistic(self.solver.statistics().n_steps),
             Slot::Statistic(Statistic::Rejected) => statistic(self.solver.statistics().n_rejected),
             Slot::Statistic(Statistic::RightHandSides) => statistic(self.solver.statistics().n_rhs),
@@ -463,6 +467,7 @@ impl Simulation {
                 })
             }
             Slot::SolverChoice => Value::Integer(self.solver_kind as i32),
+            Slot::Output(_) | Slot::Input(_) | Slot::Parameter(_) => unreachable!("Real slots"),
         }
     }
 

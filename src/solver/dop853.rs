@@ -15,8 +15,8 @@
 
 use super::dop853_tableau::{A, A_DENSE, B, C, C_DENSE, D, E3, E5};
 use super::{
-    check_step_size, initial_step, plan_step, read_settings, write_settings, OdeSystem,
-    SolverError, Statistics, Tolerances,
+    check_step_size, initial_step, plan_step, OdeSystem, Progress, SolverError, Statistics,
+    Tolerances,
 };
 use crate::snapshot::{FormatError, Reader, Writer};
 
@@ -43,9 +43,7 @@ struct LastStep<const N: usize> {
 /// The DOP853 integrator for an `N`-dimensional system. All working storage is inline.
 #[derive(Clone, Debug)]
 pub struct Dop853<const N: usize> {
-    tolerances: Tolerances,
-    /// Proposed size of the next step; `None` until the first step is chosen.
-    next_step: Option<f64>,
+    progress: Progress,
     /// Stages of the last step (slots 0..12), f at its end (slot 12) and the dense
     /// output's extra stages (13..16).
     stages: [[f64; N]; SLOTS],
@@ -57,7 +55,6 @@ pub struct Dop853<const N: usize> {
     dense: Option<[[f64; N]; 7]>,
     /// The stiffness test, when asked for (see [`Dop853::with_stiffness_test`]).
     stiffness: Option<StiffnessTest>,
-    stats: Statistics,
 }
 
 /// Hairer's stiffness test for DOP853 (HNW II, IV.2; dop853.f): after each accepted step
@@ -92,14 +89,12 @@ impl StiffnessTest {
 impl<const N: usize> Dop853<N> {
     pub fn new(tolerances: Tolerances) -> Self {
         Self {
-            tolerances,
-            next_step: None,
+            progress: Progress::new(tolerances),
             stages: [[0.0; N]; SLOTS],
             first_stage_valid: false,
             last_step: None,
             dense: None,
             stiffness: None,
-            stats: Statistics::default(),
         }
     }
 
@@ -116,24 +111,26 @@ impl<const N: usize> Dop853<N> {
         self.stiffness.is_some_and(|test| test.is_stiff())
     }
 
-    pub fn tolerances(&self) -> Tolerances {
-        self.tolerances
+    pub fn statistics(&self) -> Statistics {
+        self.progress.stats
     }
 
-    pub fn statistics(&self) -> Statistics {
-        self.stats
+    /// What this method hands on when `auto` changes method.
+    pub fn progress(&self) -> Progress {
+        self.progress
     }
 
     /// The step size the next call will try first, once chosen.
     pub fn next_step(&self) -> Option<f64> {
-        self.next_step
+        self.progress.next_step
     }
 
-    /// Take over from another method: its counters continue, and its proposed step size
-    /// is this one's first guess.
-    pub fn take_over(&mut self, stats: Statistics, next_step: Option<f64>) {
-        self.stats = stats;
-        self.next_step = next_step.filter(|h| h.is_finite() && *h > 0.0);
+    /// Continue where another method stopped: its counters go on, and its proposed step
+    /// size is this one's first guess.
+    pub fn resume(progress: Progress) -> Self {
+        let mut solver = Self::new(progress.tolerances);
+        solver.progress = progress;
+        solver
     }
 
     /// The state or the right-hand side changed outside the integrator (new inputs, a
@@ -163,7 +160,7 @@ impl<const N: usize> Dop853<N> {
             self.eval(system, *t, y, NEXT_FIRST);
             self.first_stage_valid = true;
         }
-        let mut h = match self.next_step {
+        let mut h = match self.progress.next_step {
             Some(h) => h,
             None => {
                 let f0 = self.stages[NEXT_FIRST];
@@ -171,9 +168,9 @@ impl<const N: usize> Dop853<N> {
                     system,
                     (*t, y, &f0),
                     target - *t,
-                    self.tolerances,
+                    self.progress.tolerances,
                     8,
-                    &mut self.stats,
+                    &mut self.progress.stats,
                 )
             }
         };
@@ -188,7 +185,7 @@ impl<const N: usize> Dop853<N> {
             let error = self.attempt(system, *t, y, h_step, &mut y_new, &mut last_stage);
             if error.is_nan() || error > 1.0 {
                 // Rejected, or a non-finite stage (error is NaN or infinite).
-                self.stats.n_rejected += 1;
+                self.progress.stats.n_rejected += 1;
                 let factor = if error.is_finite() {
                     (SAFETY * error.powf(-1.0 / 8.0)).max(FACTOR_MIN)
                 } else {
@@ -206,7 +203,7 @@ impl<const N: usize> Dop853<N> {
                     reason,
                 });
             }
-            self.stats.n_steps += 1;
+            self.progress.stats.n_steps += 1;
             self.last_step = Some(LastStep {
                 t_old: *t,
                 h: h_step,
@@ -229,7 +226,7 @@ impl<const N: usize> Dop853<N> {
             };
             last_rejected = false;
         }
-        self.next_step = Some(h);
+        self.progress.next_step = Some(h);
         Ok(())
     }
 
@@ -322,7 +319,7 @@ impl<const N: usize> Dop853<N> {
             combine(&E5, stages),
             combine(&E3, stages),
         );
-        let Tolerances { rtol, atol } = self.tolerances;
+        let Tolerances { rtol, atol } = self.progress.tolerances;
         let (mut err5, mut err3) = (0.0, 0.0);
         for n in 0..N {
             y_new[n] = y[n] + h * increment[n];
@@ -358,7 +355,7 @@ impl<const N: usize> Dop853<N> {
     #[inline]
     fn eval<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N], stage: usize) {
         system.rhs(t, y, &mut self.stages[stage]);
-        self.stats.n_rhs += 1;
+        self.progress.stats.n_rhs += 1;
     }
 }
 
@@ -383,7 +380,7 @@ impl<const N: usize> Dop853<N> {
     /// Everything the integrator remembers (step size, stages, dense output, counters),
     /// for a serialized FMU state: restoring it continues bit for bit.
     pub fn serialize_into(&self, w: &mut Writer) {
-        write_settings(w, self.tolerances, self.next_step);
+        self.progress.serialize_into(w);
         self.stages.iter().for_each(|stage| w.f64s(stage));
         w.bool(self.first_stage_valid);
         w.bool(self.last_step.is_some());
@@ -398,14 +395,11 @@ impl<const N: usize> Dop853<N> {
         }
         w.bool(self.stiffness.is_some());
         w.u64(self.stiffness.map_or(0, |test| test.history) as u64);
-        self.stats.serialize_into(w);
     }
 
     /// The integrator written by [`Dop853::serialize_into`].
     pub fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
-        let (tolerances, next_step) = read_settings(r)?;
-        let mut solver = Self::new(tolerances);
-        solver.next_step = next_step;
+        let mut solver = Self::resume(Progress::deserialize_from(r)?);
         for stage in solver.stages.iter_mut() {
             *stage = r.f64s()?;
         }
@@ -429,7 +423,6 @@ impl<const N: usize> Dop853<N> {
         let tested = r.bool()?;
         let history = r.u64()? as u32;
         solver.stiffness = tested.then_some(StiffnessTest { history });
-        solver.stats = Statistics::deserialize_from(r)?;
         Ok(solver)
     }
 }
@@ -452,14 +445,7 @@ fn step_factor(error: f64, after_rejection: bool) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Harmonic oscillator y'' = −y: exact solution (cos t, −sin t).
-    struct Oscillator;
-    impl OdeSystem<2> for Oscillator {
-        fn rhs(&self, _t: f64, y: &[f64; 2], dy: &mut [f64; 2]) {
-            *dy = [y[1], -y[0]];
-        }
-    }
+    use crate::solver::test_problems::{oscillator_errors, tol, Oscillator};
 
     /// y' = y·cos t: exact solution exp(sin t); non-autonomous, checks the nodes c_i.
     struct Forced;
@@ -469,21 +455,14 @@ mod tests {
         }
     }
 
-    fn tol(rtol: f64) -> Tolerances {
-        Tolerances { rtol, atol: rtol }
-    }
-
     #[test]
     fn oscillator_error_follows_tolerance() {
+        let errors = oscillator_errors(|tolerances, t, y| {
+            let mut solver = Dop853::new(tolerances);
+            solver.integrate(&Oscillator, t, y, 10.0, 10.0).unwrap();
+        });
         let mut previous = f64::INFINITY;
-        for rtol in [1e-4, 1e-7, 1e-10] {
-            let mut solver = Dop853::new(tol(rtol));
-            let (mut t, mut y) = (0.0, [1.0, 0.0]);
-            solver
-                .integrate(&Oscillator, &mut t, &mut y, 10.0, 10.0)
-                .unwrap();
-            assert_eq!(t, 10.0);
-            let error = (y[0] - 10f64.cos()).abs().max((y[1] + 10f64.sin()).abs());
+        for (rtol, error) in errors {
             assert!(error < 50.0 * rtol, "rtol {rtol}: error {error}");
             assert!(error < previous);
             previous = error;

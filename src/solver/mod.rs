@@ -77,13 +77,13 @@ pub struct Statistics {
 }
 
 impl Statistics {
-    pub(crate) fn serialize_into(&self, w: &mut Writer) {
+    fn serialize_into(&self, w: &mut Writer) {
         w.u64(self.n_steps);
         w.u64(self.n_rejected);
         w.u64(self.n_rhs);
     }
 
-    pub(crate) fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
+    fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
         Ok(Self {
             n_steps: r.u64()?,
             n_rejected: r.u64()?,
@@ -92,19 +92,47 @@ impl Statistics {
     }
 }
 
-/// How every integrator's serialized form begins: its tolerances and proposed next step.
-fn write_settings(w: &mut Writer, tolerances: Tolerances, next_step: Option<f64>) {
-    w.f64s(&[tolerances.rtol, tolerances.atol]);
-    w.bool(next_step.is_some());
-    w.f64(next_step.unwrap_or(0.0));
+/// What each integrator carries from one call to the next, and hands on when `auto`
+/// changes method: its tolerances, the step size to try next, and the work counters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Progress {
+    pub tolerances: Tolerances,
+    /// Proposed size of the next step; `None` until the first step is chosen.
+    pub next_step: Option<f64>,
+    pub stats: Statistics,
 }
 
-/// What [`write_settings`] wrote.
-fn read_settings(r: &mut Reader) -> Result<(Tolerances, Option<f64>), FormatError> {
-    let [rtol, atol] = r.f64s()?;
-    let has_step = r.bool()?;
-    let step = r.f64()?;
-    Ok((Tolerances { rtol, atol }, has_step.then_some(step)))
+impl Progress {
+    pub fn new(tolerances: Tolerances) -> Self {
+        Self {
+            tolerances,
+            next_step: None,
+            stats: Statistics::default(),
+        }
+    }
+
+    /// Where every integrator's serialized form begins.
+    fn serialize_into(&self, w: &mut Writer) {
+        w.f64s(&[self.tolerances.rtol, self.tolerances.atol]);
+        w.bool(self.next_step.is_some());
+        w.f64(self.next_step.unwrap_or(0.0));
+        self.stats.serialize_into(w);
+    }
+
+    /// What [`Progress::serialize_into`] wrote. A stored step size that is not finite and
+    /// positive is dropped (the integrator then chooses its first step afresh).
+    fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
+        let [rtol, atol] = r.f64s()?;
+        let has_step = r.bool()?;
+        let step = r.f64()?;
+        Ok(Self {
+            tolerances: Tolerances { rtol, atol },
+            next_step: has_step
+                .then_some(step)
+                .filter(|h| h.is_finite() && *h > 0.0),
+            stats: Statistics::deserialize_from(r)?,
+        })
+    }
 }
 
 /// Why an integration stopped short of its end time. The caller's state is left at the
@@ -174,4 +202,38 @@ pub(crate) fn initial_step<S: OdeSystem<N>, const N: usize>(
         (0.01 / largest).powf(1.0 / order as f64)
     };
     (100.0 * h).min(h1).min(span)
+}
+
+/// Test problems shared by the integrators' unit tests.
+#[cfg(test)]
+pub(crate) mod test_problems {
+    use super::{OdeSystem, Tolerances};
+
+    /// Harmonic oscillator y'' = −y: from (1, 0), exact solution (cos t, −sin t).
+    pub struct Oscillator;
+    impl OdeSystem<2> for Oscillator {
+        fn rhs(&self, _t: f64, y: &[f64; 2], dy: &mut [f64; 2]) {
+            *dy = [y[1], -y[0]];
+        }
+    }
+
+    pub fn tol(rtol: f64) -> Tolerances {
+        Tolerances { rtol, atol: rtol }
+    }
+
+    /// For rtol 1e-4, 1e-7 and 1e-10: (rtol, error at t = 10) of the oscillator integrated
+    /// from t = 0 by `integrate`, which must end exactly on 10.
+    pub fn oscillator_errors(
+        mut integrate: impl FnMut(Tolerances, &mut f64, &mut [f64; 2]),
+    ) -> [(f64, f64); 3] {
+        [1e-4, 1e-7, 1e-10].map(|rtol| {
+            let (mut t, mut y) = (0.0, [1.0, 0.0]);
+            integrate(tol(rtol), &mut t, &mut y);
+            assert_eq!(t, 10.0);
+            (
+                rtol,
+                (y[0] - 10f64.cos()).abs().max((y[1] + 10f64.sin()).abs()),
+            )
+        })
+    }
 }

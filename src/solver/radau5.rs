@@ -15,8 +15,8 @@
 
 use super::linear::{Complex, Lu, Singular};
 use super::{
-    check_step_size, initial_step, plan_step, read_settings, write_settings, OdeSystem,
-    SolverError, Statistics, Tolerances,
+    check_step_size, initial_step, plan_step, OdeSystem, Progress, SolverError, Statistics,
+    Tolerances,
 };
 use crate::snapshot::{FormatError, Reader, Writer};
 
@@ -152,8 +152,7 @@ enum Attempt {
 /// The Radau IIA (order 5) integrator for an `N`-dimensional system; all storage inline.
 #[derive(Clone, Debug)]
 pub struct Radau5<const N: usize> {
-    tolerances: Tolerances,
-    next_step: Option<f64>,
+    progress: Progress,
     /// f(t, y) at the integrator's current point, valid when `f0_valid`.
     f0: [f64; N],
     f0_valid: bool,
@@ -173,7 +172,6 @@ pub struct Radau5<const N: usize> {
     last_step: Option<LastStep<N>>,
     /// Consecutive accepted steps with h·|λ|max below the explicit method's stability limit.
     non_stiff_steps: u32,
-    stats: Statistics,
 }
 
 /// h·|λ|max below which the explicit method would not be limited by stability at this
@@ -188,8 +186,7 @@ const NON_STIFF_STEPS: u32 = 50;
 impl<const N: usize> Radau5<N> {
     pub fn new(tolerances: Tolerances) -> Self {
         Self {
-            tolerances,
-            next_step: None,
+            progress: Progress::new(tolerances),
             f0: [0.0; N],
             f0_valid: false,
             jacobian: [[0.0; N]; N],
@@ -201,27 +198,28 @@ impl<const N: usize> Radau5<N> {
             previous: None,
             last_step: None,
             non_stiff_steps: 0,
-            stats: Statistics::default(),
         }
     }
 
-    pub fn tolerances(&self) -> Tolerances {
-        self.tolerances
-    }
-
     pub fn statistics(&self) -> Statistics {
-        self.stats
+        self.progress.stats
     }
 
-    /// Take over from another method: its counters continue, and its proposed step size
-    /// is this one's first guess.
-    pub fn take_over(&mut self, stats: Statistics, next_step: Option<f64>) {
-        self.stats = stats;
-        self.next_step = next_step.filter(|h| h.is_finite() && *h > 0.0);
+    /// What this method hands on when `auto` changes method.
+    pub fn progress(&self) -> Progress {
+        self.progress
+    }
+
+    /// Continue where another method stopped: its counters go on, and its proposed step
+    /// size is this one's first guess.
+    pub fn resume(progress: Progress) -> Self {
+        let mut solver = Self::new(progress.tolerances);
+        solver.progress = progress;
+        solver
     }
 
     pub fn next_step(&self) -> Option<f64> {
-        self.next_step
+        self.progress.next_step
     }
 
     /// Whether after each of the last `NON_STIFF_STEPS` accepted steps the proposed step was
@@ -259,13 +257,13 @@ impl<const N: usize> Radau5<N> {
             return Ok(());
         }
         if !self.f0_valid {
-            self.f0 = evaluate(system, &mut self.stats, *t, y);
+            self.f0 = evaluate(system, &mut self.progress.stats, *t, y);
             self.f0_valid = true;
         }
         if !self.jacobian_valid {
             self.update_jacobian(system, *t, y);
         }
-        let mut h = match self.next_step {
+        let mut h = match self.progress.next_step {
             Some(h) => h,
             None => {
                 let span = target - *t;
@@ -274,9 +272,9 @@ impl<const N: usize> Radau5<N> {
                     system,
                     (*t, y, &f0),
                     span,
-                    self.tolerances,
+                    self.progress.tolerances,
                     5,
-                    &mut self.stats,
+                    &mut self.progress.stats,
                 )
             }
         };
@@ -288,7 +286,7 @@ impl<const N: usize> Radau5<N> {
             let (error, iterations) = match self.attempt(system, *t, y, h_step, rejected, &mut z) {
                 Attempt::Converged { error, iterations } => (error, iterations),
                 Attempt::Diverged => {
-                    self.stats.n_rejected += 1;
+                    self.progress.stats.n_rejected += 1;
                     if self.jacobian_current {
                         h = h_step * 0.5;
                     } else {
@@ -303,7 +301,7 @@ impl<const N: usize> Radau5<N> {
             };
             let safety = 0.9 * (2 * MAX_NEWTON + 1) as f64 / (2 * MAX_NEWTON + iterations) as f64;
             if error > 1.0 {
-                self.stats.n_rejected += 1;
+                self.progress.stats.n_rejected += 1;
                 let factor = safety * self.predicted_factor(h_step, error);
                 h = h_step * factor.max(FACTOR_MIN);
                 rejected = true;
@@ -332,7 +330,7 @@ impl<const N: usize> Radau5<N> {
             self.record_stiffness(h);
             rejected = false;
         }
-        self.next_step = Some(h);
+        self.progress.next_step = Some(h);
         Ok(())
     }
 
@@ -351,7 +349,7 @@ impl<const N: usize> Radau5<N> {
             self.f0_valid = false;
             return Err(SolverError::ProjectionFailed { t: t_new, reason });
         }
-        self.stats.n_steps += 1;
+        self.progress.stats.n_steps += 1;
         let mut z = *z;
         z[2] = std::array::from_fn(|n| y_new[n] - y[n]);
         self.last_step = Some(LastStep {
@@ -362,7 +360,7 @@ impl<const N: usize> Radau5<N> {
         });
         *y = y_new;
         *t = t_new;
-        self.f0 = evaluate(system, &mut self.stats, *t, y);
+        self.f0 = evaluate(system, &mut self.progress.stats, *t, y);
         self.jacobian_current = false;
         self.contraction = self.contraction.max(f64::EPSILON).powf(0.8);
         Ok(())
@@ -406,7 +404,7 @@ impl<const N: usize> Radau5<N> {
                 Err(Singular) => return Attempt::Diverged,
             },
         };
-        let Tolerances { rtol, atol } = self.tolerances;
+        let Tolerances { rtol, atol } = self.progress.tolerances;
         let scale: [f64; N] = std::array::from_fn(|n| atol + rtol * y[n].abs());
         self.starting_guess(y, h, z);
         let Some(iterations) = self.newton(system, (t, y, h), &factors, &scale, z) else {
@@ -453,7 +451,7 @@ impl<const N: usize> Radau5<N> {
             let mut f = [[0.0; N]; 3];
             for i in 0..3 {
                 let stage: [f64; N] = std::array::from_fn(|n| y[n] + z[i][n]);
-                f[i] = evaluate(system, &mut self.stats, t + C[i] * h, &stage);
+                f[i] = evaluate(system, &mut self.progress.stats, t + C[i] * h, &stage);
             }
             if f.iter().flatten().any(|v| !v.is_finite()) {
                 return None;
@@ -500,7 +498,7 @@ impl<const N: usize> Radau5<N> {
 
     /// Hairer's stopping tolerance for the Newton iteration, relative to the error scale.
     fn newton_tolerance(&self) -> f64 {
-        let rtol = self.tolerances.rtol;
+        let rtol = self.progress.tolerances.rtol;
         (10.0 * f64::EPSILON / rtol).max(0.03f64.min(rtol.sqrt()))
     }
 
@@ -515,7 +513,7 @@ impl<const N: usize> Radau5<N> {
         z: &[[f64; N]; 3],
         after_rejection: bool,
     ) -> f64 {
-        let Tolerances { rtol, atol } = self.tolerances;
+        let Tolerances { rtol, atol } = self.progress.tolerances;
         let scale: [f64; N] =
             std::array::from_fn(|n| atol + rtol * y[n].abs().max((y[n] + z[2][n]).abs()));
         let ze: [f64; N] = std::array::from_fn(|n| (0..3).map(|i| E[i] * z[i][n]).sum::<f64>() / h);
@@ -529,7 +527,7 @@ impl<const N: usize> Radau5<N> {
         let mut size = norm(&error);
         if size > 1.0 && (after_rejection || self.previous.is_none()) {
             let shifted: [f64; N] = std::array::from_fn(|n| y[n] + error[n]);
-            let f = evaluate(system, &mut self.stats, t, &shifted);
+            let f = evaluate(system, &mut self.progress.stats, t, &shifted);
             error = std::array::from_fn(|n| f[n] + ze[n]);
             lu_real.solve(&mut error);
             size = norm(&error);
@@ -543,7 +541,7 @@ impl<const N: usize> Radau5<N> {
         for j in 0..N {
             let delta = (f64::EPSILON * 1e-5f64.max(y[j].abs())).sqrt();
             shifted[j] = y[j] + delta;
-            let f = evaluate(system, &mut self.stats, t, &shifted);
+            let f = evaluate(system, &mut self.progress.stats, t, &shifted);
             for (row, (fi, f0i)) in self.jacobian.iter_mut().zip(f.iter().zip(&self.f0)) {
                 row[j] = (fi - f0i) / delta;
             }
@@ -610,7 +608,7 @@ fn spectral_radius<const N: usize>(j: &[[f64; N]; N]) -> f64 {
 impl<const N: usize> Radau5<N> {
     /// Everything the integrator remembers, for a serialized FMU state.
     pub fn serialize_into(&self, w: &mut Writer) {
-        write_settings(w, self.tolerances, self.next_step);
+        self.progress.serialize_into(w);
         w.f64s(&self.f0);
         w.bool(self.f0_valid);
         self.jacobian.iter().for_each(|row| w.f64s(row));
@@ -631,14 +629,11 @@ impl<const N: usize> Radau5<N> {
             step.z.iter().for_each(|zi| w.f64s(zi));
         }
         w.u64(self.non_stiff_steps as u64);
-        self.stats.serialize_into(w);
     }
 
     /// The integrator written by [`Radau5::serialize_into`].
     pub fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
-        let (tolerances, next_step) = read_settings(r)?;
-        let mut solver = Self::new(tolerances);
-        solver.next_step = next_step;
+        let mut solver = Self::resume(Progress::deserialize_from(r)?);
         solver.f0 = r.f64s()?;
         solver.f0_valid = r.bool()?;
         for row in solver.jacobian.iter_mut() {
@@ -671,7 +666,6 @@ impl<const N: usize> Radau5<N> {
             });
         }
         solver.non_stiff_steps = r.u64()?.min(u32::MAX as u64) as u32;
-        solver.stats = Statistics::deserialize_from(r)?;
         Ok(solver)
     }
 }
@@ -679,11 +673,8 @@ impl<const N: usize> Radau5<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solver::test_problems::{oscillator_errors, tol, Oscillator};
     use crate::solver::Dop853;
-
-    fn tol(rtol: f64) -> Tolerances {
-        Tolerances { rtol, atol: rtol }
-    }
 
     /// The Radau IIA (order 5) coefficient matrix, from its closed form.
     fn radau_matrix() -> [[f64; 3]; 3] {
@@ -727,13 +718,6 @@ mod tests {
         }
     }
 
-    struct Oscillator;
-    impl OdeSystem<2> for Oscillator {
-        fn rhs(&self, _t: f64, y: &[f64; 2], dy: &mut [f64; 2]) {
-            *dy = [y[1], -y[0]];
-        }
-    }
-
     /// Prothero–Robinson: y' = −λ·(y − cos t) − sin t, exact solution cos t, very stiff.
     struct ProtheroRobinson(f64);
     impl OdeSystem<1> for ProtheroRobinson {
@@ -753,15 +737,12 @@ mod tests {
 
     #[test]
     fn oscillator_error_follows_tolerance() {
+        let errors = oscillator_errors(|tolerances, t, y| {
+            let mut solver = Radau5::new(tolerances);
+            solver.integrate(&Oscillator, t, y, 10.0, 10.0).unwrap();
+        });
         let mut previous = f64::INFINITY;
-        for rtol in [1e-4, 1e-7, 1e-10] {
-            let mut solver = Radau5::new(tol(rtol));
-            let (mut t, mut y) = (0.0, [1.0, 0.0]);
-            solver
-                .integrate(&Oscillator, &mut t, &mut y, 10.0, 10.0)
-                .unwrap();
-            assert_eq!(t, 10.0);
-            let error = (y[0] - 10f64.cos()).abs().max((y[1] + 10f64.sin()).abs());
+        for (rtol, error) in errors {
             assert!(error < 100.0 * rtol, "rtol {rtol}: error {error}");
             assert!(error < previous / 10.0, "rtol {rtol}: error {error}");
             previous = error;

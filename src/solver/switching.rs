@@ -124,14 +124,10 @@ impl<const N: usize> Integrator<N> {
         }
         let next = match &self.active {
             Active::Explicit(s) if s.is_stiff() && worth_landing(s, communication_step) => {
-                let mut implicit = Radau5::new(s.tolerances());
-                implicit.take_over(s.statistics(), s.next_step());
-                Active::Implicit(implicit)
+                Active::Implicit(Radau5::resume(s.progress()))
             }
             Active::Implicit(s) if s.is_non_stiff() => {
-                let mut explicit = Dop853::new(s.tolerances()).with_stiffness_test();
-                explicit.take_over(s.statistics(), s.next_step());
-                Active::Explicit(explicit)
+                Active::Explicit(Dop853::resume(s.progress()).with_stiffness_test())
             }
             _ => return false,
         };
