@@ -22,9 +22,10 @@ use crate::snapshot::{FormatError, Reader, Writer};
 
 /// Radau IIA ends a step on every communication point, so it can only beat a
 /// stability-limited DOP853 when the communication step is several DOP853 steps long. (Paper
-/// case 1 at tolerance 1e-3 is stability-limited for DOP853. At H = 1e-4 over 10 s, without
-/// this condition `auto` switched and took 210 118 evaluations against DOP853's 1827, and
-/// 5.3× the time in one run; with it, 1827.)
+/// case 1 at tolerance 1e-2 is stability-limited for DOP853 in places. At H = 1e-4 over
+/// 10 s, without this condition `auto` switched and took 204 229 evaluations against
+/// DOP853's 1722, and 5.8× the time in one run; with it, 1722. tests/stiff.rs fails
+/// without it.)
 const MIN_STEPS_PER_COMMUNICATION: f64 = 4.0;
 
 fn worth_landing<const N: usize>(explicit: &Dop853<N>, communication_step: f64) -> bool {
