@@ -196,6 +196,12 @@ impl Simulation {
         self.solver.statistics()
     }
 
+    /// `solver = dop853` on a problem where DOP853 is limited by stability (see
+    /// [`Integrator::fixed_dop853_is_stiff`]): worth a warning to the user.
+    pub fn dop853_is_stability_limited(&self) -> bool {
+        self.solver.fixed_dop853_is_stiff()
+    }
+
     /// Set the relative tolerance (before initialisation).
     pub fn set_tolerance(&mut self, tolerance: f64) -> Result<(), ModelError> {
         let (low, high) = TOLERANCE_RANGE;

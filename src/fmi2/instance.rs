@@ -75,6 +75,8 @@ pub struct Instance {
     assembled: bool,
     /// Addresses of the FMU states this instance has handed out and not yet freed.
     issued_states: Vec<usize>,
+    /// Whether this run has warned that `solver = dop853` is limited by stability.
+    warned_stability: bool,
 }
 
 /// A saved FMU state: everything fmi2SetFMUstate restores (the simulation with its solver
@@ -149,6 +151,7 @@ impl Instance {
             stop_time: None,
             assembled: false,
             issued_states: Vec::new(),
+            warned_stability: false,
         }
     }
 
@@ -267,6 +270,7 @@ impl Instance {
             .initialize(self.start_time)
             .map_err(|e| Failure::error(format!("initialisation failed: {e}")))?;
         self.state = State::StepComplete;
+        self.warned_stability = false;
         Ok(())
     }
 
@@ -373,6 +377,18 @@ impl Instance {
                  (phi2 = {}, phi3 = {}, omega2 = {}, omega3 = {})",
                 y[1], y[2], y[5], y[6]
             )));
+        }
+        if !self.warned_stability && self.sim.dop853_is_stability_limited() {
+            self.warned_stability = true;
+            if self.log_enabled(Category::Warning) {
+                let message = format!(
+                    "t = {target}: with solver = dop853 the step size is limited by stability, \
+                     not accuracy: fast modes may carry errors above the tolerance that the error \
+                     estimate does not see; on stiff problems solver = auto (1) or implicit (3) \
+                     is accurate with far fewer evaluations (logged once)"
+                );
+                self.log(fmi2Status_fmi2Warning, Category::Warning, &message);
+            }
         }
         if self.log_enabled(Category::Solver) {
             let s = self.sim.statistics();

@@ -53,8 +53,8 @@ pub struct Dop853<const N: usize> {
     last_step: Option<LastStep<N>>,
     /// Dense-output coefficients of the last step, computed on first use.
     dense: Option<[[f64; N]; 7]>,
-    /// The stiffness test, when asked for (see [`Dop853::with_stiffness_test`]).
-    stiffness: Option<StiffnessTest>,
+    /// Hairer's stiffness test over the last accepted steps (a few flops per step).
+    stiffness: StiffnessTest,
 }
 
 /// Hairer's stiffness test for DOP853 (HNW II, IV.2; dop853.f): after each accepted step
@@ -96,21 +96,15 @@ impl<const N: usize> Dop853<N> {
             first_stage_valid: false,
             last_step: None,
             dense: None,
-            stiffness: None,
+            stiffness: StiffnessTest::default(),
         }
     }
 
-    /// Run the stiffness test after every accepted step (a few flops each; only a caller
-    /// that may change method needs it).
-    pub fn with_stiffness_test(mut self) -> Self {
-        self.stiffness = Some(StiffnessTest::default());
-        self
-    }
-
     /// Whether the stiffness test says the step size is limited by stability: an
-    /// implicit method would take far fewer evaluations. Always false without the test.
+    /// implicit method would take far fewer evaluations, and DOP853's fast modes may carry
+    /// noise its error estimate does not see.
     pub fn is_stiff(&self) -> bool {
-        self.stiffness.is_some_and(|test| test.is_stiff())
+        self.stiffness.is_stiff()
     }
 
     pub fn statistics(&self) -> Statistics {
@@ -215,10 +209,8 @@ impl<const N: usize> Dop853<N> {
             *y = y_new;
             *t = if landing { limit } else { *t + h_step };
             self.eval(system, *t, y, NEXT_FIRST);
-            if let Some(mut test) = self.stiffness {
-                test.record(self.stiffness_estimate(h_step, y, &last_stage));
-                self.stiffness = Some(test);
-            }
+            let h_lambda = self.stiffness_estimate(h_step, y, &last_stage);
+            self.stiffness.record(h_lambda);
             let factor = step_factor(error, last_rejected);
             // A step cut short to land on the limit says nothing against the longer step.
             h = if landing {
@@ -395,8 +387,7 @@ impl<const N: usize> Dop853<N> {
         if let Some(dense) = &self.dense {
             dense.iter().for_each(|row| w.f64s(row));
         }
-        w.bool(self.stiffness.is_some());
-        w.u64(self.stiffness.map_or(0, |test| test.history) as u64);
+        w.u64(self.stiffness.history as u64);
     }
 
     /// The integrator written by [`Dop853::serialize_into`].
@@ -422,9 +413,9 @@ impl<const N: usize> Dop853<N> {
             }
             solver.dense = Some(dense);
         }
-        let tested = r.bool()?;
-        let history = r.u64()? as u32;
-        solver.stiffness = tested.then_some(StiffnessTest { history });
+        solver.stiffness = StiffnessTest {
+            history: r.u64()? as u32,
+        };
         Ok(solver)
     }
 }

@@ -760,7 +760,7 @@ mod tests {
             .unwrap();
         assert!((y[0] - 10f64.cos()).abs() < 1e-7, "{}", y[0]);
         let radau_work = radau.statistics().n_rhs;
-        let mut dop = Dop853::new(tol(1e-8)).with_stiffness_test();
+        let mut dop = Dop853::new(tol(1e-8));
         let (mut t, mut y) = (0.0, [1.0]);
         dop.integrate(&system, &mut t, &mut y, 10.0, 10.0).unwrap();
         let dop_work = dop.statistics().n_rhs;

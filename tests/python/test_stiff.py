@@ -21,7 +21,7 @@ def run(unzipped, model_description, solver, t_end=1.0, h=1e-2, tolerance=1e-6):
     state = np.array(fmu.get(*STATE))
     n_rhs, active = fmu.slave.getInteger([fmu.vr["n_rhs"], fmu.vr["active_solver"]])
     fmu.free()
-    return state, n_rhs, active
+    return state, n_rhs, active, fmu.messages
 
 
 @pytest.fixture(scope="module")
@@ -33,8 +33,8 @@ def stiff_reference():
 def test_auto_is_accurate_and_ten_times_cheaper_than_dop853(unzipped, model_description, stiff_reference,
                                                             report):
     results = {solver: run(unzipped, model_description, solver) for solver in (AUTO, DOP853, IMPLICIT)}
-    errors = {solver: float(np.max(np.abs(state - stiff_reference))) for solver, (state, _, _) in results.items()}
-    work = {solver: n_rhs for solver, (_, n_rhs, _) in results.items()}
+    errors = {solver: float(np.max(np.abs(state - stiff_reference))) for solver, (state, *_) in results.items()}
+    work = {solver: n_rhs for solver, (_, n_rhs, *_) in results.items()}
     report["stiff_case_n_rhs"] = {"auto": work[AUTO], "dop853": work[DOP853], "implicit": work[IMPLICIT]}
     report["stiff_case_error"] = {"auto": errors[AUTO], "dop853": errors[DOP853], "implicit": errors[IMPLICIT]}
     assert max(errors[AUTO], errors[IMPLICIT]) <= 1e-8, errors
@@ -42,7 +42,12 @@ def test_auto_is_accurate_and_ten_times_cheaper_than_dop853(unzipped, model_desc
     # not see (2.5e-4 in omega2 at t = 1); the reason `auto` switches.
     assert errors[DOP853] <= 1e-3, errors
     assert 10 * work[AUTO] <= work[DOP853], work
-    assert [active for _, _, active in results.values()] == [IMPLICIT, DOP853, IMPLICIT]
+    assert [active for _, _, active, _ in results.values()] == [IMPLICIT, DOP853, IMPLICIT]
+    # dop853 is told, once, that it is limited by stability; the others have nothing to say.
+    warnings = {solver: [m for status, category, m in messages if category == "logStatusWarning"]
+                for solver, (*_, messages) in results.items()}
+    assert len(warnings[DOP853]) == 1 and "limited by stability" in warnings[DOP853][0], warnings
+    assert warnings[AUTO] == warnings[IMPLICIT] == [], warnings
 
 
 def test_fmu_state_with_the_implicit_method_restores_bit_for_bit(unzipped, model_description):
