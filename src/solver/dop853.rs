@@ -15,8 +15,8 @@
 
 use super::dop853_tableau::{A, A_DENSE, B, C, C_DENSE, D, E3, E5};
 use super::{
-    check_step_size, initial_step, plan_step, OdeSystem, Progress, SolverError, Statistics,
-    Tolerances,
+    check_step_size, combine, initial_step, plan_step, OdeSystem, Progress, SolverError,
+    Statistics, Tolerances,
 };
 use crate::snapshot::{FormatError, Reader, Writer};
 
@@ -351,23 +351,6 @@ impl<const N: usize> Dop853<N> {
         system.rhs(t, y, &mut self.stages[stage]);
         self.progress.stats.n_rhs += 1;
     }
-}
-
-/// Σ_j weights[j]·stages[j], component by component: one accumulator per component, so
-/// the sums run side by side instead of as one long dependent chain per component (the
-/// stage combinations were the largest cost outside the right-hand side), and the
-/// tableau's zero entries are skipped.
-#[inline(always)]
-fn combine<const N: usize>(weights: &[f64], stages: &[[f64; N]]) -> [f64; N] {
-    let mut sum = [0.0; N];
-    for (w, stage) in weights.iter().zip(stages) {
-        if *w != 0.0 {
-            for (s, k) in sum.iter_mut().zip(stage) {
-                *s += w * k;
-            }
-        }
-    }
-    sum
 }
 
 impl<const N: usize> Dop853<N> {

@@ -166,6 +166,23 @@ impl std::fmt::Display for SolverError {
 
 impl std::error::Error for SolverError {}
 
+/// Σ_j weights[j]·vectors[j], component by component: one accumulator per component, so
+/// the sums run side by side instead of as one long dependent chain per component (in
+/// DOP853 the stage combinations were the largest cost outside the right-hand side), and
+/// zero weights (a tableau's zero entries) are skipped.
+#[inline(always)]
+fn combine<const N: usize>(weights: &[f64], vectors: &[[f64; N]]) -> [f64; N] {
+    let mut sum = [0.0; N];
+    for (w, vector) in weights.iter().zip(vectors) {
+        if *w != 0.0 {
+            for (s, k) in sum.iter_mut().zip(vector) {
+                *s += w * k;
+            }
+        }
+    }
+    sum
+}
+
 /// Hairer's starting step size (HNW I, II.4) for a method of order `order` at (t, y) with
 /// f(t, y) = `f0`, bounded by the span to integrate. Costs one evaluation.
 pub(crate) fn initial_step<S: OdeSystem<N>, const N: usize>(

@@ -15,8 +15,8 @@
 
 use super::linear::{Complex, Lu, Singular};
 use super::{
-    check_step_size, initial_step, plan_step, OdeSystem, Progress, SolverError, Statistics,
-    Tolerances,
+    check_step_size, combine, initial_step, plan_step, OdeSystem, Progress, SolverError,
+    Statistics, Tolerances,
 };
 use crate::snapshot::{FormatError, Reader, Writer};
 
@@ -103,9 +103,8 @@ impl<const N: usize> LastStep<N> {
             });
             num / den
         });
-        std::array::from_fn(|n| {
-            self.y_old[n] + (0..3).map(|i| weights[i] * self.z[i][n]).sum::<f64>()
-        })
+        let increment = combine(&weights, &self.z);
+        std::array::from_fn(|n| self.y_old[n] + increment[n])
     }
 }
 
@@ -517,7 +516,7 @@ impl<const N: usize> Radau5<N> {
         let Tolerances { rtol, atol } = self.progress.tolerances;
         let scale: [f64; N] =
             std::array::from_fn(|n| atol + rtol * y[n].abs().max((y[n] + z[2][n]).abs()));
-        let ze: [f64; N] = std::array::from_fn(|n| (0..3).map(|i| E[i] * z[i][n]).sum::<f64>() / h);
+        let ze = combine(&E, z).map(|v| v / h);
         let norm = |e: &[f64; N]| {
             ((0..N).map(|n| (e[n] / scale[n]).powi(2)).sum::<f64>() / N as f64)
                 .sqrt()
@@ -581,7 +580,7 @@ fn evaluate<S: OdeSystem<N>, const N: usize>(
 
 /// (M⊗I)·X for a 3×3 matrix M and three stacked N-vectors X.
 fn transform<const N: usize>(m: &[[f64; 3]; 3], x: &[[f64; N]; 3]) -> [[f64; N]; 3] {
-    std::array::from_fn(|i| std::array::from_fn(|n| (0..3).map(|j| m[i][j] * x[j][n]).sum()))
+    std::array::from_fn(|i| combine(&m[i], x))
 }
 
 /// An estimate of the spectral radius of `j` by power iteration: the geometric mean of
