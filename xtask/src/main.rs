@@ -1,4 +1,4 @@
-//! Project tasks: `cargo xtask <fmu|demo|test>`.
+//! Project tasks: `cargo xtask <fmu|demo|test|bench>`.
 //!
 //! Each task installs what it needs on a fresh Debian machine: libclang for the FMI
 //! bindings (bindgen), and a Python venv in `target/venv` with the pinned packages of
@@ -21,7 +21,7 @@ fn main() {
         "demo" => demo(),
         "test" => test(),
         "bench" => bench(std::env::args().any(|a| a == "--quick")),
-        _ => Err("usage: cargo xtask <fmu|demo|test>\n  fmu   build and pack target/fmu/CyclicMechanism.fmu\n  \
+        _ => Err("usage: cargo xtask <fmu|demo|test|bench>\n  fmu   build and pack target/fmu/CyclicMechanism.fmu\n  \
                   demo  run the paper's two cases through FMPy: CSV, plots and an animation in target/demo\n  \
                   test  run every test: cargo test, then the FMPy tests in tests/python\n  \
                   bench the work-precision benchmark into target/bench (--quick: a small subset)"
