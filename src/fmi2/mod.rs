@@ -230,7 +230,7 @@ unsafe fn instantiate(
             .to_string_lossy()
             .into_owned()
     });
-    if given.as_deref() != Some(expected.as_str()) {
+    if given.as_deref() != Some(expected) {
         return fail(format!(
             "fmuGUID {} does not match this binary's {expected}: modelDescription.xml and binary are from different builds",
             given.as_deref().unwrap_or("NULL")
