@@ -2,14 +2,15 @@
 //!
 //! Runs each scenario × communication step H × tolerance through
 //! - the packed FMU, loaded from the `.fmu` with libloading (fmi-sys's `Fmi2Binding`),
-//!   driven by a master loop that reads every output after every step (minimum of ≥ 10
-//!   runs);
+//!   driven by a master loop that reads every output after every step;
 //! - the Rust crates ode_solvers (Dop853) and diffsol (tsit45, bdf, esdirk34) with the
 //!   same right-hand side, stepped between the same communication points as a doStep
 //!   would: ode_solvers restarted for each interval (its API integrates one span), diffsol
 //!   kept alive and stopped at each point.
 //!
-//! and measures the right-hand side alone (ns per evaluation). It records timings and the
+//! Every method is timed by the same rule ([`TIMING`]): the fastest of at least 10 runs
+//! and 0.2 s of repetitions (at least 3 runs for runs over a second). It also measures the
+//! right-hand side alone (ns per evaluation). It records timings and the
 //! states at 100 evenly spaced points; the Python driver computes the errors against the
 //! reference and writes the table and plot.
 
@@ -90,7 +91,7 @@ fn stiff_study(fmu: &fmu::Fmu, out: &mut String) {
     {
         let case = scenario(name, *solver);
         let run = || fmu.run(&case, 1e-2, 1e-6);
-        let Some((seconds, runs, o)) = timed(10, Duration::from_secs(20), run) else {
+        let Some((seconds, runs, o)) = timed(&TIMING, run) else {
             eprintln!("stiff {name}: failed");
             continue;
         };
@@ -145,25 +146,45 @@ pub struct Outcome {
     pub n_rhs: u64,
 }
 
-/// Time `run` repeatedly: at least `min_runs` times, fewer when one run is long (the
-/// budget), and return the fastest with its result.
-pub fn timed<T>(
-    min_runs: usize,
-    budget: Duration,
-    mut run: impl FnMut() -> Option<T>,
-) -> Option<(f64, usize, T)> {
+/// How long one configuration is timed, the same rule for the FMU and every peer.
+pub struct Timing {
+    /// Repeat until at least this many runs …
+    pub min_runs: usize,
+    /// … and at least this much time spent: sub-millisecond runs are repeated hundreds of
+    /// times, so that their minimum is not one cold start on a shared machine.
+    pub min_total: Duration,
+    /// Stop after this much time once `slow_runs` runs are done (slow peers at small H).
+    pub slow_total: Duration,
+    pub slow_runs: usize,
+}
+
+/// One run longer than this (s) ends a method's sweep toward tighter tolerances.
+const TOO_SLOW: f64 = 10.0;
+
+pub const TIMING: Timing = Timing {
+    min_runs: 10,
+    min_total: Duration::from_millis(200),
+    slow_total: Duration::from_secs(4),
+    slow_runs: 3,
+};
+
+/// Time `run` repeatedly under `timing` and return the fastest run with its result.
+pub fn timed<T>(timing: &Timing, mut run: impl FnMut() -> Option<T>) -> Option<(f64, usize, T)> {
     let mut best = f64::INFINITY;
-    let mut result = None;
     let started = Instant::now();
     let mut runs = 0;
-    while runs < min_runs && (runs == 0 || started.elapsed() < budget) {
+    loop {
         let start = Instant::now();
         let outcome = run()?;
         best = best.min(start.elapsed().as_secs_f64());
-        result = Some(outcome);
         runs += 1;
+        let spent = started.elapsed();
+        let enough = runs >= timing.min_runs && spent >= timing.min_total;
+        let slow = runs >= timing.slow_runs && spent >= timing.slow_total;
+        if enough || slow {
+            return Some((best, runs, outcome));
+        }
     }
-    result.map(|r| (best, runs, r))
 }
 
 fn ns_per_rhs() -> f64 {
@@ -257,11 +278,6 @@ fn main() {
                     if too_slow {
                         continue;
                     }
-                    let (min_runs, budget) = if method == "fmu" {
-                        (10, 60.0)
-                    } else {
-                        (3, 20.0)
-                    };
                     let run = || {
                         if method == "fmu" {
                             fmu.run(scenario, h, tol)
@@ -269,14 +285,12 @@ fn main() {
                             peers::run(&method, scenario, h, tol)
                         }
                     };
-                    let Some((seconds, runs, outcome)) =
-                        timed(min_runs, Duration::from_secs_f64(budget), run)
-                    else {
+                    let Some((seconds, runs, outcome)) = timed(&TIMING, run) else {
                         eprintln!("{method} {} H={h:e} tol={tol:e}: failed", scenario.name);
                         continue;
                     };
-                    // One run over the budget: tighter tolerances would only be slower.
-                    too_slow = seconds > budget / 2.0;
+                    // Tighter tolerances would only be slower still.
+                    too_slow = seconds > TOO_SLOW;
                     eprintln!(
                         "{method:>10} {:>5} H={h:e} tol={tol:e}: {seconds:.4} s ({runs} runs)",
                         scenario.name
