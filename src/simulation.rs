@@ -10,7 +10,7 @@
 //! integrator restart from the communication point.
 
 use crate::model::params::check_rule;
-use crate::model::{self, Inputs, ModelError, Parameters, State, STATE_SIZE};
+use crate::model::{self, Inputs, ModelError, Parameters, SinCosMemo, State, STATE_SIZE};
 use crate::snapshot::{FormatError, Reader, Writer};
 use crate::solver::{Choice, Integrator, Method, OdeSystem, SolverError, Statistics, Tolerances};
 use crate::variables::{variable, Input, Output, Slot, Statistic, VarType, Variable, SOLVER_ITEMS};
@@ -152,6 +152,9 @@ pub struct Simulation {
     /// The integrator never steps past this (the experiment's stop time, if defined).
     limit: f64,
     solver: Integrator<STATE_SIZE>,
+    /// Sines and cosines for projecting communication points; a memo that does not
+    /// change results, so it is not serialized.
+    sin_cos: SinCosMemo,
 }
 
 impl Default for Simulation {
@@ -177,6 +180,7 @@ impl Simulation {
             restart: true,
             limit: f64::INFINITY,
             solver: Integrator::new(Choice::Auto, tolerances(DEFAULT_TOLERANCE)),
+            sin_cos: SinCosMemo::default(),
         }
     }
 
@@ -271,7 +275,10 @@ impl Simulation {
             })?
         };
         let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
-        let g = match model::project(&self.params, &mut y) {
+        let memo = &mut self.sin_cos;
+        let g = match model::project_with(&self.params, &mut y, &mut |slot, phi| {
+            memo.sin_cos(slot, phi)
+        }) {
             Ok(at) if y.iter().all(|v| v.is_finite()) => at.closure,
             Ok(_) => {
                 self.restart = true;
@@ -626,6 +633,7 @@ impl Simulation {
             restart,
             limit,
             solver,
+            sin_cos: SinCosMemo::default(),
         })
     }
 }

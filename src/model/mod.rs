@@ -8,9 +8,9 @@ pub mod params;
 pub mod projection;
 
 pub use dynamics::{accelerations, energy, power, rod_force, state_derivative};
-pub use kinematics::{length_residual, length_residual_from_closure};
+pub use kinematics::{length_residual, length_residual_from_closure, SinCosMemo};
 pub use params::{Parameters, PARAMETERS};
-pub use projection::{check_passage, initial_state, project, Projected};
+pub use projection::{check_passage, initial_state, project, project_with, Projected};
 
 /// The state vector y = (φ1, φ2, φ3, φ4, ω1, ω2, ω3, ω4).
 pub type State = [f64; 8];
