@@ -271,7 +271,7 @@ pub const COUNT: usize = INPUTS.len() + OUTPUTS.len() + PARAMETERS.len() + SOLVE
 /// The table itself, built at compile time: position = value reference.
 static TABLE: [Variable; COUNT] = build_table();
 
-const fn build_table() -> [Variable; COUNT] {
+pub(crate) const fn build_table() -> [Variable; COUNT] {
     let mut table = [INPUTS[0]; COUNT];
     let mut i = 0;
     while i < INPUTS.len() {
