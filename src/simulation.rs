@@ -449,10 +449,8 @@ impl Simulation {
     /// A Real variable's value: the hot path of fmi2GetReal. φ and ω take one lookup.
     #[inline]
     pub fn read_real(&self, vr: u32) -> Result<f64, AccessError> {
-        if let Some(&component) = STATE_COMPONENT.get(vr as usize) {
-            if let Some(&value) = self.state.get(component as usize) {
-                return Ok(value);
-            }
+        if let Some(Some(component)) = STATE_COMPONENT.get(vr as usize) {
+            return Ok(self.state[*component as usize]);
         }
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
         self.real_of(var.slot)
@@ -573,10 +571,8 @@ impl Simulation {
     pub fn output(&self, output: Output) -> f64 {
         let (p, y) = (&self.params, &self.state);
         match output {
-            Output::Angle(_) | Output::Speed(_) => {
-                y[state_component(Slot::Output(output))
-                    .expect("angles and speeds are state components")]
-            }
+            Output::Angle(i) => y[i],
+            Output::Speed(i) => y[4 + i],
             Output::RodForce => model::rod_force(p, &self.inputs, y),
             Output::ConstraintResidual => self.residual,
             Output::Energy => model::energy(p, y),
@@ -584,7 +580,8 @@ impl Simulation {
     }
 }
 
-/// The state component an output reads: φ_i is y[i], ω_i is y[4 + i] (SPEC §2's order).
+/// The state component a variable reads: φ_i is y[i], ω_i is y[4 + i] (SPEC §2's order),
+/// as in [`Simulation::output`]; `real_reads_agree_with_the_variable_table` checks the two agree.
 const fn state_component(slot: Slot) -> Option<usize> {
     match slot {
         Slot::Output(Output::Angle(i)) => Some(i),
@@ -593,16 +590,16 @@ const fn state_component(slot: Slot) -> Option<usize> {
     }
 }
 
-/// Value reference → its state component, `u8::MAX` for the other variables: fmi2GetReal
-/// serves φ and ω with one table lookup instead of two nested matches (a tenth of a
-/// doStep-and-read cycle at H = 1 ms went to those).
-static STATE_COMPONENT: [u8; COUNT] = {
+/// Value reference → its state component (`None` for the other variables): fmi2GetReal
+/// serves φ and ω with one table lookup instead of two nested matches (perf put a tenth
+/// of a doStep-and-read cycle at H = 1 ms in those).
+static STATE_COMPONENT: [Option<u8>; COUNT] = {
     let table = build_table();
-    let mut components = [u8::MAX; COUNT];
+    let mut components = [None; COUNT];
     let mut vr = 0;
     while vr < COUNT {
         if let Some(i) = state_component(table[vr].slot) {
-            components[vr] = i as u8;
+            components[vr] = Some(i as u8);
         }
         vr += 1;
     }
