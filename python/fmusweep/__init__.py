@@ -1,0 +1,23 @@
+"""fmusweep: scripted sweeps of an FMI 2.0 co-simulation FMU at the FMU's own speed.
+
+    from fmusweep import run_sweep
+    results = run_sweep("examples/sweeps/rod_force_grid.toml", fmu="Model.fmu")
+    results.points            # a pandas DataFrame, one row per point
+
+The per-point work runs in the native runner (``fmu-runner``), one process per worker,
+so no Python runs per communication step; Dask spreads batches of points over the cores
+of this machine or over an existing cluster; results land in Parquet as batches finish.
+"""
+
+from .design import Design, generate
+from .engine import SweepReport, run_sweep
+from .native import NativeRunner, RunnerError
+from .results import Results, load_results
+from .sensitivity import morris_effects, sobol_indices
+from .spec import Spec, SpecError
+
+__all__ = ["run_sweep", "load_results", "Results", "SweepReport", "Spec", "SpecError",
+           "Design", "generate", "NativeRunner", "RunnerError", "sobol_indices",
+           "morris_effects"]
+
+__version__ = "0.1.0"

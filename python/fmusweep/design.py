@@ -1,0 +1,177 @@
+"""Designs: the parameter points of a sweep, as a names list and a rows array.
+
+- ``grid``: each parameter takes ``values = [...]``, ``linspace = [start, stop, count]``
+  or ``logspace = [start, stop, count]`` (the values themselves, evenly spaced in log:
+  ``[0.01, 10, 4]`` gives 0.01, 0.1, 1, 10); the points are the full-factorial product,
+  the first parameter varying slowest.
+- ``list``: each parameter gives ``values``, all of one length; point i takes the i-th.
+- ``lhs``: ``samples`` points of a seeded Latin hypercube over each parameter's
+  ``range = [low, high]`` (``log = true`` samples log-uniformly).
+- ``sobol``: Saltelli's design for Sobol' indices (SALib): ``samples`` = N, a power of
+  two, gives N·(D + 2) points (N·(2D + 2) with ``second_order = true``).
+- ``morris``: Morris' elementary effects (SALib): ``trajectories`` = r gives r·(D + 1)
+  points on a grid of ``levels`` (default 4).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .spec import SpecError
+
+__all__ = ["Design", "generate"]
+
+MAX_POINTS = 100_000_000
+
+
+@dataclass
+class Design:
+    kind: str
+    names: list[str]
+    rows: np.ndarray  # (points, parameters), float64
+    problem: dict | None = None  # SALib's problem, for sobol and morris
+    second_order: bool = False
+    levels: int = 4  # morris
+
+
+def generate(spec) -> Design:
+    d = spec.design
+    kind = spec.design_kind
+    params = d["parameters"]
+    allowed = {"grid": {"kind", "parameters"}, "list": {"kind", "parameters"},
+               "lhs": {"kind", "parameters", "seed", "samples"},
+               "sobol": {"kind", "parameters", "seed", "samples", "second_order"},
+               "morris": {"kind", "parameters", "seed", "trajectories", "levels"}}[kind]
+    unknown = sorted(set(d) - allowed)
+    if unknown:
+        raise SpecError(f"design.{unknown[0]}", f"is not a field of a {kind} design; "
+                        f"expected {', '.join(sorted(allowed))}")
+    names = list(params)
+    if kind == "grid":
+        axes = [_axis(name, params[name]) for name in names]
+        count = math.prod(len(a) for a in axes)
+        _not_too_many(count)
+        rows = np.array(list(itertools.product(*axes)), dtype=float).reshape(count, len(names))
+        return Design(kind, names, rows)
+    if kind == "list":
+        columns = [_values(name, params[name]) for name in names]
+        lengths = {len(c) for c in columns}
+        if len(lengths) != 1:
+            raise SpecError("design.parameters", f"a list design needs values of one length, got {sorted(lengths)}")
+        return Design(kind, names, np.array(columns, dtype=float).T.copy())
+    bounds = [_range(name, params[name], allow_log=(kind == "lhs")) for name in names]
+    if kind == "lhs":
+        n = _count(d, "samples", "design.samples")
+        _not_too_many(n)
+        from scipy.stats import qmc
+        unit = qmc.LatinHypercube(d=len(names), seed=spec.seed).random(n)
+        rows = np.empty_like(unit)
+        for j, (low, high, log) in enumerate(bounds):
+            if log:
+                rows[:, j] = np.exp(np.log(low) + unit[:, j] * (np.log(high) - np.log(low)))
+            else:
+                rows[:, j] = low + unit[:, j] * (high - low)
+        return Design(kind, names, rows)
+    problem = {"num_vars": len(names), "names": names,
+               "bounds": [[low, high] for low, high, _ in bounds]}
+    if kind == "sobol":
+        n = _count(d, "samples", "design.samples")
+        if n & (n - 1):
+            raise SpecError("design.samples", f"a Sobol' design needs a power of two, got {n}")
+        second = d.get("second_order", False)
+        if not isinstance(second, bool):
+            raise SpecError("design.second_order", f"must be true or false, got {second!r}")
+        _not_too_many(n * (2 * len(names) + 2 if second else len(names) + 2))
+        from SALib.sample import sobol
+        rows = sobol.sample(problem, n, calc_second_order=second, seed=spec.seed)
+        return Design(kind, names, np.asarray(rows, dtype=float), problem, second)
+    r = _count(d, "trajectories", "design.trajectories")
+    levels = d.get("levels", 4)
+    if not isinstance(levels, int) or isinstance(levels, bool) or levels < 2 or levels % 2:
+        raise SpecError("design.levels", f"must be an even whole number ≥ 2, got {levels!r}")
+    _not_too_many(r * (len(names) + 1))
+    from SALib.sample.morris import sample as morris_sample
+    rows = morris_sample(problem, r, num_levels=levels, seed=spec.seed)
+    return Design(kind, names, np.asarray(rows, dtype=float), problem, levels=levels)
+
+
+def _not_too_many(count: int):
+    if count < 1:
+        raise SpecError("design", "has no point")
+    if count > MAX_POINTS:
+        raise SpecError("design", f"has {count} points, more than the {MAX_POINTS} one sweep takes")
+
+
+def _count(d: dict, key: str, where: str) -> int:
+    n = d.get(key)
+    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+        raise SpecError(where, f"must be a whole number ≥ 1, got {n!r}")
+    return n
+
+
+def _finite(x, where: str) -> float:
+    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
+        raise SpecError(where, f"must be a finite number, got {x!r}")
+    return float(x)
+
+
+def _values(name: str, entry) -> list[float]:
+    where = f"design.parameters.{name}"
+    if not isinstance(entry, dict) or set(entry) != {"values"}:
+        raise SpecError(where, "a list design takes values = [...] for each parameter")
+    return _value_list(entry["values"], f"{where}.values")
+
+
+def _value_list(values, where: str) -> list[float]:
+    if not isinstance(values, list):
+        raise SpecError(where, f"must be a list of numbers, got {values!r}")
+    if not values:
+        raise SpecError(where, "is empty")
+    return [_finite(v, where) for v in values]
+
+
+def _axis(name: str, entry) -> list[float]:
+    where = f"design.parameters.{name}"
+    if isinstance(entry, list):
+        return _value_list(entry, where)
+    if not isinstance(entry, dict) or len(entry) != 1 or next(iter(entry)) not in ("values", "linspace", "logspace"):
+        raise SpecError(where, "give exactly one of values = [...], linspace = [start, stop, count], "
+                               "logspace = [start, stop, count]")
+    (how, arg), = entry.items()
+    where = f"{where}.{how}"
+    if how == "values":
+        return _value_list(arg, where)
+    if not (isinstance(arg, list) and len(arg) == 3):
+        raise SpecError(where, f"must be [start, stop, count], got {arg!r}")
+    start, stop = _finite(arg[0], where), _finite(arg[1], where)
+    count = arg[2]
+    if not isinstance(count, int) or isinstance(count, bool) or count < 1:
+        raise SpecError(where, f"count must be a whole number ≥ 1, got {count!r}")
+    if how == "linspace":
+        return np.linspace(start, stop, count).tolist()
+    if start <= 0 or stop <= 0:
+        raise SpecError(where, f"logspace takes values > 0 (not exponents), got {start} and {stop}")
+    return np.geomspace(start, stop, count).tolist()
+
+
+def _range(name: str, entry, allow_log: bool):
+    where = f"design.parameters.{name}"
+    keys = {"range", "log"} if allow_log else {"range"}
+    if not isinstance(entry, dict) or "range" not in entry or set(entry) - keys:
+        raise SpecError(where, f"give range = [low, high]{' (and log = true)' if allow_log else ''}")
+    r = entry["range"]
+    if not (isinstance(r, list) and len(r) == 2):
+        raise SpecError(f"{where}.range", f"must be [low, high], got {r!r}")
+    low, high = _finite(r[0], f"{where}.range"), _finite(r[1], f"{where}.range")
+    if not low < high:
+        raise SpecError(f"{where}.range", f"needs low < high, got [{low}, {high}]")
+    log = entry.get("log", False)
+    if not isinstance(log, bool):
+        raise SpecError(f"{where}.log", f"must be true or false, got {log!r}")
+    if log and low <= 0:
+        raise SpecError(f"{where}.range", f"a log range needs low > 0, got {low}")
+    return low, high, log

@@ -1,0 +1,259 @@
+"""Running a sweep: check the spec against the FMU, cut the remaining points into
+batches of about half a second of work, run them serially or on Dask (a LocalCluster of
+single-threaded worker processes, or an existing cluster), and write each finished batch
+as it arrives. Scheduling lives here; the work of a batch lives in ``worker``."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import platform
+import sys
+import time
+from dataclasses import dataclass, field
+from importlib import metadata
+
+import numpy as np
+import pyarrow as pa
+
+from . import design as design_module
+from .check import check_against_fmu
+from .fmu import FmuBytes, local_runner
+from .spec import Spec, SpecError
+from .store import FORMAT, ResultStore
+from .worker import run_batch
+
+__all__ = ["run_sweep", "SweepReport", "BATCH_SECONDS"]
+
+# A batch is sized to about this much work: Dask spends milliseconds per task.
+BATCH_SECONDS = 0.5
+# And at least this many batches per worker when the sweep is large enough, so that the
+# last ones do not leave workers idle.
+BATCHES_PER_WORKER = 4
+CALIBRATION_POINTS = 4
+
+
+@dataclass
+class SweepReport:
+    """What a run did: counts, times and where the results are."""
+    out: str
+    points: int
+    computed: int
+    resumed: int
+    batch_size: int
+    batches: int
+    workers: int
+    engine: str
+    wall_s: float
+    point_seconds: float  # the sum of the points' own wall times
+    statuses: dict = field(default_factory=dict)
+
+
+def _versions() -> dict:
+    names = ["fmusweep", "numpy", "pyarrow", "dask", "distributed", "SALib", "scipy"]
+    found = {"python": platform.python_version()}
+    for name in names:
+        try:
+            found[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            found[name] = None
+    return found
+
+
+def point_ids(fmu_sha: str, spec_digest: str, names: list[str], rows: np.ndarray) -> list[str]:
+    """A stable id per point: a hash of the FMU, the scenario and the point's values."""
+    prefix = f"{fmu_sha}|{spec_digest}|{','.join(names)}|".encode()
+    return [hashlib.blake2b(prefix + row.tobytes(), digest_size=8).hexdigest() for row in rows]
+
+
+def _tables(spec: Spec, names, rows, ids, batch) -> tuple[pa.Table, pa.Table | None]:
+    points = np.asarray(batch["points"], dtype=np.int64)
+    results = batch["results"]
+    columns = {"point": pa.array(points, pa.int64()),
+               "point_id": pa.array([ids[p] for p in points], pa.string())}
+    for j, name in enumerate(names):
+        columns[name] = pa.array(rows[points, j], pa.float64())
+    columns["status"] = pa.array([r["status"] for r in results], pa.string())
+    columns["message"] = pa.array([r["message"] for r in results], pa.string())
+    for k, metric in enumerate(spec.metrics):
+        columns[metric.name] = pa.array([r["metrics"][k] for r in results], pa.float64())
+    columns["t_end"] = pa.array([r["t_end"] for r in results], pa.float64())
+    columns["steps"] = pa.array([r["steps"] for r in results], pa.int64())
+    columns["wall_s"] = pa.array([r["wall_s"] for r in results], pa.float64())
+    columns["worker"] = pa.array([batch["worker"]] * len(results), pa.string())
+    series = None
+    if spec.series_variables:
+        parts = []
+        for p, r in zip(points, results):
+            s = r.get("series")
+            if s is None or not len(s):
+                continue
+            n_t, n_v = s.shape[0], len(spec.series_variables)
+            parts.append(pa.table({
+                "point": pa.array(np.full(n_t * n_v, p, dtype=np.int64)),
+                "variable": pa.array(np.repeat(np.array(spec.series_variables), n_t)),
+                "time": pa.array(np.tile(s[:, 0], n_v)),
+                "value": pa.array(s[:, 1:].T.reshape(-1)),
+            }))
+        series = pa.concat_tables(parts) if parts else None
+    return pa.table(columns), series
+
+
+def _batch_size(requested, per_point_s: float, remaining: int, workers: int) -> int:
+    if requested is not None:
+        if not isinstance(requested, int) or requested < 1:
+            raise SpecError("batch_size", f"must be a whole number ≥ 1, got {requested!r}")
+        return requested
+    size = max(1, int(BATCH_SECONDS / max(per_point_s, 1e-6)))
+    balanced = math.ceil(remaining / (BATCHES_PER_WORKER * max(workers, 1)))
+    return max(1, min(size, balanced, 100_000))
+
+
+class _Progress:
+    def __init__(self, total: int, initial: int, enabled: bool):
+        self.failures = 0
+        self.bar = None
+        if enabled:
+            from tqdm import tqdm
+            self.bar = tqdm(total=total, initial=initial, unit="pt", smoothing=0.05,
+                            mininterval=0.5, dynamic_ncols=True, file=sys.stderr)
+
+    def update(self, results: list[dict]):
+        self.failures += sum(r["status"] != "ok" for r in results)
+        if self.bar is not None:
+            self.bar.set_postfix(failed=self.failures, refresh=False)
+            self.bar.update(len(results))
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
+              scheduler: str | None = None, serial: bool = False, resume: bool = False,
+              batch_size: int | None = None, progress: bool = True, plots: bool = True):
+    """Run a sweep and return its ``Results`` (see ``fmusweep.results``).
+
+    spec: a TOML path, a dict, or a Spec. fmu: the FMU's path when the spec names none.
+    out: the output directory (default ``sweep-<digest>`` here). workers: LocalCluster
+    size (default: every core). scheduler: the address of an existing Dask scheduler
+    (``tcp://host:8786``) instead of a LocalCluster. serial: no Dask, this process only.
+    resume: finish a sweep that ``out`` already holds, redoing only missing points.
+    """
+    started = time.perf_counter()
+    spec = Spec.load(spec)
+    fmu_path = fmu or spec.fmu
+    if fmu_path is None:
+        raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\") or pass fmu=")
+    fmu_bytes = FmuBytes.read(fmu_path)
+    local = local_runner(fmu_bytes)
+    description = local.describe()
+    design = design_module.generate(spec)
+    check_against_fmu(spec, design, description, local)
+    plan = spec.plan()
+    local.configure(plan)
+    names, rows = design.names, design.rows
+    digest = spec.digest()
+    meta = {
+        "format": FORMAT, "spec": spec.raw, "spec_digest": digest, "seed": spec.seed,
+        "fmu_name": fmu_bytes.name, "fmu_sha256": fmu_bytes.sha256,
+        "fmu_guid": description["guid"], "design": {"kind": design.kind, "names": names,
+                                                     "points": len(rows)},
+        "metrics": [m.name for m in spec.metrics], "versions": _versions(),
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+    out = out or f"sweep-{digest[:10]}"
+    store = ResultStore(out, meta, resume)
+    ids = point_ids(fmu_bytes.sha256, digest, names, rows)
+    done = store.done_points()
+    todo = np.setdiff1d(np.arange(len(rows)), done)
+    bar = _Progress(len(rows), len(rows) - len(todo), progress)
+    point_seconds, statuses = 0.0, {}
+
+    def keep(batch):
+        nonlocal point_seconds
+        points_table, series_table = _tables(spec, names, rows, ids, batch)
+        store.write_batch(points_table, series_table)
+        for r in batch["results"]:
+            statuses[r["status"]] = statuses.get(r["status"], 0) + 1
+            point_seconds += r["wall_s"] or 0.0
+        bar.update(batch["results"])
+
+    n_workers = 1 if serial else (workers or os.cpu_count() or 1)
+    size, batches = 0, 0
+    try:
+        if len(todo):
+            # Calibrate the batch size on the first points, here; they are kept.
+            first = todo[:CALIBRATION_POINTS]
+            calibration = run_batch(fmu_bytes, plan, names, rows[first], first)
+            keep(calibration)
+            per_point = float(np.median([r["wall_s"] or 0.0 for r in calibration["results"]]))
+            todo = todo[len(first):]
+            size = _batch_size(batch_size, per_point, len(todo), n_workers)
+            chunks = [todo[i:i + size] for i in range(0, len(todo), size)]
+            batches = len(chunks) + 1
+            if serial:
+                for chunk in chunks:
+                    keep(run_batch(fmu_bytes, plan, names, rows[chunk], chunk))
+            else:
+                n_workers = _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers,
+                                         scheduler, digest)
+    finally:
+        bar.close()
+    table = store.consolidate()
+    report = SweepReport(
+        out=str(store.out), points=len(rows), computed=sum(statuses.values()),
+        resumed=len(done), batch_size=size, batches=batches, workers=n_workers,
+        engine="serial" if serial else (scheduler or "LocalCluster"),
+        wall_s=time.perf_counter() - started, point_seconds=point_seconds, statuses=statuses)
+    from .results import Results
+    results = Results(store.out, table.to_pandas(), store.meta, report)
+    if plots:
+        results.analyse_and_plot(design)
+    return results
+
+
+def _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler, digest) -> int:
+    import logging
+    from distributed import Client, LocalCluster, as_completed
+    from distributed.scheduler import KilledWorker
+
+    cluster = None
+    if scheduler:
+        client = Client(scheduler, timeout="30s")
+    else:
+        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                               processes=True, dashboard_address=None,
+                               silence_logs=logging.ERROR)
+        client = Client(cluster)
+    futures = []
+    try:
+        n_workers = len(client.scheduler_info()["workers"])
+        if n_workers == 0:
+            client.wait_for_workers(1, timeout=60)
+            n_workers = len(client.scheduler_info()["workers"])
+        # The FMU travels to every worker once; tasks carry only a reference to it.
+        [fmu_future] = client.scatter([fmu_bytes], broadcast=True, hash=False)
+        futures = [
+            client.submit(run_batch, fmu_future, plan, names, rows[chunk], chunk,
+                          key=f"fmusweep-{digest[:8]}-{int(chunk[0])}", pure=False)
+            for chunk in chunks
+        ]
+        for future in as_completed(futures):
+            try:
+                batch = future.result()
+            except KilledWorker as e:  # a worker process lost again and again
+                chunk = chunks[futures.index(future)]
+                batch = {"points": chunk, "worker": "", "results": [
+                    {"status": "crashed", "message": f"the batch failed on the cluster: {e!r}",
+                     "metrics": [None] * len(plan["metrics"]), "t_end": None, "steps": None,
+                     "wall_s": None} for _ in chunk]}
+            keep(batch)
+        return n_workers
+    finally:
+        for f in futures:
+            f.cancel()
+        client.close()
+        if cluster is not None:
+            cluster.close()

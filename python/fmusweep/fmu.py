@@ -1,0 +1,66 @@
+"""The FMU as the sweep sees it: bytes with a checksum, unpacked once per process into a
+directory of its own, with one native runner kept beside it."""
+
+from __future__ import annotations
+
+import atexit
+import hashlib
+import io
+import pathlib
+import shutil
+import tempfile
+import zipfile
+
+from .native import NativeRunner
+
+__all__ = ["FmuBytes", "local_runner"]
+
+
+class FmuBytes:
+    """An FMU's file content; what is shipped to every worker, once."""
+
+    def __init__(self, data: bytes, name: str = "model.fmu"):
+        self.data = data
+        self.name = name
+        self.sha256 = hashlib.sha256(data).hexdigest()
+
+    @staticmethod
+    def read(path) -> "FmuBytes":
+        path = pathlib.Path(path)
+        try:
+            data = path.read_bytes()
+        except OSError as e:
+            raise FileNotFoundError(f"cannot read the FMU {path}: {e.strerror}") from None
+        if not zipfile.is_zipfile(io.BytesIO(data)):
+            raise ValueError(f"{path} is not an FMU (not a zip archive)")
+        return FmuBytes(data, path.name)
+
+
+# Per process: checksum -> (directory, runner). A worker keeps its runner for its life.
+_RUNNERS: dict[str, tuple[pathlib.Path, NativeRunner]] = {}
+
+
+def local_runner(fmu: FmuBytes) -> NativeRunner:
+    """This process's runner for the FMU, unpacking and starting it on first use."""
+    kept = _RUNNERS.get(fmu.sha256)
+    if kept is not None:
+        return kept[1]
+    directory = pathlib.Path(tempfile.mkdtemp(prefix=f"fmusweep-{fmu.sha256[:12]}-"))
+    with zipfile.ZipFile(io.BytesIO(fmu.data)) as archive:
+        for member in archive.namelist():
+            target = (directory / member).resolve()
+            if not target.is_relative_to(directory.resolve()):
+                raise ValueError(f"the FMU holds a path outside its archive: {member}")
+        archive.extractall(directory)
+    # Executable bits are not kept by zipfile; shared libraries load without them.
+    runner = NativeRunner(directory)
+    _RUNNERS[fmu.sha256] = (directory, runner)
+    return runner
+
+
+@atexit.register
+def _close_all():
+    for directory, runner in _RUNNERS.values():
+        runner.close()
+        shutil.rmtree(directory, ignore_errors=True)
+    _RUNNERS.clear()

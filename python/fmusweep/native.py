@@ -1,0 +1,241 @@
+"""The client of the native runner (`fmu-runner`, the Rust program in ``runner/``).
+
+One runner process per FMU per worker: it loads the FMU's binary once, keeps one
+instance and resets it between points, and runs each point's master loop, metrics and
+decimation natively. This module only sends it batches and reads its replies. A crash of
+the FMU kills only the runner: the point that was running when it died is reported as
+``crashed`` (the runner answers point by point, so that is the first point without an
+answer), a new runner is started, and the batch goes on. A point whose single step hangs
+past the hard deadline is ``timeout`` the same way.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import select
+import signal
+import subprocess
+import tempfile
+import time
+
+import numpy as np
+
+__all__ = ["RunnerError", "NativeRunner", "runner_path"]
+
+
+class RunnerError(RuntimeError):
+    """The runner could not start, or refused a request (the message says why)."""
+
+
+def runner_path() -> pathlib.Path:
+    """The `fmu-runner` program: $FMUSWEEP_RUNNER, else the one packed in this package."""
+    override = os.environ.get("FMUSWEEP_RUNNER")
+    path = pathlib.Path(override) if override else pathlib.Path(__file__).parent / "bin" / "fmu-runner"
+    if not path.is_file():
+        raise RunnerError(
+            f"the native runner is missing ({path}): install the wheel that `cargo xtask wheel` "
+            "builds, or point FMUSWEEP_RUNNER at target/release/fmu-runner")
+    return path
+
+
+# How much longer than the per-point budget a point may go without any answer before the
+# runner is killed: the runner itself checks the budget after every communication step,
+# so only a step that never returns reaches this.
+HARD_DEADLINE_FACTOR = 2.0
+HARD_DEADLINE_GRACE_S = 5.0
+
+
+class _Pipe:
+    """Lines and exact byte counts from a pipe, each with a deadline."""
+
+    def __init__(self, fd: int):
+        self.fd = fd
+        self.buffer = bytearray()
+
+    def _fill(self, deadline: float | None) -> bool:
+        timeout = None if deadline is None else max(0.0, deadline - time.monotonic())
+        ready, _, _ = select.select([self.fd], [], [], timeout)
+        if not ready:
+            raise TimeoutError
+        chunk = os.read(self.fd, 1 << 20)
+        if not chunk:
+            return False
+        self.buffer += chunk
+        return True
+
+    def line(self, deadline: float | None) -> bytes | None:
+        while True:
+            end = self.buffer.find(b"\n")
+            if end >= 0:
+                line = bytes(self.buffer[:end])
+                del self.buffer[:end + 1]
+                return line
+            if not self._fill(deadline):
+                return None
+
+    def exactly(self, n: int, deadline: float | None) -> bytes | None:
+        while len(self.buffer) < n:
+            if not self._fill(deadline):
+                return None
+        data = bytes(self.buffer[:n])
+        del self.buffer[:n]
+        return data
+
+
+class NativeRunner:
+    """One `fmu-runner serve DIR` process for the FMU unpacked in `fmu_dir`."""
+
+    def __init__(self, fmu_dir: str | os.PathLike):
+        self.fmu_dir = pathlib.Path(fmu_dir)
+        self.plan: dict | None = None
+        self.restarts = 0
+        self._start()
+
+    # --- process ---------------------------------------------------------------------
+    def _start(self):
+        self._stderr = tempfile.TemporaryFile()
+        self.process = subprocess.Popen(
+            [str(runner_path()), "serve", str(self.fmu_dir)],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr)
+        self.pipe = _Pipe(self.process.stdout.fileno())
+        hello = self._reply(deadline=time.monotonic() + 60)
+        if hello is None or "ready" not in hello:
+            reason = (hello or {}).get("error") or self._died()
+            self.close()
+            raise RunnerError(f"the runner could not load the FMU: {reason}")
+        if self.plan is not None:
+            self._configure(self.plan)
+
+    def _died(self) -> str:
+        """Why the process ended, with the end of what it wrote to standard error."""
+        code = self.process.wait()
+        what = (f"signal {signal.Signals(-code).name}" if code < 0 else f"exit code {code}")
+        self._stderr.seek(0)
+        tail = self._stderr.read().decode(errors="replace").strip().splitlines()[-3:]
+        return f"the runner process died ({what})" + (f"; it said: {' / '.join(tail)}" if tail else "")
+
+    def _restart(self):
+        self.close()
+        self.restarts += 1
+        self._start()
+
+    def close(self):
+        process = getattr(self, "process", None)
+        if process is not None and process.poll() is None:
+            try:
+                process.stdin.close()
+                process.wait(timeout=2)
+            except (OSError, subprocess.TimeoutExpired):
+                process.kill()
+                process.wait()
+        if process is not None:
+            process.stdout.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # --- requests --------------------------------------------------------------------
+    def _send(self, request: dict):
+        self.process.stdin.write(json.dumps(request).encode() + b"\n")
+        self.process.stdin.flush()
+
+    def _reply(self, deadline: float | None = None) -> dict | None:
+        line = self.pipe.line(deadline)
+        return None if line is None else json.loads(line)
+
+    def _request(self, request: dict) -> dict:
+        try:
+            self._send(request)
+            reply = self._reply()
+        except BrokenPipeError:
+            reply = None
+        if reply is None:
+            raise RunnerError(self._died())
+        if "error" in reply:
+            raise RunnerError(reply["error"])
+        return reply
+
+    def describe(self) -> dict:
+        return self._request({"op": "describe"})["description"]
+
+    def _configure(self, plan: dict) -> list[str]:
+        return self._request({"op": "configure", "plan": plan})["reads"]
+
+    def configure(self, plan: dict) -> list[str]:
+        """Set the plan of the following runs; returns the variables read per point."""
+        reads = self._configure(plan)
+        self.plan = plan
+        return reads
+
+    def check(self, names: list[str], rows) -> list[dict]:
+        rows = np.asarray(rows, dtype=float).tolist()
+        return self._request({"op": "check", "names": names, "rows": rows})["checked"]
+
+    def bare(self, names: list[str], rows) -> float:
+        rows = np.asarray(rows, dtype=float).tolist()
+        return self._request({"op": "bare", "names": names, "rows": rows})["seconds"]
+
+    def run(self, names: list[str], rows) -> list[dict]:
+        """Run every row; one result dict per row, in order, whatever happens to the
+        runner on the way. Each has status, message, metrics, t_end, steps, wall_s and,
+        when the plan records one, series (an array of rows t, variables…)."""
+        rows = np.asarray(rows, dtype=float)
+        results: list[dict] = []
+        while len(results) < len(rows):
+            results += self._run_until_failure(names, rows[len(results):])
+        return results
+
+    def _hard_deadline(self) -> float | None:
+        budget = (self.plan or {}).get("timeout_s")
+        if budget is None:
+            return None
+        return time.monotonic() + HARD_DEADLINE_FACTOR * budget + HARD_DEADLINE_GRACE_S
+
+    def _run_until_failure(self, names, rows) -> list[dict]:
+        """The rows' results up to and including a point that kills or hangs the runner
+        (which is then restarted); all of them when none does."""
+        series = self.plan.get("series")
+        width = len(series["variables"]) + 1 if series else 0
+        results: list[dict] = []
+        try:
+            self._send({"op": "run", "names": names, "rows": rows.tolist()})
+            while True:
+                header = self._reply(self._hard_deadline())
+                if header is None:
+                    break
+                if "error" in header:
+                    raise RunnerError(header["error"])
+                if "done" in header:
+                    return results
+                rows_n = header.pop("series_rows")
+                if rows_n:
+                    data = self.pipe.exactly(rows_n * width * 8, self._hard_deadline())
+                    if data is None:
+                        break
+                    header["series"] = np.frombuffer(data, dtype="<f8").reshape(rows_n, width)
+                results.append(header)
+        except TimeoutError:
+            self.process.kill()
+            message = (f"no answer within {HARD_DEADLINE_FACTOR} × the budget of "
+                       f"{self.plan['timeout_s']} s + {HARD_DEADLINE_GRACE_S} s: the runner was killed")
+            results.append(_failed("timeout", message, self.plan))
+            self._restart()
+            return results
+        except BrokenPipeError:
+            pass
+        # The runner died: the first point without an answer is the one that killed it.
+        message = self._died() + " while running this point"
+        results.append(_failed("crashed", message, self.plan))
+        self._restart()
+        return results
+
+
+def _failed(status: str, message: str, plan: dict) -> dict:
+    return {"status": status, "message": message,
+            "metrics": [None] * len(plan.get("metrics") or []),
+            "t_end": None, "steps": None, "wall_s": None}

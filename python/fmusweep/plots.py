@@ -1,0 +1,136 @@
+"""Pictures of a sweep, written next to its results: a metric against its parameter (one
+varying parameter), heatmaps (a two-parameter grid), metric-against-parameter scatter
+matrices (Latin hypercubes and other designs), and Sobol' S1/ST bars with confidence
+intervals."""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+__all__ = ["plot_all"]
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _failed_note(points) -> str:
+    failed = int((points["status"] != "ok").sum())
+    return f" ({failed} of {len(points)} points failed)" if failed else ""
+
+
+def plot_all(design, points, metric_names, sensitivity: dict, out) -> list[pathlib.Path]:
+    out = pathlib.Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    varying = [n for n in design.names if points[n].nunique() > 1]
+    written = []
+    if design.kind == "grid" and len(varying) == 1:
+        written.append(_lines(points, varying[0], metric_names, out / "metrics.png"))
+    elif design.kind == "grid" and len(varying) == 2:
+        written += [_heatmap(points, varying, m, out / f"heatmap_{m}.png") for m in metric_names]
+    elif varying:
+        written.append(_scatter_matrix(points, varying, metric_names, out / "scatter.png"))
+    for metric, s in sensitivity.items():
+        if s.get("method") == "sobol" and "S1" in s:
+            written.append(_sobol_bars(metric, s, out / f"sobol_{metric}.png"))
+        elif s.get("method") == "morris" and "mu_star" in s:
+            written.append(_morris(metric, s, out / f"morris_{metric}.png"))
+    return written
+
+
+def _lines(points, name, metrics, path):
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(metrics), 1, figsize=(7, 2.6 * len(metrics)), sharex=True,
+                             squeeze=False)
+    ordered = points.sort_values(name)
+    for ax, metric in zip(axes[:, 0], metrics):
+        ax.plot(ordered[name], ordered[metric], marker=".", lw=1)
+        ax.set_ylabel(metric)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel(name)
+    fig.suptitle(f"Metrics against {name}{_failed_note(points)}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _heatmap(points, names, metric, path):
+    plt = _pyplot()
+    x_name, y_name = names
+    table = points.pivot_table(index=y_name, columns=x_name, values=metric, aggfunc="first",
+                               dropna=False)
+    xs, ys = table.columns.to_numpy(float), table.index.to_numpy(float)
+    fig, ax = plt.subplots(figsize=(7, 5.5))
+    mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(table.to_numpy(float)), shading="nearest",
+                         cmap="viridis")
+    ax.set_facecolor("0.75")  # failed points show grey
+    fig.colorbar(mesh, ax=ax, label=metric)
+    ax.set_xlabel(x_name)
+    ax.set_ylabel(y_name)
+    ax.set_title(f"{metric} over {x_name} × {y_name}{_failed_note(points)}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _scatter_matrix(points, names, metrics, path):
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(metrics), len(names), figsize=(2.6 * len(names) + 1, 2.4 * len(metrics) + 0.8),
+                             squeeze=False, sharey="row")
+    ok = points[points["status"] == "ok"]
+    for i, metric in enumerate(metrics):
+        for j, name in enumerate(names):
+            ax = axes[i, j]
+            ax.scatter(ok[name], ok[metric], s=4, alpha=0.5, lw=0)
+            ax.grid(alpha=0.3)
+            if i == len(metrics) - 1:
+                ax.set_xlabel(name)
+            if j == 0:
+                ax.set_ylabel(metric)
+    fig.suptitle(f"Each metric against each parameter{_failed_note(points)}")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _sobol_bars(metric, s, path):
+    plt = _pyplot()
+    names = s["names"]
+    x = np.arange(len(names))
+    fig, ax = plt.subplots(figsize=(1.1 * len(names) + 3, 4))
+    ax.bar(x - 0.2, s["S1"], 0.4, yerr=s["S1_conf"], capsize=3, label="S1 (first order)")
+    ax.bar(x + 0.2, s["ST"], 0.4, yerr=s["ST_conf"], capsize=3, label="ST (total)")
+    ax.set_xticks(x, names)
+    ax.set_ylabel("Sobol' index")
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_title(f"Sensitivity of {metric} (bars: 95 % confidence)")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+    ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _morris(metric, s, path):
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    ax.scatter(s["mu_star"], s["sigma"])
+    for name, x, y in zip(s["names"], s["mu_star"], s["sigma"]):
+        ax.annotate(name, (x, y), textcoords="offset points", xytext=(4, 4))
+    ax.set_xlabel("μ* (mean |elementary effect|)")
+    ax.set_ylabel("σ (spread: interaction or nonlinearity)")
+    ax.set_title(f"Morris screening of {metric}")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

@@ -1,0 +1,59 @@
+"""A finished (or partly finished) sweep as a user reads it."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+import pandas as pd
+
+from .store import ResultStore
+
+__all__ = ["Results", "load_results"]
+
+
+class Results:
+    """``points``: one row per point (parameters, status, message, metrics, t_end, steps,
+    wall_s, worker); ``series()``: the time series in long form; ``meta``: what
+    ``sweep.json`` records; ``report``: counts and times of the run that returned it;
+    ``sensitivity``: indices per metric for sobol and morris designs."""
+
+    def __init__(self, out, points: pd.DataFrame, meta: dict, report=None):
+        self.out = pathlib.Path(out)
+        self.points = points
+        self.meta = meta
+        self.report = report
+        path = self.out / "sensitivity.json"
+        self.sensitivity = json.loads(path.read_text()) if path.exists() else {}
+        self.plots: list[pathlib.Path] = sorted((self.out / "plots").glob("*.png"))
+
+    def series(self) -> pd.DataFrame | None:
+        """Columns point, variable, time, value; None when the sweep kept no series."""
+        table = ResultStore.series_table_of(self.out)
+        return None if table is None else table.to_pandas()
+
+    def ok(self) -> pd.DataFrame:
+        return self.points[self.points["status"] == "ok"]
+
+    def analyse_and_plot(self, design):
+        from .plots import plot_all
+        from .sensitivity import analyse
+        from .store import atomic_write_text
+        seed = self.meta.get("seed") or 0
+        self.sensitivity = analyse(design, self.points, self.meta["metrics"], seed)
+        if self.sensitivity:
+            atomic_write_text(json.dumps(self.sensitivity, indent=2), self.out / "sensitivity.json")
+        self.plots = plot_all(design, self.points, self.meta["metrics"], self.sensitivity,
+                              self.out / "plots")
+
+    def __repr__(self):
+        counts = self.points["status"].value_counts().to_dict()
+        return f"Results({str(self.out)!r}, points={len(self.points)}, status={counts})"
+
+
+def load_results(out) -> Results:
+    """The results in an output directory, as far as they go (finished or not)."""
+    out = pathlib.Path(out)
+    meta = json.loads((out / "sweep.json").read_text())
+    table = ResultStore.points_table_of(out)
+    return Results(out, table.to_pandas(), meta)

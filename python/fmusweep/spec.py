@@ -1,0 +1,266 @@
+"""The sweep specification: what to run, over which points, and what to keep.
+
+A specification is a TOML file or the equivalent dict::
+
+    fmu = "path/to/Model.fmu"          # optional: the caller may name the FMU instead
+
+    [scenario]
+    start = 0.0
+    stop = 10.0
+    step = 0.01                        # communication step
+    tolerance = 1e-8                   # optional: passed to fmi2SetupExperiment
+    timeout = 60.0                     # optional: wall-time budget per point, seconds
+    parameters = { Mm_a0 = 100.0 }     # fixed for every point
+    inputs = { M_r = 5.0, M_m = { times = [0, 1], values = [0, 10] } }
+
+    [design]
+    kind = "grid"                      # grid | list | lhs | sobol | morris
+    seed = 1                           # lhs, sobol, morris
+    parameters = { k34 = { linspace = [10, 1000, 40] }, L = { values = [0.6, 0.7] } }
+
+    [outputs.metrics]
+    peak_force = { variable = "rod_force", kind = "peak_abs" }
+    ripple = { variable = "omega1", kind = "peak_to_peak", from = 2.0 }
+
+    [outputs.series]                   # optional: time series, decimated
+    variables = ["omega1"]
+    interval = 0.1
+
+Everything here is checked before anything runs: each mistake is a SpecError that names
+the field (``design.parameters.k34.linspace``) and the rule it breaks. Checks that need
+the FMU (variable names, causalities, the FMU's own rules on values) are in
+``fmusweep.check``.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import pathlib
+import tomllib
+from dataclasses import dataclass, field
+
+__all__ = ["SpecError", "Spec", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS"]
+
+METRIC_KINDS = ("final", "min", "max", "peak_abs", "mean", "rms", "peak_to_peak")
+DESIGN_KINDS = ("grid", "list", "lhs", "sobol", "morris")
+
+
+class SpecError(ValueError):
+    """A specification that cannot run; the message names the field and the rule."""
+
+    def __init__(self, field_name: str, rule: str):
+        super().__init__(f"{field_name}: {rule}")
+        self.field = field_name
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    name: str
+    variable: str
+    kind: str
+    start: float | None
+    end: float | None
+
+
+@dataclass
+class Spec:
+    raw: dict
+    base_dir: pathlib.Path
+    fmu: pathlib.Path | None
+    start: float
+    stop: float
+    step: float
+    tolerance: float | None
+    timeout: float | None
+    parameters: dict[str, float]
+    inputs: dict[str, dict]
+    design_kind: str
+    design: dict
+    seed: int | None
+    metrics: list[MetricSpec]
+    series_variables: list[str] = field(default_factory=list)
+    series_every: int = 0
+
+    # --- loading -------------------------------------------------------------------
+    @staticmethod
+    def load(source, base_dir: str | pathlib.Path | None = None) -> "Spec":
+        """A Spec from a TOML path, a TOML string's dict, or a Spec (returned as is)."""
+        if isinstance(source, Spec):
+            return source
+        if isinstance(source, (str, pathlib.Path)):
+            path = pathlib.Path(source)
+            try:
+                raw = tomllib.loads(path.read_text())
+            except FileNotFoundError:
+                raise SpecError("spec", f"no file {path}") from None
+            except tomllib.TOMLDecodeError as e:
+                raise SpecError("spec", f"{path} is not valid TOML: {e}") from None
+            return Spec.from_dict(raw, base_dir or path.parent)
+        if isinstance(source, dict):
+            return Spec.from_dict(source, base_dir or pathlib.Path.cwd())
+        raise SpecError("spec", f"expected a path, a dict or a Spec, got {type(source).__name__}")
+
+    @staticmethod
+    def from_dict(raw: dict, base_dir) -> "Spec":
+        raw = copy.deepcopy(raw)
+        base_dir = pathlib.Path(base_dir)
+        _only(raw, "spec", {"fmu", "scenario", "design", "outputs", "run"})
+        fmu = raw.get("fmu")
+        if fmu is not None and not isinstance(fmu, str):
+            raise SpecError("fmu", "must be a path (a string)")
+        scenario = _table(raw, "scenario", "spec", required=True)
+        _only(scenario, "scenario", {"start", "stop", "step", "tolerance", "timeout", "parameters", "inputs"})
+        start = _number(scenario.get("start", 0.0), "scenario.start")
+        stop = _number(scenario.get("stop"), "scenario.stop")
+        step = _number(scenario.get("step"), "scenario.step")
+        if step <= 0:
+            raise SpecError("scenario.step", f"must be > 0, got {step}")
+        if stop <= start:
+            raise SpecError("scenario.stop", f"must be > scenario.start ({start}), got {stop}")
+        steps = (stop - start) / step
+        if abs(steps - round(steps)) > 1e-6:
+            raise SpecError("scenario.step", f"stop − start = {stop - start} is not a whole number of steps of {step}")
+        tolerance = scenario.get("tolerance")
+        if tolerance is not None:
+            tolerance = _number(tolerance, "scenario.tolerance")
+            if tolerance <= 0:
+                raise SpecError("scenario.tolerance", f"must be > 0, got {tolerance}")
+        timeout = scenario.get("timeout")
+        if timeout is not None:
+            timeout = _number(timeout, "scenario.timeout")
+            if timeout <= 0:
+                raise SpecError("scenario.timeout", f"must be > 0 seconds, got {timeout}")
+        parameters = {
+            name: _number(value, f"scenario.parameters.{name}")
+            for name, value in _table(scenario, "parameters", "scenario").items()
+        }
+        inputs = {
+            name: _input(value, f"scenario.inputs.{name}")
+            for name, value in _table(scenario, "inputs", "scenario").items()
+        }
+        design = _table(raw, "design", "spec", required=True)
+        kind = design.get("kind", "grid")
+        if kind not in DESIGN_KINDS:
+            raise SpecError("design.kind", f"must be one of {', '.join(DESIGN_KINDS)}, got {kind!r}")
+        seed = design.get("seed")
+        if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
+            raise SpecError("design.seed", f"must be a whole number ≥ 0, got {seed!r}")
+        if kind in ("lhs", "sobol", "morris") and seed is None:
+            raise SpecError("design.seed", f"a {kind} design needs a seed, so that it can be repeated")
+        if not _table(design, "parameters", "design"):
+            raise SpecError("design.parameters", "names no parameter: the design is empty")
+        outputs = _table(raw, "outputs", "spec", required=True)
+        _only(outputs, "outputs", {"metrics", "series"})
+        metrics = [_metric(name, m) for name, m in _table(outputs, "metrics", "outputs").items()]
+        series = _table(outputs, "series", "outputs")
+        series_variables, every = [], 0
+        if series:
+            _only(series, "outputs.series", {"variables", "interval"})
+            series_variables = series.get("variables")
+            if not (isinstance(series_variables, list) and series_variables
+                    and all(isinstance(v, str) for v in series_variables)):
+                raise SpecError("outputs.series.variables", "must be a non-empty list of variable names")
+            interval = _number(series.get("interval", step), "outputs.series.interval")
+            every = round(interval / step)
+            if every < 1 or abs(interval / step - every) > 1e-6:
+                raise SpecError("outputs.series.interval",
+                                f"must be a whole multiple of scenario.step ({step}), got {interval}")
+        if not metrics and not series_variables:
+            raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
+        spec = Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
+                    start=start, stop=stop, step=step, tolerance=tolerance, timeout=timeout,
+                    parameters=parameters, inputs=inputs, design_kind=kind, design=design,
+                    seed=seed, metrics=metrics, series_variables=series_variables,
+                    series_every=every)
+        from . import design as _design  # the design's own fields are checked there
+        _design.generate(spec)
+        return spec
+
+    # --- derived ---------------------------------------------------------------------
+    def plan(self) -> dict:
+        """The native runner's plan: everything every point shares."""
+        return {
+            "start": self.start,
+            "stop": self.stop,
+            "step": self.step,
+            "tolerance": self.tolerance,
+            "fixed": self.parameters,
+            "inputs": self.inputs,
+            "metrics": [
+                {"variable": m.variable, "kind": m.kind, "from": m.start, "to": m.end}
+                for m in self.metrics
+            ],
+            "series": ({"variables": self.series_variables, "every": self.series_every}
+                       if self.series_variables else None),
+            "timeout_s": self.timeout,
+        }
+
+    def digest(self) -> str:
+        """A hash of everything that decides the results (not the FMU's path)."""
+        canonical = {k: v for k, v in self.raw.items() if k not in ("fmu", "run")}
+        text = json.dumps(canonical, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()
+
+
+# --- field checks -----------------------------------------------------------------------
+def _only(table: dict, where: str, allowed: set):
+    unknown = sorted(set(table) - allowed)
+    if unknown:
+        raise SpecError(f"{where}.{unknown[0]}" if where != "spec" else unknown[0],
+                        f"unknown field; expected one of {', '.join(sorted(allowed))}")
+
+
+def _table(parent: dict, key: str, where: str, required: bool = False) -> dict:
+    value = parent.get(key)
+    name = key if where == "spec" else f"{where}.{key}"
+    if value is None:
+        if required:
+            raise SpecError(name, "is missing")
+        return {}
+    if not isinstance(value, dict):
+        raise SpecError(name, f"must be a table, got {type(value).__name__}")
+    return value
+
+
+def _number(value, where: str) -> float:
+    if value is None:
+        raise SpecError(where, "is missing")
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(where, f"must be a number, got {value!r}")
+    value = float(value)
+    if not math.isfinite(value):
+        raise SpecError(where, f"must be finite, got {value}")
+    return value
+
+
+def _input(value, where: str) -> dict:
+    if not isinstance(value, dict):
+        return {"times": [0.0], "values": [_number(value, where)]}
+    _only(value, where, {"times", "values"})
+    times, values = value.get("times"), value.get("values")
+    if not (isinstance(times, list) and isinstance(values, list) and times and len(times) == len(values)):
+        raise SpecError(where, "a table needs times and values: lists of equal, non-zero length")
+    times = [_number(t, f"{where}.times") for t in times]
+    values = [_number(v, f"{where}.values") for v in values]
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise SpecError(f"{where}.times", "must be strictly increasing")
+    return {"times": times, "values": values}
+
+
+def _metric(name: str, m) -> MetricSpec:
+    where = f"outputs.metrics.{name}"
+    if not isinstance(m, dict):
+        raise SpecError(where, "must be a table with variable and kind")
+    _only(m, where, {"variable", "kind", "from", "to"})
+    if not isinstance(m.get("variable"), str):
+        raise SpecError(f"{where}.variable", "must name a variable")
+    if m.get("kind") not in METRIC_KINDS:
+        raise SpecError(f"{where}.kind", f"must be one of {', '.join(METRIC_KINDS)}, got {m.get('kind')!r}")
+    start = _number(m["from"], f"{where}.from") if "from" in m else None
+    end = _number(m["to"], f"{where}.to") if "to" in m else None
+    if start is not None and end is not None and end < start:
+        raise SpecError(f"{where}.to", f"must be ≥ from ({start}), got {end}")
+    return MetricSpec(name, m["variable"], m["kind"], start, end)

@@ -1,0 +1,112 @@
+"""Results that are never lost: a directory of Parquet parts, one per finished batch, each
+written to a temporary name and renamed into place (atomic on POSIX), so that a sweep
+killed at any moment leaves only whole batches behind, and ``resume`` redoes only the
+points that no part holds.
+
+Layout of an output directory::
+
+    sweep.json              the spec, seed, design, FMU checksum, package versions
+    points/part-*.parquet   one row per point (a part per batch)
+    series/part-*.parquet   the time series in long form, when the spec asks for them
+    points.parquet          all points in point order, written when the sweep ends
+    plots/*.png, sensitivity.json
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import secrets
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+__all__ = ["ResultStore", "FORMAT"]
+
+FORMAT = 1
+
+
+def atomic_write_table(table: pa.Table, path: pathlib.Path):
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+    pq.write_table(table, tmp)
+    os.replace(tmp, path)
+
+
+def atomic_write_text(text: str, path: pathlib.Path):
+    tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+class ResultStore:
+    def __init__(self, out, meta: dict, resume: bool):
+        self.out = pathlib.Path(out)
+        self.points_dir = self.out / "points"
+        self.series_dir = self.out / "series"
+        meta_path = self.out / "sweep.json"
+        if meta_path.exists():
+            if not resume:
+                raise FileExistsError(
+                    f"{self.out} already holds a sweep: pass resume=True (--resume) to finish "
+                    "it, or choose another output directory")
+            self._check_same_sweep(json.loads(meta_path.read_text()), meta)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.points_dir.mkdir(exist_ok=True)
+        self.series_dir.mkdir(exist_ok=True)
+        if not meta_path.exists():
+            atomic_write_text(json.dumps(meta, indent=2, sort_keys=True), meta_path)
+        self.meta = json.loads(meta_path.read_text())
+        self._drop_orphans()
+
+    def _check_same_sweep(self, stored: dict, meta: dict):
+        for key, what in (("spec_digest", "the specification"), ("fmu_sha256", "the FMU"),
+                          ("format", "the results format")):
+            if stored.get(key) != meta.get(key):
+                raise ValueError(f"cannot resume in {self.out}: {what} changed since the sweep "
+                                 f"began ({key} {stored.get(key)} → {meta.get(key)})")
+
+    def _drop_orphans(self):
+        """Temporary files of a killed write, and series parts whose points part never
+        landed (the points part is written last and marks a batch as done)."""
+        for d in (self.points_dir, self.series_dir):
+            for tmp in d.glob(".*.tmp"):
+                tmp.unlink(missing_ok=True)
+        done = {p.name for p in self.points_dir.glob("part-*.parquet")}
+        for part in self.series_dir.glob("part-*.parquet"):
+            if part.name not in done:
+                part.unlink()
+
+    def done_points(self) -> np.ndarray:
+        parts = sorted(self.points_dir.glob("part-*.parquet"))
+        if not parts:
+            return np.empty(0, dtype=np.int64)
+        return np.concatenate([pq.read_table(p, columns=["point"])["point"].to_numpy() for p in parts])
+
+    def write_batch(self, points: pa.Table, series: pa.Table | None):
+        first = int(points["point"][0].as_py())
+        name = f"part-{first:010d}-{secrets.token_hex(4)}.parquet"
+        if series is not None and series.num_rows:
+            atomic_write_table(series, self.series_dir / name)
+        atomic_write_table(points, self.points_dir / name)
+
+    def consolidate(self) -> pa.Table:
+        table = self.points_table_of(self.out)
+        atomic_write_table(table, self.out / "points.parquet")
+        return table
+
+    @staticmethod
+    def points_table_of(out) -> pa.Table:
+        parts = sorted((pathlib.Path(out) / "points").glob("part-*.parquet"))
+        if not parts:
+            raise FileNotFoundError(f"{out} holds no finished point")
+        return pa.concat_tables([pq.read_table(p) for p in parts]).sort_by("point")
+
+    @staticmethod
+    def series_table_of(out) -> pa.Table | None:
+        parts = sorted((pathlib.Path(out) / "series").glob("part-*.parquet"))
+        if not parts:
+            return None
+        table = pa.concat_tables([pq.read_table(p) for p in parts])
+        return table.sort_by([("point", "ascending"), ("variable", "ascending"), ("time", "ascending")])

@@ -1,0 +1,293 @@
+//! The FMU's shared library and its instances. With `stdio`, the only `unsafe` code of the
+//! runner: every FMI call goes through a safe method of [`Instance`] that passes slices
+//! with their true lengths and a component this type created and frees.
+
+use std::ffi::CString;
+use std::path::Path;
+use std::rc::Rc;
+
+use fmi_sys::fmi2::{
+    self, fmi2CallbackFunctions, fmi2Component, fmi2Status_fmi2Discard, fmi2Status_fmi2Error,
+    fmi2Status_fmi2Fatal, fmi2Status_fmi2OK, fmi2Status_fmi2Pending, fmi2Status_fmi2Warning,
+    fmi2Type_fmi2CoSimulation, Fmi2Binding,
+};
+
+use crate::description::Description;
+
+/// An FMI 2.0 status as the runner reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Status {
+    Ok,
+    Warning,
+    Discard,
+    Error,
+    Fatal,
+    Pending,
+}
+
+impl Status {
+    // The status constants keep the FMI header's names.
+    #[allow(non_upper_case_globals)]
+    fn from_raw(raw: fmi2::fmi2Status) -> Status {
+        match raw {
+            fmi2Status_fmi2OK => Status::Ok,
+            fmi2Status_fmi2Warning => Status::Warning,
+            fmi2Status_fmi2Discard => Status::Discard,
+            fmi2Status_fmi2Error => Status::Error,
+            fmi2Status_fmi2Pending => Status::Pending,
+            fmi2Status_fmi2Fatal => Status::Fatal,
+            // A value outside the enumeration is the FMU's fault: treat it as fatal.
+            _ => Status::Fatal,
+        }
+    }
+
+    /// OK and Warning let the run go on.
+    pub fn proceeds(self) -> bool {
+        self <= Status::Warning
+    }
+}
+
+/// The platform folder of `binaries/` that this build of the runner loads from.
+pub const PLATFORM: &str = if cfg!(all(target_os = "linux", target_pointer_width = "64")) {
+    "linux64"
+} else if cfg!(all(target_os = "macos", target_pointer_width = "64")) {
+    "darwin64"
+} else if cfg!(all(target_os = "windows", target_pointer_width = "64")) {
+    "win64"
+} else {
+    "unsupported"
+};
+
+const LIBRARY_SUFFIX: &str = std::env::consts::DLL_SUFFIX;
+
+/// A loaded FMU binary. It is never unloaded while the runner lives: some FMUs keep
+/// process-wide state that does not survive `dlclose`.
+pub struct Library {
+    binding: Fmi2Binding,
+    guid: CString,
+    resource_uri: CString,
+}
+
+impl Library {
+    pub fn load(dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
+        let identifier = description
+            .model_identifier
+            .as_deref()
+            .ok_or("the FMU has no CoSimulation interface")?;
+        let path = dir
+            .join("binaries")
+            .join(PLATFORM)
+            .join(format!("{identifier}{LIBRARY_SUFFIX}"));
+        if !path.is_file() {
+            return Err(format!(
+                "the FMU has no binary for this platform: {} is missing",
+                path.display()
+            ));
+        }
+        // SAFETY: loading a shared library runs its initialisers; the FMU is trusted as
+        // far as its binary goes (a crash there ends only this runner process).
+        let binding = unsafe { Fmi2Binding::new(&path) }
+            .map_err(|e| format!("cannot load {}: {e}", path.display()))?;
+        let missing = missing_functions(&binding);
+        if !missing.is_empty() {
+            return Err(format!(
+                "{} does not export {}",
+                path.display(),
+                missing.join(", ")
+            ));
+        }
+        let resources = dir.join("resources");
+        let uri = format!(
+            "file://{}/",
+            resources.canonicalize().unwrap_or(resources).display()
+        );
+        Ok(Rc::new(Library {
+            binding,
+            guid: CString::new(description.guid.as_str()).map_err(|e| e.to_string())?,
+            resource_uri: CString::new(uri).map_err(|e| e.to_string())?,
+        }))
+    }
+}
+
+/// The functions a co-simulation run calls; the others may be absent.
+fn missing_functions(b: &Fmi2Binding) -> Vec<&'static str> {
+    let present = [
+        ("fmi2Instantiate", b.fmi2Instantiate.is_ok()),
+        ("fmi2FreeInstance", b.fmi2FreeInstance.is_ok()),
+        ("fmi2SetupExperiment", b.fmi2SetupExperiment.is_ok()),
+        (
+            "fmi2EnterInitializationMode",
+            b.fmi2EnterInitializationMode.is_ok(),
+        ),
+        (
+            "fmi2ExitInitializationMode",
+            b.fmi2ExitInitializationMode.is_ok(),
+        ),
+        ("fmi2Reset", b.fmi2Reset.is_ok()),
+        ("fmi2SetReal", b.fmi2SetReal.is_ok()),
+        ("fmi2SetInteger", b.fmi2SetInteger.is_ok()),
+        ("fmi2SetBoolean", b.fmi2SetBoolean.is_ok()),
+        ("fmi2GetReal", b.fmi2GetReal.is_ok()),
+        ("fmi2GetInteger", b.fmi2GetInteger.is_ok()),
+        ("fmi2GetBoolean", b.fmi2GetBoolean.is_ok()),
+        ("fmi2DoStep", b.fmi2DoStep.is_ok()),
+    ];
+    present
+        .iter()
+        .filter(|(_, ok)| !ok)
+        .map(|(name, _)| *name)
+        .collect()
+}
+
+/// One co-simulation instance; freed when dropped.
+pub struct Instance {
+    library: Rc<Library>,
+    component: fmi2Component,
+    // The FMU may keep this pointer for its whole life (FMI 2.0 does not say it copies):
+    // boxed so that its address is stable.
+    _callbacks: Box<fmi2CallbackFunctions>,
+}
+
+impl Instance {
+    pub fn new(library: &Rc<Library>) -> Result<Instance, String> {
+        let callbacks = Box::new(fmi2CallbackFunctions {
+            logger: Some(fmi2::logger::callback_logger_handler),
+            allocateMemory: Some(libc::calloc),
+            freeMemory: Some(libc::free),
+            stepFinished: None,
+            componentEnvironment: std::ptr::null_mut(),
+        });
+        // SAFETY: every pointer is valid for the call; the callbacks outlive the instance.
+        let component = unsafe {
+            library.binding.fmi2Instantiate(
+                c"sweep".as_ptr(),
+                fmi2Type_fmi2CoSimulation,
+                library.guid.as_ptr(),
+                library.resource_uri.as_ptr(),
+                &*callbacks,
+                0,
+                0,
+            )
+        };
+        if component.is_null() {
+            return Err("fmi2Instantiate returned NULL".into());
+        }
+        Ok(Instance {
+            library: Rc::clone(library),
+            component,
+            _callbacks: callbacks,
+        })
+    }
+
+    fn b(&self) -> &Fmi2Binding {
+        &self.library.binding
+    }
+
+    pub fn reset(&mut self) -> Status {
+        // SAFETY: a live component of this binding.
+        Status::from_raw(unsafe { self.b().fmi2Reset(self.component) })
+    }
+
+    pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Status {
+        let (defined, tol) = (tolerance.is_some() as i32, tolerance.unwrap_or(0.0));
+        // SAFETY: a live component; plain values.
+        Status::from_raw(unsafe {
+            self.b()
+                .fmi2SetupExperiment(self.component, defined, tol, start, 1, stop)
+        })
+    }
+
+    pub fn enter_initialization_mode(&mut self) -> Status {
+        // SAFETY: a live component.
+        Status::from_raw(unsafe { self.b().fmi2EnterInitializationMode(self.component) })
+    }
+
+    pub fn exit_initialization_mode(&mut self) -> Status {
+        // SAFETY: a live component.
+        Status::from_raw(unsafe { self.b().fmi2ExitInitializationMode(self.component) })
+    }
+
+    pub fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        // SAFETY: both slices hold vr.len() elements.
+        Status::from_raw(unsafe {
+            self.b()
+                .fmi2SetReal(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+        })
+    }
+
+    pub fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        // SAFETY: both slices hold vr.len() elements.
+        Status::from_raw(unsafe {
+            self.b()
+                .fmi2SetInteger(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+        })
+    }
+
+    pub fn set_boolean(&mut self, vr: &[u32], values: &[i32]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        // SAFETY: both slices hold vr.len() elements.
+        Status::from_raw(unsafe {
+            self.b()
+                .fmi2SetBoolean(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+        })
+    }
+
+    pub fn get_real(&mut self, vr: &[u32], values: &mut [f64]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        // SAFETY: both slices hold vr.len() elements.
+        Status::from_raw(unsafe {
+            self.b()
+                .fmi2GetReal(self.component, vr.as_ptr(), vr.len(), values.as_mut_ptr())
+        })
+    }
+
+    pub fn get_integer(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        // SAFETY: both slices hold vr.len() elements.
+        Status::from_raw(unsafe {
+            self.b()
+                .fmi2GetInteger(self.component, vr.as_ptr(), vr.len(), values.as_mut_ptr())
+        })
+    }
+
+    pub fn get_boolean(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        // SAFETY: both slices hold vr.len() elements.
+        Status::from_raw(unsafe {
+            self.b()
+                .fmi2GetBoolean(self.component, vr.as_ptr(), vr.len(), values.as_mut_ptr())
+        })
+    }
+
+    pub fn do_step(&mut self, time: f64, step: f64) -> Status {
+        // SAFETY: a live component; plain values.
+        Status::from_raw(unsafe { self.b().fmi2DoStep(self.component, time, step, 1) })
+    }
+}
+
+impl Drop for Instance {
+    fn drop(&mut self) {
+        // SAFETY: the component was created by this binding and is freed exactly once.
+        unsafe { self.b().fmi2FreeInstance(self.component) }
+    }
+}

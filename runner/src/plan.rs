@@ -1,0 +1,327 @@
+//! The run plan that every point of a sweep shares: the time grid, the fixed settings,
+//! the input signals, and what to measure. Names are resolved against the model
+//! description once, so that the per-point loop works on value references only.
+
+use std::collections::BTreeMap;
+
+use serde::Deserialize;
+
+use crate::description::{BaseType, Description, Variable};
+use crate::metrics::{Accumulator, Kind, WINDOW_SLACK};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanSpec {
+    pub start: f64,
+    pub stop: f64,
+    pub step: f64,
+    pub tolerance: Option<f64>,
+    #[serde(default)]
+    pub fixed: BTreeMap<String, f64>,
+    #[serde(default)]
+    pub inputs: BTreeMap<String, TableSpec>,
+    #[serde(default)]
+    pub metrics: Vec<MetricSpec>,
+    pub series: Option<SeriesSpec>,
+    pub timeout_s: Option<f64>,
+}
+
+/// A piecewise-linear signal, held beyond its ends; one point makes a constant.
+#[derive(Debug, Deserialize, Clone)]
+#[serde(deny_unknown_fields)]
+pub struct TableSpec {
+    pub times: Vec<f64>,
+    pub values: Vec<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MetricSpec {
+    pub variable: String,
+    pub kind: Kind,
+    pub from: Option<f64>,
+    pub to: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SeriesSpec {
+    pub variables: Vec<String>,
+    /// Record every this many communication steps (the first point is always recorded).
+    pub every: u64,
+}
+
+/// Value references grouped by the FMI setter or getter they need.
+#[derive(Debug, Default, Clone)]
+pub struct ByType {
+    pub real: Vec<u32>,
+    pub integer: Vec<u32>,
+    pub boolean: Vec<u32>,
+}
+
+impl ByType {
+    pub fn len(&self) -> usize {
+        self.real.len() + self.integer.len() + self.boolean.len()
+    }
+
+    fn push(&mut self, variable: &Variable) -> Result<usize, String> {
+        let list = match variable.base_type {
+            BaseType::Real => &mut self.real,
+            BaseType::Integer | BaseType::Enumeration => &mut self.integer,
+            BaseType::Boolean => &mut self.boolean,
+            BaseType::String => {
+                return Err(format!(
+                    "{}: String variables are not supported",
+                    variable.name
+                ))
+            }
+        };
+        list.push(variable.value_reference);
+        Ok(list.len() - 1)
+    }
+}
+
+pub struct Input {
+    pub value_reference: u32,
+    pub table: TableSpec,
+}
+
+impl Input {
+    /// The signal at t, linear between table points and held beyond them.
+    pub fn at(&self, t: f64) -> f64 {
+        let (times, values) = (&self.table.times, &self.table.values);
+        let after = times.partition_point(|&ti| ti <= t);
+        if after == 0 {
+            return values[0];
+        }
+        if after == times.len() {
+            return values[after - 1];
+        }
+        let (t0, t1) = (times[after - 1], times[after]);
+        let (v0, v1) = (values[after - 1], values[after]);
+        v0 + (v1 - v0) * ((t - t0) / (t1 - t0))
+    }
+}
+
+pub struct Plan {
+    pub start: f64,
+    pub stop: f64,
+    pub step: f64,
+    pub n_steps: u64,
+    pub tolerance: Option<f64>,
+    pub fixed: Vec<(String, f64)>,
+    pub inputs: Vec<Input>,
+    /// Read at every communication point: the variables of the metrics and the series.
+    pub reads: ByType,
+    pub read_names: Vec<String>,
+    /// Per metric: its position in the read buffer (reals, then integers, then booleans).
+    pub metrics: Vec<(usize, Accumulator)>,
+    pub series: Option<(Vec<usize>, u64)>,
+    pub timeout_s: Option<f64>,
+}
+
+fn finite(what: &str, x: f64) -> Result<f64, String> {
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(format!("{what} must be finite, got {x}"))
+    }
+}
+
+impl Plan {
+    pub fn resolve(spec: PlanSpec, description: &Description) -> Result<Plan, String> {
+        let (start, stop, step) = (
+            finite("start", spec.start)?,
+            finite("stop", spec.stop)?,
+            finite("step", spec.step)?,
+        );
+        if step <= 0.0 || stop <= start {
+            return Err(format!(
+                "need step > 0 and stop > start, got start {start}, stop {stop}, step {step}"
+            ));
+        }
+        let steps = (stop - start) / step;
+        let n_steps = steps.round();
+        if (steps - n_steps).abs() > 1e-6 || n_steps < 1.0 {
+            return Err(format!(
+                "stop − start = {} is not a whole number of communication steps of {step}",
+                stop - start
+            ));
+        }
+        if let Some(tol) = spec.tolerance {
+            if !(tol.is_finite() && tol > 0.0) {
+                return Err(format!("tolerance must be finite and > 0, got {tol}"));
+            }
+        }
+        for (name, value) in &spec.fixed {
+            description.variable(name)?;
+            finite(name, *value)?;
+        }
+        let inputs = spec
+            .inputs
+            .into_iter()
+            .map(|(name, table)| resolve_input(description, &name, table))
+            .collect::<Result<Vec<_>, _>>()?;
+
+        // One read slot per distinct variable, by type, in first-use order.
+        let mut reads = ByType::default();
+        let mut read_vars: Vec<&Variable> = Vec::new();
+        let mut slot_of = |name: &str| -> Result<usize, String> {
+            let variable = description.variable(name)?;
+            if let Some(i) = read_vars.iter().position(|v| v.name == name) {
+                return Ok(i);
+            }
+            reads.push(variable)?;
+            read_vars.push(variable);
+            Ok(read_vars.len() - 1)
+        };
+        let slack = WINDOW_SLACK * step;
+        let mut metrics = Vec::new();
+        for m in &spec.metrics {
+            let (from, to) = (m.from.unwrap_or(start), m.to.unwrap_or(stop));
+            if !(from.is_finite() && to.is_finite() && from <= to) {
+                return Err(format!(
+                    "metric of {}: the window [{from}, {to}] is not an interval",
+                    m.variable
+                ));
+            }
+            metrics.push((
+                slot_of(&m.variable)?,
+                Accumulator::new(m.kind, from, to, slack),
+            ));
+        }
+        let series = match &spec.series {
+            None => None,
+            Some(s) if s.every == 0 => return Err("series.every must be ≥ 1".into()),
+            Some(s) => Some((
+                s.variables
+                    .iter()
+                    .map(|n| slot_of(n))
+                    .collect::<Result<Vec<_>, _>>()?,
+                s.every,
+            )),
+        };
+        // Slots were numbered in first-use order; the buffer is laid out by type.
+        let layout = buffer_layout(&read_vars);
+        let metrics = metrics
+            .into_iter()
+            .map(|(slot, acc)| (layout[slot], acc))
+            .collect();
+        let series =
+            series.map(|(slots, every)| (slots.iter().map(|&s| layout[s]).collect(), every));
+        let mut read_names = vec![String::new(); read_vars.len()];
+        for (slot, v) in read_vars.iter().enumerate() {
+            read_names[layout[slot]] = v.name.clone();
+        }
+        Ok(Plan {
+            start,
+            stop,
+            step,
+            n_steps: n_steps as u64,
+            tolerance: spec.tolerance,
+            fixed: spec.fixed.into_iter().collect(),
+            inputs,
+            reads,
+            read_names,
+            metrics,
+            series,
+            timeout_s: spec.timeout_s,
+        })
+    }
+
+    /// The communication point k: start + k·step, and exactly `stop` for the last.
+    #[inline]
+    pub fn time(&self, k: u64) -> f64 {
+        if k >= self.n_steps {
+            self.stop
+        } else {
+            self.start + k as f64 * self.step
+        }
+    }
+}
+
+/// Where each first-use slot lands in a buffer of reals, then integers, then booleans.
+fn buffer_layout(vars: &[&Variable]) -> Vec<usize> {
+    let rank = |v: &Variable| match v.base_type {
+        BaseType::Real => 0,
+        BaseType::Integer | BaseType::Enumeration => 1,
+        _ => 2,
+    };
+    let mut order: Vec<usize> = (0..vars.len()).collect();
+    order.sort_by_key(|&i| rank(vars[i])); // stable: first-use order within a type
+    let mut layout = vec![0; vars.len()];
+    for (position, &slot) in order.iter().enumerate() {
+        layout[slot] = position;
+    }
+    layout
+}
+
+fn resolve_input(description: &Description, name: &str, table: TableSpec) -> Result<Input, String> {
+    let variable = description.variable(name)?;
+    if variable.causality != "input" || variable.base_type != BaseType::Real {
+        return Err(format!("{name} is not a Real input of the FMU"));
+    }
+    if table.times.is_empty() || table.times.len() != table.values.len() {
+        return Err(format!(
+            "input {name}: times and values must be non-empty and of equal length"
+        ));
+    }
+    if table
+        .times
+        .iter()
+        .chain(&table.values)
+        .any(|x| !x.is_finite())
+        || table.times.windows(2).any(|w| w[1] <= w[0])
+    {
+        return Err(format!(
+            "input {name}: values must be finite and times strictly increasing"
+        ));
+    }
+    Ok(Input {
+        value_reference: variable.value_reference,
+        table,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn input_tables_interpolate_and_hold() {
+        let input = Input {
+            value_reference: 0,
+            table: TableSpec {
+                times: vec![1.0, 3.0],
+                values: vec![10.0, 20.0],
+            },
+        };
+        assert_eq!(input.at(0.0), 10.0);
+        assert_eq!(input.at(2.0), 15.0);
+        assert_eq!(input.at(3.0), 20.0);
+        assert_eq!(input.at(9.0), 20.0);
+    }
+
+    #[test]
+    fn buffer_layout_puts_reals_first() {
+        let v = |t| Variable {
+            name: String::new(),
+            value_reference: 0,
+            base_type: t,
+            causality: "output".into(),
+            variability: "continuous".into(),
+            start: None,
+            min: None,
+            max: None,
+            declared_type: None,
+            description: None,
+        };
+        let (i, r1, b, r2) = (
+            v(BaseType::Integer),
+            v(BaseType::Real),
+            v(BaseType::Boolean),
+            v(BaseType::Real),
+        );
+        assert_eq!(buffer_layout(&[&i, &r1, &b, &r2]), vec![2, 0, 3, 1]);
+    }
+}

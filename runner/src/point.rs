@@ -1,0 +1,451 @@
+//! One parameter point through one instance: reset, set up, initialise, step to the stop
+//! time, measure. The instance is made once and reset between points; after an error it
+//! is freed and made again (the library itself stays loaded).
+
+use std::rc::Rc;
+use std::time::Instant;
+
+use crate::description::Description;
+use crate::fmi::{Instance, Library, Status};
+use crate::messages;
+use crate::plan::{ByType, Plan};
+
+/// How a point ended, as the results table spells it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    Ok,
+    /// The FMU returned fmi2Discard: it could not complete a step.
+    Discard,
+    /// The FMU returned fmi2Error or fmi2Fatal, or broke a rule of the standard.
+    Error,
+    /// Over the per-point wall-time budget.
+    Timeout,
+}
+
+impl Outcome {
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Ok => "ok",
+            Outcome::Discard => "discard",
+            Outcome::Error => "error",
+            Outcome::Timeout => "timeout",
+        }
+    }
+}
+
+pub struct PointResult {
+    pub outcome: Outcome,
+    pub message: String,
+    pub metrics: Vec<Option<f64>>,
+    /// The last communication point reached.
+    pub t_end: f64,
+    pub steps: u64,
+    pub wall_s: f64,
+    /// Rows of (t, variables…), flattened.
+    pub series: Vec<f64>,
+}
+
+/// The values one request sets at every point, by type, with the point's own columns.
+pub struct Assignments {
+    vr: ByType,
+    /// For each value reference in `vr` (reals, then integers, then booleans): the column
+    /// of the point's row it takes, or the fixed value.
+    sources: Vec<Source>,
+    names: Vec<String>,
+    real: Vec<f64>,
+    integer: Vec<i32>,
+    boolean: Vec<i32>,
+}
+
+#[derive(Clone, Copy)]
+enum Source {
+    Column(usize),
+    Fixed(f64),
+}
+
+impl Assignments {
+    /// The fixed settings of the plan, overridden by the point's columns `names`.
+    pub fn new(description: &Description, plan: &Plan, names: &[String]) -> Result<Self, String> {
+        let mut entries: Vec<(String, Source)> = plan
+            .fixed
+            .iter()
+            .filter(|(name, _)| !names.contains(name))
+            .map(|(name, value)| (name.clone(), Source::Fixed(*value)))
+            .collect();
+        entries.extend(
+            names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (n.clone(), Source::Column(i))),
+        );
+        let mut groups: [Vec<(u32, Source, String)>; 3] = Default::default();
+        for (name, source) in entries {
+            let v = description.variable(&name)?;
+            if !matches!(v.causality.as_str(), "parameter" | "input") {
+                return Err(format!(
+                    "{name} is a variable of causality {}, not a parameter or input",
+                    v.causality
+                ));
+            }
+            let group = match v.base_type {
+                crate::description::BaseType::Real => 0,
+                crate::description::BaseType::Integer
+                | crate::description::BaseType::Enumeration => 1,
+                crate::description::BaseType::Boolean => 2,
+                crate::description::BaseType::String => {
+                    return Err(format!("{name}: String variables are not supported"))
+                }
+            };
+            groups[group].push((v.value_reference, source, name));
+        }
+        let [real, integer, boolean] = groups;
+        let vr = ByType {
+            real: real.iter().map(|e| e.0).collect(),
+            integer: integer.iter().map(|e| e.0).collect(),
+            boolean: boolean.iter().map(|e| e.0).collect(),
+        };
+        let all = real.into_iter().chain(integer).chain(boolean);
+        let (sources, names): (Vec<_>, Vec<_>) = all.map(|(_, s, n)| (s, n)).unzip();
+        Ok(Assignments {
+            real: vec![0.0; vr.real.len()],
+            integer: vec![0; vr.integer.len()],
+            boolean: vec![0; vr.boolean.len()],
+            vr,
+            sources,
+            names,
+        })
+    }
+
+    /// Fill the typed buffers from a row; an Integer or Boolean that is not a whole
+    /// number (or 0/1) is refused by name.
+    fn fill(&mut self, row: &[f64]) -> Result<(), String> {
+        let (nr, ni) = (self.real.len(), self.integer.len());
+        for (k, source) in self.sources.iter().enumerate() {
+            let x = match *source {
+                Source::Column(c) => row[c],
+                Source::Fixed(x) => x,
+            };
+            if !x.is_finite() {
+                return Err(format!("{} = {x} is not finite", self.names[k]));
+            }
+            if k < nr {
+                self.real[k] = x;
+            } else if k < nr + ni {
+                if x.fract() != 0.0 || x.abs() > i32::MAX as f64 {
+                    return Err(format!(
+                        "{} = {x} is not a whole number (an Integer)",
+                        self.names[k]
+                    ));
+                }
+                self.integer[k - nr] = x as i32;
+            } else {
+                if x != 0.0 && x != 1.0 {
+                    return Err(format!("{} = {x} is not 0 or 1 (a Boolean)", self.names[k]));
+                }
+                self.boolean[k - nr - ni] = x as i32;
+            }
+        }
+        Ok(())
+    }
+
+    fn apply(&mut self, instance: &mut Instance) -> Status {
+        let s = instance.set_real(&self.vr.real, &self.real);
+        if !s.proceeds() {
+            return s;
+        }
+        let s = instance.set_integer(&self.vr.integer, &self.integer);
+        if !s.proceeds() {
+            return s;
+        }
+        instance.set_boolean(&self.vr.boolean, &self.boolean)
+    }
+}
+
+/// The loaded FMU and its one instance, kept across points and requests.
+pub struct Runner {
+    library: Rc<Library>,
+    instance: Option<Instance>,
+    reals: Vec<f64>,
+    integers: Vec<i32>,
+    booleans: Vec<i32>,
+    read: Vec<f64>,
+}
+
+/// A failed FMI call: the outcome it maps to and what the FMU said.
+struct Stop(Outcome, String);
+
+fn failed(call: &str, status: Status) -> Stop {
+    let outcome = if status == Status::Discard {
+        Outcome::Discard
+    } else {
+        Outcome::Error
+    };
+    Stop(outcome, format!("{call} returned {status:?}"))
+}
+
+impl Runner {
+    pub fn new(library: Rc<Library>) -> Self {
+        Runner {
+            library,
+            instance: None,
+            reals: Vec::new(),
+            integers: Vec::new(),
+            booleans: Vec::new(),
+            read: Vec::new(),
+        }
+    }
+
+    /// A fresh instance for a new point: the kept one reset, or a new one.
+    fn fresh_instance(&mut self) -> Result<&mut Instance, Stop> {
+        if let Some(instance) = self.instance.as_mut() {
+            if instance.reset().proceeds() {
+                return Ok(self.instance.as_mut().expect("kept above"));
+            }
+            self.instance = None;
+        }
+        let instance = Instance::new(&self.library).map_err(|m| Stop(Outcome::Error, m))?;
+        Ok(self.instance.insert(instance))
+    }
+
+    /// Reset, set up, set the point's values and inputs at the start; with `initialise`,
+    /// also leave initialisation mode.
+    fn prepare(
+        &mut self,
+        plan: &Plan,
+        assignments: &mut Assignments,
+        row: &[f64],
+        initialise: bool,
+    ) -> Result<(), Stop> {
+        assignments.fill(row).map_err(|m| Stop(Outcome::Error, m))?;
+        let instance = self.fresh_instance()?;
+        let s = instance.setup_experiment(plan.tolerance, plan.start, plan.stop);
+        if !s.proceeds() {
+            return Err(failed("fmi2SetupExperiment", s));
+        }
+        let s = instance.enter_initialization_mode();
+        if !s.proceeds() {
+            return Err(failed("fmi2EnterInitializationMode", s));
+        }
+        let s = assignments.apply(instance);
+        if !s.proceeds() {
+            return Err(failed("setting the point's values", s));
+        }
+        for input in &plan.inputs {
+            let s = instance.set_real(&[input.value_reference], &[input.at(plan.start)]);
+            if !s.proceeds() {
+                return Err(failed("setting an input", s));
+            }
+        }
+        if initialise {
+            let s = instance.exit_initialization_mode();
+            if !s.proceeds() {
+                return Err(failed("fmi2ExitInitializationMode", s));
+            }
+        }
+        Ok(())
+    }
+
+    /// Read every metric and series variable into `self.read`.
+    fn read(&mut self, plan: &Plan) -> Result<(), Stop> {
+        let r = &plan.reads;
+        let n = r.len();
+        self.reals.resize(r.real.len(), 0.0);
+        self.integers.resize(r.integer.len(), 0);
+        self.booleans.resize(r.boolean.len(), 0);
+        self.read.resize(n, 0.0);
+        let instance = self.instance.as_mut().expect("prepared");
+        for (s, call) in [
+            (instance.get_real(&r.real, &mut self.reals), "fmi2GetReal"),
+            (
+                instance.get_integer(&r.integer, &mut self.integers),
+                "fmi2GetInteger",
+            ),
+            (
+                instance.get_boolean(&r.boolean, &mut self.booleans),
+                "fmi2GetBoolean",
+            ),
+        ] {
+            if !s.proceeds() {
+                return Err(failed(call, s));
+            }
+        }
+        let values = self
+            .reals
+            .iter()
+            .copied()
+            .chain(self.integers.iter().map(|&i| i as f64))
+            .chain(self.booleans.iter().map(|&b| (b != 0) as i32 as f64));
+        for (slot, x) in self.read.iter_mut().zip(values) {
+            *slot = x;
+        }
+        Ok(())
+    }
+
+    fn record(&mut self, plan: &mut Plan, k: u64, result: &mut PointResult) -> Result<(), Stop> {
+        self.read(plan)?;
+        let t = plan.time(k);
+        if let Some(i) = self.read.iter().position(|x| !x.is_finite()) {
+            return Err(Stop(
+                Outcome::Error,
+                format!(
+                    "the FMU reported {} = {} at t = {t} with a successful status",
+                    plan.read_names[i], self.read[i]
+                ),
+            ));
+        }
+        for (slot, acc) in plan.metrics.iter_mut() {
+            acc.push(t, self.read[*slot]);
+        }
+        if let Some((slots, every)) = &plan.series {
+            if k.is_multiple_of(*every) || k == plan.n_steps {
+                result.series.push(t);
+                result.series.extend(slots.iter().map(|&s| self.read[s]));
+            }
+        }
+        result.t_end = t;
+        Ok(())
+    }
+
+    fn simulate(
+        &mut self,
+        plan: &mut Plan,
+        assignments: &mut Assignments,
+        row: &[f64],
+        result: &mut PointResult,
+        started: Instant,
+    ) -> Result<(), Stop> {
+        self.prepare(plan, assignments, row, true)?;
+        self.record(plan, 0, result)?;
+        let mut inputs_now: Vec<f64> = plan.inputs.iter().map(|i| i.at(plan.start)).collect();
+        for k in 0..plan.n_steps {
+            let (t, t_next) = (plan.time(k), plan.time(k + 1));
+            let instance = self.instance.as_mut().expect("prepared");
+            for (input, now) in plan.inputs.iter().zip(inputs_now.iter_mut()) {
+                let u = input.at(t);
+                // Set only a changed value: a set restarts many FMUs' integrators.
+                if u.to_bits() != now.to_bits() {
+                    let s = instance.set_real(&[input.value_reference], &[u]);
+                    if !s.proceeds() {
+                        return Err(failed("setting an input", s));
+                    }
+                    *now = u;
+                }
+            }
+            let s = instance.do_step(t, t_next - t);
+            if !s.proceeds() {
+                return Err(failed(&format!("fmi2DoStep at t = {t}"), s));
+            }
+            result.steps = k + 1;
+            self.record(plan, k + 1, result)?;
+            if let Some(budget) = plan.timeout_s {
+                if started.elapsed().as_secs_f64() > budget {
+                    return Err(Stop(
+                        Outcome::Timeout,
+                        format!("over the budget of {budget} s per point at t = {t_next}"),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    pub fn run_point(
+        &mut self,
+        plan: &mut Plan,
+        assignments: &mut Assignments,
+        row: &[f64],
+    ) -> PointResult {
+        let started = Instant::now();
+        messages::take();
+        for (_, acc) in plan.metrics.iter_mut() {
+            acc.clear();
+        }
+        let mut result = PointResult {
+            outcome: Outcome::Ok,
+            message: String::new(),
+            metrics: Vec::new(),
+            t_end: plan.start,
+            steps: 0,
+            wall_s: 0.0,
+            series: Vec::new(),
+        };
+        let ended = self.simulate(plan, assignments, row, &mut result, started);
+        let said = messages::take();
+        match ended {
+            Ok(()) => {
+                result.metrics = plan.metrics.iter().map(|(_, a)| a.value()).collect();
+                result.message = said;
+            }
+            Err(Stop(outcome, what)) => {
+                result.outcome = outcome;
+                result.message = if said.is_empty() {
+                    what
+                } else {
+                    format!("{what}: {said}")
+                };
+                result.metrics = vec![None; plan.metrics.len()];
+                // An instance that failed may be unusable; make a new one next time.
+                if outcome == Outcome::Error {
+                    self.instance = None;
+                }
+            }
+        }
+        result.wall_s = started.elapsed().as_secs_f64();
+        result
+    }
+
+    /// Set the point's values in initialisation mode and report what the FMU says,
+    /// without running: the sweep's check of a design against the FMU's own rules.
+    pub fn check_point(
+        &mut self,
+        plan: &Plan,
+        assignments: &mut Assignments,
+        row: &[f64],
+    ) -> (Outcome, String) {
+        messages::take();
+        let checked = self.prepare(plan, assignments, row, false);
+        let said = messages::take();
+        match checked {
+            Ok(()) => (Outcome::Ok, String::new()),
+            Err(Stop(outcome, what)) => {
+                self.instance = None;
+                (
+                    outcome,
+                    if said.is_empty() {
+                        what
+                    } else {
+                        format!("{what}: {said}")
+                    },
+                )
+            }
+        }
+    }
+
+    /// The plainest master loop over the same points, for the benchmark: reset,
+    /// initialise, then fmi2DoStep and one read of the same variables per step; no
+    /// metrics, no checks beyond the status. Returns the seconds it took.
+    pub fn bare(
+        &mut self,
+        plan: &Plan,
+        assignments: &mut Assignments,
+        rows: &[Vec<f64>],
+    ) -> Result<f64, String> {
+        let started = Instant::now();
+        for row in rows {
+            self.prepare(plan, assignments, row, true)
+                .map_err(|Stop(_, m)| m)?;
+            let instance = self.instance.as_mut().expect("prepared");
+            self.reals.resize(plan.reads.real.len(), 0.0);
+            self.integers.resize(plan.reads.integer.len(), 0);
+            for k in 0..plan.n_steps {
+                let (t, t_next) = (plan.time(k), plan.time(k + 1));
+                if !instance.do_step(t, t_next - t).proceeds() {
+                    return Err(format!("fmi2DoStep failed at t = {t}"));
+                }
+                instance.get_real(&plan.reads.real, &mut self.reals);
+                instance.get_integer(&plan.reads.integer, &mut self.integers);
+            }
+        }
+        Ok(started.elapsed().as_secs_f64())
+    }
+}

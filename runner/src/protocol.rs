@@ -1,0 +1,183 @@
+//! The runner's requests and replies: one JSON request per line on standard input; one
+//! JSON reply per line on the protocol channel. A `run` request streams one line per
+//! point as soon as that point ends (followed by its series as raw little-endian f64 when
+//! the plan records one), so that if the FMU kills the process, the caller knows exactly
+//! which point did it: the first one without a line.
+
+use std::io::{BufRead, Write};
+use std::path::Path;
+
+use serde::Deserialize;
+use serde_json::{json, Value};
+
+use crate::description::Description;
+use crate::fmi::Library;
+use crate::plan::{Plan, PlanSpec};
+use crate::point::{Assignments, Runner};
+
+#[derive(Deserialize)]
+#[serde(tag = "op", rename_all = "snake_case", deny_unknown_fields)]
+enum Request {
+    /// The model description as JSON.
+    Describe,
+    /// The plan for the following requests.
+    Configure { plan: PlanSpec },
+    /// Run each row: `names` are the columns (parameters or inputs set at the start).
+    Run {
+        names: Vec<String>,
+        rows: Vec<Vec<f64>>,
+    },
+    /// Set each row's values in initialisation mode only: what does the FMU refuse?
+    Check {
+        names: Vec<String>,
+        rows: Vec<Vec<f64>>,
+    },
+    /// Time the plainest master loop over the rows.
+    Bare {
+        names: Vec<String>,
+        rows: Vec<Vec<f64>>,
+    },
+}
+
+pub struct Session {
+    description: Description,
+    runner: Runner,
+    plan: Option<Plan>,
+}
+
+impl Session {
+    pub fn open(dir: &Path) -> Result<Self, String> {
+        let description = Description::read(dir)?;
+        let library = Library::load(dir, &description)?;
+        Ok(Session {
+            description,
+            runner: Runner::new(library),
+            plan: None,
+        })
+    }
+
+    /// Serve requests until standard input closes.
+    pub fn serve(&mut self, input: impl BufRead, out: &mut impl Write) -> std::io::Result<()> {
+        for line in input.lines() {
+            let line = line?;
+            if line.trim().is_empty() {
+                continue;
+            }
+            match serde_json::from_str::<Request>(&line) {
+                Ok(request) => self.answer(request, out)?,
+                Err(e) => reply(out, &json!({"error": format!("malformed request: {e}")}))?,
+            }
+            out.flush()?;
+        }
+        Ok(())
+    }
+
+    fn answer(&mut self, request: Request, out: &mut impl Write) -> std::io::Result<()> {
+        match request {
+            Request::Describe => reply(out, &json!({"description": self.description})),
+            Request::Configure { plan } => match Plan::resolve(plan, &self.description) {
+                Ok(plan) => {
+                    let columns: Vec<_> = plan.read_names.clone();
+                    self.plan = Some(plan);
+                    reply(out, &json!({"configured": true, "reads": columns}))
+                }
+                Err(e) => {
+                    self.plan = None;
+                    reply(out, &json!({"error": e}))
+                }
+            },
+            Request::Run { names, rows } => self.run(&names, &rows, out),
+            Request::Check { names, rows } => self.check(&names, &rows, out),
+            Request::Bare { names, rows } => {
+                let answer = self
+                    .prepared(&names, &rows)
+                    .and_then(|(plan, runner, mut a)| runner.bare(plan, &mut a, &rows));
+                match answer {
+                    Ok(seconds) => reply(out, &json!({"seconds": seconds, "points": rows.len()})),
+                    Err(e) => reply(out, &json!({"error": e})),
+                }
+            }
+        }
+    }
+
+    /// The plan, the runner and the request's assignments, borrowed apart.
+    fn prepared(
+        &mut self,
+        names: &[String],
+        rows: &[Vec<f64>],
+    ) -> Result<(&mut Plan, &mut Runner, Assignments), String> {
+        let plan = self
+            .plan
+            .as_mut()
+            .ok_or("no plan: send a configure request first")?;
+        if let Some(row) = rows.iter().find(|r| r.len() != names.len()) {
+            return Err(format!(
+                "a row has {} values for {} names",
+                row.len(),
+                names.len()
+            ));
+        }
+        let assignments = Assignments::new(&self.description, plan, names)?;
+        Ok((plan, &mut self.runner, assignments))
+    }
+
+    fn run(
+        &mut self,
+        names: &[String],
+        rows: &[Vec<f64>],
+        out: &mut impl Write,
+    ) -> std::io::Result<()> {
+        let (plan, runner, mut assignments) = match self.prepared(names, rows) {
+            Ok(p) => p,
+            Err(e) => return reply(out, &json!({"error": e})),
+        };
+        for (i, row) in rows.iter().enumerate() {
+            let r = runner.run_point(plan, &mut assignments, row);
+            let width = plan.series.as_ref().map_or(0, |(slots, _)| slots.len() + 1);
+            reply(
+                out,
+                &json!({
+                    "i": i,
+                    "status": r.outcome.name(),
+                    "message": r.message,
+                    "metrics": r.metrics,
+                    "t_end": r.t_end,
+                    "steps": r.steps,
+                    "wall_s": r.wall_s,
+                    "series_rows": r.series.len().checked_div(width).unwrap_or(0),
+                }),
+            )?;
+            if !r.series.is_empty() {
+                let bytes: Vec<u8> = r.series.iter().flat_map(|x| x.to_le_bytes()).collect();
+                out.write_all(&bytes)?;
+            }
+            out.flush()?;
+        }
+        reply(out, &json!({"done": rows.len()}))
+    }
+
+    fn check(
+        &mut self,
+        names: &[String],
+        rows: &[Vec<f64>],
+        out: &mut impl Write,
+    ) -> std::io::Result<()> {
+        let (plan, runner, mut assignments) = match self.prepared(names, rows) {
+            Ok(p) => p,
+            Err(e) => return reply(out, &json!({"error": e})),
+        };
+        let results: Vec<Value> = rows
+            .iter()
+            .map(|row| {
+                let (outcome, message) = runner.check_point(plan, &mut assignments, row);
+                json!({"status": outcome.name(), "message": message})
+            })
+            .collect();
+        reply(out, &json!({"checked": results}))
+    }
+}
+
+fn reply(out: &mut impl Write, value: &Value) -> std::io::Result<()> {
+    serde_json::to_writer(&mut *out, value)?;
+    out.write_all(b"\n")
+}
