@@ -135,7 +135,8 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
               batch_size: int | None = None, progress: bool = True, plots: bool = True):
     """Run a sweep and return its ``Results`` (see ``fmusweep.results``).
 
-    spec: a TOML path, a dict, or a Spec. fmu: the FMU's path when the spec names none.
+    spec: a TOML path, a dict, or a Spec. fmu: the FMU's path, over the spec's own
+    (default: the spec's, else $FMUSWEEP_FMU).
     out: the output directory (default ``sweep-<digest>`` here). workers: LocalCluster
     size (default: every core). scheduler: the address of an existing Dask scheduler
     (``tcp://host:8786``) instead of a LocalCluster. serial: no Dask, this process only.
@@ -143,9 +144,10 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     """
     started = time.perf_counter()
     spec = Spec.load(spec)
-    fmu_path = fmu or spec.fmu
-    if fmu_path is None:
-        raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\") or pass fmu=")
+    fmu_path = fmu or spec.fmu or os.environ.get("FMUSWEEP_FMU")
+    if not fmu_path:
+        raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), pass fmu=, "
+                               "or set FMUSWEEP_FMU")
     fmu_bytes = FmuBytes.read(fmu_path)
     local = local_runner(fmu_bytes)
     description = local.describe()

@@ -22,12 +22,19 @@ def worker_name() -> str:
 
 def run_batch(fmu: FmuBytes, plan: dict, names: list[str], rows: np.ndarray,
               points: np.ndarray) -> dict:
-    trace = os.environ.get("FMUSWEEP_TRACE")
-    if trace:
-        # An audit of the batches started (one line each), to count recomputation.
-        with open(trace, "a") as f:
-            f.write(f"{int(points[0])} {len(points)}\n")
+    _trace("start", points)
     runner = local_runner(fmu)
     if runner.plan != plan:
         runner.configure(plan)
-    return {"points": points, "results": runner.run(names, rows), "worker": worker_name()}
+    results = runner.run(names, rows)
+    _trace("end", points)
+    return {"points": points, "results": results, "worker": worker_name()}
+
+
+def _trace(event: str, points):
+    """With $FMUSWEEP_TRACE naming a file, an audit line per batch started and ended
+    (event, first point, count): how the tests count recomputation after a kill."""
+    trace = os.environ.get("FMUSWEEP_TRACE")
+    if trace:
+        with open(trace, "a") as f:
+            f.write(f"{event} {int(points[0])} {len(points)}\n")

@@ -1,0 +1,253 @@
+"""The sweep (fmusweep and its native runner) against FMPy and by hand, on the packed
+FMU and on a small C FMU that fails on purpose."""
+
+import copy
+
+import numpy as np
+import pytest
+from fmpy import read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+import fmusweep
+from fmusweep import SpecError, native, run_sweep
+from sweep_helpers import PAPER_LAWS, faulty_fmu, grid_spec
+
+
+def test_a_grid_runs_and_a_point_that_cannot_assemble_is_a_row(fmu_path, tmp_path):
+    results = run_sweep(grid_spec(), fmu=fmu_path, out=tmp_path / "out", serial=True,
+                        progress=False)
+    p = results.points
+    assert len(p) == 12 and list(p["point"]) == list(range(12))
+    bad = p[p["L"] == 1.2]
+    assert (bad["status"] == "error").all(), bad[["status", "message"]]
+    assert bad["message"].str.contains("L").all()
+    assert bad["peak_rod_force"].isna().all()
+    good = p[p["L"] != 1.2]
+    assert (good["status"] == "ok").all()
+    assert (good["peak_rod_force"] > 10).all() and (good["n_rhs"] > 100).all()
+    assert p["point_id"].nunique() == 12
+    # A heatmap per metric; the unassemblable row shows as missing cells.
+    assert sorted(path.name for path in results.plots) == [
+        "heatmap_n_rhs.png", "heatmap_omega1_ripple.png", "heatmap_peak_rod_force.png"]
+    assert all(path.stat().st_size > 10_000 for path in results.plots)
+    again = fmusweep.load_results(tmp_path / "out")
+    assert again.points.drop(columns=["wall_s", "worker"]).equals(p.drop(columns=["wall_s", "worker"]))
+
+
+def _broken(change):
+    spec = grid_spec()
+    change(spec)
+    return spec
+
+
+SPEC_ERRORS = {
+    "design.parameters.Jx": lambda s: s["design"]["parameters"].update(Jx={"values": [1.0]}),
+    "design.parameters.J1": lambda s: s["design"]["parameters"].update(J1={"values": [0.5, -1.0]}),
+    "design.parameters.k34.values": lambda s: s["design"]["parameters"].update(k34={"values": []}),
+    "design.parameters.k34.linspace": lambda s: s["design"]["parameters"].update(k34={"linspace": [1, 2]}),
+    "design.parameters.phi1": lambda s: s["design"]["parameters"].update(phi1={"values": [0.0]}),
+    "design.parameters.solver": lambda s: s["design"]["parameters"].update(solver={"values": [1.5]}),
+    "design.parameters": lambda s: s["design"].update(parameters={}),
+    "design.kind": lambda s: s["design"].update(kind="random"),
+    "design.samples": lambda s: s["design"].update(kind="sobol", seed=1, samples=100, parameters={
+        "J1": {"range": [0.1, 1.0]}}),
+    "design.parameters.J1.range": lambda s: s["design"].update(kind="lhs", seed=1, samples=10, parameters={
+        "J1": {"range": [1.0, 0.1]}}),
+    "design.seed": lambda s: s["design"].update(kind="lhs", samples=10, parameters={
+        "J1": {"range": [0.1, 1.0]}}),
+    "outputs.metrics.peak_rod_force.variable": lambda s: s["outputs"]["metrics"]["peak_rod_force"].update(
+        variable="rod_forc"),
+    "outputs.metrics.n_rhs.kind": lambda s: s["outputs"]["metrics"]["n_rhs"].update(kind="median"),
+    "outputs.series.interval": lambda s: s["outputs"].update(series={"variables": ["phi1"], "interval": 0.015}),
+    "scenario.step": lambda s: s["scenario"].update(step=0.03),
+    "scenario.stpo": lambda s: s["scenario"].update(stpo=3),
+    "scenario.parameters": lambda s: s["scenario"]["parameters"].update(k12=-5.0),
+    "scenario.inputs.phi1": lambda s: s["scenario"].update(inputs={"phi1": 1.0}),
+    "scenario.inputs.M_m.times": lambda s: s["scenario"].update(inputs={"M_m": {"times": [1, 0],
+                                                                                "values": [0, 1]}}),
+}
+
+
+@pytest.mark.parametrize("field", sorted(SPEC_ERRORS))
+def test_a_broken_spec_is_refused_before_anything_runs_naming_the_field(fmu_path, tmp_path, field):
+    spec = _broken(SPEC_ERRORS[field])
+    with pytest.raises(SpecError) as refused:
+        run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False)
+    assert refused.value.field == field, str(refused.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_fmus_own_rule_is_in_the_message(fmu_path, tmp_path):
+    spec = _broken(SPEC_ERRORS["design.parameters.J1"])
+    with pytest.raises(SpecError, match=r"J1 = -1 .*must be > 0"):
+        run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False)
+
+
+def _fmpy_series(unzipped, points, names, stop, step, variables):
+    """The same master loop in FMPy: one instance, reset between points, the same calls."""
+    md = read_model_description(unzipped)
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName="fmpy")
+    slave.instantiate()
+    n = round(stop / step)
+    times = [k * step for k in range(n)] + [stop]
+    real = [vr[v] for v in variables if v != "n_rhs"]
+    runs = []
+    for i, row in enumerate(points):
+        if i:
+            slave.reset()
+        slave.setupExperiment(tolerance=1e-8, startTime=0.0, stopTime=stop)
+        slave.enterInitializationMode()
+        values = dict(PAPER_LAWS, **dict(zip(names, row)))
+        slave.setReal([vr[k] for k in values], list(values.values()))
+        slave.exitInitializationMode()
+        rows = []
+        for k in range(n + 1):
+            if k:
+                slave.doStep(times[k - 1], times[k] - times[k - 1])
+            rows.append([times[k]] + slave.getReal(real) + [float(slave.getInteger([vr["n_rhs"]])[0])])
+        runs.append(np.array(rows))
+    slave.terminate()
+    slave.freeInstance()
+    return runs
+
+
+def test_runner_and_fmpy_agree_to_the_last_bit_and_metrics_match_a_hand_computation(
+        fmu_path, unzipped, tmp_path):
+    spec = grid_spec(stop=3.0, k34={"values": [60.0, 250.0]}, L={"values": [0.55, 0.8]})
+    spec["design"] = {"kind": "list", "parameters": {"k34": {"values": [60.0, 250.0, 900.0]},
+                                                     "L": {"values": [0.55, 0.8, 0.7]}}}
+    spec["outputs"]["metrics"].update({
+        "omega1_mean": {"variable": "omega1", "kind": "mean", "from": 0.5, "to": 2.5},
+        "omega1_rms": {"variable": "omega1", "kind": "rms", "from": 0.5, "to": 2.5},
+        "phi1_final": {"variable": "phi1", "kind": "final"},
+        "rod_force_min": {"variable": "rod_force", "kind": "min"},
+        "rod_force_max": {"variable": "rod_force", "kind": "max"},
+    })
+    variables = ["rod_force", "omega1", "phi1", "n_rhs"]
+    spec["outputs"]["series"] = {"variables": variables, "interval": 0.01}
+    results = run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False,
+                        plots=False)
+    series = results.series()
+    names = ["k34", "L"]
+    theirs = _fmpy_series(unzipped, results.points[names].to_numpy(), names, 3.0, 0.01, variables)
+    for point, fmpy_run in enumerate(theirs):
+        ours = series[series["point"] == point].pivot(index="time", columns="variable", values="value")
+        np.testing.assert_array_equal(ours.index.to_numpy(), fmpy_run[:, 0])
+        for j, name in enumerate(variables):
+            np.testing.assert_array_equal(ours[name].to_numpy(), fmpy_run[:, j + 1], err_msg=name)
+        t, force, omega1, phi1, n_rhs = fmpy_run.T
+        row = results.points.iloc[point]
+        assert row["peak_rod_force"] == np.max(np.abs(force))
+        assert row["rod_force_min"] == np.min(force) and row["rod_force_max"] == np.max(force)
+        late = t >= 1.0 - 1e-9
+        assert row["omega1_ripple"] == np.ptp(omega1[late])
+        assert row["phi1_final"] == phi1[-1] and row["n_rhs"] == n_rhs[-1]
+        window = (t >= 0.5 - 1e-9) & (t <= 2.5 + 1e-9)
+        span = t[window][-1] - t[window][0]
+        # The runner sums the trapezoids in time order; numpy sums pairwise: the two
+        # agree to rounding.
+        mean = np.trapezoid(omega1[window], t[window]) / span
+        rms = np.sqrt(np.trapezoid(omega1[window] ** 2, t[window]) / span)
+        assert row["omega1_mean"] == pytest.approx(mean, rel=1e-13, abs=0)
+        assert row["omega1_rms"] == pytest.approx(rms, rel=1e-13, abs=0)
+
+
+def test_series_are_decimated_to_the_interval(fmu_path, tmp_path):
+    spec = grid_spec(stop=1.0, k34={"values": [100.0, 200.0]})
+    spec["outputs"]["series"] = {"variables": ["phi1", "omega4"], "interval": 0.25}
+    results = run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False,
+                        plots=False)
+    series = results.series()
+    assert len(series) == 2 * 2 * 5
+    np.testing.assert_array_equal(np.unique(series["time"]), [0.0, 0.25, 0.5, 0.75, 1.0])
+    assert set(series["variable"]) == {"phi1", "omega4"}
+
+
+@pytest.fixture(scope="module")
+def faulty(tmp_path_factory):
+    return faulty_fmu(tmp_path_factory.mktemp("faulty"))
+
+
+FAULTY = {"scenario": {"stop": 1.0, "step": 0.01, "timeout": 0.05},
+          "outputs": {"metrics": {"y_final": {"variable": "y", "kind": "final"}}}}
+
+
+def test_each_failure_is_one_row_and_the_others_finish(faulty, tmp_path, monkeypatch):
+    # The hung step (x = 7) is killed after 2 × 0.05 s + this grace.
+    monkeypatch.setattr(native, "HARD_DEADLINE_GRACE_S", 0.5)
+    xs = [1.0, 13.0, 2.0, 5.0, 3.0, 7.0, 21.0, 4.0, 13.0, 6.0]
+    spec = dict(FAULTY, design={"kind": "list", "parameters": {"x": {"values": xs}}})
+    results = run_sweep(spec, fmu=faulty, out=tmp_path / "out", serial=True, progress=False,
+                        plots=False)
+    p = results.points.set_index("x")
+    status = results.points["status"].tolist()
+    assert status == ["ok", "crashed", "ok", "discard", "timeout", "timeout", "ok", "ok",
+                      "crashed", "ok"]
+    assert p.loc[13.0, "message"].str.contains("SIGSEGV").all()
+    assert "x = 5 cannot pass t = 0.5" in p.loc[5.0, "message"]
+    assert "budget" in p.loc[3.0, "message"] and "killed" in p.loc[7.0, "message"]
+    # The survivors' values are right: y = x·t at t = 1, even after a crash and a kill.
+    for x in (1.0, 2.0, 21.0, 4.0, 6.0):
+        assert p.loc[x, "y_final"] == x
+
+
+def test_a_value_the_fmu_refuses_is_a_spec_error(faulty, tmp_path):
+    spec = dict(FAULTY, design={"kind": "list", "parameters": {"x": {"values": [1.0, -2.0]}}})
+    with pytest.raises(SpecError, match="x = -2.*x must be >= 0") as refused:
+        run_sweep(spec, fmu=faulty, out=tmp_path / "out", serial=True, progress=False)
+    assert refused.value.field == "design.parameters.x"
+
+
+ISHIGAMI_S1 = [0.3139, 0.4424, 0.0]
+ISHIGAMI_ST = [0.5576, 0.4424, 0.2437]
+
+
+def test_sobol_indices_recover_ishigami():
+    spec = fmusweep.Spec.from_dict({
+        "scenario": {"stop": 1.0, "step": 1.0},
+        "design": {"kind": "sobol", "seed": 3, "samples": 4096, "parameters": {
+            name: {"range": [-np.pi, np.pi]} for name in ("x1", "x2", "x3")}},
+        "outputs": {"metrics": {"f": {"variable": "f", "kind": "final"}}},
+    }, ".")
+    design = fmusweep.generate(spec)
+    x1, x2, x3 = design.rows.T
+    f = np.sin(x1) + 7 * np.sin(x2) ** 2 + 0.1 * x3 ** 4 * np.sin(x1)
+    s = fmusweep.sobol_indices(design.problem, f, seed=3)
+    for key, known in (("S1", ISHIGAMI_S1), ("ST", ISHIGAMI_ST)):
+        error = np.abs(np.array(s[key]) - known)
+        assert np.all(error <= np.array(s[f"{key}_conf"])), (key, s[key], s[f"{key}_conf"])
+
+
+def test_sobol_on_the_fmu_finds_a_parameter_without_effect(fmu_path, tmp_path):
+    # phi3_guess only picks the assembly; over this range it is always the same one.
+    spec = {
+        "scenario": {"stop": 2.0, "step": 0.01, "tolerance": 1e-8, "parameters": PAPER_LAWS},
+        "design": {"kind": "sobol", "seed": 7, "samples": 64, "parameters": {
+            "J1": {"range": [0.3, 0.8]}, "k34": {"range": [50.0, 300.0]},
+            "phi3_guess": {"range": [1.2, 1.9]}}},
+        "outputs": {"metrics": {"peak_rod_force": {"variable": "rod_force", "kind": "peak_abs"}}},
+    }
+    results = run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False)
+    s = results.sensitivity["peak_rod_force"]
+    assert s["names"] == ["J1", "k34", "phi3_guess"]
+    assert abs(s["ST"][2]) < 1e-12 and abs(s["S1"][2]) < 1e-12, s
+    # k34 dominates the peak force; J1 matters a little (ST 0.025 ± 0.014 at this seed).
+    assert s["ST"][1] > 0.5 and s["ST"][0] > 0.005
+    assert [path.name for path in results.plots] == ["scatter.png", "sobol_peak_rod_force.png"]
+
+
+def test_latin_hypercube_is_seeded_and_within_its_ranges():
+    raw = {"scenario": {"stop": 1.0, "step": 1.0},
+           "design": {"kind": "lhs", "seed": 11, "samples": 50, "parameters": {
+               "a": {"range": [1.0, 2.0]}, "b": {"range": [1e-3, 1e3], "log": True}}},
+           "outputs": {"metrics": {"m": {"variable": "v", "kind": "max"}}}}
+    one = fmusweep.generate(fmusweep.Spec.from_dict(raw, "."))
+    two = fmusweep.generate(fmusweep.Spec.from_dict(copy.deepcopy(raw), "."))
+    np.testing.assert_array_equal(one.rows, two.rows)
+    a, b = one.rows.T
+    assert a.min() >= 1 and a.max() <= 2 and b.min() >= 1e-3 and b.max() <= 1e3
+    # One sample per stratum: each tenth of a's range holds exactly five points.
+    assert np.all(np.bincount(np.floor((a - 1) * 10).astype(int), minlength=10) == 5)
+    assert np.all(np.bincount(np.floor((np.log10(b) + 3) / 0.6).astype(int), minlength=10) == 5)
