@@ -22,7 +22,7 @@ from .check import check_against_fmu
 from .fmu import FmuBytes, local_runner
 from .spec import Spec, SpecError
 from .store import FORMAT, ResultStore
-from .worker import run_batch
+from .worker import prepare_worker, run_batch
 
 __all__ = ["run_sweep", "SweepReport", "BATCH_SECONDS"]
 
@@ -47,6 +47,8 @@ class SweepReport:
     engine: str
     wall_s: float
     point_seconds: float  # the sum of the points' own wall times
+    startup_s: float = 0.0  # connecting to (or starting) the cluster, shipping the FMU
+    dispatch_s: float = 0.0  # from the first task submitted to the last batch saved
     statuses: dict = field(default_factory=dict)
 
 
@@ -84,20 +86,26 @@ def _tables(spec: Spec, names, rows, ids, batch) -> tuple[pa.Table, pa.Table | N
     columns["worker"] = pa.array([batch["worker"]] * len(results), pa.string())
     series = None
     if spec.series_variables:
-        parts = []
-        for p, r in zip(points, results):
-            s = r.get("series")
-            if s is None or not len(s):
-                continue
-            n_t, n_v = s.shape[0], len(spec.series_variables)
-            parts.append(pa.table({
-                "point": pa.array(np.full(n_t * n_v, p, dtype=np.int64)),
-                "variable": pa.array(np.repeat(np.array(spec.series_variables), n_t)),
-                "time": pa.array(np.tile(s[:, 0], n_v)),
-                "value": pa.array(s[:, 1:].T.reshape(-1)),
-            }))
-        series = pa.concat_tables(parts) if parts else None
+        runs = [(p, r["series"]) for p, r in zip(points, results) if r.get("series") is not None]
+        if runs:
+            series = _long_form(runs, spec.series_variables)
     return pa.table(columns), series
+
+
+def _long_form(runs, variables) -> pa.Table:
+    """Series rows (t, v1, v2, …) of each point as one long table: point, variable,
+    time, value; the variable column dictionary-encoded (one byte a row, not a string)."""
+    n_v = len(variables)
+    lengths = np.array([len(s) for _, s in runs])
+    stacked = np.concatenate([s for _, s in runs])  # (rows, 1 + n_v)
+    point = np.repeat(np.array([p for p, _ in runs], dtype=np.int64), lengths)
+    which = np.repeat(np.arange(n_v, dtype=np.int8), len(stacked))
+    return pa.table({
+        "point": pa.array(np.tile(point, n_v)),
+        "variable": pa.DictionaryArray.from_arrays(pa.array(which), pa.array(variables)),
+        "time": pa.array(np.tile(stacked[:, 0], n_v)),
+        "value": pa.array(stacked[:, 1:].T.reshape(-1)),
+    })
 
 
 def _batch_size(requested, per_point_s: float, remaining: int, workers: int) -> int:
@@ -183,7 +191,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         bar.update(batch["results"])
 
     n_workers = 1 if serial else (workers or os.cpu_count() or 1)
-    size, batches = 0, 0
+    size, batches, startup_s, dispatch_s = 0, 0, 0.0, 0.0
     try:
         if len(todo):
             # Calibrate the batch size on the first points, here; they are kept.
@@ -196,11 +204,13 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
             chunks = [todo[i:i + size] for i in range(0, len(todo), size)]
             batches = len(chunks) + 1
             if serial:
+                t0 = time.perf_counter()
                 for chunk in chunks:
                     keep(run_batch(fmu_bytes, plan, names, rows[chunk], chunk))
+                dispatch_s = time.perf_counter() - t0
             else:
-                n_workers = _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers,
-                                         scheduler, digest)
+                n_workers, startup_s, dispatch_s = _run_on_dask(
+                    fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler, digest)
     finally:
         bar.close()
     table = store.consolidate()
@@ -208,7 +218,8 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         out=str(store.out), points=len(rows), computed=sum(statuses.values()),
         resumed=len(done), batch_size=size, batches=batches, workers=n_workers,
         engine="serial" if serial else (scheduler or "LocalCluster"),
-        wall_s=time.perf_counter() - started, point_seconds=point_seconds, statuses=statuses)
+        wall_s=time.perf_counter() - started, point_seconds=point_seconds, startup_s=startup_s,
+        dispatch_s=dispatch_s, statuses=statuses)
     from .results import Results
     results = Results(store.out, table.to_pandas(), store.meta, report)
     if plots:
@@ -216,17 +227,19 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     return results
 
 
-def _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler, digest) -> int:
+def _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler, digest):
+    """Run the chunks on Dask; returns the workers used, the start-up and dispatch times."""
     import logging
     from distributed import Client, LocalCluster, as_completed
     from distributed.scheduler import KilledWorker
 
     cluster = None
+    t0 = time.perf_counter()
     if scheduler:
         client = Client(scheduler, timeout="30s")
     else:
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                               processes=True, dashboard_address=None,
+                               processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR)
         client = Client(cluster)
     futures = []
@@ -237,6 +250,12 @@ def _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler,
             n_workers = len(client.scheduler_info()["workers"])
         # The FMU travels to every worker once; tasks carry only a reference to it.
         [fmu_future] = client.scatter([fmu_bytes], broadcast=True, hash=False)
+        # Each worker unpacks the FMU and starts its runner now, as part of start-up.
+        warm = [client.submit(prepare_worker, fmu_future, plan, workers=[address], pure=False,
+                              key=f"fmusweep-{digest[:8]}-warm-{i}")
+                for i, address in enumerate(client.scheduler_info()["workers"])]
+        client.gather(warm)
+        t1 = time.perf_counter()
         futures = [
             client.submit(run_batch, fmu_future, plan, names, rows[chunk], chunk,
                           key=f"fmusweep-{digest[:8]}-{int(chunk[0])}", pure=False)
@@ -252,7 +271,7 @@ def _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler,
                      "metrics": [None] * len(plan["metrics"]), "t_end": None, "steps": None,
                      "wall_s": None} for _ in chunk]}
             keep(batch)
-        return n_workers
+        return n_workers, t1 - t0, time.perf_counter() - t1
     finally:
         for f in futures:
             f.cancel()

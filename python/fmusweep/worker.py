@@ -4,20 +4,31 @@ or a worker of an existing cluster. It needs only this package and the FMU's byt
 from __future__ import annotations
 
 import os
+import sys
 
 import numpy as np
 
 from .fmu import FmuBytes, local_runner
 
-__all__ = ["run_batch", "worker_name"]
+__all__ = ["prepare_worker", "run_batch", "worker_name"]
 
 
 def worker_name() -> str:
-    try:
-        from distributed import get_worker
-        return str(get_worker().name)
-    except (ImportError, ValueError):
-        return f"local-{os.getpid()}"
+    # Only a process that Dask started has a worker; importing distributed costs 0.3 s.
+    if "distributed" in sys.modules:
+        try:
+            return str(sys.modules["distributed"].get_worker().name)
+        except ValueError:
+            pass
+    return f"local-{os.getpid()}"
+
+
+def prepare_worker(fmu: FmuBytes, plan: dict) -> str:
+    """Unpack the FMU, start and configure this worker's runner: the one-off costs."""
+    runner = local_runner(fmu)
+    if runner.plan != plan:
+        runner.configure(plan)
+    return worker_name()
 
 
 def run_batch(fmu: FmuBytes, plan: dict, names: list[str], rows: np.ndarray,

@@ -1,4 +1,4 @@
-//! Project tasks: `cargo xtask <fmu|demo|test|bench>`.
+//! Project tasks: `cargo xtask <fmu|demo|test|bench|sweep|wheel|bench-sweep>`.
 //!
 //! Each task installs what it needs on a fresh Debian machine: libclang for the FMI
 //! bindings (bindgen), and a Python venv in `target/venv` with the pinned packages of
@@ -16,22 +16,32 @@ const MODEL_IDENTIFIER: &str = "CyclicMechanism";
 
 fn main() {
     let task = std::env::args().nth(1).unwrap_or_default();
+    let rest: Vec<String> = std::env::args().skip(2).collect();
     let result = match task.as_str() {
         "fmu" => build_fmu().map(|fmu| println!("FMU: {}", fmu.display())),
         "demo" => demo(),
         "test" => test(),
         "bench" => bench(std::env::args().any(|a| a == "--quick")),
-        _ => Err("usage: cargo xtask <fmu|demo|test|bench>\n  fmu   build and pack target/fmu/CyclicMechanism.fmu\n  \
-                  demo  run the paper's two cases through FMPy: CSV, plots and an animation in target/demo\n  \
-                  test  run every test: cargo test, then the FMPy tests in tests/python\n  \
-                  bench the work-precision benchmark into target/bench (--quick: a small subset)"
-            .to_string()),
+        "sweep" => sweep(&rest),
+        "wheel" => build_wheel().map(|wheel| println!("wheel: {}", wheel.display())),
+        "bench-sweep" => bench_sweep(&rest),
+        _ => Err(USAGE.to_string()),
     };
     if let Err(message) = result {
         eprintln!("xtask {task}: {message}");
         std::process::exit(1);
     }
 }
+
+const USAGE: &str = "usage: cargo xtask <task>
+  fmu          build and pack target/fmu/CyclicMechanism.fmu
+  demo         run the paper's two cases through FMPy: CSV, plots and an animation in target/demo
+  test         run every test: cargo test, then the FMPy and sweep tests in tests/python
+  bench        the work-precision benchmark into target/bench (--quick: a small subset)
+  sweep SPEC   run a sweep: SPEC.toml [--workers N] [--scheduler ADDRESS] [--out DIR] [--resume]
+               (the packed FMU unless the spec names another)
+  wheel        build the fmusweep wheel (the sweep package with its native runner) in target/wheels
+  bench-sweep  the sweep benchmark into target/bench-sweep (--quick: a small subset)";
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -197,6 +207,80 @@ fn pack(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
     Ok(())
 }
 
+/// The fmusweep wheel: the native runner built in release, packed with the Python package
+/// by `python/build_wheel.py` (standard library only).
+fn build_wheel() -> Result<PathBuf> {
+    ensure_libclang()?;
+    let python = ensure_venv()?;
+    run(cargo().args(["build", "--release", "--quiet", "--package", "fmu-runner"]))?;
+    let output = Command::new(&python)
+        .arg(root().join("python/build_wheel.py"))
+        .arg(root().join("target/release/fmu-runner"))
+        .arg(root().join("target/wheels"))
+        .output()
+        .map_err(|e| format!("cannot run build_wheel.py: {e}"))?;
+    if !output.status.success() {
+        return Err(format!(
+            "build_wheel.py failed: {}",
+            String::from_utf8_lossy(&output.stderr)
+        ));
+    }
+    Ok(PathBuf::from(
+        String::from_utf8_lossy(&output.stdout).trim(),
+    ))
+}
+
+/// Build the wheel and install it in the venv, unless that very wheel is installed.
+fn ensure_sweep_package() -> Result<PathBuf> {
+    let wheel = build_wheel()?;
+    let python = ensure_venv()?;
+    let stamp = root().join("target/venv/fmusweep.installed.whl");
+    let bytes = fs::read(&wheel).map_err(|e| format!("{}: {e}", wheel.display()))?;
+    if fs::read(&stamp).is_ok_and(|installed| installed == bytes) {
+        return Ok(python);
+    }
+    println!("xtask: installing {} in the venv", wheel.display());
+    run(Command::new(&python)
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+        ])
+        .args(["--no-deps", "--force-reinstall"])
+        .arg(&wheel))?;
+    fs::write(&stamp, bytes).map_err(|e| e.to_string())?;
+    Ok(python)
+}
+
+/// `cargo xtask sweep SPEC [options]`: the packed FMU is the default FMU of the spec.
+fn sweep(args: &[String]) -> Result {
+    if args.is_empty() {
+        return Err(USAGE.to_string());
+    }
+    let fmu = build_fmu()?;
+    let python = ensure_sweep_package()?;
+    let cwd = std::env::current_dir().map_err(|e| e.to_string())?;
+    run(Command::new(python)
+        .args(["-m", "fmusweep"])
+        .args(args)
+        .env("FMUSWEEP_FMU", &fmu)
+        .current_dir(cwd))
+}
+
+fn bench_sweep(args: &[String]) -> Result {
+    let fmu = build_fmu()?;
+    let python = ensure_sweep_package()?;
+    let out = root().join("target/bench-sweep");
+    fs::create_dir_all(&out).map_err(|e| e.to_string())?;
+    run(Command::new(python)
+        .arg(root().join("bench/bench_sweep.py"))
+        .arg(&fmu)
+        .arg(&out)
+        .args(args))
+}
+
 fn demo() -> Result {
     let fmu = build_fmu()?;
     let python = ensure_venv()?;
@@ -221,7 +305,7 @@ fn test() -> Result {
         .arg(&fmu)
         .arg(&smoke)
         .args(["--quick", "--fmu-only"]))?;
-    let python = ensure_venv()?;
+    let python = ensure_sweep_package()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(root().join("tests/python"))

@@ -1,0 +1,247 @@
+"""The sweep benchmark: points per second per worker against a bare C-ABI master loop and
+FMPy's simulate_fmu, Dask's share of the wall time, scaling from 1 to 2 workers, the
+per-task cost behind the cluster sizing advice, and worker memory over 100 000 points.
+
+    python bench/bench_sweep.py <CyclicMechanism.fmu> <output directory> [--quick]
+
+Writes results.json and results.md. Every ratio comes from runs made side by side in
+this one process; absolute times depend on the machine, which the report names.
+"""
+
+import json
+import os
+import pathlib
+import platform
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from fmusweep import run_sweep
+from fmusweep.fmu import FmuBytes, local_runner
+
+PAPER_LAWS = {"Mm_a0": 100.0, "Mm_a1": -20.0, "Mm_a2": -1.0, "Mr_b0": 20.0, "Mr_b1": -0.05}
+METRICS = {"peak_rod_force": {"variable": "rod_force", "kind": "peak_abs"},
+           "omega1_ripple": {"variable": "omega1", "kind": "peak_to_peak", "from": 2.0},
+           "n_rhs": {"variable": "n_rhs", "kind": "final"}}
+
+
+def spec(points: int, stop=10.0, series=False):
+    """Paper case 1 (10 s, H = 0.01, tol 1e-8) over k34, `points` values."""
+    s = {"scenario": {"stop": stop, "step": 0.01, "tolerance": 1e-8, "parameters": PAPER_LAWS},
+         "design": {"kind": "grid", "parameters": {"k34": {"linspace": [90.0, 110.0, points]}}},
+         "outputs": {"metrics": METRICS}}
+    if series:
+        s["outputs"]["series"] = {"variables": ["rod_force", "omega1", "n_rhs"], "interval": 0.01}
+    return s
+
+
+def rows(points):
+    return np.linspace(90.0, 110.0, points)[:, None]
+
+
+def best_of(repeats, f):
+    return min(f() for _ in range(repeats))
+
+
+def per_worker_rates(fmu, n, repeats):
+    """Points/s of one worker: the bare loop, the runner through its Python client
+    (metrics only, and with every communication point's series), and simulate_fmu."""
+    runner = local_runner(FmuBytes.read(fmu))
+    plan = {"start": 0.0, "stop": 10.0, "step": 0.01, "tolerance": 1e-8, "fixed": PAPER_LAWS,
+            "metrics": [{"variable": m["variable"], "kind": m["kind"], "from": m.get("from")}
+                        for m in METRICS.values()], "series": None, "timeout_s": None}
+    runner.configure(plan)
+    r = rows(n)
+
+    def timed(f):
+        t0 = time.perf_counter()
+        f()
+        return time.perf_counter() - t0
+
+    bare = best_of(repeats, lambda: runner.bare(["k34"], r))
+    metrics = best_of(repeats, lambda: timed(lambda: runner.run(["k34"], r)))
+    runner.configure(dict(plan, series={"variables": ["rod_force", "omega1", "n_rhs"], "every": 1}))
+    series = best_of(repeats, lambda: timed(lambda: runner.run(["k34"], r)))
+    import fmpy
+    unzipped = fmpy.extract(str(fmu))
+    k = max(4, n // 50)
+
+    def simulate():
+        for k34 in r[:k, 0]:
+            fmpy.simulate_fmu(unzipped, start_values=dict(PAPER_LAWS, k34=k34), stop_time=10.0,
+                              output_interval=0.01, relative_tolerance=1e-8,
+                              output=["rod_force", "omega1", "n_rhs"])
+    simulate_fmu = best_of(max(1, repeats // 2), lambda: timed(simulate)) * n / k
+
+    def simulate_all_outputs():
+        for k34 in r[:k, 0]:
+            fmpy.simulate_fmu(unzipped, start_values=dict(PAPER_LAWS, k34=k34), stop_time=10.0,
+                              output_interval=0.01, relative_tolerance=1e-8)
+    simulate_fmu_all = best_of(max(1, repeats // 2), lambda: timed(simulate_all_outputs)) * n / k
+    # The whole sweep in this process (no Dask): spec check, calibration, Parquet parts.
+    with tempfile.TemporaryDirectory() as out:
+        whole = run_sweep(spec(n), fmu=fmu, out=pathlib.Path(out) / "s", serial=True,
+                          progress=False, plots=False).report
+    with tempfile.TemporaryDirectory() as out:
+        whole_series = run_sweep(spec(n, series=True), fmu=fmu, out=pathlib.Path(out) / "s",
+                                 serial=True, progress=False, plots=False).report
+    rate = lambda seconds: n / seconds
+    return {
+        "points": n,
+        "bare_loop": rate(bare),
+        "runner_metrics": rate(metrics),
+        "runner_series": rate(series),
+        "sweep_serial_metrics": rate(whole.dispatch_s) if whole.dispatch_s else None,
+        "sweep_serial_series": rate(whole_series.dispatch_s) if whole_series.dispatch_s else None,
+        "simulate_fmu": rate(simulate_fmu),
+        "simulate_fmu_all_outputs": rate(simulate_fmu_all),
+    }
+
+
+def dask_runs(fmu, n_scaling, n_small):
+    """Scaling 1 → 2 workers, Dask's share of the wall time, a small sweep start to end."""
+    found = {}
+    for workers in (1, 2):
+        with tempfile.TemporaryDirectory() as out:
+            rep = run_sweep(spec(n_scaling), fmu=fmu, out=pathlib.Path(out) / "s", workers=workers,
+                            progress=False, plots=False).report
+        computed = rep.computed - 4  # the calibration points run in the client
+        found[f"workers_{workers}"] = {
+            "points_per_s": computed / rep.dispatch_s, "dispatch_s": rep.dispatch_s,
+            "startup_s": rep.startup_s, "batch_size": rep.batch_size, "batches": rep.batches,
+            # Dask's share: the dispatch time the workers did not spend inside points.
+            "engine_share": 1 - rep.point_seconds * (computed / rep.computed) / workers / rep.dispatch_s,
+        }
+    found["scaling_1_to_2"] = found["workers_2"]["points_per_s"] / found["workers_1"]["points_per_s"]
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as out:
+        rep = run_sweep(spec(n_small), fmu=fmu, out=pathlib.Path(out) / "s", workers=2,
+                        progress=False, plots=False).report
+    found["small_sweep"] = {"points": n_small, "seconds_all_included": time.perf_counter() - t0,
+                            "startup_s": rep.startup_s}
+    return found
+
+
+def _noop(x):
+    return x
+
+
+def task_cost(tasks):
+    """Dask's cost per task: no-op tasks through a 2-worker LocalCluster."""
+    import logging
+    from distributed import Client, LocalCluster, wait
+    with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0",
+                      silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        wait(client.map(_noop, range(50), pure=False))
+        t0 = time.perf_counter()
+        wait(client.map(_noop, range(tasks), pure=False))
+        return (time.perf_counter() - t0) / tasks
+
+
+def rss_kib(pid):
+    for line in pathlib.Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1])
+    return 0
+
+
+def memory_growth(fmu, total):
+    """The runner's and the worker's resident memory after 10 % and after all of `total`
+    one-second points, in batches of 1000 as a worker would run them."""
+    runner = local_runner(FmuBytes.read(fmu))
+    runner.configure({"start": 0.0, "stop": 1.0, "step": 0.01, "tolerance": 1e-8,
+                      "fixed": PAPER_LAWS, "metrics": [{"variable": "rod_force", "kind": "peak_abs"}]})
+    r = rows(1000)
+    marks = {}
+    for b in range(total // 1000):
+        runner.run(["k34"], r)
+        if b + 1 in (total // 10000, total // 1000):
+            marks[b + 1] = (rss_kib(runner.process.pid), rss_kib(os.getpid()))
+    (r1, p1), (r2, p2) = marks[total // 10000], marks[total // 1000]
+    return {"points": total, "runner_rss_kib": [r1, r2], "python_rss_kib": [p1, p2],
+            "runner_growth": (r2 - r1) / r1, "python_growth": (p2 - p1) / p1}
+
+
+def machine():
+    cpu = "unknown"
+    for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
+        if line.startswith("model name"):
+            cpu = line.split(":", 1)[1].strip()
+            break
+    return f"{platform.machine()}, {os.cpu_count()} cores ({cpu}), Linux {platform.release()}"
+
+
+def report(r) -> str:
+    w = r["per_worker"]
+    bare = w["bare_loop"]
+    d = r["dask"]
+    lines = [
+        "# Sweep benchmark", "",
+        f"Machine: {r['machine']}. Paper case 1 (10 s, H = 0.01, tol 1e-8), metrics "
+        "peak |rod_force|, peak-to-peak omega1 after 2 s, n_rhs. Ratios from one run.", "",
+        "| path (one worker) | points/s | of the bare loop |", "| --- | --- | --- |",
+    ]
+    for key, label in (("bare_loop", "bare C-ABI master loop (in the runner)"),
+                       ("runner_metrics", "runner through its Python client, metrics"),
+                       ("sweep_serial_metrics", "whole sweep, serial, metrics + Parquet"),
+                       ("runner_series", "runner, series at every communication point"),
+                       ("sweep_serial_series", "whole sweep, serial, series + Parquet"),
+                       ("simulate_fmu", "FMPy simulate_fmu per point, the same 3 outputs"),
+                       ("simulate_fmu_all_outputs", "FMPy simulate_fmu per point, its default outputs")):
+        if w.get(key):
+            lines.append(f"| {label} | {w[key]:,.0f} | {w[key] / bare:.1%} |")
+    lines += ["", f"Sweep (metrics) against simulate_fmu per worker: "
+              f"{w['sweep_serial_metrics'] / w['simulate_fmu']:.0f}× (the same 3 outputs), "
+              f"{w['sweep_serial_metrics'] / w['simulate_fmu_all_outputs']:.0f}× (its default outputs).", "",
+              "| LocalCluster | points/s | batch | batches | Dask's share of the dispatch time | start-up s |",
+              "| --- | --- | --- | --- | --- | --- |"]
+    for n in (1, 2):
+        x = d[f"workers_{n}"]
+        lines.append(f"| {n} worker{'s' if n > 1 else ''} | {x['points_per_s']:,.0f} | {x['batch_size']} | "
+                     f"{x['batches']} | {x['engine_share']:.1%} | {x['startup_s']:.2f} |")
+    s = d["small_sweep"]
+    lines += ["", f"Scaling 1 → 2 workers: {d['scaling_1_to_2']:.2f}×. A {s['points']}-point sweep on "
+              f"2 workers, cluster start-up included: {s['seconds_all_included']:.2f} s.", "",
+              f"Dask's cost per task (no-op tasks, 2 workers): {r['task_cost_s'] * 1e3:.2f} ms. "
+              f"{r['cluster_advice']}", ""]
+    if "memory" in r:
+        m = r["memory"]
+        lines.append(f"Memory over {m['points']:,} one-second points: runner RSS "
+                     f"{m['runner_rss_kib'][0]} → {m['runner_rss_kib'][1]} KiB "
+                     f"({m['runner_growth']:+.1%}), worker RSS {m['python_rss_kib'][0]} → "
+                     f"{m['python_rss_kib'][1]} KiB ({m['python_growth']:+.1%}).")
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    fmu, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+    quick = "--quick" in sys.argv
+    out.mkdir(parents=True, exist_ok=True)
+    r = {"machine": machine(), "quick": quick}
+    print("bench-sweep: per-worker rates", flush=True)
+    r["per_worker"] = per_worker_rates(fmu, 200 if quick else 2000, 2 if quick else 5)
+    print("bench-sweep: Dask runs", flush=True)
+    r["dask"] = dask_runs(fmu, 1000 if quick else 8000, 1000)
+    print("bench-sweep: Dask's cost per task", flush=True)
+    r["task_cost_s"] = task_cost(300 if quick else 2000)
+    # A worker is kept busy when its batch lasts longer than the scheduler needs to serve
+    # every other worker once: batch seconds ≥ workers × cost per task.
+    busy = 64 * r["task_cost_s"]
+    per_point = 1 / r["per_worker"]["runner_metrics"]
+    r["cluster_advice"] = (
+        f"On 64 cores, batches of ≥ {busy:.2f} s keep the scheduler below one task per "
+        f"worker at a time; the default 0.5 s batches ({0.5 / per_point:,.0f} points of this case) "
+        f"leave it {busy / 0.5:.0%} busy, and 4 batches per worker need ≥ {4 * 64 * 0.5 / per_point:,.0f} points.")
+    if not quick:
+        print("bench-sweep: memory over 100 000 points", flush=True)
+        r["memory"] = memory_growth(fmu, 100_000)
+    (out / "results.json").write_text(json.dumps(r, indent=2))
+    text = report(r)
+    (out / "results.md").write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,154 @@
+"""The sweep on Dask: a LocalCluster, and a real `dask scheduler` with two `dask worker`
+processes started here on loopback, give the serial results bit for bit; a sweep whose
+client is killed half-way resumes without redoing finished batches."""
+
+import json
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
+import pyarrow.parquet as pq
+import pytest
+
+from fmusweep import run_sweep
+from sweep_helpers import environment_for_workers, faulty_fmu, grid_spec, same_results
+
+VENV_BIN = pathlib.Path(sys.executable).parent
+METRICS = ["peak_rod_force", "omega1_ripple", "n_rhs"]
+
+
+@pytest.fixture(scope="module")
+def serial_grid(fmu_path, tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial") / "out"
+    return run_sweep(grid_spec(), fmu=fmu_path, out=out, serial=True, progress=False, plots=False)
+
+
+def test_local_cluster_gives_the_serial_results(fmu_path, tmp_path, serial_grid):
+    results = run_sweep(grid_spec(), fmu=fmu_path, out=tmp_path / "out", workers=2,
+                        batch_size=2, progress=False, plots=False)
+    assert results.report.workers == 2 and results.report.engine == "LocalCluster"
+    assert same_results(results.points, serial_grid.points, METRICS)
+    # The points ran on both workers (and the calibration batch in the client).
+    assert results.points["worker"].nunique() == 3
+
+
+@pytest.fixture
+def dask_cluster(tmp_path):
+    """`dask scheduler` and two single-threaded `dask worker` processes on 127.0.0.1."""
+    scheduler_file = tmp_path / "scheduler.json"
+    env = environment_for_workers()
+    common = dict(env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                  start_new_session=True)
+    processes = [subprocess.Popen(
+        [str(VENV_BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0",
+         "--no-dashboard", "--scheduler-file", str(scheduler_file)], **common)]
+    deadline = time.monotonic() + 60
+    while not scheduler_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    address = json.loads(scheduler_file.read_text())["address"]
+    for i in range(2):
+        work = tmp_path / f"worker{i}"
+        work.mkdir()
+        processes.append(subprocess.Popen(
+            [str(VENV_BIN / "dask"), "worker", address, "--nthreads", "1", "--nworkers", "1",
+             "--no-dashboard", "--name", f"w{i}", "--local-directory", str(work)],
+            cwd=work, **common))
+    from distributed import Client
+    with Client(address) as client:
+        client.wait_for_workers(2, timeout=60)
+    yield address
+    for p in processes:
+        os.killpg(p.pid, signal.SIGTERM)
+    for p in processes:
+        p.wait(timeout=30)
+
+
+def test_a_real_scheduler_and_workers_give_the_serial_results(fmu_path, tmp_path, serial_grid,
+                                                              dask_cluster):
+    results = run_sweep(grid_spec(), fmu=fmu_path, out=tmp_path / "out", scheduler=dask_cluster,
+                        batch_size=2, progress=False, plots=False)
+    assert results.report.workers == 2
+    assert same_results(results.points, serial_grid.points, METRICS)
+    assert {"w0", "w1"} <= set(results.points["worker"])
+
+
+def test_a_crash_on_a_worker_is_one_row(tmp_path):
+    fmu = faulty_fmu(tmp_path)
+    xs = [float(x) for x in range(1, 31) if x not in (3, 5, 7, 21)]
+    spec = {"scenario": {"stop": 1.0, "step": 0.01},
+            "design": {"kind": "list", "parameters": {"x": {"values": xs}}},
+            "outputs": {"metrics": {"y_final": {"variable": "y", "kind": "final"}}}}
+    results = run_sweep(spec, fmu=fmu, out=tmp_path / "out", workers=2, batch_size=4,
+                        progress=False, plots=False)
+    p = results.points
+    assert (p["status"] == "crashed").sum() == 1
+    assert p.loc[p["status"] == "crashed", "x"].tolist() == [13.0]
+    ok = p[p["status"] == "ok"]
+    assert len(ok) == len(xs) - 1 and (ok["y_final"] == ok["x"]).all()
+
+
+def _trace(path):
+    events = {"start": [], "end": []}
+    if path.exists():
+        for line in path.read_text().splitlines():
+            event, first, count = line.split()
+            events[event].append((int(first), int(count)))
+    return events
+
+
+def test_resume_after_killing_the_client_half_way(fmu_path, tmp_path, serial_grid):
+    spec_path = tmp_path / "big.toml"
+    spec_path.write_text("""
+[scenario]
+stop = 10.0
+step = 0.01
+tolerance = 1e-8
+parameters = { Mm_a0 = 100.0, Mm_a1 = -20.0, Mm_a2 = -1.0, Mr_b0 = 20.0, Mr_b1 = -0.05 }
+[design]
+kind = "grid"
+parameters = { k34 = { linspace = [50.0, 500.0, 60] }, L = { linspace = [0.5, 0.8, 60] } }
+[outputs.metrics]
+peak_rod_force = { variable = "rod_force", kind = "peak_abs" }
+omega1_ripple = { variable = "omega1", kind = "peak_to_peak", from = 1.0 }
+n_rhs = { variable = "n_rhs", kind = "final" }
+""")
+    out, trace = tmp_path / "out", tmp_path / "trace-1"
+    command = [sys.executable, "-m", "fmusweep", str(spec_path), "--fmu", str(fmu_path),
+               "--out", str(out), "--workers", "2", "--batch-size", "150", "--no-progress",
+               "--no-plots"]
+    env = dict(environment_for_workers(), FMUSWEEP_TRACE=str(trace))
+    client = subprocess.Popen(command, env=env, start_new_session=True,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    parts = out / "points"
+    deadline = time.monotonic() + 120
+    # Kill the client (and its LocalCluster) once a third of the 24 batches are saved.
+    while time.monotonic() < deadline and len(list(parts.glob("part-*.parquet"))) < 8:
+        assert client.poll() is None, "the sweep ended before it could be killed"
+        time.sleep(0.005)
+    os.killpg(client.pid, signal.SIGKILL)
+    client.wait()
+    saved = {pq.read_table(p, columns=["point"])["point"][0].as_py()
+             for p in parts.glob("part-*.parquet")}
+    first = _trace(trace)
+    assert 8 <= len(saved) < 24
+    lost = {b for b in first["start"] if b[0] not in saved}
+    running = {b for b in lost if b not in first["end"]}
+    # Lost: the batch each worker was running, and at most one finished batch per worker
+    # whose result was still on its way to the client.
+    assert len(running) <= 2 and len(lost) <= 4, (lost, running)
+
+    resumed_trace = tmp_path / "trace-2"
+    env["FMUSWEEP_TRACE"] = str(resumed_trace)
+    finished = subprocess.run(command + ["--resume"], env=env, capture_output=True, text=True)
+    assert finished.returncode == 0, finished.stderr
+    redone = sum(count for _, count in _trace(resumed_trace)["start"])
+    assert redone == 3600 - sum(pq.read_table(p).num_rows for p in parts.glob("part-*.parquet")
+                                if pq.read_table(p, columns=["point"])["point"][0].as_py() in saved)
+    full = pq.read_table(out / "points.parquet").to_pandas()
+    assert list(full["point"]) == list(range(3600))
+    serial = run_sweep(spec_path, fmu=fmu_path, out=tmp_path / "serial", serial=True,
+                       progress=False, plots=False)
+    assert same_results(full, serial.points, METRICS)
