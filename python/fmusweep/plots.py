@@ -43,6 +43,13 @@ def plot_all(design, points, metric_names, sensitivity: dict, out) -> list[pathl
     return written
 
 
+def _spans_decades(values) -> bool:
+    """Positive values over more than three decades: a log axis shows them all."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return len(v) > 1 and v.min() > 0 and v.max() / v.min() > 1e3
+
+
 def _lines(points, name, metrics, path):
     plt = _pyplot()
     fig, axes = plt.subplots(len(metrics), 1, figsize=(7, 2.6 * len(metrics)), sharex=True,
@@ -90,6 +97,8 @@ def _scatter_matrix(points, names, metrics, path):
             ax = axes[i, j]
             ax.scatter(ok[name], ok[metric], s=4, alpha=0.5, lw=0)
             ax.grid(alpha=0.3)
+            if _spans_decades(ok[metric]):
+                ax.set_yscale("log")
             if i == len(metrics) - 1:
                 ax.set_xlabel(name)
             if j == 0:

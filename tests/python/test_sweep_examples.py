@@ -1,0 +1,53 @@
+"""The worked sweeps of examples/sweeps run from the command line as the README shows,
+and give what each promises."""
+
+import json
+import os
+import pathlib
+import subprocess
+import sys
+
+import pyarrow.parquet as pq
+import pytest
+
+from sweep_helpers import environment_for_workers
+
+EXAMPLES = pathlib.Path(__file__).resolve().parents[2] / "examples/sweeps"
+
+
+def sweep(spec, fmu_path, out):
+    env = dict(environment_for_workers(), FMUSWEEP_FMU=str(fmu_path))
+    done = subprocess.run([sys.executable, "-m", "fmusweep", str(EXAMPLES / spec), "--out", str(out),
+                           "--workers", "2", "--no-progress"], env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return pq.read_table(out / "points.parquet").to_pandas(), done.stdout
+
+
+def test_rod_force_grid(fmu_path, tmp_path):
+    points, said = sweep("rod_force_grid.toml", fmu_path, tmp_path)
+    assert len(points) == 1600 and (points["status"] == "ok").all()
+    assert points["k34"].nunique() == 40 and points["L"].nunique() == 40
+    assert "1600 points" in said
+    for metric in ("peak_rod_force", "omega1_ripple"):
+        assert (tmp_path / "plots" / f"heatmap_{metric}.png").stat().st_size > 10_000
+    # The peak rod force grows with the rod length at the soft end of k34.
+    soft = points[points["k34"] == points["k34"].min()].sort_values("L")
+    assert soft["peak_rod_force"].iloc[-1] > 1.5 * soft["peak_rod_force"].iloc[0]
+
+
+def test_sobol_study_of_the_rod_force(fmu_path, tmp_path):
+    points, _ = sweep("sobol_rod_force.toml", fmu_path, tmp_path)
+    assert len(points) == 8192 and (points["status"] == "ok").all()
+    s = json.loads((tmp_path / "sensitivity.json").read_text())["peak_rod_force"]
+    assert s["names"] == ["J1", "J2", "J3", "J4", "k12", "k34"]
+    assert all(abs(x) < 1.5 for x in s["ST"]) and max(s["ST"]) > 0.3
+    assert (tmp_path / "plots" / "sobol_peak_rod_force.png").exists()
+
+
+def test_latin_hypercube_over_the_geometry(fmu_path, tmp_path):
+    points, _ = sweep("lhs_geometry.toml", fmu_path, tmp_path)
+    assert len(points) == 500
+    assert (points["status"] == "ok").sum() > 250
+    failed = points[points["status"] != "ok"]
+    assert failed["message"].str.len().gt(0).all()
+    assert (tmp_path / "plots" / "scatter.png").exists()
