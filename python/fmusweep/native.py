@@ -3,10 +3,11 @@
 One runner process per FMU per worker: it loads the FMU's binary once, keeps one
 instance and resets it between points, and runs each point's master loop, metrics and
 decimation natively. This module only sends it batches and reads its replies. A crash of
-the FMU kills only the runner: the point that was running when it died is reported as
-``crashed`` (the runner answers point by point, so that is the first point without an
-answer), a new runner is started, and the batch goes on. A point whose single step hangs
-past the hard deadline is ``timeout`` the same way.
+the FMU kills only the runner. The runner answers point by point but flushes its replies
+every 20 ms, so the replies of the last few points may die with it: the points without a
+reply are run again by a new runner that flushes after every point, and the first point
+without a reply then is the one that crashed (``crashed``); the batch goes on after it. A
+point whose single step hangs past the hard deadline is ``timeout`` the same way.
 """
 
 from __future__ import annotations
@@ -187,7 +188,11 @@ class NativeRunner:
         rows = np.asarray(rows, dtype=float)
         results: list[dict] = []
         while len(results) < len(rows):
-            results += self._run_until_failure(names, rows[len(results):])
+            answered, lost = self._run_until_failure(names, rows[len(results):], careful=False)
+            results += answered
+            if lost:
+                # Which point was it? Only a runner that flushes every reply can say.
+                results += self._run_until_failure(names, rows[len(results):], careful=True)[0]
         return results
 
     def _hard_deadline(self) -> float | None:
@@ -196,14 +201,16 @@ class NativeRunner:
             return None
         return time.monotonic() + HARD_DEADLINE_FACTOR * budget + HARD_DEADLINE_GRACE_S
 
-    def _run_until_failure(self, names, rows) -> list[dict]:
-        """The rows' results up to and including a point that kills or hangs the runner
-        (which is then restarted); all of them when none does."""
+    def _run_until_failure(self, names, rows, careful: bool) -> tuple[list[dict], bool]:
+        """The rows' results in order, and whether the runner was lost (killed by the FMU
+        or by the hard deadline; it is then restarted). With `careful` the runner flushes
+        every reply, so the point after the last reply is the one that failed, and its row
+        ends the results; without, the results stop at the last reply received."""
         series = self.plan.get("series")
         width = len(series["variables"]) + 1 if series else 0
         results: list[dict] = []
         try:
-            self._send({"op": "run", "names": names, "rows": rows.tolist()})
+            self._send({"op": "run", "names": names, "rows": rows.tolist(), "flush_each": careful})
             while True:
                 header = self._reply(self._hard_deadline())
                 if header is None:
@@ -211,7 +218,7 @@ class NativeRunner:
                 if "error" in header:
                     raise RunnerError(header["error"])
                 if "done" in header:
-                    return results
+                    return results, False
                 rows_n = header.pop("series_rows")
                 if rows_n:
                     data = self.pipe.exactly(rows_n * width * 8, self._hard_deadline())
@@ -221,18 +228,20 @@ class NativeRunner:
                 results.append(header)
         except TimeoutError:
             self.process.kill()
-            message = (f"no answer within {HARD_DEADLINE_FACTOR} × the budget of "
-                       f"{self.plan['timeout_s']} s + {HARD_DEADLINE_GRACE_S} s: the runner was killed")
-            results.append(_failed("timeout", message, self.plan))
+            if careful:
+                message = (f"no answer within {HARD_DEADLINE_FACTOR} × the budget of "
+                           f"{self.plan['timeout_s']} s + {HARD_DEADLINE_GRACE_S} s: the runner "
+                           "was killed")
+                results.append(_failed("timeout", message, self.plan))
             self._restart()
-            return results
+            return results, True
         except BrokenPipeError:
             pass
-        # The runner died: the first point without an answer is the one that killed it.
-        message = self._died() + " while running this point"
-        results.append(_failed("crashed", message, self.plan))
+        if careful:
+            message = self._died() + " while running this point"
+            results.append(_failed("crashed", message, self.plan))
         self._restart()
-        return results
+        return results, True
 
 
 def _failed(status: str, message: str, plan: dict) -> dict:

@@ -31,7 +31,7 @@ fn main() {
             std::process::exit(1);
         }
     };
-    let mut out = BufWriter::new(protocol);
+    let mut out = BufWriter::with_capacity(1 << 20, protocol);
     messages::install();
     let mut session = match protocol::Session::open(Path::new(dir)) {
         Ok(session) => session,

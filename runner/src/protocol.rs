@@ -1,11 +1,16 @@
 //! The runner's requests and replies: one JSON request per line on standard input; one
-//! JSON reply per line on the protocol channel. A `run` request streams one line per
-//! point as soon as that point ends (followed by its series as raw little-endian f64 when
-//! the plan records one), so that if the FMU kills the process, the caller knows exactly
-//! which point did it: the first one without a line.
+//! JSON reply per line on the protocol channel. A `run` request answers one line per
+//! point (followed by its series as raw little-endian f64 when the plan records one).
+//! Replies are flushed at least every `FLUSH_EVERY`, which keeps a wake-up of the caller
+//! per point off the hot path; with `flush_each` every point's reply is flushed as soon
+//! as the point ends, so that if the FMU kills the process, the caller knows exactly which
+//! point did it: the first one without a reply. The caller reruns the unanswered points
+//! of a batch that crashed that way.
 
 use std::io::{BufRead, Write};
 use std::path::Path;
+
+use std::time::{Duration, Instant};
 
 use serde::Deserialize;
 use serde_json::{json, Value};
@@ -14,6 +19,9 @@ use crate::description::Description;
 use crate::fmi::Library;
 use crate::plan::{Plan, PlanSpec};
 use crate::point::{Assignments, Runner};
+
+/// The longest a finished point's reply waits in the buffer.
+const FLUSH_EVERY: Duration = Duration::from_millis(20);
 
 #[derive(Deserialize)]
 #[serde(tag = "op", rename_all = "snake_case", deny_unknown_fields)]
@@ -26,6 +34,8 @@ enum Request {
     Run {
         names: Vec<String>,
         rows: Vec<Vec<f64>>,
+        #[serde(default)]
+        flush_each: bool,
     },
     /// Set each row's values in initialisation mode only: what does the FMU refuse?
     Check {
@@ -86,7 +96,11 @@ impl Session {
                     reply(out, &json!({"error": e}))
                 }
             },
-            Request::Run { names, rows } => self.run(&names, &rows, out),
+            Request::Run {
+                names,
+                rows,
+                flush_each,
+            } => self.run(&names, &rows, flush_each, out),
             Request::Check { names, rows } => self.check(&names, &rows, out),
             Request::Bare { names, rows } => {
                 let answer = self
@@ -125,12 +139,14 @@ impl Session {
         &mut self,
         names: &[String],
         rows: &[Vec<f64>],
+        flush_each: bool,
         out: &mut impl Write,
     ) -> std::io::Result<()> {
         let (plan, runner, mut assignments) = match self.prepared(names, rows) {
             Ok(p) => p,
             Err(e) => return reply(out, &json!({"error": e})),
         };
+        let mut flushed = Instant::now();
         for (i, row) in rows.iter().enumerate() {
             let r = runner.run_point(plan, &mut assignments, row);
             let width = plan.series.as_ref().map_or(0, |(slots, _)| slots.len() + 1);
@@ -151,7 +167,10 @@ impl Session {
                 let bytes: Vec<u8> = r.series.iter().flat_map(|x| x.to_le_bytes()).collect();
                 out.write_all(&bytes)?;
             }
-            out.flush()?;
+            if flush_each || flushed.elapsed() >= FLUSH_EVERY {
+                out.flush()?;
+                flushed = Instant::now();
+            }
         }
         reply(out, &json!({"done": rows.len()}))
     }
