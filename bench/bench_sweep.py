@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from fmusweep import run_sweep
-from fmusweep.fmu import FmuBytes, local_runner
+from fmusweep.fmu import Archive, local_runner
 
 PAPER_LAWS = {"Mm_a0": 100.0, "Mm_a1": -20.0, "Mm_a2": -1.0, "Mr_b0": 20.0, "Mr_b1": -0.05}
 METRICS = {"peak_rod_force": {"variable": "rod_force", "kind": "peak_abs"},
@@ -48,7 +48,7 @@ def best_of(repeats, f):
 def per_worker_rates(fmu, n, repeats):
     """Points/s of one worker: the bare loop, the runner through its Python client
     (metrics only, and with every communication point's series), and simulate_fmu."""
-    runner = local_runner(FmuBytes.read(fmu))
+    runner = local_runner(Archive.read(fmu))
     plan = {"start": 0.0, "stop": 10.0, "step": 0.01, "tolerance": 1e-8, "fixed": PAPER_LAWS,
             "metrics": [{"variable": m["variable"], "kind": m["kind"], "from": m.get("from")}
                         for m in METRICS.values()], "series": None, "timeout_s": None}
@@ -124,6 +124,22 @@ def dask_runs(fmu, n_scaling, n_small):
     return found
 
 
+def ssp_rate(fmu, points):
+    """The DC-motor system of examples/dc_motor as an SSP (1 s, H = 1 ms) through FMPy's
+    SSP support, one point after another in this process."""
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "examples/dc_motor"))
+    import ssp as example
+    with tempfile.TemporaryDirectory() as d:
+        system = example.build_ssp(fmu, pathlib.Path(d) / "system")
+        spec = {"ssp": str(system),
+                "scenario": {"stop": 1.0, "step": 1e-3, "parameters": {
+                    f"mechanism.{k}": v for k, v in example.LOAD.items() if k != "Mr_b0"}},
+                "design": {"kind": "grid", "parameters": {"mechanism.Mr_b0": {"linspace": [10.0, 30.0, points]}}},
+                "outputs": {"metrics": {"omega1_final": {"variable": "mechanism.omega1", "kind": "final"}}}}
+        rep = run_sweep(spec, out=pathlib.Path(d) / "out", serial=True, progress=False, plots=False).report
+    return {"points": points, "points_per_s": rep.computed / rep.point_seconds}
+
+
 def _noop(x):
     return x
 
@@ -150,7 +166,7 @@ def rss_kib(pid):
 def memory_growth(fmu, total):
     """The runner's and the worker's resident memory after 10 % and after all of `total`
     one-second points, in batches of 1000 as a worker would run them."""
-    runner = local_runner(FmuBytes.read(fmu))
+    runner = local_runner(Archive.read(fmu))
     runner.configure({"start": 0.0, "stop": 1.0, "step": 0.01, "tolerance": 1e-8,
                       "fixed": PAPER_LAWS, "metrics": [{"variable": "rod_force", "kind": "peak_abs"}]})
     r = rows(1000)
@@ -206,6 +222,9 @@ def report(r) -> str:
               f"2 workers, cluster start-up included: {s['seconds_all_included']:.2f} s.", "",
               f"Dask's cost per task (no-op tasks, 2 workers): {r['task_cost_s'] * 1e3:.2f} ms. "
               f"{r['cluster_advice']}", ""]
+    lines += [f"A coupled SSP system (examples/dc_motor: the mechanism and a pythonfmu DC motor, "
+              f"1 s at H = 1 ms) through FMPy's simulate_ssp: {r['ssp']['points_per_s']:.1f} points/s "
+              "per worker.", ""]
     if "memory" in r:
         m = r["memory"]
         lines.append(f"Memory over {m['points']:,} one-second points: runner RSS "
@@ -224,6 +243,8 @@ def main():
     r["per_worker"] = per_worker_rates(fmu, 200 if quick else 2000, 2 if quick else 5)
     print("bench-sweep: Dask runs", flush=True)
     r["dask"] = dask_runs(fmu, 1000 if quick else 8000, 1000)
+    print("bench-sweep: an SSP system through FMPy", flush=True)
+    r["ssp"] = ssp_rate(fmu, 4 if quick else 12)
     print("bench-sweep: Dask's cost per task", flush=True)
     r["task_cost_s"] = task_cost(300 if quick else 2000)
     # A worker is kept busy when its batch lasts longer than the scheduler needs to serve

@@ -19,8 +19,9 @@ import pyarrow as pa
 
 from . import design as design_module
 from .check import check_against_fmu
-from .fmu import FmuBytes, local_runner
+from .fmu import Archive, local_runner
 from .spec import Spec, SpecError
+from .ssp import check_ssp, describe_ssp, prepare_ssp_worker, run_ssp_batch
 from .store import FORMAT, ResultStore
 from .worker import prepare_worker, run_batch
 
@@ -144,7 +145,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     """Run a sweep and return its ``Results`` (see ``fmusweep.results``).
 
     spec: a TOML path, a dict, or a Spec. fmu: the FMU's path, over the spec's own
-    (default: the spec's, else $FMUSWEEP_FMU).
+    (default: the spec's FMU, else its SSP system, else $FMUSWEEP_FMU).
     out: the output directory (default ``sweep-<digest>`` here). workers: LocalCluster
     size (default: every core). scheduler: the address of an existing Dask scheduler
     (``tcp://host:8786``) instead of a LocalCluster. serial: no Dask, this process only.
@@ -152,30 +153,37 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     """
     started = time.perf_counter()
     spec = Spec.load(spec)
-    fmu_path = fmu or spec.fmu or os.environ.get("FMUSWEEP_FMU")
-    if not fmu_path:
-        raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), pass fmu=, "
-                               "or set FMUSWEEP_FMU")
-    fmu_bytes = FmuBytes.read(fmu_path)
-    local = local_runner(fmu_bytes)
-    description = local.describe()
     design = design_module.generate(spec)
-    check_against_fmu(spec, design, description, local)
     plan = spec.plan()
-    local.configure(plan)
+    if spec.ssp is not None and fmu is None:
+        target = Archive.read(spec.ssp)
+        check_ssp(spec, design, describe_ssp(target))
+        identity = {"ssp_name": target.name, "ssp_sha256": target.sha256}
+        batch_function, prepare_function = run_ssp_batch, prepare_ssp_worker
+    else:
+        fmu_path = fmu or spec.fmu or os.environ.get("FMUSWEEP_FMU")
+        if not fmu_path:
+            raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), pass fmu=, "
+                                   "or set FMUSWEEP_FMU")
+        target = Archive.read(fmu_path)
+        local = local_runner(target)
+        description = local.describe()
+        check_against_fmu(spec, design, description, local)
+        local.configure(plan)
+        identity = {"fmu_name": target.name, "fmu_guid": description["guid"]}
+        batch_function, prepare_function = run_batch, prepare_worker
     names, rows = design.names, design.rows
     digest = spec.digest()
     meta = {
         "format": FORMAT, "spec": spec.raw, "spec_digest": digest, "seed": spec.seed,
-        "fmu_name": fmu_bytes.name, "fmu_sha256": fmu_bytes.sha256,
-        "fmu_guid": description["guid"], "design": {"kind": design.kind, "names": names,
-                                                     "points": len(rows)},
+        "fmu_sha256": target.sha256, **identity,
+        "design": {"kind": design.kind, "names": names, "points": len(rows)},
         "metrics": [m.name for m in spec.metrics], "versions": _versions(),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }
     out = out or f"sweep-{digest[:10]}"
     store = ResultStore(out, meta, resume)
-    ids = point_ids(fmu_bytes.sha256, digest, names, rows)
+    ids = point_ids(target.sha256, digest, names, rows)
     done = store.done_points()
     todo = np.setdiff1d(np.arange(len(rows)), done)
     bar = _Progress(len(rows), len(rows) - len(todo), progress)
@@ -196,7 +204,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         if len(todo):
             # Calibrate the batch size on the first points, here; they are kept.
             first = todo[:CALIBRATION_POINTS]
-            calibration = run_batch(fmu_bytes, plan, names, rows[first], first)
+            calibration = batch_function(target, plan, names, rows[first], first)
             keep(calibration)
             per_point = float(np.median([r["wall_s"] or 0.0 for r in calibration["results"]]))
             todo = todo[len(first):]
@@ -206,11 +214,12 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
             if serial:
                 t0 = time.perf_counter()
                 for chunk in chunks:
-                    keep(run_batch(fmu_bytes, plan, names, rows[chunk], chunk))
+                    keep(batch_function(target, plan, names, rows[chunk], chunk))
                 dispatch_s = time.perf_counter() - t0
             else:
                 n_workers, startup_s, dispatch_s = _run_on_dask(
-                    fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler, digest)
+                    target, (batch_function, prepare_function), plan, names, rows, chunks, keep,
+                    workers, scheduler, digest)
     finally:
         bar.close()
     table = store.consolidate()
@@ -227,7 +236,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     return results
 
 
-def _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler, digest):
+def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, scheduler, digest):
     """Run the chunks on Dask; returns the workers used, the start-up and dispatch times."""
     import logging
     from distributed import Client, LocalCluster, as_completed
@@ -249,15 +258,16 @@ def _run_on_dask(fmu_bytes, plan, names, rows, chunks, keep, workers, scheduler,
             client.wait_for_workers(1, timeout=60)
             n_workers = len(client.scheduler_info()["workers"])
         # The FMU travels to every worker once; tasks carry only a reference to it.
-        [fmu_future] = client.scatter([fmu_bytes], broadcast=True, hash=False)
+        batch_function, prepare_function = functions
+        [fmu_future] = client.scatter([target], broadcast=True, hash=False)
         # Each worker unpacks the FMU and starts its runner now, as part of start-up.
-        warm = [client.submit(prepare_worker, fmu_future, plan, workers=[address], pure=False,
+        warm = [client.submit(prepare_function, fmu_future, plan, workers=[address], pure=False,
                               key=f"fmusweep-{digest[:8]}-warm-{i}")
                 for i, address in enumerate(client.scheduler_info()["workers"])]
         client.gather(warm)
         t1 = time.perf_counter()
         futures = [
-            client.submit(run_batch, fmu_future, plan, names, rows[chunk], chunk,
+            client.submit(batch_function, fmu_future, plan, names, rows[chunk], chunk,
                           key=f"fmusweep-{digest[:8]}-{int(chunk[0])}", pure=False)
             for chunk in chunks
         ]

@@ -13,11 +13,11 @@ import zipfile
 
 from .native import NativeRunner
 
-__all__ = ["FmuBytes", "local_runner"]
+__all__ = ["Archive", "local_runner"]
 
 
-class FmuBytes:
-    """An FMU's file content; what is shipped to every worker, once."""
+class Archive:
+    """An FMU's (or an SSP's) file content; what is shipped to every worker, once."""
 
     def __init__(self, data: bytes, name: str = "model.fmu"):
         self.data = data
@@ -25,22 +25,22 @@ class FmuBytes:
         self.sha256 = hashlib.sha256(data).hexdigest()
 
     @staticmethod
-    def read(path) -> "FmuBytes":
+    def read(path) -> "Archive":
         path = pathlib.Path(path)
         try:
             data = path.read_bytes()
         except OSError as e:
-            raise FileNotFoundError(f"cannot read the FMU {path}: {e.strerror}") from None
+            raise FileNotFoundError(f"cannot read {path}: {e.strerror}") from None
         if not zipfile.is_zipfile(io.BytesIO(data)):
-            raise ValueError(f"{path} is not an FMU (not a zip archive)")
-        return FmuBytes(data, path.name)
+            raise ValueError(f"{path} is not an FMU or SSP (not a zip archive)")
+        return Archive(data, path.name)
 
 
 # Per process: checksum -> (directory, runner). A worker keeps its runner for its life.
 _RUNNERS: dict[str, tuple[pathlib.Path, NativeRunner]] = {}
 
 
-def local_runner(fmu: FmuBytes) -> NativeRunner:
+def local_runner(fmu: Archive) -> NativeRunner:
     """This process's runner for the FMU, unpacking and starting it on first use."""
     kept = _RUNNERS.get(fmu.sha256)
     if kept is not None:

@@ -3,6 +3,7 @@
 A specification is a TOML file or the equivalent dict::
 
     fmu = "path/to/Model.fmu"          # optional: the caller may name the FMU instead
+    # or: ssp = "path/to/System.ssp"   # a coupled system, run through FMPy's SSP support
 
     [scenario]
     start = 0.0
@@ -70,6 +71,7 @@ class Spec:
     raw: dict
     base_dir: pathlib.Path
     fmu: pathlib.Path | None
+    ssp: pathlib.Path | None
     start: float
     stop: float
     step: float
@@ -107,10 +109,13 @@ class Spec:
     def from_dict(raw: dict, base_dir) -> "Spec":
         raw = copy.deepcopy(raw)
         base_dir = pathlib.Path(base_dir)
-        _only(raw, "spec", {"fmu", "scenario", "design", "outputs", "run"})
-        fmu = raw.get("fmu")
-        if fmu is not None and not isinstance(fmu, str):
-            raise SpecError("fmu", "must be a path (a string)")
+        _only(raw, "spec", {"fmu", "ssp", "scenario", "design", "outputs"})
+        fmu, ssp = raw.get("fmu"), raw.get("ssp")
+        for key, value in (("fmu", fmu), ("ssp", ssp)):
+            if value is not None and not isinstance(value, str):
+                raise SpecError(key, "must be a path (a string)")
+        if fmu is not None and ssp is not None:
+            raise SpecError("ssp", "a spec names an FMU or an SSP system, not both")
         scenario = _table(raw, "scenario", "spec", required=True)
         _only(scenario, "scenario", {"start", "stop", "step", "tolerance", "timeout", "parameters", "inputs"})
         start = _number(scenario.get("start", 0.0), "scenario.start")
@@ -171,6 +176,7 @@ class Spec:
         if not metrics and not series_variables:
             raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
         spec = Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
+                    ssp=(base_dir / ssp) if ssp else None,
                     start=start, stop=stop, step=step, tolerance=tolerance, timeout=timeout,
                     parameters=parameters, inputs=inputs, design_kind=kind, design=design,
                     seed=seed, metrics=metrics, series_variables=series_variables,
@@ -200,7 +206,7 @@ class Spec:
 
     def digest(self) -> str:
         """A hash of everything that decides the results (not the FMU's path)."""
-        canonical = {k: v for k, v in self.raw.items() if k not in ("fmu", "run")}
+        canonical = {k: v for k, v in self.raw.items() if k not in ("fmu", "ssp")}
         text = json.dumps(canonical, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
 

@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 
-from .fmu import FmuBytes, local_runner
+from .fmu import Archive, local_runner
 
 __all__ = ["prepare_worker", "run_batch", "worker_name"]
 
@@ -23,7 +23,7 @@ def worker_name() -> str:
     return f"local-{os.getpid()}"
 
 
-def prepare_worker(fmu: FmuBytes, plan: dict) -> str:
+def prepare_worker(fmu: Archive, plan: dict) -> str:
     """Unpack the FMU, start and configure this worker's runner: the one-off costs."""
     runner = local_runner(fmu)
     if runner.plan != plan:
@@ -31,7 +31,7 @@ def prepare_worker(fmu: FmuBytes, plan: dict) -> str:
     return worker_name()
 
 
-def run_batch(fmu: FmuBytes, plan: dict, names: list[str], rows: np.ndarray,
+def run_batch(fmu: Archive, plan: dict, names: list[str], rows: np.ndarray,
               points: np.ndarray) -> dict:
     _trace("start", points)
     runner = local_runner(fmu)

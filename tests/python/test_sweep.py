@@ -251,3 +251,36 @@ def test_latin_hypercube_is_seeded_and_within_its_ranges():
     # One sample per stratum: each tenth of a's range holds exactly five points.
     assert np.all(np.bincount(np.floor((a - 1) * 10).astype(int), minlength=10) == 5)
     assert np.all(np.bincount(np.floor((np.log10(b) + 3) / 0.6).astype(int), minlength=10) == 5)
+
+
+def test_a_coupled_ssp_system_sweeps_through_fmpy(fmu_path, tmp_path):
+    import pathlib
+    import sys
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "examples/dc_motor"))
+    import ssp as example  # examples/dc_motor/ssp.py
+
+    direct = example.run(fmu_path, tmp_path / "direct", stop_time=0.5)
+    system = example.build_ssp(fmu_path, tmp_path / "system")
+    spec = {
+        "ssp": str(system),
+        "scenario": {"stop": 0.5, "step": 1e-3, "parameters": {
+            f"mechanism.{k}": v for k, v in example.LOAD.items() if k != "Mr_b0"}},
+        "design": {"kind": "list", "parameters": {"mechanism.Mr_b0": {"values": [10.0, 20.0, 40.0]}}},
+        "outputs": {"metrics": {
+            "omega1_final": {"variable": "mechanism.omega1", "kind": "final"},
+            "current_peak": {"variable": "motor.current", "kind": "peak_abs"}}},
+    }
+    results = run_sweep(spec, out=tmp_path / "out", serial=True, progress=False, plots=False)
+    p = results.points
+    assert (p["status"] == "ok").all(), p["message"]
+    # The point with the example's own load is the example's run, to the last bit.
+    at_20 = p[p["mechanism.Mr_b0"] == 20.0].iloc[0]
+    assert at_20["omega1_final"] == direct["mechanism.omega1"][-1]
+    assert at_20["current_peak"] == np.max(np.abs(direct["motor.current"]))
+    # The parameter reaches its component: three loads, three motions.
+    assert p["omega1_final"].nunique() == 3
+    assert results.meta["ssp_sha256"] and at_20["steps"] == 500
+    with pytest.raises(SpecError) as refused:
+        run_sweep(dict(spec, design={"kind": "list", "parameters": {"mechanism.Mr_b9": {"values": [1.0]}}}),
+                  out=tmp_path / "bad", serial=True, progress=False)
+    assert refused.value.field == "design.parameters.mechanism.Mr_b9"
