@@ -73,47 +73,53 @@ def per_worker_rates(fmu, n, repeats):
             fmpy.simulate_fmu(unzipped, start_values=dict(PAPER_LAWS, k34=k34), stop_time=10.0,
                               output_interval=0.01, relative_tolerance=1e-8,
                               output=["rod_force", "omega1", "n_rhs"])
-    simulate_fmu = best_of(max(1, repeats // 2), lambda: timed(simulate)) * n / k
+    simulate_fmu = best_of(repeats, lambda: timed(simulate)) * n / k
 
     def simulate_all_outputs():
         for k34 in r[:k, 0]:
             fmpy.simulate_fmu(unzipped, start_values=dict(PAPER_LAWS, k34=k34), stop_time=10.0,
                               output_interval=0.01, relative_tolerance=1e-8)
-    simulate_fmu_all = best_of(max(1, repeats // 2), lambda: timed(simulate_all_outputs)) * n / k
+    simulate_fmu_all = best_of(repeats, lambda: timed(simulate_all_outputs)) * n / k
     # The whole sweep in this process (no Dask): spec check, calibration, Parquet parts.
-    with tempfile.TemporaryDirectory() as out:
-        whole = run_sweep(spec(n), fmu=fmu, out=pathlib.Path(out) / "s", serial=True,
-                          progress=False, plots=False).report
-    with tempfile.TemporaryDirectory() as out:
-        whole_series = run_sweep(spec(n, series=True), fmu=fmu, out=pathlib.Path(out) / "s",
-                                 serial=True, progress=False, plots=False).report
+    def whole_sweep(series):
+        with tempfile.TemporaryDirectory() as out:
+            return run_sweep(spec(n, series=series), fmu=fmu, out=pathlib.Path(out) / "s",
+                             serial=True, progress=False, plots=False).report.dispatch_s
+    whole = best_of(repeats, lambda: whole_sweep(False))
+    whole_series = best_of(repeats, lambda: whole_sweep(True))
     rate = lambda seconds: n / seconds
     return {
         "points": n,
         "bare_loop": rate(bare),
         "runner_metrics": rate(metrics),
         "runner_series": rate(series),
-        "sweep_serial_metrics": rate(whole.dispatch_s) if whole.dispatch_s else None,
-        "sweep_serial_series": rate(whole_series.dispatch_s) if whole_series.dispatch_s else None,
+        "sweep_serial_metrics": rate(whole),
+        "sweep_serial_series": rate(whole_series),
         "simulate_fmu": rate(simulate_fmu),
         "simulate_fmu_all_outputs": rate(simulate_fmu_all),
     }
 
 
-def dask_runs(fmu, n_scaling, n_small):
-    """Scaling 1 → 2 workers, Dask's share of the wall time, a small sweep start to end."""
+def dask_runs(fmu, n_scaling, n_small, repeats=3):
+    """Scaling 1 → 2 workers, Dask's share of the wall time, a small sweep start to end.
+    Each cluster size runs `repeats` times, alternating; the fastest run counts (the
+    project's timing rule: this machine is shared and noisy)."""
     found = {}
-    for workers in (1, 2):
-        with tempfile.TemporaryDirectory() as out:
-            rep = run_sweep(spec(n_scaling), fmu=fmu, out=pathlib.Path(out) / "s", workers=workers,
-                            progress=False, plots=False).report
-        computed = rep.computed - 4  # the calibration points run in the client
-        found[f"workers_{workers}"] = {
-            "points_per_s": computed / rep.dispatch_s, "dispatch_s": rep.dispatch_s,
-            "startup_s": rep.startup_s, "batch_size": rep.batch_size, "batches": rep.batches,
-            # Dask's share: the dispatch time the workers did not spend inside points.
-            "engine_share": 1 - rep.point_seconds * (computed / rep.computed) / workers / rep.dispatch_s,
-        }
+    for _ in range(repeats):
+        for workers in (1, 2):
+            with tempfile.TemporaryDirectory() as out:
+                rep = run_sweep(spec(n_scaling), fmu=fmu, out=pathlib.Path(out) / "s",
+                                workers=workers, progress=False, plots=False).report
+            computed = rep.computed - 4  # the calibration points run in the client
+            run = {
+                "points_per_s": computed / rep.dispatch_s, "dispatch_s": rep.dispatch_s,
+                "startup_s": rep.startup_s, "batch_size": rep.batch_size, "batches": rep.batches,
+                # Dask's share: the dispatch time the workers did not spend inside points.
+                "engine_share": 1 - rep.point_seconds * (computed / rep.computed) / workers / rep.dispatch_s,
+            }
+            best = found.get(f"workers_{workers}")
+            if best is None or run["points_per_s"] > best["points_per_s"]:
+                found[f"workers_{workers}"] = run
     found["scaling_1_to_2"] = found["workers_2"]["points_per_s"] / found["workers_1"]["points_per_s"]
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as out:
@@ -196,7 +202,8 @@ def report(r) -> str:
     lines = [
         "# Sweep benchmark", "",
         f"Machine: {r['machine']}. Paper case 1 (10 s, H = 0.01, tol 1e-8), metrics "
-        "peak |rod_force|, peak-to-peak omega1 after 2 s, n_rhs. Ratios from one run.", "",
+        "peak |rod_force|, peak-to-peak omega1 after 2 s, n_rhs. Ratios from one run; each "
+        "figure the fastest of several runs.", "",
         "| path (one worker) | points/s | of the bare loop |", "| --- | --- | --- |",
     ]
     for key, label in (("bare_loop", "bare C-ABI master loop (in the runner)"),
@@ -211,7 +218,7 @@ def report(r) -> str:
     lines += ["", f"Sweep (metrics) against simulate_fmu per worker: "
               f"{w['sweep_serial_metrics'] / w['simulate_fmu']:.0f}× (the same 3 outputs), "
               f"{w['sweep_serial_metrics'] / w['simulate_fmu_all_outputs']:.0f}× (its default outputs).", "",
-              "| LocalCluster | points/s | batch | batches | Dask's share of the dispatch time | start-up s |",
+              "| LocalCluster (fastest of 3) | points/s | batch | batches | Dask's share of the dispatch time | start-up s |",
               "| --- | --- | --- | --- | --- | --- |"]
     for n in (1, 2):
         x = d[f"workers_{n}"]
