@@ -19,6 +19,13 @@ def _pyplot():
     return plt
 
 
+def _save(fig, path):
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    _pyplot().close(fig)
+    return path
+
+
 def _failed_note(points) -> str:
     failed = int((points["status"] != "ok").sum())
     return f" ({failed} of {len(points)} points failed)" if failed else ""
@@ -61,10 +68,7 @@ def _lines(points, name, metrics, path):
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel(name)
     fig.suptitle(f"Metrics against {name}{_failed_note(points)}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def _heatmap(points, names, metric, path):
@@ -81,10 +85,7 @@ def _heatmap(points, names, metric, path):
     ax.set_xlabel(x_name)
     ax.set_ylabel(y_name)
     ax.set_title(f"{metric} over {x_name} × {y_name}{_failed_note(points)}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def _scatter_matrix(points, names, metrics, path):
@@ -104,10 +105,7 @@ def _scatter_matrix(points, names, metrics, path):
             if j == 0:
                 ax.set_ylabel(metric)
     fig.suptitle(f"Each metric against each parameter{_failed_note(points)}")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def _sobol_bars(metric, s, path):
@@ -123,10 +121,7 @@ def _sobol_bars(metric, s, path):
     ax.set_title(f"Sensitivity of {metric} (bars: 95 % confidence)")
     ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.grid(axis="y", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def _morris(metric, s, path):
@@ -139,7 +134,4 @@ def _morris(metric, s, path):
     ax.set_ylabel("σ (spread: interaction or nonlinearity)")
     ax.set_title(f"Morris screening of {metric}")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, path)

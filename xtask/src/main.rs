@@ -135,18 +135,21 @@ fn ensure_venv() -> Result<PathBuf> {
             .args(["-m", "venv", "--clear"])
             .arg(&venv))?;
     }
-    run(Command::new(&python)
-        .args([
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--disable-pip-version-check",
-            "-r",
-        ])
-        .arg(&requirements))?;
+    run(pip_install(&python).arg("-r").arg(&requirements))?;
     fs::write(&stamp, wanted).map_err(|e| e.to_string())?;
     Ok(python)
+}
+
+fn pip_install(python: &Path) -> Command {
+    let mut command = Command::new(python);
+    command.args([
+        "-m",
+        "pip",
+        "install",
+        "--quiet",
+        "--disable-pip-version-check",
+    ]);
+    command
 }
 
 /// Build the library in release, generate the model description and documentation from
@@ -240,14 +243,7 @@ fn ensure_sweep_package() -> Result<PathBuf> {
         return Ok(python);
     }
     println!("xtask: installing {} in the venv", wheel.display());
-    run(Command::new(&python)
-        .args([
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--disable-pip-version-check",
-        ])
+    run(pip_install(&python)
         .args(["--no-deps", "--force-reinstall"])
         .arg(&wheel))?;
     fs::write(&stamp, bytes).map_err(|e| e.to_string())?;
