@@ -260,41 +260,64 @@ impl Simulation {
             anchor: self.time,
         };
         let limit = self.limit.max(t_end);
-        if self.integrator_time < t_end {
+        let gap = t_end - self.integrator_time;
+        if gap > 0.0 && gap <= UNRESOLVED_STEP * self.integrator_time.abs().max(1.0) {
+            // Shorter than any step the integrator takes: one Taylor step, y + h·f(t, y),
+            // whose error h²·|ÿ|/2 lies far below the rounding of y. The integrator
+            // continues from there (with its step size).
+            let mut f = [0.0; STATE_SIZE];
+            system.rhs(self.integrator_time, &self.integrator_state, &mut f);
+            for (y, dy) in self.integrator_state.iter_mut().zip(f) {
+                *y += gap * dy;
+            }
+            self.integrator_time = t_end;
+            self.solver.invalidate();
+        } else if self.integrator_time < t_end {
             let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
             if let Err(error) = self.solver.integrate(&system, t, y, t_end, limit) {
                 self.restart = true;
                 return Err(error);
             }
         }
-        let mut y = if self.integrator_time == t_end {
-            self.integrator_state
-        } else {
-            let interpolated = self.solver.dense_output(&system, t_end);
-            interpolated.ok_or_else(|| SolverError::ProjectionFailed {
-                t: t_end,
-                reason: "no dense output covers this time".into(),
-            })?
-        };
-        let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
-        let memo = &mut self.sin_cos;
-        let g = match model::project_with(&self.params, &mut y, &mut |slot, phi| {
-            memo.sin_cos(slot, phi)
-        }) {
-            Ok(at) if y.iter().all(|v| v.is_finite()) => at.closure,
-            Ok(_) => {
-                self.restart = true;
-                return Err(refused("the interpolated state is not finite".into()));
-            }
+        let (y, g) = match self.at_communication_point(t_end) {
+            Ok(found) => found,
             Err(error) => {
                 self.restart = true;
-                return Err(refused(error.to_string()));
+                return Err(error);
             }
         };
         self.time = t_end;
         self.state = y;
         self.residual = model::length_residual_from_closure(&self.params, g);
         Ok(())
+    }
+
+    /// The state at communication point `t_end` from the integrator (its state, or its
+    /// dense output inside the last step), projected onto the constraint; with the
+    /// closure g there.
+    fn at_communication_point(&mut self, t_end: f64) -> Result<(State, f64), SolverError> {
+        let system = Driven {
+            params: &self.params,
+            inputs: &self.inputs,
+            derivatives: &self.input_derivatives,
+            anchor: self.time,
+        };
+        let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
+        let mut y = if self.integrator_time == t_end {
+            self.integrator_state
+        } else {
+            self.solver
+                .dense_output(&system, t_end)
+                .ok_or_else(|| refused("no dense output covers this time".into()))?
+        };
+        let memo = &mut self.sin_cos;
+        match model::project_with(&self.params, &mut y, &mut |slot, phi| {
+            memo.sin_cos(slot, phi)
+        }) {
+            Ok(at) if y.iter().all(|v| v.is_finite()) => Ok((y, at.closure)),
+            Ok(_) => Err(refused("the interpolated state is not finite".into())),
+            Err(error) => Err(refused(error.to_string())),
+        }
     }
 
     /// The current value of variable `vr`.
@@ -365,10 +388,11 @@ impl Simulation {
                 var.name
             )));
         }
-        if !value.is_finite() {
+        if !value.is_finite() || value.abs() > MAX_INPUT_DERIVATIVE {
             return Err(AccessError::NotAllowed(format!(
-                "derivative of {} = {value}: must be finite",
-                var.name
+                "derivative of {} = {}: must be finite, within ±{MAX_INPUT_DERIVATIVE:e}",
+                var.name,
+                model::number(value)
             )));
         }
         Ok(var.slot)
@@ -542,6 +566,14 @@ impl Simulation {
             ))
         };
         match (var.slot, value) {
+            (Slot::Input(_), Value::Real(v)) if v.abs() > model::params::MAX_TORQUE => {
+                return Err(AccessError::NotAllowed(format!(
+                    "{} = {}: must be within ±{:e} N.m (larger torques overflow derived quantities)",
+                    var.name,
+                    model::number(v),
+                    model::params::MAX_TORQUE
+                )))
+            }
             (Slot::Input(_), _) => {}
             (Slot::Parameter(_) | Slot::SolverChoice, _) if !parameters_writable => {
                 return Err(fixed())
@@ -621,7 +653,12 @@ impl Simulation {
         w.f64s(&[self.residual, self.integrator_time]);
         w.f64s(&self.integrator_state);
         w.bool(self.restart);
-        w.f64(self.limit);
+        w.bool(self.limit.is_finite());
+        w.f64(if self.limit.is_finite() {
+            self.limit
+        } else {
+            0.0
+        });
         self.solver.serialize_into(w);
     }
 
@@ -645,9 +682,14 @@ impl Simulation {
         let [residual, integrator_time] = r.f64s()?;
         let integrator_state = r.f64s()?;
         let restart = r.bool()?;
-        let limit = r.f64()?;
+        let has_limit = r.bool()?;
+        let limit = if has_limit {
+            r.f64()?
+        } else {
+            r.f64().map(|_| f64::INFINITY)?
+        };
         let solver = Integrator::deserialize_from(r)?;
-        Ok(Self {
+        let simulation = Self {
             params,
             inputs: Inputs {
                 motor_torque,
@@ -665,9 +707,129 @@ impl Simulation {
             limit,
             solver,
             sin_cos: SinCosMemo::default(),
-        })
+        };
+        simulation
+            .check_restored()
+            .map_err(|e| FormatError(format!("invalid serialized state: {e}")))?;
+        Ok(simulation)
+    }
+
+    /// The values of a restored simulation, checked one by one (a checksum protects only
+    /// against accidents): inputs within their rules, the tolerance in its range and the
+    /// integrator's consistent with it, the integrator not behind the communication point.
+    fn check_restored(&self) -> Result<(), String> {
+        for (i, u) in [self.inputs.motor_torque, self.inputs.load_torque]
+            .iter()
+            .enumerate()
+        {
+            if u.abs() > model::params::MAX_TORQUE {
+                return Err(format!(
+                    "input {} = {} is out of range",
+                    ["M_m", "M_r"][i],
+                    model::number(*u)
+                ));
+            }
+        }
+        let derivatives = self
+            .input_derivatives
+            .motor_torque
+            .iter()
+            .chain(&self.input_derivatives.load_torque);
+        if derivatives
+            .into_iter()
+            .any(|d| d.abs() > MAX_INPUT_DERIVATIVE)
+        {
+            return Err("an input derivative is out of range".into());
+        }
+        let (low, high) = TOLERANCE_RANGE;
+        if !(low..=high).contains(&self.tolerance) {
+            return Err(format!(
+                "tolerance = {} is out of range",
+                model::number(self.tolerance)
+            ));
+        }
+        if !self.restart && self.integrator_time < self.time {
+            return Err("the integrator is behind the communication point".into());
+        }
+        if self.time > self.limit {
+            return Err("the time is past the stop time".into());
+        }
+        // The integrator's memory is used only while nothing restarts it; then it must be
+        // what its own steps on this system give.
+        if !self.restart && self.input_derivatives.is_zero() {
+            self.solver.check_memory(
+                &self.system(),
+                self.integrator_time,
+                &self.integrator_state,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// After initialisation, without a pending restart, the state at the communication
+    /// point is what the integrator gives there, projected: recomputed, it must agree bit
+    /// for bit (it did when the state was written).
+    fn check_communication_point(&self) -> Result<(), String> {
+        if self.restart || !self.input_derivatives.is_zero() {
+            return Ok(());
+        }
+        let (y, g) = self
+            .clone()
+            .at_communication_point(self.time)
+            .map_err(|e| e.to_string())?;
+        let same = y
+            .iter()
+            .zip(&self.state)
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        if !same
+            || model::length_residual_from_closure(&self.params, g).to_bits()
+                != self.residual.to_bits()
+        {
+            return Err("the state at the communication point is not the integrator's".into());
+        }
+        Ok(())
+    }
+
+    /// For a state restored after initialisation: the integrator works to the tolerance,
+    /// the positions close the loop and the velocities satisfy B1·ω2 = C1·ω3, to well
+    /// within what the projection leaves.
+    pub fn check_initialised(&self) -> Result<(), String> {
+        if self.solver.tolerances() != tolerances(self.tolerance) {
+            return Err("the integrator's tolerances do not match the tolerance".into());
+        }
+        self.check_communication_point()?;
+        let (p, y) = (&self.params, &self.state);
+        let residual = model::length_residual(p, y[1], y[2]);
+        let size = p.l + p.l2 + p.l3 + p.L;
+        if residual.is_nan() || residual.abs() > 1e-8 * size {
+            return Err(format!(
+                "the positions do not close the loop (|A2A3| - L = {})",
+                model::number(residual)
+            ));
+        }
+        let (_, b1, c1) = model::kinematics::closure_with_gradient(p, y[1], y[2]);
+        let (along, across) = (b1 * y[5], c1 * y[6]);
+        let allowed = 1e-8 * (along.abs() + across.abs()) + 1e-12 * size * size;
+        if (along - across).is_nan() || (along - across).abs() > allowed {
+            return Err(format!(
+                "the velocities break the constraint (B1·omega2 - C1·omega3 = {})",
+                model::number(along - across)
+            ));
+        }
+        if (residual - self.residual).abs() > 1e-12 * size {
+            return Err("the stored constraint residual is not the state's".into());
+        }
+        Ok(())
     }
 }
+
+/// A gap to the next communication point that the integrator does not resolve (it takes
+/// no step below 16·ε·|t|; see `solver::check_step_size`), with a margin.
+const UNRESOLVED_STEP: f64 = 64.0 * f64::EPSILON;
+
+/// Input derivatives beyond this (N·m/s, N·m/s²) would carry the inputs past any torque
+/// the model admits within a second.
+const MAX_INPUT_DERIVATIVE: f64 = 1e15;
 
 /// The FMI accessor must match the variable's type.
 fn check_type(var: &Variable, value: Value) -> Result<(), AccessError> {

@@ -5,7 +5,7 @@
 
 const MAGIC: &[u8; 8] = b"CYCMSTAT";
 /// Bump when the layout of the payload changes.
-pub const FORMAT_VERSION: u32 = 5;
+pub const FORMAT_VERSION: u32 = 6;
 const HEADER: usize = 8 + 4 + 8 + 8;
 
 /// Appends fields to a payload.
@@ -107,8 +107,16 @@ impl<'a> Reader<'a> {
         Ok(head.try_into().expect("K bytes"))
     }
 
+    /// A number of the state: every one is finite (an absent value has a flag of its
+    /// own), so a non-finite one means a buffer changed after it was written.
     pub fn f64(&mut self) -> Result<f64, FormatError> {
-        Ok(f64::from_le_bytes(self.take()?))
+        let value = f64::from_le_bytes(self.take()?);
+        if !value.is_finite() {
+            return Err(FormatError(format!(
+                "invalid serialized state: a non-finite number ({value}) where every number is finite"
+            )));
+        }
+        Ok(value)
     }
 
     pub fn f64s<const K: usize>(&mut self) -> Result<[f64; K], FormatError> {
@@ -163,7 +171,7 @@ mod tests {
         w.f64(1.5);
         w.u64(7);
         w.bool(true);
-        w.f64s(&[f64::INFINITY, -0.0]);
+        w.f64s(&[-1e300, -0.0]);
         w.finish(42)
     }
 
@@ -175,9 +183,20 @@ mod tests {
         assert_eq!(r.u64().unwrap(), 7);
         assert!(r.bool().unwrap());
         let [a, b] = r.f64s::<2>().unwrap();
-        assert_eq!(a, f64::INFINITY);
+        assert_eq!(a, -1e300);
         assert!(b == 0.0 && b.is_sign_negative());
         r.finish().unwrap();
+    }
+
+    #[test]
+    fn a_non_finite_number_is_refused_even_with_a_valid_checksum() {
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut w = Writer::default();
+            w.f64(bad);
+            let buffer = w.finish(42);
+            let mut r = Reader::open(&buffer, 42).unwrap();
+            assert!(r.f64().unwrap_err().0.contains("non-finite"), "{bad}");
+        }
     }
 
     #[test]

@@ -4,6 +4,7 @@
 //! (`fmi2GetReal`/`fmi2SetReal`), `modelDescription.xml`, the documentation and the
 //! README's table are all derived from here, so they cannot drift apart.
 
+use crate::model::params::MAX_TORQUE;
 use crate::model::PARAMETERS;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -144,6 +145,16 @@ impl Variable {
             Causality::Input => None,
             Causality::Output => Some("calculated"),
             Causality::Parameter => Some("exact"),
+        }
+    }
+
+    /// The values the FMU admits (the model description's min and max), where it checks.
+    pub fn range(&self) -> Option<(f64, f64)> {
+        match self.slot {
+            Slot::Parameter(i) => Some(PARAMETERS[i].rule.range()),
+            Slot::Input(_) => Some((-MAX_TORQUE, MAX_TORQUE)),
+            Slot::SolverChoice => Some((SOLVER_ITEMS[0].1 as f64, SOLVER_ITEMS[2].1 as f64)),
+            Slot::Output(_) | Slot::Statistic(_) => None,
         }
     }
 

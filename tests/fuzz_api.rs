@@ -9,6 +9,7 @@ use std::ptr::{null, null_mut};
 mod common;
 
 use cyclic_mechanism::fmi2::*;
+use cyclic_mechanism::snapshot::fnv1a_64;
 use cyclic_mechanism::variables::count;
 use fmi_sys::fmi2::*;
 
@@ -29,13 +30,24 @@ impl Rng {
         self.below(100) < percent
     }
     fn real(&mut self) -> f64 {
-        match self.below(10) {
+        match self.below(12) {
             0 => f64::NAN,
             1 => f64::INFINITY,
             2 => -1.0,
             3 => 0.0,
             4 => 1e9,
+            5 => self.extreme(),
             _ => (self.below(2000) as f64 - 500.0) / 100.0,
+        }
+    }
+    /// Finite but extreme: huge, tiny, subnormal, of either sign.
+    fn extreme(&mut self) -> f64 {
+        const EXTREMES: [f64; 8] = [1e300, 1e200, 1e155, 1e-300, 5e-324, 2.2e-308, 1e100, 1e-20];
+        let x = EXTREMES[self.below(EXTREMES.len() as u64) as usize];
+        if self.chance(50) {
+            -x
+        } else {
+            x
         }
     }
     fn vr(&mut self) -> u32 {
@@ -109,10 +121,12 @@ impl Fuzz {
                 3..=5 => {
                     // Short steps: random parameters can make the model very stiff, and the
                     // point here is the API, not long integrations (tested elsewhere).
-                    let h = match r.below(6) {
+                    let h = match r.below(8) {
                         0 => r.real().min(0.05),
                         1 => 0.05,
                         2 => 1e-9,
+                        // Legal steps shorter than the integrator resolves.
+                        3 => [1e-300, 1e-20, 1e-15, 8.88e-16][r.below(4) as usize],
                         _ => 0.01,
                     };
                     let t = if r.chance(85) { self.time } else { r.real() };
@@ -248,6 +262,32 @@ impl Fuzz {
         self.states[self.rng.below(self.states.len() as u64) as usize]
     }
 
+    /// Write a wrong number over the payload and recompute the checksum, as an attacker
+    /// (or a buggy tool) would: only a check of the values themselves can refuse it.
+    fn forge(&mut self, bytes: &mut [c_char]) {
+        const HEADER: usize = 28;
+        if bytes.len() < HEADER + 16 {
+            return;
+        }
+        let payload_end = bytes.len() - 8;
+        let at = HEADER + self.rng.below((payload_end - HEADER - 8) as u64) as usize;
+        let value = match self.rng.below(4) {
+            0 => f64::NAN,
+            1 => f64::INFINITY,
+            _ => self.rng.extreme(),
+        };
+        for (k, b) in value.to_le_bytes().iter().enumerate() {
+            bytes[at + k] = *b as c_char;
+        }
+        let payload: Vec<u8> = bytes[HEADER..payload_end]
+            .iter()
+            .map(|b| *b as u8)
+            .collect();
+        for (k, b) in fnv1a_64(&payload).to_le_bytes().iter().enumerate() {
+            bytes[payload_end + k] = *b as c_char;
+        }
+    }
+
     /// Serialize a state, damage the bytes sometimes, and deserialize.
     unsafe fn round_trip_serialized(&mut self) {
         let state = self.pick_state();
@@ -270,12 +310,13 @@ impl Fuzz {
             {
                 return;
             }
-            match self.rng.below(4) {
+            match self.rng.below(5) {
                 0 => bytes.truncate(self.rng.below(size as u64 + 1) as usize),
                 1 => {
                     let i = self.rng.below(size as u64) as usize;
                     bytes[i] ^= 1 << self.rng.below(8);
                 }
+                2 => self.forge(&mut bytes),
                 _ => {}
             }
             let mut restored: fmi2FMUstate = null_mut();
@@ -292,10 +333,10 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
     let sequences = std::env::var("FUZZ_SEQUENCES")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(2000u64);
+        .unwrap_or(5000u64);
     let mut rng = Rng(0x9E3779B97F4A7C15);
     let mut total_calls = 0;
-    for _ in 0..sequences {
+    for sequence in 0..sequences {
         let c = common::instantiate(c"fuzz");
         let mut fuzz = Fuzz {
             rng: Rng(rng.next() | 1),
@@ -304,8 +345,18 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
             states: Vec::new(),
             calls: 0,
         };
-        for _ in 0..40 {
-            unsafe { fuzz.call() };
+        let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            for _ in 0..40 {
+                unsafe { fuzz.call() };
+            }
+        }));
+        if let Err(panic) = run {
+            let what = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            panic!("sequence {sequence} (of {sequences}) found: {what}");
         }
         // Free some states explicitly; the rest go with the instance.
         for mut state in fuzz.states.drain(..).step_by(2) {

@@ -13,7 +13,7 @@ use super::model_description::{guid, DEFAULT_EXPERIMENT, LOG_CATEGORIES};
 use super::state_machine::State;
 use crate::simulation::{AccessError, Simulation, Value};
 use crate::snapshot::{fnv1a_64, Reader, Writer};
-use crate::variables::VarType;
+use crate::variables::{variable, VarType};
 
 /// Log categories, by their position in [`LOG_CATEGORIES`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -98,7 +98,7 @@ impl FmuState {
         w.u8(self.state.code());
         w.f64(self.start_time);
         w.bool(self.stop_time.is_some());
-        w.f64(self.stop_time.unwrap_or(0.0));
+        w.f64(self.stop_time.unwrap_or(self.start_time));
         w.bool(self.assembled);
         self.sim.serialize_into(&mut w);
         w.finish(interface_hash())
@@ -117,6 +117,21 @@ impl FmuState {
         let assembled = r.bool().map_err(fail)?;
         let sim = Simulation::deserialize_from(&mut r).map_err(fail)?;
         r.finish().map_err(fail)?;
+        let initialised = !matches!(state, State::Instantiated | State::InitializationMode);
+        if !initialised && (sim.time() != start_time || sim.statistics().n_steps != 0) {
+            return Err(Failure::error(
+                "invalid serialized state: an instance before initialisation has not moved",
+            ));
+        }
+        if assembled || initialised {
+            sim.check_initialised()
+                .map_err(|e| Failure::error(format!("invalid serialized state: {e}")))?;
+        }
+        if has_stop && stop < start_time {
+            return Err(Failure::error(
+                "invalid serialized state: the stop time is before the start time",
+            ));
+        }
         Ok(Self {
             sim,
             state,
@@ -290,7 +305,24 @@ impl Instance {
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
             *value = self.sim.read_real(*vr)?;
         }
-        Ok(())
+        self.all_finite(vrs, values, "")
+    }
+
+    /// The last guard: no value leaves the FMU non-finite with a successful status.
+    fn all_finite(&self, vrs: &[u32], values: &[f64], what: &str) -> Outcome {
+        match vrs.iter().zip(values).find(|(_, v)| !v.is_finite()) {
+            None => Ok(()),
+            Some((vr, v)) => Err(Failure::error(format!(
+                "{what}{} = {v} at t = {} is not finite: the model left its valid range \
+                 (state: phi2 = {}, phi3 = {}, omega2 = {}, omega3 = {})",
+                variable(*vr).map_or("?", |var| var.name),
+                self.sim.time(),
+                self.sim.state()[1],
+                self.sim.state()[2],
+                self.sim.state()[5],
+                self.sim.state()[6],
+            ))),
+        }
     }
 
     pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> Outcome {
@@ -346,7 +378,7 @@ impl Instance {
         for ((vr, order), value) in vrs.iter().zip(orders).zip(values.iter_mut()) {
             *value = self.sim.output_derivative(*vr, *order)?;
         }
-        Ok(())
+        self.all_finite(vrs, values, "the output derivative of ")
     }
 
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {

@@ -68,13 +68,14 @@ fn interface_guid() -> String {
     }
     for (vr, v) in variables() {
         text += &format!(
-            " {vr}:{}:{}:{}:{}:{}:{:?}",
+            " {vr}:{}:{}:{}:{}:{}:{:?}:{:?}",
             v.name,
             v.var_type().as_str(),
             v.causality().as_str(),
             v.variability(),
             v.unit,
-            v.start()
+            v.start(),
+            v.range()
         );
     }
     let hash = fnv1a_128(text.as_bytes());
@@ -250,6 +251,12 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
             VarType::Real => typed = typed.with_attribute(("unit", v.unit)),
             VarType::Enumeration => typed = typed.with_attribute(("declaredType", SOLVER_TYPE)),
             VarType::Integer => {}
+        }
+        let range = v
+            .range()
+            .map(|(low, high)| (low.to_string(), high.to_string()));
+        if let Some((low, high)) = &range {
+            typed = typed.with_attributes([("min", low.as_str()), ("max", high.as_str())]);
         }
         let start = v.start().map(|s| s.to_string());
         if let Some(start) = &start {

@@ -25,6 +25,16 @@ pub struct Inputs {
     pub load_torque: f64,
 }
 
+/// A number as messages print it: plainly for ordinary magnitudes, in scientific notation
+/// for very large or very small ones (4.9e-37, not 0.0000…49).
+pub fn number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e7).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// A model error: the message says which variable and which rule.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModelError(String);

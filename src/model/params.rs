@@ -5,31 +5,60 @@
 //! (name, unit, description, rule) from which the FMI variable table, the model
 //! description and the documentation are derived.
 
-use super::ModelError;
+use super::{number, ModelError};
 
-/// What values a parameter admits; checked before a value is applied.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// What values a parameter admits; checked before a value is applied. Every rule bounds
+/// the magnitude too: within these ranges every derived quantity (energies, accelerations,
+/// the rod force) stays far from overflow, so no output can become infinite from finite
+/// settings. The ranges are generous physically: a mechanism outside them is not this one.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Rule {
-    /// Any finite number.
-    Finite,
-    /// Finite and strictly positive (lengths, inertias).
-    Positive,
-    /// Finite and not negative (stiffnesses, dampers).
-    NonNegative,
+    /// |value| ≤ the bound.
+    Finite(f64),
+    /// Strictly positive, within [low, high] (lengths, inertias).
+    Positive(f64, f64),
+    /// Not negative, at most the bound (stiffnesses, dampers).
+    NonNegative(f64),
 }
+
+/// Bounds of the rules (see [`Rule`]).
+pub const MAX_INERTIA: f64 = 1e9;
+pub const MIN_INERTIA: f64 = 1e-9;
+pub const MAX_LENGTH: f64 = 1e3;
+pub const MIN_LENGTH: f64 = 1e-6;
+pub const MAX_STIFFNESS: f64 = 1e12;
+pub const MAX_ANGLE: f64 = 1e6;
+pub const MAX_SPEED: f64 = 1e6;
+pub const MAX_TORQUE: f64 = 1e12;
 
 impl Rule {
     /// `Ok` when `value` satisfies the rule, else the rule in words.
-    pub fn check(self, value: f64) -> Result<(), &'static str> {
+    pub fn check(self, value: f64) -> Result<(), String> {
         if !value.is_finite() {
-            return Err("must be a finite number");
+            return Err("must be a finite number".into());
         }
         match self {
-            Rule::Finite => Ok(()),
-            Rule::Positive if value > 0.0 => Ok(()),
-            Rule::Positive => Err("must be > 0"),
-            Rule::NonNegative if value >= 0.0 => Ok(()),
-            Rule::NonNegative => Err("must be >= 0"),
+            Rule::Finite(bound) if value.abs() > bound => Err(format!(
+                "must be within ±{bound:e} (larger values overflow derived quantities)"
+            )),
+            Rule::Positive(..) if value <= 0.0 => Err("must be > 0".into()),
+            Rule::Positive(low, high) if value < low || value > high => {
+                Err(format!("must be in [{low:e}, {high:e}]"))
+            }
+            Rule::NonNegative(_) if value < 0.0 => Err("must be >= 0".into()),
+            Rule::NonNegative(bound) if value > bound => Err(format!(
+                "must be <= {bound:e} (larger values overflow derived quantities)"
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// The smallest and largest admitted values (the model description's min and max).
+    pub fn range(self) -> (f64, f64) {
+        match self {
+            Rule::Finite(bound) => (-bound, bound),
+            Rule::Positive(low, high) => (low, high),
+            Rule::NonNegative(bound) => (0.0, bound),
         }
     }
 }
@@ -45,7 +74,7 @@ pub struct ParamInfo {
 }
 
 macro_rules! parameters {
-    ($($field:ident : $unit:literal, $default:expr, $rule:ident, $descr:literal;)*) => {
+    ($($field:ident : $unit:literal, $default:expr, $rule:expr, $descr:literal;)*) => {
         /// Parameter values, by their FMI names (SPEC §1, §3, §4).
         #[allow(non_snake_case)]
         #[derive(Clone, Copy, Debug, PartialEq)]
@@ -59,7 +88,7 @@ macro_rules! parameters {
         /// [`Parameters::get`] and [`Parameters::set`].
         pub const PARAMETERS: &[ParamInfo] = &[
             $(ParamInfo { name: stringify!($field), unit: $unit, default: $default,
-                          rule: Rule::$rule, description: $descr },)*
+                          rule: $rule, description: $descr },)*
         ];
 
         impl Parameters {
@@ -79,32 +108,32 @@ macro_rules! parameters {
 }
 
 parameters! {
-    J1: "kg.m2", 0.5, Positive, "Inertia of body 1, the motor rotor";
-    J2: "kg.m2", 0.2, Positive, "Inertia of body 2, the crank";
-    J3: "kg.m2", 0.3, Positive, "Inertia of body 3, the rocker";
-    J4: "kg.m2", 0.7, Positive, "Inertia of body 4, the load";
-    k12: "N.m/rad", 100.0, NonNegative, "Stiffness of the torsional spring between bodies 1 and 2";
-    k34: "N.m/rad", 100.0, NonNegative, "Stiffness of the torsional spring between bodies 3 and 4";
-    d12: "N.m.s/rad", 0.0, NonNegative, "Viscous damper in parallel with spring k12";
-    d34: "N.m.s/rad", 0.0, NonNegative, "Viscous damper in parallel with spring k34";
-    c4: "N.m.s/rad", 0.0, NonNegative, "Viscous damper acting on body 4 against ground";
-    l: "m", 0.5, Positive, "Distance between the crank pivot O2 and the rocker pivot O3";
-    l2: "m", 0.05, Positive, "Crank radius |O2 A2|";
-    l3: "m", 0.5, Positive, "Rocker radius |O3 A3|";
-    L: "m", 0.7, Positive, "Length of the rigid rod A2 A3";
-    phi2_0: "rad", 0.0, Finite, "Initial crank angle phi2(0)";
-    phi3_guess: "rad", std::f64::consts::FRAC_PI_2, Finite,
+    J1: "kg.m2", 0.5, Rule::Positive(MIN_INERTIA, MAX_INERTIA), "Inertia of body 1, the motor rotor";
+    J2: "kg.m2", 0.2, Rule::Positive(MIN_INERTIA, MAX_INERTIA), "Inertia of body 2, the crank";
+    J3: "kg.m2", 0.3, Rule::Positive(MIN_INERTIA, MAX_INERTIA), "Inertia of body 3, the rocker";
+    J4: "kg.m2", 0.7, Rule::Positive(MIN_INERTIA, MAX_INERTIA), "Inertia of body 4, the load";
+    k12: "N.m/rad", 100.0, Rule::NonNegative(MAX_STIFFNESS), "Stiffness of the torsional spring between bodies 1 and 2";
+    k34: "N.m/rad", 100.0, Rule::NonNegative(MAX_STIFFNESS), "Stiffness of the torsional spring between bodies 3 and 4";
+    d12: "N.m.s/rad", 0.0, Rule::NonNegative(MAX_STIFFNESS), "Viscous damper in parallel with spring k12";
+    d34: "N.m.s/rad", 0.0, Rule::NonNegative(MAX_STIFFNESS), "Viscous damper in parallel with spring k34";
+    c4: "N.m.s/rad", 0.0, Rule::NonNegative(MAX_STIFFNESS), "Viscous damper acting on body 4 against ground";
+    l: "m", 0.5, Rule::Positive(MIN_LENGTH, MAX_LENGTH), "Distance between the crank pivot O2 and the rocker pivot O3";
+    l2: "m", 0.05, Rule::Positive(MIN_LENGTH, MAX_LENGTH), "Crank radius |O2 A2|";
+    l3: "m", 0.5, Rule::Positive(MIN_LENGTH, MAX_LENGTH), "Rocker radius |O3 A3|";
+    L: "m", 0.7, Rule::Positive(MIN_LENGTH, MAX_LENGTH), "Length of the rigid rod A2 A3";
+    phi2_0: "rad", 0.0, Rule::Finite(MAX_ANGLE), "Initial crank angle phi2(0)";
+    phi3_guess: "rad", std::f64::consts::FRAC_PI_2, Rule::Finite(MAX_ANGLE),
         "Initial rocker angle guess: of the two assemblies, the one with phi3(0) nearest this is used";
-    twist12_0: "rad", 0.0, Finite, "Initial spring twist: phi1(0) = phi2(0) + twist12_0";
-    twist34_0: "rad", 0.0, Finite, "Initial spring twist: phi4(0) = phi3(0) - twist34_0";
-    omega1_0: "rad/s", 0.0, Finite, "Initial speed of body 1";
-    omega2_0: "rad/s", 0.0, Finite, "Initial speed of the crank; omega3(0) follows from the constraint";
-    omega4_0: "rad/s", 0.0, Finite, "Initial speed of body 4";
-    Mm_a0: "N.m", 0.0, Finite, "Built-in motor law: M_m += Mm_a0 + Mm_a1*omega1 + Mm_a2*omega1^2 (paper: 100)";
-    Mm_a1: "N.m.s/rad", 0.0, Finite, "Built-in motor law, linear coefficient (paper: -20)";
-    Mm_a2: "N.m.s2/rad2", 0.0, Finite, "Built-in motor law, quadratic coefficient (paper: -1)";
-    Mr_b0: "N.m", 0.0, Finite, "Built-in load law: M_r += Mr_b0 + Mr_b1*omega1 (paper: 20)";
-    Mr_b1: "N.m.s/rad", 0.0, Finite, "Built-in load law, linear coefficient in omega1 (paper: -0.05)";
+    twist12_0: "rad", 0.0, Rule::Finite(MAX_ANGLE), "Initial spring twist: phi1(0) = phi2(0) + twist12_0";
+    twist34_0: "rad", 0.0, Rule::Finite(MAX_ANGLE), "Initial spring twist: phi4(0) = phi3(0) - twist34_0";
+    omega1_0: "rad/s", 0.0, Rule::Finite(MAX_SPEED), "Initial speed of body 1";
+    omega2_0: "rad/s", 0.0, Rule::Finite(MAX_SPEED), "Initial speed of the crank; omega3(0) follows from the constraint";
+    omega4_0: "rad/s", 0.0, Rule::Finite(MAX_SPEED), "Initial speed of body 4";
+    Mm_a0: "N.m", 0.0, Rule::Finite(MAX_TORQUE), "Built-in motor law: M_m += Mm_a0 + Mm_a1*omega1 + Mm_a2*omega1^2 (paper: 100)";
+    Mm_a1: "N.m.s/rad", 0.0, Rule::Finite(MAX_TORQUE), "Built-in motor law, linear coefficient (paper: -20)";
+    Mm_a2: "N.m.s2/rad2", 0.0, Rule::Finite(MAX_TORQUE), "Built-in motor law, quadratic coefficient (paper: -1)";
+    Mr_b0: "N.m", 0.0, Rule::Finite(MAX_TORQUE), "Built-in load law: M_r += Mr_b0 + Mr_b1*omega1 (paper: 20)";
+    Mr_b1: "N.m.s/rad", 0.0, Rule::Finite(MAX_TORQUE), "Built-in load law, linear coefficient in omega1 (paper: -0.05)";
 }
 
 impl Parameters {
@@ -154,9 +183,13 @@ impl Parameters {
 
 /// `Ok` when `value` satisfies the parameter's rule; the error names both.
 pub fn check_rule(info: &ParamInfo, value: f64) -> Result<(), ModelError> {
-    info.rule
-        .check(value)
-        .map_err(|rule| ModelError::new(format!("parameter {} = {value} {rule}", info.name)))
+    info.rule.check(value).map_err(|rule| {
+        ModelError::new(format!(
+            "parameter {} = {} {rule}",
+            info.name,
+            number(value)
+        ))
+    })
 }
 
 #[cfg(test)]

@@ -90,8 +90,7 @@ pub fn check_passage(
     y: &State,
     at: &Projected,
 ) -> Result<(), ModelError> {
-    let scale = (p.l2 * (p.l + p.l3)).powi(2) / p.J2 + (p.l3 * (p.l2 + p.l)).powi(2) / p.J3;
-    let conditioning = (at.b1 * at.b1 / p.J2 + at.c1 * at.c1 / p.J3) / scale;
+    let conditioning = conditioning(p, at.b1, at.c1);
     let singular = |what: &str| {
         ModelError::new(format!(
             "{what} at phi2 = {}, phi3 = {} (B1 = {:e}, C1 = {:e}): crank, rod and rocker are \
@@ -114,6 +113,13 @@ pub fn check_passage(
     Ok(())
 }
 
+/// How far the constraint is from singular: (B1²/J2 + C1²/J3), normalised by its scale
+/// for this geometry; zero only where B1 = C1 = 0 (crank, rod and rocker collinear).
+pub fn conditioning(p: &Parameters, b1: f64, c1: f64) -> f64 {
+    let scale = (p.l2 * (p.l + p.l3)).powi(2) / p.J2 + (p.l3 * (p.l2 + p.l)).powi(2) / p.J3;
+    (b1 * b1 / p.J2 + c1 * c1 / p.J3) / scale
+}
+
 /// The consistent initial state of SPEC §3: φ3 from the assembly nearest `phi3_guess`,
 /// the springs' initial twists, and ω3 = (B1/C1)·ω2.
 pub fn initial_state(p: &Parameters) -> Result<State, ModelError> {
@@ -121,6 +127,23 @@ pub fn initial_state(p: &Parameters) -> Result<State, ModelError> {
     let phi2 = p.phi2_0;
     let phi3 = assemble_rocker(p, phi2, p.phi3_guess)?;
     let t = constraint_terms(p, phi2, phi3, 0.0, 0.0);
+    let measure = conditioning(p, t.b1, t.c1);
+    if measure.is_nan() || measure < MIN_CONDITIONING {
+        return Err(ModelError::new(format!(
+            "the assembly at phi2_0 = {phi2} is a change point (B1 = {}, C1 = {}: crank, rod \
+             and rocker collinear), where the motion is not determined; this geometry has one \
+             because two sums of link lengths are (nearly) equal: l2 + L = {}, l + l3 = {}, \
+             l2 + l = {}, l3 + L = {}, l2 + l3 = {}, l + L = {}; change phi2_0 or the lengths",
+            super::number(t.b1),
+            super::number(t.c1),
+            p.l2 + p.L,
+            p.l + p.l3,
+            p.l2 + p.l,
+            p.l3 + p.L,
+            p.l2 + p.l3,
+            p.l + p.L
+        )));
+    }
     // C1 tiny relative to its scale l3·(l2 + l) means rod and rocker are aligned.
     if t.c1.abs() <= 1e-9 * p.l3 * (p.l2 + p.l) {
         return Err(ModelError::new(format!(

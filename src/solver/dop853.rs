@@ -354,6 +354,57 @@ impl<const N: usize> Dop853<N> {
 }
 
 impl<const N: usize> Dop853<N> {
+    /// Check restored memory against `system` at the integrator's point (t, y): a step is
+    /// deterministic, so the last step is taken again from its stored start, and its
+    /// stages, its (projected) end, the interpolant and f(t, y) must come out bit for bit
+    /// as stored. Memory that differs was altered after it was written.
+    pub fn check_memory<S: OdeSystem<N>>(
+        &self,
+        system: &S,
+        t: f64,
+        y: &[f64; N],
+    ) -> Result<(), String> {
+        let same =
+            |a: &[f64; N], b: &[f64; N]| a.iter().zip(b).all(|(x, z)| x.to_bits() == z.to_bits());
+        let mut copy = self.clone();
+        if self.first_stage_valid {
+            copy.eval(system, t, y, NEXT_FIRST);
+            if !same(&copy.stages[NEXT_FIRST], &self.stages[NEXT_FIRST]) {
+                return Err("the stored f(t, y) is not the system's".into());
+            }
+        }
+        let Some(step) = self.last_step else {
+            return Ok(());
+        };
+        if !same(&step.y_new, y) || !self.first_stage_valid {
+            return Err("the last step does not end at the integrator's state".into());
+        }
+        copy.eval(system, step.t_old, &step.y_old, NEXT_FIRST);
+        let (mut y_new, mut y_stage) = ([0.0; N], [0.0; N]);
+        copy.attempt(
+            system,
+            step.t_old,
+            &step.y_old,
+            step.h,
+            &mut y_new,
+            &mut y_stage,
+        );
+        system.project(&step.y_old, &mut y_new)?;
+        let stages_agree = (0..STAGES).all(|i| same(&copy.stages[i], &self.stages[i]));
+        if !stages_agree || !same(&y_new, &step.y_new) {
+            return Err("the last step's stages or end do not follow from its start".into());
+        }
+        if let Some(dense) = &self.dense {
+            // The interpolant also uses f at the step's end, checked above.
+            copy.stages[NEXT_FIRST] = self.stages[NEXT_FIRST];
+            let again = copy.dense_coefficients(system, &step);
+            if !(0..7).all(|i| same(&again[i], &dense[i])) {
+                return Err("the stored interpolant is not the last step's".into());
+            }
+        }
+        Ok(())
+    }
+
     /// Everything the integrator remembers (step size, stages, dense output, counters),
     /// for a serialized FMU state: restoring it continues bit for bit.
     pub fn serialize_into(&self, w: &mut Writer) {

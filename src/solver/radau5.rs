@@ -607,6 +607,37 @@ fn spectral_radius<const N: usize>(j: &[[f64; N]; N]) -> f64 {
 
 impl<const N: usize> Radau5<N> {
     /// Everything the integrator remembers, for a serialized FMU state.
+    /// Check restored memory against `system` at the integrator's point (t, y): the stored
+    /// f(t, y) must be the system's bit for bit, and the last step must end at (t, y). (The
+    /// Jacobian and the inner stages only steer Newton's iteration and the interpolant
+    /// between nodes, which communication points never use: a step ends on each.)
+    pub fn check_memory<S: OdeSystem<N>>(
+        &self,
+        system: &S,
+        t: f64,
+        y: &[f64; N],
+    ) -> Result<(), String> {
+        if self.f0_valid {
+            let mut stats = Statistics::default();
+            let f = evaluate(system, &mut stats, t, y);
+            if !f
+                .iter()
+                .zip(&self.f0)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+            {
+                return Err("the stored f(t, y) is not the system's".into());
+            }
+        }
+        if let Some(step) = &self.last_step {
+            let close = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * (a.abs() + b.abs());
+            let ends_here = (0..N).all(|n| close(step.y_old[n] + step.z[2][n], y[n]));
+            if !close(step.t_old + step.h, t) || !ends_here {
+                return Err("the last step does not end at the integrator's state".into());
+            }
+        }
+        Ok(())
+    }
+
     pub fn serialize_into(&self, w: &mut Writer) {
         self.progress.serialize_into(w);
         w.f64s(&self.f0);

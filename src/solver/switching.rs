@@ -78,6 +78,27 @@ impl<const N: usize> Integrator<N> {
         }
     }
 
+    /// See [`Dop853::check_memory`] and [`Radau5::check_memory`].
+    pub fn check_memory<S: OdeSystem<N>>(
+        &self,
+        system: &S,
+        t: f64,
+        y: &[f64; N],
+    ) -> Result<(), String> {
+        match &self.active {
+            Active::Explicit(s) => s.check_memory(system, t, y),
+            Active::Implicit(s) => s.check_memory(system, t, y),
+        }
+    }
+
+    /// The tolerances the active method controls its steps to.
+    pub fn tolerances(&self) -> Tolerances {
+        match &self.active {
+            Active::Explicit(s) => s.progress().tolerances,
+            Active::Implicit(s) => s.progress().tolerances,
+        }
+    }
+
     pub fn statistics(&self) -> Statistics {
         match &self.active {
             Active::Explicit(s) => s.statistics(),
