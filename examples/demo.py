@@ -19,6 +19,7 @@ from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 # The paper's motor and load laws [79], [80], as the FMU's built-in-law parameters.
 PAPER_LAWS = dict(Mm_a0=100.0, Mm_a1=-20.0, Mm_a2=-1.0, Mr_b0=20.0, Mr_b1=-0.05)
 CASES = {"case1": dict(PAPER_LAWS), "case2": dict(PAPER_LAWS, k34=40.0)}
+NON_GRASHOF = dict(l=0.4, l2=0.3, l3=0.35, L=0.5, phi2_0=1.0)
 TITLES = {"case1": "Case 1: k12 = k34 = 100 N·m/rad", "case2": "Case 2: k12 = 100, k34 = 40 N·m/rad"}
 
 
@@ -56,12 +57,14 @@ def plot_overview(results, path):
     plt.close(fig)
 
 
-def animate_linkage(result, path, duration=3.0, fps=25, l=0.5, l2=0.05, l3=0.5):
-    """Crank O2A2, rod A2A3, rocker O3A3; bodies 1 and 4 as dials beside their pivots."""
+def animate_linkage(result, path, title, duration=3.0, fps=25, l=0.5, l2=0.05, l3=0.5):
+    """Crank O2A2, rod A2A3, rocker O3A3; bodies 1 and 4 as dials beside their pivots. A
+    frame where rod and rocker are aligned (the crank's dead point) says so."""
     times = result["time"]
     frames = [int(np.searchsorted(times, t)) for t in np.arange(0.0, duration, 1.0 / fps)]
+    reach = max(l2, l3)
     fig, ax = plt.subplots(figsize=(6, 5))
-    ax.set(xlim=(-0.25, 0.95), ylim=(-0.25, 0.7), aspect="equal", title="Case 1, first 3 s")
+    ax.set(xlim=(-l2 - 0.3, l + l3 + 0.3), ylim=(-reach - 0.3, reach + 0.3), aspect="equal", title=title)
     ax.axis("off")
     ax.plot([0.0, l], [0.0, 0.0], "k:", lw=1)
     ax.plot([0.0, l], [0.0, 0.0], "k^", ms=12)
@@ -70,9 +73,11 @@ def animate_linkage(result, path, duration=3.0, fps=25, l=0.5, l2=0.05, l3=0.5):
     rocker, = ax.plot([], [], "-o", lw=4, color="tab:orange", label="rocker (body 3)")
     motor, = ax.plot([], [], "-", lw=2, color="tab:green", label="motor rotor (body 1)")
     load, = ax.plot([], [], "-", lw=2, color="tab:red", label="load (body 4)")
-    label = ax.text(-0.22, 0.6, "", family="monospace")
-    ax.legend(loc="upper right", fontsize=8)
-    dial1, dial4 = np.array([-0.15, -0.15]), np.array([l + 0.2, -0.15])
+    label = ax.text(0.02, 0.86, "", family="monospace", transform=ax.transAxes)
+    dead = ax.text(0.02, 0.80, "", color="tab:purple", transform=ax.transAxes)
+    # The legend sits outside the axes so that it never covers a pin.
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, 1.0), fontsize=7, ncol=3, frameon=False)
+    dial1, dial4 = np.array([-l2 - 0.18, -reach - 0.15]), np.array([l + l3 + 0.18, -reach - 0.15])
     for centre in (dial1, dial4):
         ax.add_patch(plt.Circle(centre, 0.06, fill=False, color="0.6"))
 
@@ -86,8 +91,11 @@ def animate_linkage(result, path, duration=3.0, fps=25, l=0.5, l2=0.05, l3=0.5):
         for line, centre, phi in ((motor, dial1, phi1), (load, dial4, phi4)):
             tip = centre + 0.06 * np.array([np.cos(phi), np.sin(phi)])
             line.set_data([centre[0], tip[0]], [centre[1], tip[1]])
-        label.set_text(f"t = {times[i]:4.2f} s   ω1 = {result['omega1'][i]:5.2f} rad/s")
-        return crank, rod, rocker, motor, load, label
+        label.set_text(f"t = {times[i]:4.2f} s  ω1 = {result['omega1'][i]:5.2f}  ω2 = {result['omega2'][i]:5.2f} rad/s")
+        along, arm = a3 - a2, a3 - np.array([l, 0.0])
+        aligned = abs(along[0] * arm[1] - along[1] * arm[0]) < 0.06 * np.linalg.norm(along) * l3
+        dead.set_text("rod and rocker aligned: the crank's dead point" if aligned else "")
+        return crank, rod, rocker, motor, load, label, dead
 
     FuncAnimation(fig, draw, frames=frames, blit=True).save(path, writer=PillowWriter(fps=fps))
     plt.close(fig)
@@ -113,8 +121,14 @@ def main(fmu, out):
     overview = out / "paper_figures.png"
     plot_overview(results, overview)
     gif = out / "linkage_case1.gif"
-    animate_linkage(results["case1"], gif)
-    written += [overview, gif]
+    animate_linkage(results["case1"], gif, "Case 1, first 3 s")
+    # A non-Grashof linkage (s + g > p + q): no link turns fully; the crank swings back
+    # through its dead points, where rod and rocker are aligned.
+    swinging = simulate(str(fmu), dict(NON_GRASHOF, **PAPER_LAWS), stop_time=4.0)
+    swinging_gif = out / "linkage_non_grashof.gif"
+    animate_linkage(swinging, swinging_gif, "A non-Grashof linkage, paper laws, first 4 s",
+                    duration=4.0, **{k: NON_GRASHOF[k] for k in ("l", "l2", "l3")})
+    written += [overview, gif, swinging_gif]
     print("Written:")
     for path in written:
         print(f"  {path}")

@@ -489,7 +489,7 @@ impl Simulation {
             Slot::Input(Input::MotorTorque) => Some(self.inputs.motor_torque),
             Slot::Input(Input::LoadTorque) => Some(self.inputs.load_torque),
             Slot::Parameter(i) => Some(self.params.get(i).unwrap_or(f64::NAN)),
-            Slot::Statistic(_) | Slot::SolverChoice => None,
+            Slot::Statistic(_) | Slot::SolverChoice | Slot::LinkageClass => None,
         }
     }
 
@@ -509,6 +509,7 @@ impl Simulation {
                 })
             }
             Slot::SolverChoice => Value::Integer(self.solver_kind as i32),
+            Slot::LinkageClass => Value::Integer(model::classify(&self.params) as i32),
             Slot::Output(_) | Slot::Input(_) | Slot::Parameter(_) => unreachable!("Real slots"),
         }
     }

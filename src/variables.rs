@@ -63,6 +63,8 @@ pub enum Slot {
     Statistic(Statistic),
     /// The `solver` parameter, one of [`SOLVER_ITEMS`].
     SolverChoice,
+    /// The linkage's class, one of [`LINKAGE_CLASSES`] (an Enumeration output).
+    LinkageClass,
 }
 
 /// FMI base types used here.
@@ -103,6 +105,8 @@ pub const SOLVER_ITEMS: [(&str, i32, &str); 3] = [
     ),
 ];
 pub const SOLVER_TYPE: &str = "SolverKind";
+/// The name of the linkage classes' type in the XML (items: [`LINKAGE_CLASSES`]).
+pub const LINKAGE_TYPE: &str = "LinkageClass";
 
 /// One FMI variable.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,7 +121,7 @@ impl Variable {
     pub fn causality(&self) -> Causality {
         match self.slot {
             Slot::Input(_) => Causality::Input,
-            Slot::Output(_) | Slot::Statistic(_) => Causality::Output,
+            Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => Causality::Output,
             Slot::Parameter(_) | Slot::SolverChoice => Causality::Parameter,
         }
     }
@@ -125,7 +129,7 @@ impl Variable {
     pub fn var_type(&self) -> VarType {
         match self.slot {
             Slot::Statistic(_) => VarType::Integer,
-            Slot::SolverChoice => VarType::Enumeration,
+            Slot::SolverChoice | Slot::LinkageClass => VarType::Enumeration,
             _ => VarType::Real,
         }
     }
@@ -134,7 +138,7 @@ impl Variable {
     pub fn variability(&self) -> &'static str {
         match self.slot {
             Slot::Parameter(_) | Slot::SolverChoice => "fixed",
-            Slot::Statistic(_) => "discrete",
+            Slot::Statistic(_) | Slot::LinkageClass => "discrete",
             _ => "continuous",
         }
     }
@@ -154,7 +158,16 @@ impl Variable {
             Slot::Parameter(i) => Some(PARAMETERS[i].rule.range()),
             Slot::Input(_) => Some((-MAX_TORQUE, MAX_TORQUE)),
             Slot::SolverChoice => Some((SOLVER_ITEMS[0].1 as f64, SOLVER_ITEMS[2].1 as f64)),
-            Slot::Output(_) | Slot::Statistic(_) => None,
+            Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
+        }
+    }
+
+    /// The declared type of an Enumeration variable.
+    pub fn declared_type(&self) -> Option<&'static str> {
+        match self.slot {
+            Slot::SolverChoice => Some(SOLVER_TYPE),
+            Slot::LinkageClass => Some(LINKAGE_TYPE),
+            _ => None,
         }
     }
 
@@ -163,7 +176,7 @@ impl Variable {
     pub fn start(&self) -> Option<f64> {
         match self.slot {
             Slot::Input(_) => Some(0.0),
-            Slot::Output(_) | Slot::Statistic(_) => None,
+            Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
             Slot::Parameter(i) => Some(PARAMETERS[i].default),
             Slot::SolverChoice => Some(SOLVER_ITEMS[0].1 as f64),
         }
@@ -243,7 +256,7 @@ const OUTPUTS: [Variable; 11] = [
     ),
 ];
 
-const SOLVER_VARIABLES: [Variable; 5] = [
+const SOLVER_VARIABLES: [Variable; 6] = [
     Variable {
         name: "n_steps",
         unit: "",
@@ -273,6 +286,12 @@ const SOLVER_VARIABLES: [Variable; 5] = [
         unit: "",
         description: "Method integrating now: dop853 (2) or implicit (3); what auto chose",
         slot: Slot::Statistic(Statistic::ActiveSolver),
+    },
+    Variable {
+        name: "linkage_class",
+        unit: "",
+        description: "The four-bar's class from l, l2, l3, L (Grashof): crank_rocker (1), double_crank (2), double_rocker (3), rocker_crank (4), triple_rocker (5), change_point (6)",
+        slot: Slot::LinkageClass,
     },
 ];
 

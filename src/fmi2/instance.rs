@@ -286,7 +286,22 @@ impl Instance {
             .map_err(|e| Failure::error(format!("initialisation failed: {e}")))?;
         self.state = State::StepComplete;
         self.warned_stability = false;
+        self.log_linkage_class();
         Ok(())
+    }
+
+    /// The linkage's class and the motions it allows; a warning for a change-point
+    /// geometry, whose run stops where crank, rod and rocker fall collinear.
+    fn log_linkage_class(&self) {
+        let class = crate::model::classify(self.sim.params());
+        let message = format!("the linkage is a {}: {}", class.name(), class.description());
+        if class == crate::model::LinkageClass::ChangePoint {
+            if self.log_enabled(Category::Warning) {
+                self.log(fmi2Status_fmi2Warning, Category::Warning, &message);
+            }
+        } else if self.log_enabled(Category::Solver) {
+            self.log(fmi2Status_fmi2OK, Category::Solver, &message);
+        }
     }
 
     /// Outputs in initialization mode reflect the parameters set so far.

@@ -7,8 +7,11 @@ use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
 use std::io;
 
+use crate::model::LINKAGE_CLASSES;
 use crate::simulation::DEFAULT_TOLERANCE;
-use crate::variables::{variables, Causality, VarType, Variable, SOLVER_ITEMS, SOLVER_TYPE, UNITS};
+use crate::variables::{
+    variables, Causality, VarType, Variable, LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE, UNITS,
+};
 
 pub const MODEL_IDENTIFIER: &str = "CyclicMechanism";
 pub const MODEL_NAME: &str = "CyclicMechanism";
@@ -172,26 +175,35 @@ fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     Ok(())
 }
 
+/// An enumeration's items: name, value, description.
+type Items = [(&'static str, i32, &'static str)];
+
 fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    let types: [(&str, &Items); 2] = [
+        (SOLVER_TYPE, &SOLVER_ITEMS),
+        (LINKAGE_TYPE, &LINKAGE_CLASSES),
+    ];
     w.create_element("TypeDefinitions")
         .write_inner_content(|w| {
-            w.create_element("SimpleType")
-                .with_attribute(("name", SOLVER_TYPE))
-                .write_inner_content(|w| {
-                    w.create_element("Enumeration").write_inner_content(|w| {
-                        for (name, value, description) in SOLVER_ITEMS {
-                            w.create_element("Item")
-                                .with_attributes([
-                                    ("name", name),
-                                    ("value", value.to_string().as_str()),
-                                    ("description", description),
-                                ])
-                                .write_empty()?;
-                        }
+            for (type_name, items) in types {
+                w.create_element("SimpleType")
+                    .with_attribute(("name", type_name))
+                    .write_inner_content(|w| {
+                        w.create_element("Enumeration").write_inner_content(|w| {
+                            for (name, value, description) in items {
+                                w.create_element("Item")
+                                    .with_attributes([
+                                        ("name", *name),
+                                        ("value", value.to_string().as_str()),
+                                        ("description", *description),
+                                    ])
+                                    .write_empty()?;
+                            }
+                            Ok(())
+                        })?;
                         Ok(())
                     })?;
-                    Ok(())
-                })?;
+            }
             Ok(())
         })?;
     Ok(())
@@ -249,7 +261,10 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
         let mut typed = w.create_element(v.var_type().as_str());
         match v.var_type() {
             VarType::Real => typed = typed.with_attribute(("unit", v.unit)),
-            VarType::Enumeration => typed = typed.with_attribute(("declaredType", SOLVER_TYPE)),
+            VarType::Enumeration => {
+                typed =
+                    typed.with_attribute(("declaredType", v.declared_type().unwrap_or(SOLVER_TYPE)))
+            }
             VarType::Integer => {}
         }
         let range = v

@@ -4,11 +4,13 @@
 
 pub mod dynamics;
 pub mod kinematics;
+pub mod linkage;
 pub mod params;
 pub mod projection;
 
 pub use dynamics::{accelerations, energy, power, rod_force, state_derivative};
 pub use kinematics::{length_residual, length_residual_from_closure, SinCosMemo};
+pub use linkage::{classify, LinkageClass, LINKAGE_CLASSES};
 pub use params::{Parameters, PARAMETERS};
 pub use projection::{check_passage, initial_state, project, project_with, Projected};
 

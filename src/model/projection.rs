@@ -79,38 +79,71 @@ pub fn project_with(
 }
 
 /// The step from `previous` to `y` (projected, with `at` its projection) stayed where the
-/// motion is determined: the constraint is not singular at `y` (SPEC §2: the 2×2 block
-/// is singular only where B1 = C1 = 0, a change point), and the assembly mode, the sign
-/// of C1 (on which side of the rocker the rod lies), did not flip. A flip means the
-/// linkage went through a change point and took one of two possible continuations: the
-/// equations no longer say which, so the step is refused rather than guessed.
+/// motion is determined (SPEC §2: the 2×2 block is singular only where B1 = C1 = 0, a
+/// change point, possible only when two sums of link lengths are equal).
+///
+/// B1 = 0 alone is a dead point of the rocker (ω3 = 0, it reverses) and C1 = 0 alone one
+/// of the crank (ω2 = 0: rod and rocker aligned, the crank stops and swings back, as in
+/// every non-Grashof linkage): both are regular motion, and C1 changes sign through the
+/// latter. So a step is refused only where the constraint is singular at its end, or
+/// where C1 changed sign with B1 also near zero at the crossing (a change point passed
+/// within the step): there the linkage may continue on either of two branches and the
+/// equations do not say which.
 pub fn check_passage(
     p: &Parameters,
     previous: &State,
     y: &State,
     at: &Projected,
 ) -> Result<(), ModelError> {
-    let conditioning = conditioning(p, at.b1, at.c1);
-    let singular = |what: &str| {
+    let singular = |what: &str, b1: f64, c1: f64| {
         ModelError::new(format!(
-            "{what} at phi2 = {}, phi3 = {} (B1 = {:e}, C1 = {:e}): crank, rod and rocker are \
-             (nearly) collinear, a change point of this geometry (l = {}, l2 = {}, l3 = {}, L = {})",
-            y[1], y[2], at.b1, at.c1, p.l, p.l2, p.l3, p.L
+            "{what} at phi2 = {}, phi3 = {} (B1 = {}, C1 = {}): crank, rod and rocker are \
+             collinear, a change point, where the motion is not determined; this geometry has \
+             one because {}",
+            y[1],
+            y[2],
+            super::number(b1),
+            super::number(c1),
+            equal_sums(p)
         ))
     };
-    if conditioning.is_nan() || conditioning < MIN_CONDITIONING {
-        return Err(singular("singular configuration"));
+    let measure = conditioning(p, at.b1, at.c1);
+    if measure.is_nan() || measure < MIN_CONDITIONING {
+        return Err(singular("singular configuration", at.b1, at.c1));
     }
     // C1 moves at most l3·(l2 + l) per radian of φ2 and φ3: only a C1 that small can have
     // changed sign during the step, so only then is the start's C1 worth computing.
     let reach = p.l3 * (p.l2 + p.l) * ((y[1] - previous[1]).abs() + (y[2] - previous[2]).abs());
     if at.c1.abs() <= 1.01 * reach {
-        let before = constraint_terms(p, previous[1], previous[2], 0.0, 0.0).c1;
-        if before * at.c1 < 0.0 {
-            return Err(singular("the assembly mode changed during the step"));
+        let before = constraint_terms(p, previous[1], previous[2], 0.0, 0.0);
+        if before.c1 * at.c1 < 0.0 {
+            // Where C1 crossed zero (linear in the step), what was B1?
+            let s = before.c1 / (before.c1 - at.c1);
+            let b1 = before.b1 + s * (at.b1 - before.b1);
+            if conditioning(p, b1, 0.0) < MIN_CONDITIONING {
+                return Err(singular("a change point passed during the step", b1, 0.0));
+            }
         }
     }
     Ok(())
+}
+
+/// Which sums of link lengths are (nearly) equal, in words: what makes a change point.
+pub fn equal_sums(p: &Parameters) -> String {
+    let pairs = [
+        ("l2 + L", p.l2 + p.L, "l + l3", p.l + p.l3),
+        ("l2 + l", p.l2 + p.l, "l3 + L", p.l3 + p.L),
+        ("l2 + l3", p.l2 + p.l3, "l + L", p.l + p.L),
+    ];
+    let (a, x, b, z) = pairs
+        .iter()
+        .copied()
+        .min_by(|u, v| (u.1 - u.3).abs().total_cmp(&(v.1 - v.3).abs()))
+        .expect("three pairs");
+    format!(
+        "{a} = {x} and {b} = {z} are (nearly) equal (l = {}, l2 = {}, l3 = {}, L = {})",
+        p.l, p.l2, p.l3, p.L
+    )
 }
 
 /// How far the constraint is from singular: (B1²/J2 + C1²/J3), normalised by its scale
@@ -132,25 +165,36 @@ pub fn initial_state(p: &Parameters) -> Result<State, ModelError> {
         return Err(ModelError::new(format!(
             "the assembly at phi2_0 = {phi2} is a change point (B1 = {}, C1 = {}: crank, rod \
              and rocker collinear), where the motion is not determined; this geometry has one \
-             because two sums of link lengths are (nearly) equal: l2 + L = {}, l + l3 = {}, \
-             l2 + l = {}, l3 + L = {}, l2 + l3 = {}, l + L = {}; change phi2_0 or the lengths",
+             because {}; change phi2_0 or the lengths",
             super::number(t.b1),
             super::number(t.c1),
-            p.l2 + p.L,
-            p.l + p.l3,
-            p.l2 + p.l,
-            p.l3 + p.L,
-            p.l2 + p.l3,
-            p.l + p.L
+            equal_sums(p)
         )));
     }
-    // C1 tiny relative to its scale l3·(l2 + l) means rod and rocker are aligned.
+    // C1 tiny relative to its scale l3·(l2 + l): rod and rocker aligned, a dead point of
+    // the crank, which cannot move there (B1·ω2 = C1·ω3 = 0) while ω3 is free.
     if t.c1.abs() <= 1e-9 * p.l3 * (p.l2 + p.l) {
-        return Err(ModelError::new(format!(
-            "the assembly at phi2_0 = {phi2} has C1 = {:e} (rod and rocker aligned): omega3(0) \
-             is undetermined; change phi2_0, phi3_guess or the lengths l, l2, l3, L",
-            t.c1
-        )));
+        if p.omega2_0 != 0.0 {
+            return Err(ModelError::new(format!(
+                "the assembly at phi2_0 = {phi2} is a dead point of the crank (C1 = {}: rod \
+                 and rocker aligned), where the crank cannot move: omega2_0 = {} is not a \
+                 possible initial speed there (the initial velocity is undetermined by \
+                 omega2_0); set omega2_0 = 0 to start at rest, or change phi2_0",
+                super::number(t.c1),
+                p.omega2_0
+            )));
+        }
+        // At rest: ω3(0) = 0.
+        return Ok([
+            phi2 + p.twist12_0,
+            phi2,
+            phi3,
+            phi3 - p.twist34_0,
+            p.omega1_0,
+            0.0,
+            0.0,
+            p.omega4_0,
+        ]);
     }
     let omega3 = t.b1 / t.c1 * p.omega2_0;
     Ok([

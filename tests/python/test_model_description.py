@@ -25,7 +25,8 @@ def by_name(model_description):
 
 def test_interface_is_as_specified(model_description):
     variables = by_name(model_description)
-    assert set(variables) == set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS | {"solver"}
+    assert set(variables) == (set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS
+                              | {"solver", "linkage_class"})
     for name, unit in INPUTS.items():
         v = variables[name]
         assert (v.causality, v.variability, v.unit, float(v.start)) == ("input", "continuous", unit, 0.0)
@@ -44,8 +45,11 @@ def test_interface_is_as_specified(model_description):
     solver = variables["solver"]
     assert (solver.type, solver.causality, solver.variability, int(solver.start)) == ("Enumeration", "parameter", "fixed", 1)
     assert [(i.name, int(i.value)) for i in solver.declaredType.items] == [("auto", 1), ("dop853", 2), ("implicit", 3)]
+    linkage = variables["linkage_class"]
+    assert (linkage.type, linkage.causality, linkage.variability) == ("Enumeration", "output", "discrete")
+    assert [i.name for i in linkage.declaredType.items][:2] == ["crank_rocker", "double_crank"]
     outputs = {u.variable.name for u in model_description.outputs}
-    assert outputs == set(OUTPUTS) | INTEGER_OUTPUTS
+    assert outputs == set(OUTPUTS) | INTEGER_OUTPUTS | {"linkage_class"}
 
 
 def test_default_experiment_and_capabilities(model_description):
