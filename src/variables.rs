@@ -353,6 +353,44 @@ pub fn value_reference(name: &str) -> Option<u32> {
     variables().find(|(_, v)| v.name == name).map(|(vr, _)| vr)
 }
 
+/// The lengths and the assembly's inputs: what φ3(0) (and so the geometry) depends on.
+const ASSEMBLY: &[&str] = &["l", "l2", "l3", "L", "phi2_0", "phi3_guess"];
+const INERTIAS_AND_SPRINGS: &[&str] = &["J1", "J2", "J3", "J4", "k12", "k34"];
+const START_SPEEDS: &[&str] = &["omega1_0", "omega2_0", "omega4_0"];
+const TWISTS: &[&str] = &["twist12_0", "twist34_0"];
+/// What the loop's bodies 2 and 3 feel, besides their own geometry and states: their
+/// inertias, the springs and dampers that tie them to bodies 1 and 4.
+const LOOP_FORCES: &[&str] = &["J2", "J3", "k12", "k34", "d12", "d34"];
+
+/// Which knowns each output depends on directly, from the equations (SPEC §2, §3): the
+/// `dependencies` of ModelStructure. At communication points (`Outputs`) the knowns are
+/// the inputs, and no output feels them without integrating: the torques act on bodies 1
+/// and 4, which reach the loop (and λ, the rod force) only through springs and dampers.
+/// At initialisation (`InitialUnknowns`) the knowns also include the parameters.
+pub fn dependencies(output: &Variable, initial: bool) -> Vec<&'static str> {
+    let name = output.name;
+    if !initial {
+        return vec![];
+    }
+    let mut names: Vec<&str> = match name {
+        "phi1" => vec!["phi2_0", "twist12_0"],
+        "phi2" => vec!["phi2_0"],
+        "phi3" | "constraint_residual" => ASSEMBLY.to_vec(),
+        "phi4" => [ASSEMBLY, &["twist34_0"]].concat(),
+        "omega1" => vec!["omega1_0"],
+        "omega2" => vec!["omega2_0"],
+        "omega3" => [ASSEMBLY, &["omega2_0"]].concat(),
+        "omega4" => vec!["omega4_0"],
+        "energy" => [ASSEMBLY, INERTIAS_AND_SPRINGS, START_SPEEDS, TWISTS].concat(),
+        "rod_force" => [ASSEMBLY, LOOP_FORCES, START_SPEEDS, TWISTS].concat(),
+        "active_solver" => vec!["solver"],
+        "linkage_class" => vec!["l", "l2", "l3", "L"],
+        _ => vec![], // the step counters: zero until the first step
+    };
+    names.sort_by_key(|n| value_reference(n).expect("a variable of the table"));
+    names
+}
+
 /// The units used by the variables, each with its SI base-unit exponents
 /// (kg, m, s, rad), for `<UnitDefinitions>`.
 pub const UNITS: &[(&str, [i32; 4])] = &[

@@ -10,7 +10,8 @@ use std::io;
 use crate::model::LINKAGE_CLASSES;
 use crate::simulation::DEFAULT_TOLERANCE;
 use crate::variables::{
-    variables, Causality, VarType, Variable, LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE, UNITS,
+    dependencies, value_reference, variables, Causality, VarType, Variable, LINKAGE_TYPE,
+    SOLVER_ITEMS, SOLVER_TYPE, UNITS,
 };
 
 pub const MODEL_IDENTIFIER: &str = "CyclicMechanism";
@@ -283,19 +284,31 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
     Ok(())
 }
 
-/// Outputs and initial unknowns, by 1-based index into ModelVariables.
+/// Outputs and initial unknowns, by 1-based index into ModelVariables, each with the
+/// knowns it depends on (see [`dependencies`]).
 fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
-    let outputs: Vec<String> = variables()
+    let outputs: Vec<(usize, Variable)> = variables()
         .enumerate()
         .filter(|(_, (_, v))| v.causality() == Causality::Output)
-        .map(|(i, _)| (i + 1).to_string())
+        .map(|(i, (_, v))| (i + 1, v))
         .collect();
-    let unknowns = |w: &mut Writer<Vec<u8>>, list: &str| -> io::Result<()> {
+    let unknowns = |w: &mut Writer<Vec<u8>>, list: &str, initial: bool| -> io::Result<()> {
         w.create_element(list).write_inner_content(|w| {
-            for index in &outputs {
-                w.create_element("Unknown")
-                    .with_attribute(("index", index.as_str()))
-                    .write_empty()?;
+            for (index, v) in &outputs {
+                let known: Vec<String> = dependencies(v, initial)
+                    .iter()
+                    .map(|n| (value_reference(n).expect("known") + 1).to_string())
+                    .collect();
+                let kinds = vec!["dependent"; known.len()].join(" ");
+                let mut unknown = w.create_element("Unknown").with_attributes([
+                    ("index", index.to_string().as_str()),
+                    ("dependencies", known.join(" ").as_str()),
+                ]);
+                // An empty list says "depends on none"; its kinds would be an empty list too.
+                if !known.is_empty() {
+                    unknown = unknown.with_attribute(("dependenciesKind", kinds.as_str()));
+                }
+                unknown.write_empty()?;
             }
             Ok(())
         })?;
@@ -303,8 +316,8 @@ fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     };
     w.create_element("ModelStructure")
         .write_inner_content(|w| {
-            unknowns(w, "Outputs")?;
-            unknowns(w, "InitialUnknowns")
+            unknowns(w, "Outputs", false)?;
+            unknowns(w, "InitialUnknowns", true)
         })?;
     Ok(())
 }
