@@ -152,19 +152,130 @@ fn pip_install(python: &Path) -> Command {
     command
 }
 
-/// Build the library in release, generate the model description and documentation from
-/// the variable table, and pack `target/fmu/CyclicMechanism.fmu`.
+/// The oldest glibc the packed binary may need: RHEL/CentOS 7 and every later Linux.
+const GLIBC_BASELINE: (u32, u32) = (2, 17);
+const ZIGBUILD_VERSION: &str = "0.24.1";
+
+/// The library for `binaries/linux64`, built against glibc 2.17 with cargo-zigbuild and
+/// the zig toolchain of the pinned `ziglang` Python package, so that it loads on older
+/// Linux (RHEL 7–9, Ubuntu 18.04+), where many industrial FMI tools run.
+fn build_portable_library() -> Result<PathBuf> {
+    let python = ensure_venv()?;
+    let has_zigbuild = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+        .args(["zigbuild", "--help"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_zigbuild {
+        println!(
+            "xtask: installing cargo-zigbuild {ZIGBUILD_VERSION} (builds against an old glibc)"
+        );
+        run(cargo().args([
+            "install",
+            "--quiet",
+            "--locked",
+            "cargo-zigbuild",
+            "--version",
+            ZIGBUILD_VERSION,
+        ]))?;
+    }
+    let venv_bin = python.parent().expect("the venv's bin").to_path_buf();
+    let path = std::env::join_paths(std::iter::once(venv_bin).chain(std::env::split_paths(
+        &std::env::var_os("PATH").unwrap_or_default(),
+    )))
+    .map_err(|e| e.to_string())?;
+    let target = "x86_64-unknown-linux-gnu";
+    run(cargo()
+        .args([
+            "zigbuild",
+            "--release",
+            "--quiet",
+            "--package",
+            "cyclic-mechanism",
+            "--lib",
+        ])
+        .args([
+            "--target",
+            &format!("{target}.{}.{}", GLIBC_BASELINE.0, GLIBC_BASELINE.1),
+        ])
+        .env("PATH", path)
+        // cargo-zigbuild hands bindgen `-nostdinc` and zig's include paths, which it cannot
+        // collect for a versioned glibc triple with this zig; the FMI headers need only the
+        // standard C headers, the same for any glibc version.
+        .env("BINDGEN_EXTRA_CLANG_ARGS", c_header_args()?))?;
+    let library = root().join(format!("target/{target}/release/libcyclic_mechanism.so"));
+    check_glibc(&library)?;
+    Ok(library)
+}
+
+/// `-isystem` for clang's own headers and the system's C headers.
+fn c_header_args() -> Result<String> {
+    let clang = fs::read_dir("/usr/lib")
+        .into_iter()
+        .flat_map(|entries| entries.flatten())
+        .filter(|e| e.file_name().to_string_lossy().starts_with("llvm-"))
+        .flat_map(|e| {
+            fs::read_dir(e.path().join("lib/clang"))
+                .into_iter()
+                .flat_map(|d| d.flatten())
+        })
+        .map(|version| version.path().join("include"))
+        .find(|include| include.join("stddef.h").exists())
+        .ok_or("clang's stddef.h not found under /usr/lib/llvm-*/lib/clang (libclang-dev)")?;
+    Ok(format!(
+        "-isystem {} -isystem /usr/include/x86_64-linux-gnu -isystem /usr/include",
+        clang.display()
+    ))
+}
+
+/// The highest `GLIBC_x.y` symbol version the library needs, from `objdump -T`, must not
+/// pass the baseline.
+fn check_glibc(library: &Path) -> Result {
+    let output = Command::new("objdump")
+        .arg("-T")
+        .arg(library)
+        .output()
+        .map_err(|e| format!("cannot run objdump (binutils): {e}"))?;
+    let text = String::from_utf8_lossy(&output.stdout);
+    let newest = text
+        .split("GLIBC_")
+        .skip(1)
+        .filter_map(|rest| {
+            let version: String = rest
+                .chars()
+                .take_while(|c| c.is_ascii_digit() || *c == '.')
+                .collect();
+            let mut parts = version.split('.').map(|p| p.parse::<u32>().unwrap_or(0));
+            Some((parts.next()?, parts.next().unwrap_or(0)))
+        })
+        .max()
+        .ok_or_else(|| format!("{}: no GLIBC symbol versions found", library.display()))?;
+    if newest > GLIBC_BASELINE {
+        return Err(format!(
+            "{} needs GLIBC_{}.{}, above the {}.{} baseline",
+            library.display(),
+            newest.0,
+            newest.1,
+            GLIBC_BASELINE.0,
+            GLIBC_BASELINE.1
+        ));
+    }
+    println!(
+        "xtask: {} needs glibc {}.{} at most (baseline {}.{})",
+        library.display(),
+        newest.0,
+        newest.1,
+        GLIBC_BASELINE.0,
+        GLIBC_BASELINE.1
+    );
+    Ok(())
+}
+
+/// Build the library (against the glibc baseline), generate the model description and
+/// documentation from the variable table, and pack `target/fmu/CyclicMechanism.fmu`.
 fn build_fmu() -> Result<PathBuf> {
     ensure_libclang()?;
     let root = root();
-    run(cargo().args([
-        "build",
-        "--release",
-        "--quiet",
-        "--package",
-        "cyclic-mechanism",
-        "--lib",
-    ]))?;
+    let library = build_portable_library()?;
     let assets = root.join("target/fmu/assets");
     run(cargo()
         .args([
@@ -179,7 +290,6 @@ fn build_fmu() -> Result<PathBuf> {
         ])
         .arg(&assets))?;
     let fmu = root.join(format!("target/fmu/{MODEL_IDENTIFIER}.fmu"));
-    let library = root.join("target/release/libcyclic_mechanism.so");
     let files = [
         (
             "modelDescription.xml".to_string(),
