@@ -128,6 +128,7 @@ impl Variable {
 
     pub fn var_type(&self) -> VarType {
         match self.slot {
+            Slot::Statistic(Statistic::ActiveSolver) => VarType::Enumeration,
             Slot::Statistic(_) => VarType::Integer,
             Slot::SolverChoice | Slot::LinkageClass => VarType::Enumeration,
             _ => VarType::Real,
@@ -165,7 +166,7 @@ impl Variable {
     /// The declared type of an Enumeration variable.
     pub fn declared_type(&self) -> Option<&'static str> {
         match self.slot {
-            Slot::SolverChoice => Some(SOLVER_TYPE),
+            Slot::SolverChoice | Slot::Statistic(Statistic::ActiveSolver) => Some(SOLVER_TYPE),
             Slot::LinkageClass => Some(LINKAGE_TYPE),
             _ => None,
         }

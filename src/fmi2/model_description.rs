@@ -102,6 +102,19 @@ fn fnv1a_128(bytes: &[u8]) -> u128 {
         .fold(OFFSET, |hash, &b| (hash ^ b as u128).wrapping_mul(PRIME))
 }
 
+/// When this interface was last changed: fixed, so that the generated file is reproducible
+/// (a timestamp of the build would make every build differ). Set with `version`.
+const GENERATION_DATE: &str = "2026-11-23T00:00:00Z";
+
+/// A unit's display unit for tools' dialogs: name and factor (display = factor · value).
+fn display_unit(unit: &str) -> Option<(&'static str, f64)> {
+    match unit {
+        "rad" => Some(("deg", 180.0 / std::f64::consts::PI)),
+        "rad/s" => Some(("rpm", 30.0 / std::f64::consts::PI)),
+        _ => None,
+    }
+}
+
 /// The complete `modelDescription.xml`.
 pub fn xml() -> String {
     let mut writer = Writer::new_with_indent(Vec::new(), b' ', 2);
@@ -124,7 +137,11 @@ fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
                 "Four-bar cyclic mechanism with two torsional springs (Tataru), orthogonal-complement method",
             ),
             ("version", VERSION),
+            ("author", "the cyclic-mechanism developers"),
+            ("copyright", "Copyright the cyclic-mechanism developers"),
+            ("license", "MIT"),
             ("generationTool", "cyclic-mechanism (Rust)"),
+            ("generationDateAndTime", GENERATION_DATE),
             ("variableNamingConvention", "flat"),
             ("numberOfEventIndicators", "0"),
         ])
@@ -168,6 +185,14 @@ fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
                             }
                         }
                         base.write_empty()?;
+                        if let Some((display, factor)) = display_unit(name) {
+                            w.create_element("DisplayUnit")
+                                .with_attributes([
+                                    ("name", display),
+                                    ("factor", factor.to_string().as_str()),
+                                ])
+                                .write_empty()?;
+                        }
                         Ok(())
                     })?;
             }
@@ -261,7 +286,12 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
     element.write_inner_content(|w| {
         let mut typed = w.create_element(v.var_type().as_str());
         match v.var_type() {
-            VarType::Real => typed = typed.with_attribute(("unit", v.unit)),
+            VarType::Real => {
+                typed = typed.with_attribute(("unit", v.unit));
+                if let Some((display, _)) = display_unit(v.unit) {
+                    typed = typed.with_attribute(("displayUnit", display));
+                }
+            }
             VarType::Enumeration => {
                 typed =
                     typed.with_attribute(("declaredType", v.declared_type().unwrap_or(SOLVER_TYPE)))

@@ -17,6 +17,7 @@ PARAMETERS = {"J1": 0.5, "J2": 0.2, "J3": 0.3, "J4": 0.7, "k12": 100.0, "k34": 1
               "omega2_0": 0.0, "omega4_0": 0.0, "Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0,
               "Mr_b0": 0.0, "Mr_b1": 0.0}
 INTEGER_OUTPUTS = {"n_steps", "n_rejected", "n_rhs", "active_solver"}
+ENUMERATION_OUTPUTS = {"active_solver"}
 
 
 def by_name(model_description):
@@ -41,7 +42,13 @@ def test_interface_is_as_specified(model_description):
         assert v.description, f"{v.name} has no description"
     for name in INTEGER_OUTPUTS:
         v = variables[name]
-        assert (v.type, v.causality, v.variability, v.initial) == ("Integer", "output", "discrete", "calculated")
+        kind = "Enumeration" if name in ENUMERATION_OUTPUTS else "Integer"
+        assert (v.type, v.causality, v.variability, v.initial) == (kind, "output", "discrete", "calculated")
+    assert variables["active_solver"].declaredType.name == "SolverKind"
+    # What a tool's dialog shows: angles in degrees, speeds in rpm; who made it, under which licence.
+    assert variables["phi1"].displayUnit == "deg" and variables["omega1"].displayUnit == "rpm"
+    assert (float(variables["J1"].min), float(variables["J1"].max)) == (1e-9, 1e9)
+    assert model_description.license == "MIT" and model_description.author
     solver = variables["solver"]
     assert (solver.type, solver.causality, solver.variability, int(solver.start)) == ("Enumeration", "parameter", "fixed", 1)
     assert [(i.name, int(i.value)) for i in solver.declaredType.items] == [("auto", 1), ("dop853", 2), ("implicit", 3)]
