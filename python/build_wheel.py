@@ -1,10 +1,11 @@
 """Build the fmusweep wheel: the Python package with the native runner inside it.
 
-    python python/build_wheel.py <fmu-runner binary> <output directory>
+    python python/build_wheel.py <fmu-runner binary> <output directory> [platform tag]
 
 Standard library only (a wheel is a zip with a RECORD of hashes), so that building it
-needs nothing beyond the Python that runs this. The wheel is tagged for this platform,
-since the runner inside is a native program.
+needs nothing beyond the Python that runs this. The wheel is tagged for a platform, since
+the runner inside is a native program: the given tag (`manylinux_2_17_x86_64` for a runner
+built against glibc 2.17), else this machine's.
 """
 
 import base64
@@ -30,9 +31,9 @@ def digest(data: bytes) -> str:
     return "sha256=" + base64.urlsafe_b64encode(hashlib.sha256(data).digest()).rstrip(b"=").decode()
 
 
-def build(runner: pathlib.Path, out_dir: pathlib.Path) -> pathlib.Path:
+def build(runner: pathlib.Path, out_dir: pathlib.Path, platform: str | None = None) -> pathlib.Path:
     v = version()
-    tag = "py3-none-" + re.sub(r"[-.]", "_", sysconfig.get_platform())
+    tag = "py3-none-" + (platform or re.sub(r"[-.]", "_", sysconfig.get_platform()))
     dist_info = f"{NAME}-{v}.dist-info"
     files = {}
     for path in sorted((HERE / NAME).rglob("*.py")):
@@ -63,6 +64,6 @@ def build(runner: pathlib.Path, out_dir: pathlib.Path) -> pathlib.Path:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
+    if len(sys.argv) not in (3, 4):
         sys.exit(__doc__)
-    print(build(pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])))
+    print(build(pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2]), (sys.argv[3:] or [None])[0]))

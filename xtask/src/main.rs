@@ -156,10 +156,20 @@ fn pip_install(python: &Path) -> Command {
 const GLIBC_BASELINE: (u32, u32) = (2, 17);
 const ZIGBUILD_VERSION: &str = "0.24.1";
 
-/// The library for `binaries/linux64`, built against glibc 2.17 with cargo-zigbuild and
-/// the zig toolchain of the pinned `ziglang` Python package, so that it loads on older
+/// The library for `binaries/linux64`, built against glibc 2.17 so that it loads on older
 /// Linux (RHEL 7–9, Ubuntu 18.04+), where many industrial FMI tools run.
 fn build_portable_library() -> Result<PathBuf> {
+    let library = build_portable(
+        &["--package", "cyclic-mechanism", "--lib"],
+        "libcyclic_mechanism.so",
+    )?;
+    check_glibc(&library)?;
+    Ok(library)
+}
+
+/// Build `artifact` (in release) against glibc 2.17 with cargo-zigbuild and the zig of the
+/// pinned `ziglang` Python package.
+fn build_portable(selection: &[&str], artifact: &str) -> Result<PathBuf> {
     let python = ensure_venv()?;
     let has_zigbuild = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
         .args(["zigbuild", "--help"])
@@ -185,14 +195,8 @@ fn build_portable_library() -> Result<PathBuf> {
     .map_err(|e| e.to_string())?;
     let target = "x86_64-unknown-linux-gnu";
     run(cargo()
-        .args([
-            "zigbuild",
-            "--release",
-            "--quiet",
-            "--package",
-            "cyclic-mechanism",
-            "--lib",
-        ])
+        .args(["zigbuild", "--release", "--quiet"])
+        .args(selection)
         .args([
             "--target",
             &format!("{target}.{}.{}", GLIBC_BASELINE.0, GLIBC_BASELINE.1),
@@ -202,9 +206,7 @@ fn build_portable_library() -> Result<PathBuf> {
         // collect for a versioned glibc triple with this zig; the FMI headers need only the
         // standard C headers, the same for any glibc version.
         .env("BINDGEN_EXTRA_CLANG_ARGS", c_header_args()?))?;
-    let library = root().join(format!("target/{target}/release/libcyclic_mechanism.so"));
-    check_glibc(&library)?;
-    Ok(library)
+    Ok(root().join(format!("target/{target}/release/{artifact}")))
 }
 
 /// `-isystem` for clang's own headers and the system's C headers.
@@ -320,16 +322,25 @@ fn pack(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
     Ok(())
 }
 
-/// The fmusweep wheel: the native runner built in release, packed with the Python package
-/// by `python/build_wheel.py` (standard library only).
+/// The fmusweep wheel: the native runner, built against glibc 2.17 like the FMU, packed
+/// with the Python package by `python/build_wheel.py` (standard library only) as a
+/// manylinux_2_17 wheel: workers on older Linux install it too.
 fn build_wheel() -> Result<PathBuf> {
     ensure_libclang()?;
     let python = ensure_venv()?;
-    run(cargo().args(["build", "--release", "--quiet", "--package", "fmu-runner"]))?;
+    let runner = build_portable(
+        &["--package", "fmu-runner", "--bin", "fmu-runner"],
+        "fmu-runner",
+    )?;
+    check_glibc(&runner)?;
     let output = Command::new(&python)
         .arg(root().join("python/build_wheel.py"))
-        .arg(root().join("target/release/fmu-runner"))
+        .arg(&runner)
         .arg(root().join("target/wheels"))
+        .arg(format!(
+            "manylinux_{}_{}_x86_64",
+            GLIBC_BASELINE.0, GLIBC_BASELINE.1
+        ))
         .output()
         .map_err(|e| format!("cannot run build_wheel.py: {e}"))?;
     if !output.status.success() {
