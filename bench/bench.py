@@ -1,4 +1,4 @@
-"""Work-precision study (issue 3), driven by `cargo xtask bench`:
+"""Work-precision study, driven by `cargo xtask bench`:
 
     python bench/bench.py <harness.json> <CyclicMechanism.fmu> <output directory> [--quick]
 
@@ -36,7 +36,7 @@ SCIPY_BUDGET = 20.0  # seconds for one run; tighter tolerances are skipped after
 
 
 def spec_rhs(p):
-    """SPEC §2's orthogonal-complement right-hand side in plain Python: what a Python
+    """docs/model.md §2's orthogonal-complement right-hand side in plain Python: what a Python
     user writes (scalar math, no arrays inside)."""
     J1, J2, J3, J4 = p.J
     l, l2, l3 = p.l, p.l2, p.l3
@@ -243,7 +243,7 @@ def markdown(s):
         lines.append(f"| {c['scenario']} | {c['H']:g} | {c['tol']:.0e} | {c['fmu_seconds']:.2e} | "
                      f"{c['fmu_error']:.1e} | {fmt_ratio(c['scipy_ratio'], c['scipy_method'])} | "
                      f"{fmt_ratio(c['crate_ratio'], c['crate_method'])} |")
-    lines += ["", "By communication step (ratios at equal or better error; issue #3 asks ≥ 300× scipy and ≥ 3× "
+    lines += ["", "By communication step (ratios at equal or better error; the targets were ≥ 300× scipy and ≥ 3× "
               "the Rust crates):", "",
               "| H (s) | vs fastest scipy | vs fastest Rust crate | ≥ 300× scipy | ≥ 3× the crates |",
               "| --- | --- | --- | --- | --- |"]
@@ -258,7 +258,7 @@ def markdown(s):
               "| method | time per evaluation |", "| --- | --- |"]
     for k, v in s["seconds_per_evaluation"].items():
         lines.append(f"| {k} | {v * 1e9:,.0f} ns |")
-    lines += ["", "Case 1 with unchanged inputs: evaluations at H = 1e-3 against H = 0.1 (issue #3 §4, target ≤ 1.5):",
+    lines += ["", "Case 1 with unchanged inputs: evaluations at H = 1e-3 against H = 0.1 (target ≤ 1.5):",
               "", "| tol | n_rhs at H = 1e-3 | n_rhs at H = 0.1 | ratio |", "| --- | --- | --- | --- |"]
     for w in s["warm_restarts"]:
         lines.append(f"| {w['tol']:.0e} | {w['n_rhs_h_1e_3']} | {w['n_rhs_h_0_1']} | {w['ratio']:.2f} |")

@@ -1,4 +1,4 @@
-//! An FMI 2.0 co-simulation unit for the cyclic mechanism of `SPEC.md`.
+//! An FMI 2.0 co-simulation unit for the cyclic mechanism of `docs/model.md`.
 //!
 //! - [`model`]: the mechanism alone (physics, constraint, projection, energy);
 //! - [`solver`]: integrators that know nothing of the mechanism;

@@ -225,7 +225,7 @@ impl Simulation {
         self.limit = stop_time.unwrap_or(f64::INFINITY);
     }
 
-    /// The consistent initial state at `start_time` (SPEC §3); resets the solver.
+    /// The consistent initial state at `start_time` (docs/model.md §3); resets the solver.
     pub fn initialize(&mut self, start_time: f64) -> Result<(), ModelError> {
         self.state = model::initial_state(&self.params)?;
         self.residual = model::length_residual(&self.params, self.state[1], self.state[2]);
@@ -399,7 +399,7 @@ impl Simulation {
     }
 
     /// The `order`-th time derivative (1 or 2) of output `vr` at the communication point.
-    /// Exact where a formula exists (φ′ = ω, φ″ = ω′ = ω̇, energy′ = power of SPEC §2,
+    /// Exact where a formula exists (φ′ = ω, φ″ = ω′ = ω̇, energy′ = power of docs/model.md §2,
     /// residual′ = G·ω/|d|); otherwise a central difference along the flow.
     pub fn output_derivative(&self, vr: u32, order: i32) -> Result<f64, AccessError> {
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
@@ -613,7 +613,7 @@ impl Simulation {
     }
 }
 
-/// The state component a variable reads: φ_i is y[i], ω_i is y[4 + i] (SPEC §2's order),
+/// The state component a variable reads: φ_i is y[i], ω_i is y[4 + i] (docs/model.md §2's order),
 /// as in [`Simulation::output`]; `real_reads_agree_with_the_variable_table` checks the two agree.
 const fn state_component(slot: Slot) -> Option<usize> {
     match slot {

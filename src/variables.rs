@@ -363,7 +363,7 @@ const TWISTS: &[&str] = &["twist12_0", "twist34_0"];
 /// inertias, the springs and dampers that tie them to bodies 1 and 4.
 const LOOP_FORCES: &[&str] = &["J2", "J3", "k12", "k34", "d12", "d34"];
 
-/// Which knowns each output depends on directly, from the equations (SPEC §2, §3): the
+/// Which knowns each output depends on directly, from the equations (docs/model.md §2, §3): the
 /// `dependencies` of ModelStructure. At communication points (`Outputs`) the knowns are
 /// the inputs, and no output feels them without integrating: the torques act on bodies 1
 /// and 4, which reach the loop (and λ, the rod force) only through springs and dampers.

@@ -1,5 +1,5 @@
 //! Random FMI call sequences with random, often invalid, arguments through the exported C
-//! functions (issue 4 §6): never a crash, never fmi2Fatal (a caught panic, i.e. a bug),
+//! functions: never a crash, never fmi2Fatal (a caught panic, i.e. a bug),
 //! only documented statuses, and finite values whenever a read succeeds. Deterministic
 //! (a fixed seed), and run under valgrind memcheck by `cargo xtask test`.
 

@@ -1,4 +1,4 @@
-//! The simulation (without the FMI layer) against SPEC §4's published values.
+//! The simulation (without the FMI layer) against docs/model.md §4's published values.
 
 use cyclic_mechanism::model::energy;
 use cyclic_mechanism::simulation::{Simulation, Value};
@@ -23,7 +23,7 @@ fn paper_case(k34: f64, tolerance: f64, step: f64) -> Simulation {
 
 #[test]
 fn case_1_matches_spec_reference_at_ten_seconds() {
-    // SPEC §4: independent solution at tolerance 1e-12, 8 decimals.
+    // docs/model.md §4: independent solution at tolerance 1e-12, 8 decimals.
     let expected = [41.24994319, 41.25007318, 1.71429998, 1.60546713];
     let sim = paper_case(100.0, 1e-10, 1e-2);
     let y = sim.state();
@@ -68,7 +68,7 @@ fn free_run_conserves_energy() {
 
 #[test]
 fn unchanged_inputs_cost_about_the_same_at_any_communication_step() {
-    // Issue 3, §4: with nothing changed between steps, outputs come from dense output.
+    // with nothing changed between steps, outputs come from dense output.
     let fine = paper_case(100.0, 1e-8, 1e-3).statistics();
     let coarse = paper_case(100.0, 1e-8, 0.1).statistics();
     let ratio = fine.n_rhs as f64 / coarse.n_rhs as f64;

@@ -1,4 +1,4 @@
-//! Issue 5 §5: eight instances stepping in eight threads give the same results as the same
+//! eight instances stepping in eight threads give the same results as the same
 //! runs one after another (no global mutable state), through the exported C functions.
 
 use std::ffi::CString;

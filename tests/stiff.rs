@@ -1,4 +1,4 @@
-//! Stiff springs and dampers (issue #4 §1): k12 = k34 = 1e7 N·m/rad, d12 = d34 = 1e3
+//! Stiff springs and dampers: k12 = k34 = 1e7 N·m/rad, d12 = d34 = 1e3
 //! N·m·s/rad with the paper's laws, 1 s at H = 1e-2, tolerance 1e-6. The implicit method
 //! and `auto` against DOP853. Evaluation counts are deterministic, so the work ratio is a
 //! test here, not a benchmark.
@@ -11,7 +11,7 @@ mod common;
 const AUTO: i32 = 1;
 const DOP853: i32 = 2;
 const IMPLICIT: i32 = 3;
-/// Issue #4's stiff couplings, and paper case 1's (undamped).
+/// Stiff, damped couplings, and paper case 1's (undamped).
 const STIFF: (f64, f64) = (1e7, 1e3);
 const PAPER: (f64, f64) = (100.0, 0.0);
 

@@ -1,4 +1,4 @@
-//! Work-precision harness (issue 3). `bench <CyclicMechanism.fmu> <out.json> [--quick]`
+//! Work-precision harness. `bench <CyclicMechanism.fmu> <out.json> [--quick]`
 //!
 //! Runs each scenario × communication step H × tolerance through
 //! - the packed FMU, loaded from the `.fmu` with libloading (fmi-sys's `Fmi2Binding`),
@@ -57,7 +57,7 @@ pub const SCENARIOS: [Scenario; 2] = [
     },
 ];
 
-/// Issue #4's stiff couplings: k12 = k34 = 1e7, d12 = d34 = 1e3, paper laws, 1 s.
+/// Stiff, damped couplings: k12 = k34 = 1e7, d12 = d34 = 1e3, paper laws, 1 s.
 const STIFF_VALUES: &[(&str, f64)] = &[
     ("Mm_a0", 100.0),
     ("Mm_a1", -20.0),

@@ -1,4 +1,4 @@
-//! Rust ODE crates on the same equations (SPEC §2's right-hand side, the model crate's
+//! Rust ODE crates on the same equations (docs/model.md §2's right-hand side, the model crate's
 //! `state_derivative`), stepped between the same communication points as a doStep would.
 //! No projection: these are what a Rust user would put inside a doStep.
 

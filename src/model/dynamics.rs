@@ -1,10 +1,10 @@
-//! Equations of motion in the orthogonal-complement form (SPEC §2, [59], [72]–[78]),
-//! with the paper's sign slips corrected (SPEC §5).
+//! Equations of motion in the orthogonal-complement form (docs/model.md §2, [59], [72]–[78]),
+//! with the paper's sign slips corrected (docs/model.md §5).
 
 use super::kinematics::{constraint_terms, ConstraintTerms};
 use super::{Inputs, Parameters, State};
 
-/// Motor and load torques after adding the built-in laws (SPEC §4).
+/// Motor and load torques after adding the built-in laws (docs/model.md §4).
 #[inline]
 pub fn applied_torques(p: &Parameters, inputs: &Inputs, omega1: f64) -> (f64, f64) {
     let motor = inputs.motor_torque + p.Mm_a0 + (p.Mm_a1 + p.Mm_a2 * omega1) * omega1;
@@ -12,7 +12,7 @@ pub fn applied_torques(p: &Parameters, inputs: &Inputs, omega1: f64) -> (f64, f6
     (motor, load)
 }
 
-/// Generalised forces Q1..Q4 (SPEC §2; the k12 spring sign corrected, SPEC §5).
+/// Generalised forces Q1..Q4 (docs/model.md §2; the k12 spring sign corrected, docs/model.md §5).
 #[inline]
 pub fn generalized_forces(p: &Parameters, inputs: &Inputs, y: &State) -> [f64; 4] {
     let [phi1, phi2, phi3, phi4, w1, w2, w3, w4] = *y;
@@ -35,7 +35,7 @@ pub struct Accelerations {
     pub terms: ConstraintTerms,
 }
 
-/// Solve the four orthogonal-complement equations for ω̇ (SPEC §2):
+/// Solve the four orthogonal-complement equations for ω̇ (docs/model.md §2):
 ///
 /// ```text
 /// J1·ω̇1 = Q1
@@ -80,7 +80,7 @@ pub fn state_derivative(p: &Parameters, inputs: &Inputs, y: &State, dy: &mut Sta
     dy[4..].copy_from_slice(&a.omega_dot);
 }
 
-/// Rod axial force, tension positive: −λ·L (SPEC §2), with λ from whichever of
+/// Rod axial force, tension positive: −λ·L (docs/model.md §2), with λ from whichever of
 /// λ = (J2·ω̇2 − Q2)/B1 = −(J3·ω̇3 − Q3)/C1 has the larger denominator.
 pub fn rod_force(p: &Parameters, inputs: &Inputs, y: &State) -> f64 {
     let Accelerations {
@@ -96,7 +96,7 @@ pub fn rod_force(p: &Parameters, inputs: &Inputs, y: &State) -> f64 {
     -lambda * p.L
 }
 
-/// Mechanical energy E = ½ΣJi·ωi² + ½k12(φ1 − φ2)² + ½k34(φ3 − φ4)² (SPEC §2).
+/// Mechanical energy E = ½ΣJi·ωi² + ½k12(φ1 − φ2)² + ½k34(φ3 − φ4)² (docs/model.md §2).
 pub fn energy(p: &Parameters, y: &State) -> f64 {
     let [phi1, phi2, phi3, phi4, w1, w2, w3, w4] = *y;
     0.5 * (p.J1 * w1 * w1 + p.J2 * w2 * w2 + p.J3 * w3 * w3 + p.J4 * w4 * w4)
@@ -104,7 +104,7 @@ pub fn energy(p: &Parameters, y: &State) -> f64 {
         + 0.5 * p.k34 * (phi3 - phi4).powi(2)
 }
 
-/// dE/dt = M_m·ω1 − (M_r + c4·ω4)·ω4 − d12·(ω2 − ω1)² − d34·(ω3 − ω4)² (SPEC §2),
+/// dE/dt = M_m·ω1 − (M_r + c4·ω4)·ω4 − d12·(ω2 − ω1)² − d34·(ω3 − ω4)² (docs/model.md §2),
 /// with M_m and M_r the totals including the built-in laws.
 pub fn power(p: &Parameters, inputs: &Inputs, y: &State) -> f64 {
     let [_, _, _, _, w1, w2, w3, w4] = *y;
@@ -161,7 +161,7 @@ mod tests {
     #[test]
     fn restoring_springs_with_corrected_sign() {
         let p = Parameters::default();
-        // Body 2 ahead of body 1: the k12 spring pulls body 1 forward (SPEC §5).
+        // Body 2 ahead of body 1: the k12 spring pulls body 1 forward (docs/model.md §5).
         let y = [0.0, 0.1, 1.48, 1.48, 0.0, 0.0, 0.0, 0.0];
         let q = generalized_forces(&p, &Inputs::default(), &y);
         assert!(q[0] > 0.0 && q[1] < 0.0);

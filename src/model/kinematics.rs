@@ -1,9 +1,9 @@
-//! Loop geometry (SPEC §1–§3): pin positions, the closure constraint g(φ), its gradient
+//! Loop geometry (docs/model.md §1–§3): pin positions, the closure constraint g(φ), its gradient
 //! G = [0, B1, −C1, 0] and time derivatives, and the assembly of a consistent start.
 
 use super::{ModelError, Parameters};
 
-/// Geometric terms of the constraint at one configuration (SPEC §2).
+/// Geometric terms of the constraint at one configuration (docs/model.md §2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ConstraintTerms {
     /// B1 = l2·(l·sin φ2 + l3·sin(φ2 − φ3)) = ∂g/∂φ2.
@@ -16,7 +16,7 @@ pub struct ConstraintTerms {
     pub c1_dot: f64,
 }
 
-/// Evaluate B1, C1 (SPEC §2, [44]–[46]) and their time derivatives ([49]).
+/// Evaluate B1, C1 (docs/model.md §2, [44]–[46]) and their time derivatives ([49]).
 #[inline]
 pub fn constraint_terms(
     p: &Parameters,
@@ -148,7 +148,7 @@ pub fn length_residual_from_closure(p: &Parameters, g: f64) -> f64 {
     2.0 * g / ((p.L * p.L + 2.0 * g).max(0.0).sqrt() + p.L)
 }
 
-/// d = A2 − A3, the rod vector (SPEC §1).
+/// d = A2 − A3, the rod vector (docs/model.md §1).
 #[inline]
 pub fn rod_vector(p: &Parameters, phi2: f64, phi3: f64) -> [f64; 2] {
     let (s2, c2) = phi2.sin_cos();
@@ -156,7 +156,7 @@ pub fn rod_vector(p: &Parameters, phi2: f64, phi3: f64) -> [f64; 2] {
     [p.l2 * c2 - (p.l + p.l3 * c3), p.l2 * s2 - p.l3 * s3]
 }
 
-/// The closure constraint g(φ) = ½(|d|² − L²) (SPEC §2).
+/// The closure constraint g(φ) = ½(|d|² − L²) (docs/model.md §2).
 #[inline]
 pub fn closure(p: &Parameters, phi2: f64, phi3: f64) -> f64 {
     let [dx, dy] = rod_vector(p, phi2, phi3);
@@ -169,7 +169,7 @@ pub fn length_residual(p: &Parameters, phi2: f64, phi3: f64) -> f64 {
     dx.hypot(dy) - p.L
 }
 
-/// The rocker angle φ3 that closes the loop for crank angle φ2 (SPEC §3): of the two
+/// The rocker angle φ3 that closes the loop for crank angle φ2 (docs/model.md §3): of the two
 /// assemblies, the one nearest `guess`, expressed in the 2π-branch nearest `guess`.
 pub fn assemble_rocker(p: &Parameters, phi2: f64, guess: f64) -> Result<f64, ModelError> {
     // e = A2 − O3; A3 = O3 + l3·(cos φ3, sin φ3) must lie at distance L from A2:

@@ -1,4 +1,4 @@
-//! The mechanism alone (SPEC.md): parameters, state, right-hand side, constraint,
+//! The mechanism alone (docs/model.md): parameters, state, right-hand side, constraint,
 //! projection, assembly and energy. Pure Rust; it knows nothing of FMI or of the solver
 //! that drives it.
 

@@ -1,4 +1,4 @@
-//! Parameters of the mechanism (SPEC §1, §3, §4), defined once.
+//! Parameters of the mechanism (docs/model.md §1, §3, §4), defined once.
 //!
 //! The `parameters!` invocation below is the single definition of every parameter: it
 //! generates the [`Parameters`] struct with its defaults, and the [`PARAMETERS`] table
@@ -75,7 +75,7 @@ pub struct ParamInfo {
 
 macro_rules! parameters {
     ($($field:ident : $unit:literal, $default:expr, $rule:expr, $descr:literal;)*) => {
-        /// Parameter values, by their FMI names (SPEC §1, §3, §4).
+        /// Parameter values, by their FMI names (docs/model.md §1, §3, §4).
         #[allow(non_snake_case)]
         #[derive(Clone, Copy, Debug, PartialEq)]
         pub struct Parameters { $(#[doc = $descr] pub $field: f64,)* }
@@ -162,7 +162,7 @@ impl Parameters {
         self.set(index, value)
     }
 
-    /// The paper's built-in motor and load laws, [79] and [80] (SPEC §4).
+    /// The paper's built-in motor and load laws, [79] and [80] (docs/model.md §4).
     pub fn with_paper_laws(mut self) -> Self {
         self.Mm_a0 = 100.0;
         self.Mm_a1 = -20.0;

@@ -1,5 +1,5 @@
-//! Projection back onto the constraint manifold after each accepted step (SPEC §2,
-//! "Projection"), and the consistent initial state (SPEC §3).
+//! Projection back onto the constraint manifold after each accepted step (docs/model.md §2,
+//! "Projection"), and the consistent initial state (docs/model.md §3).
 
 use super::kinematics::{
     assemble_rocker, closure, closure_with_gradient_from, constraint_terms, rotate,
@@ -23,7 +23,7 @@ pub struct Projected {
 /// Newton iterations allowed for the position projection; two suffice after a step.
 const MAX_POSITION_ITERATIONS: usize = 8;
 
-/// Project onto the constraint manifold (SPEC §2, "Projection"): positions onto g(φ) = 0
+/// Project onto the constraint manifold (docs/model.md §2, "Projection"): positions onto g(φ) = 0
 /// with the mass-weighted minimum-norm correction Δφ = −J⁻¹Gᵀ·g/(G·J⁻¹·Gᵀ), iterated
 /// (Newton along J⁻¹Gᵀ); then velocities onto B1·ω2 − C1·ω3 = 0 with the J-weighted
 /// projection ω ← ω − J⁻¹Gᵀ(G·J⁻¹·Gᵀ)⁻¹·G·ω at the final positions. Only φ2, φ3, ω2, ω3
@@ -79,7 +79,7 @@ pub fn project_with(
 }
 
 /// The step from `previous` to `y` (projected, with `at` its projection) stayed where the
-/// motion is determined (SPEC §2: the 2×2 block is singular only where B1 = C1 = 0, a
+/// motion is determined (docs/model.md §2: the 2×2 block is singular only where B1 = C1 = 0, a
 /// change point, possible only when two sums of link lengths are equal).
 ///
 /// B1 = 0 alone is a dead point of the rocker (ω3 = 0, it reverses) and C1 = 0 alone one
@@ -153,7 +153,7 @@ pub fn conditioning(p: &Parameters, b1: f64, c1: f64) -> f64 {
     (b1 * b1 / p.J2 + c1 * c1 / p.J3) / scale
 }
 
-/// The consistent initial state of SPEC §3: φ3 from the assembly nearest `phi3_guess`,
+/// The consistent initial state of docs/model.md §3: φ3 from the assembly nearest `phi3_guess`,
 /// the springs' initial twists, and ω3 = (B1/C1)·ω2.
 pub fn initial_state(p: &Parameters) -> Result<State, ModelError> {
     p.validate()?;

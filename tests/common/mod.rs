@@ -66,7 +66,7 @@ pub fn initialise(c: fmi2Component, tolerance: f64, stop: Option<f64>, parameter
     }
 }
 
-/// The paper's built-in motor and load laws (SPEC §4), as (FMI name, value) pairs, taken
+/// The paper's built-in motor and load laws (docs/model.md §4), as (FMI name, value) pairs, taken
 /// from the model's own definition.
 pub fn paper_laws() -> [(&'static str, f64); 5] {
     let laws = cyclic_mechanism::model::Parameters::default().with_paper_laws();

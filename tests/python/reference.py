@@ -1,4 +1,4 @@
-"""An independent reference solution of SPEC.md's equations, for the tests.
+"""An independent reference solution of docs/model.md's equations, for the tests.
 
 Deliberately not the FMU's formulation: the constraint is handled with a Lagrange
 multiplier (J·ω̇ − Gᵀλ = Q, G·ω̇ = −Ġ·ω, one 5×5 solve per evaluation), every geometric

@@ -1,4 +1,4 @@
-"""Coupling (issue 5 §1, §2): output derivatives against their definitions, input
+"""Coupling: output derivatives against their definitions, input
 derivatives, and the convergence order of a master-closed motor/load law: about 1 with
 held inputs, about 2 when the master passes first-order input derivatives computed from
 the output derivatives."""

@@ -1,4 +1,4 @@
-"""A step the integrator cannot complete (issue 4 §5, issue 5 §4): fmi2Discard with a
+"""A step the integrator cannot complete: fmi2Discard with a
 message, outputs finite and unchanged at the last good communication point, the status
 functions as the standard says, and rollback (FMU state) or reset still work."""
 

@@ -1,4 +1,4 @@
-"""The coupling example (issue 5 §7) runs and reaches the steady state physics predicts."""
+"""The coupling example runs and reaches the steady state physics predicts."""
 
 import pathlib
 import sys

@@ -301,7 +301,7 @@ def test_solver_statistics_and_choice(fmu):
 
 
 def test_communication_step_hardly_changes_the_work(unzipped, model_description, report):
-    """Issue 3 §4: with unchanged inputs, H = 1e-3 costs within 1.5x of H = 0.1."""
+    """with unchanged inputs, H = 1e-3 costs within 1.5x of H = 0.1."""
     def evaluations(step):
         h = Harness(unzipped, model_description).instantiate()
         h.initialise(Mm_a0=100.0, Mm_a1=-20.0, Mm_a2=-1.0, Mr_b0=20.0, Mr_b1=-0.05)

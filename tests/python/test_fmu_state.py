@@ -1,4 +1,4 @@
-"""FMU state (issue 5 §3): get/set/free and serialization through FMPy, bit for bit, in
+"""FMU state: get/set/free and serialization through FMPy, bit for bit, in
 the same instance, another instance and another process; bad buffers are refused."""
 
 import ctypes

@@ -1,4 +1,4 @@
-"""An independent master (issue 5 §6): the same scenario through OSP libcosim
+"""An independent master: the same scenario through OSP libcosim
 (libcosimpy; integer-nanosecond time) and through FMPy agree within the solver tolerance,
 and both match the independent reference."""
 

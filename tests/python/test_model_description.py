@@ -7,7 +7,7 @@ import pytest
 
 from test_fmi_api import ERROR, Harness
 
-# The interface as specified (issue 2, SPEC §1–§4), written out independently of the code.
+# The interface as specified (docs/model.md §1–§4), written out independently of the code.
 INPUTS = {"M_m": "N.m", "M_r": "N.m"}
 OUTPUTS = {**{f"phi{i}": "rad" for i in range(1, 5)}, **{f"omega{i}": "rad/s" for i in range(1, 5)},
            "rod_force": "N", "constraint_residual": "m", "energy": "J"}

@@ -1,5 +1,5 @@
-"""The FMU's physics against an independent reference, SPEC's published values, and the
-energy laws of SPEC §2; all through FMPy with the packed FMU."""
+"""The FMU's physics against an independent reference, the published values of docs/model.md §4, and the
+energy laws of docs/model.md §2; all through FMPy with the packed FMU."""
 
 import numpy as np
 import pytest
@@ -33,7 +33,7 @@ def test_paper_case_matches_independent_reference(paper_runs, case, report):
     report[f"{case}_max_error_rad_or_rad_per_s"] = float(error.max())
     report[f"{case}_final_error"] = float(error[-1].max())
     assert error.max() < 1e-6, f"{case}: max deviation {error.max():.3e}"
-    # The run is not trivial: the motor spins up to about 4.1 rad/s (SPEC §4).
+    # The run is not trivial: the motor spins up to about 4.1 rad/s (docs/model.md §4).
     assert 4.0 < fmu["omega1"][-1] < 4.3
 
 
@@ -87,7 +87,7 @@ def test_free_undamped_run_conserves_energy(unzipped, report):
 
 
 def test_energy_balance_with_torques_and_dampers(unzipped, report):
-    """E(t) − E(0) = ∫ dE/dt, with dE/dt of SPEC §2 from the outputs (Simpson's rule)."""
+    """E(t) − E(0) = ∫ dE/dt, with dE/dt of docs/model.md §2 from the outputs (Simpson's rule)."""
     values = dict(reference.PAPER_LAWS, d12=0.5, d34=0.8, c4=0.3, M_m=3.0, M_r=-1.0)
     step = 1e-3
     result = simulate(unzipped, values, 5.0, step)

@@ -1,4 +1,4 @@
-"""Property-based tests (issue 4 §6): over admissible geometries (Grashof crank-rockers,
+"""Property-based tests: over admissible geometries (Grashof crank-rockers,
 kept clear of change points), inertias 1e-3…1e3, stiffnesses 1…1e7 and dampers, every run
 keeps the constraint, gives finite outputs, conserves energy when nothing dissipates or
 drives it, and never gains energy when only dampers act."""

@@ -1,4 +1,4 @@
-"""Long horizons and extreme communication steps (issue 4 §3, §4)."""
+"""Long horizons and extreme communication steps."""
 
 import numpy as np
 import pytest
@@ -69,7 +69,7 @@ def test_rounding_level_time_mismatch_is_accepted_larger_is_not(unzipped, model_
 
 def test_change_point_geometry_is_discarded_not_guessed(unzipped, model_description):
     """l2 + L = l + l3 (L = 0.95): the linkage reaches a configuration where crank, rod and
-    rocker are collinear and the motion could continue on either assembly (issue 4 §2)."""
+    rocker are collinear and the motion could continue on either assembly."""
     fmu = Harness(unzipped, model_description).instantiate().initialise(L=0.95, phi2_0=1.0, omega2_0=3.0,
                                                                         Mm_a0=20.0)
     with pytest.raises(Exception):

@@ -1,4 +1,4 @@
-"""Stiff couplings through FMPy (issue 4 §1): the implicit method, `auto`'s switch, and the
+"""Stiff couplings through FMPy: the implicit method, `auto`'s switch, and the
 FMU state with the implicit method active. The reference is independent: scipy's Radau on
 reference.py's Lagrange-multiplier formulation."""
 

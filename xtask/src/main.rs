@@ -432,7 +432,7 @@ fn test() -> Result {
 }
 
 /// The FMPy tests of the C API (argument checks, state machine, FMU state, discards) under
-/// valgrind memcheck (issue 4 §6). Python and numpy have valgrind reports of their own, so
+/// valgrind memcheck. Python and numpy have valgrind reports of their own, so
 /// only errors with a frame in the FMU's library count, including definite leaks allocated
 /// there. A positive control first shows that an overrun inside the library is caught and
 /// attributed (tests/python/valgrind_probe.py).
@@ -508,7 +508,7 @@ fn errors_in_fmu(xml: &Path) -> Result<Vec<String>> {
 }
 
 /// The fuzzed FMI call sequences again, under valgrind memcheck: no invalid access, no
-/// use of uninitialised memory, no definite leak (issue 4 §6).
+/// use of uninitialised memory, no definite leak.
 fn fuzz_under_valgrind() -> Result {
     if Command::new("valgrind").arg("--version").output().is_err() {
         println!("xtask: installing valgrind");
