@@ -567,15 +567,11 @@ impl Simulation {
             ))
         };
         match (var.slot, value) {
-            (Slot::Input(_), Value::Real(v)) if v.abs() > model::params::MAX_TORQUE => {
-                return Err(AccessError::NotAllowed(format!(
-                    "{} = {}: must be within ±{:e} N.m (larger torques overflow derived quantities)",
-                    var.name,
-                    model::number(v),
-                    model::params::MAX_TORQUE
-                )))
+            (Slot::Input(_), Value::Real(v)) => {
+                model::params::INPUT_RULE.check(v).map_err(|rule| {
+                    AccessError::NotAllowed(format!("{} = {} {rule}", var.name, model::number(v)))
+                })?
             }
-            (Slot::Input(_), _) => {}
             (Slot::Parameter(_) | Slot::SolverChoice, _) if !parameters_writable => {
                 return Err(fixed())
             }
@@ -684,10 +680,11 @@ impl Simulation {
         let integrator_state = r.f64s()?;
         let restart = r.bool()?;
         let has_limit = r.bool()?;
+        let stored_limit = r.f64()?;
         let limit = if has_limit {
-            r.f64()?
+            stored_limit
         } else {
-            r.f64().map(|_| f64::INFINITY)?
+            f64::INFINITY
         };
         let solver = Integrator::deserialize_from(r)?;
         let simulation = Self {
@@ -719,17 +716,13 @@ impl Simulation {
     /// against accidents): inputs within their rules, the tolerance in its range and the
     /// integrator's consistent with it, the integrator not behind the communication point.
     fn check_restored(&self) -> Result<(), String> {
-        for (i, u) in [self.inputs.motor_torque, self.inputs.load_torque]
-            .iter()
-            .enumerate()
-        {
-            if u.abs() > model::params::MAX_TORQUE {
-                return Err(format!(
-                    "input {} = {} is out of range",
-                    ["M_m", "M_r"][i],
-                    model::number(*u)
-                ));
-            }
+        for (name, u) in [
+            ("M_m", self.inputs.motor_torque),
+            ("M_r", self.inputs.load_torque),
+        ] {
+            model::params::INPUT_RULE
+                .check(u)
+                .map_err(|rule| format!("input {name} = {} {rule}", model::number(u)))?;
         }
         let derivatives = self
             .input_derivatives

@@ -4,7 +4,7 @@
 //! (`fmi2GetReal`/`fmi2SetReal`), `modelDescription.xml`, the documentation and the
 //! README's table are all derived from here, so they cannot drift apart.
 
-use crate::model::params::MAX_TORQUE;
+use crate::model::params::INPUT_RULE;
 use crate::model::PARAMETERS;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -157,7 +157,7 @@ impl Variable {
     pub fn range(&self) -> Option<(f64, f64)> {
         match self.slot {
             Slot::Parameter(i) => Some(PARAMETERS[i].rule.range()),
-            Slot::Input(_) => Some((-MAX_TORQUE, MAX_TORQUE)),
+            Slot::Input(_) => Some(INPUT_RULE.range()),
             Slot::SolverChoice => Some((SOLVER_ITEMS[0].1 as f64, SOLVER_ITEMS[2].1 as f64)),
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
         }
@@ -369,24 +369,31 @@ const LOOP_FORCES: &[&str] = &["J2", "J3", "k12", "k34", "d12", "d34"];
 /// and 4, which reach the loop (and λ, the rod force) only through springs and dampers.
 /// At initialisation (`InitialUnknowns`) the knowns also include the parameters.
 pub fn dependencies(output: &Variable, initial: bool) -> Vec<&'static str> {
-    let name = output.name;
     if !initial {
         return vec![];
     }
-    let mut names: Vec<&str> = match name {
-        "phi1" => vec!["phi2_0", "twist12_0"],
-        "phi2" => vec!["phi2_0"],
-        "phi3" | "constraint_residual" => ASSEMBLY.to_vec(),
-        "phi4" => [ASSEMBLY, &["twist34_0"]].concat(),
-        "omega1" => vec!["omega1_0"],
-        "omega2" => vec!["omega2_0"],
-        "omega3" => [ASSEMBLY, &["omega2_0"]].concat(),
-        "omega4" => vec!["omega4_0"],
-        "energy" => [ASSEMBLY, INERTIAS_AND_SPRINGS, START_SPEEDS, TWISTS].concat(),
-        "rod_force" => [ASSEMBLY, LOOP_FORCES, START_SPEEDS, TWISTS].concat(),
-        "active_solver" => vec!["solver"],
-        "linkage_class" => vec!["l", "l2", "l3", "L"],
-        _ => vec![], // the step counters: zero until the first step
+    // By slot, exhaustively: a new variable must say what it depends on.
+    let mut names: Vec<&str> = match output.slot {
+        Slot::Output(Output::Angle(0)) => vec!["phi2_0", "twist12_0"],
+        Slot::Output(Output::Angle(1)) => vec!["phi2_0"],
+        Slot::Output(Output::Angle(3)) => [ASSEMBLY, &["twist34_0"]].concat(),
+        Slot::Output(Output::Angle(_)) | Slot::Output(Output::ConstraintResidual) => {
+            ASSEMBLY.to_vec()
+        }
+        Slot::Output(Output::Speed(0)) => vec!["omega1_0"],
+        Slot::Output(Output::Speed(1)) => vec!["omega2_0"],
+        Slot::Output(Output::Speed(3)) => vec!["omega4_0"],
+        Slot::Output(Output::Speed(_)) => [ASSEMBLY, &["omega2_0"]].concat(),
+        Slot::Output(Output::Energy) => {
+            [ASSEMBLY, INERTIAS_AND_SPRINGS, START_SPEEDS, TWISTS].concat()
+        }
+        Slot::Output(Output::RodForce) => [ASSEMBLY, LOOP_FORCES, START_SPEEDS, TWISTS].concat(),
+        Slot::Statistic(Statistic::ActiveSolver) => vec!["solver"],
+        // The step counters: zero until the first step.
+        Slot::Statistic(_) => vec![],
+        Slot::LinkageClass => vec!["l", "l2", "l3", "L"],
+        // Not unknowns: knowns.
+        Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice => vec![],
     };
     names.sort_by_key(|n| value_reference(n).expect("a variable of the table"));
     names

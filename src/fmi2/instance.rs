@@ -294,13 +294,14 @@ impl Instance {
     /// geometry, whose run stops where crank, rod and rocker fall collinear.
     fn log_linkage_class(&self) {
         let class = crate::model::classify(self.sim.params());
-        let message = format!("the linkage is a {}: {}", class.name(), class.description());
-        if class == crate::model::LinkageClass::ChangePoint {
-            if self.log_enabled(Category::Warning) {
-                self.log(fmi2Status_fmi2Warning, Category::Warning, &message);
-            }
-        } else if self.log_enabled(Category::Solver) {
-            self.log(fmi2Status_fmi2OK, Category::Solver, &message);
+        let (status, category) = if class == crate::model::LinkageClass::ChangePoint {
+            (fmi2Status_fmi2Warning, Category::Warning)
+        } else {
+            (fmi2Status_fmi2OK, Category::Solver)
+        };
+        if self.log_enabled(category) {
+            let message = format!("the linkage is a {}: {}", class.name(), class.description());
+            self.log(status, category, &message);
         }
     }
 

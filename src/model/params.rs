@@ -30,6 +30,8 @@ pub const MAX_STIFFNESS: f64 = 1e12;
 pub const MAX_ANGLE: f64 = 1e6;
 pub const MAX_SPEED: f64 = 1e6;
 pub const MAX_TORQUE: f64 = 1e12;
+/// The rule of the inputs M_m and M_r (torques, N·m).
+pub const INPUT_RULE: Rule = Rule::Finite(MAX_TORQUE);
 
 impl Rule {
     /// `Ok` when `value` satisfies the rule, else the rule in words.

@@ -172,8 +172,9 @@ pub fn initial_state(p: &Parameters) -> Result<State, ModelError> {
         )));
     }
     // C1 tiny relative to its scale l3·(l2 + l): rod and rocker aligned, a dead point of
-    // the crank, which cannot move there (B1·ω2 = C1·ω3 = 0) while ω3 is free.
-    if t.c1.abs() <= 1e-9 * p.l3 * (p.l2 + p.l) {
+    // the crank, which cannot move there (B1·ω2 = C1·ω3 = 0) while ω3 is free: the crank
+    // must start at rest, and ω3(0) = 0.
+    let omega3 = if t.c1.abs() <= 1e-9 * p.l3 * (p.l2 + p.l) {
         if p.omega2_0 != 0.0 {
             return Err(ModelError::new(format!(
                 "the assembly at phi2_0 = {phi2} is a dead point of the crank (C1 = {}: rod \
@@ -184,19 +185,10 @@ pub fn initial_state(p: &Parameters) -> Result<State, ModelError> {
                 p.omega2_0
             )));
         }
-        // At rest: ω3(0) = 0.
-        return Ok([
-            phi2 + p.twist12_0,
-            phi2,
-            phi3,
-            phi3 - p.twist34_0,
-            p.omega1_0,
-            0.0,
-            0.0,
-            p.omega4_0,
-        ]);
-    }
-    let omega3 = t.b1 / t.c1 * p.omega2_0;
+        0.0
+    } else {
+        t.b1 / t.c1 * p.omega2_0
+    };
     Ok([
         phi2 + p.twist12_0,
         phi2,
