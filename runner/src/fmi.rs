@@ -139,6 +139,40 @@ fn missing_functions(b: &Fmi2Binding) -> Vec<&'static str> {
         .collect()
 }
 
+/// `fmi2Set…(vr, values)` for one type; nothing is called for an empty list.
+macro_rules! setter {
+    ($name:ident, $fmi:ident, $t:ty) => {
+        pub fn $name(&mut self, vr: &[u32], values: &[$t]) -> Status {
+            assert_eq!(vr.len(), values.len());
+            if vr.is_empty() {
+                return Status::Ok;
+            }
+            // SAFETY: both slices hold vr.len() elements; a live component.
+            Status::from_raw(unsafe {
+                self.b()
+                    .$fmi(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
+            })
+        }
+    };
+}
+
+/// `fmi2Get…(vr, values)` for one type; nothing is called for an empty list.
+macro_rules! getter {
+    ($name:ident, $fmi:ident, $t:ty) => {
+        pub fn $name(&mut self, vr: &[u32], values: &mut [$t]) -> Status {
+            assert_eq!(vr.len(), values.len());
+            if vr.is_empty() {
+                return Status::Ok;
+            }
+            // SAFETY: both slices hold vr.len() elements; a live component.
+            Status::from_raw(unsafe {
+                self.b()
+                    .$fmi(self.component, vr.as_ptr(), vr.len(), values.as_mut_ptr())
+            })
+        }
+    };
+}
+
 /// One co-simulation instance; freed when dropped.
 pub struct Instance {
     library: Rc<Library>,
@@ -207,77 +241,12 @@ impl Instance {
         Status::from_raw(unsafe { self.b().fmi2ExitInitializationMode(self.component) })
     }
 
-    pub fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
-        assert_eq!(vr.len(), values.len());
-        if vr.is_empty() {
-            return Status::Ok;
-        }
-        // SAFETY: both slices hold vr.len() elements.
-        Status::from_raw(unsafe {
-            self.b()
-                .fmi2SetReal(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
-    }
-
-    pub fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Status {
-        assert_eq!(vr.len(), values.len());
-        if vr.is_empty() {
-            return Status::Ok;
-        }
-        // SAFETY: both slices hold vr.len() elements.
-        Status::from_raw(unsafe {
-            self.b()
-                .fmi2SetInteger(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
-    }
-
-    pub fn set_boolean(&mut self, vr: &[u32], values: &[i32]) -> Status {
-        assert_eq!(vr.len(), values.len());
-        if vr.is_empty() {
-            return Status::Ok;
-        }
-        // SAFETY: both slices hold vr.len() elements.
-        Status::from_raw(unsafe {
-            self.b()
-                .fmi2SetBoolean(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
-        })
-    }
-
-    pub fn get_real(&mut self, vr: &[u32], values: &mut [f64]) -> Status {
-        assert_eq!(vr.len(), values.len());
-        if vr.is_empty() {
-            return Status::Ok;
-        }
-        // SAFETY: both slices hold vr.len() elements.
-        Status::from_raw(unsafe {
-            self.b()
-                .fmi2GetReal(self.component, vr.as_ptr(), vr.len(), values.as_mut_ptr())
-        })
-    }
-
-    pub fn get_integer(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
-        assert_eq!(vr.len(), values.len());
-        if vr.is_empty() {
-            return Status::Ok;
-        }
-        // SAFETY: both slices hold vr.len() elements.
-        Status::from_raw(unsafe {
-            self.b()
-                .fmi2GetInteger(self.component, vr.as_ptr(), vr.len(), values.as_mut_ptr())
-        })
-    }
-
-    pub fn get_boolean(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
-        assert_eq!(vr.len(), values.len());
-        if vr.is_empty() {
-            return Status::Ok;
-        }
-        // SAFETY: both slices hold vr.len() elements.
-        Status::from_raw(unsafe {
-            self.b()
-                .fmi2GetBoolean(self.component, vr.as_ptr(), vr.len(), values.as_mut_ptr())
-        })
-    }
+    setter!(set_real, fmi2SetReal, f64);
+    setter!(set_integer, fmi2SetInteger, i32);
+    setter!(set_boolean, fmi2SetBoolean, i32);
+    getter!(get_real, fmi2GetReal, f64);
+    getter!(get_integer, fmi2GetInteger, i32);
+    getter!(get_boolean, fmi2GetBoolean, i32);
 
     pub fn do_step(&mut self, time: f64, step: f64) -> Status {
         // SAFETY: a live component; plain values.

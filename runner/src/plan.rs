@@ -64,20 +64,28 @@ impl ByType {
         self.real.len() + self.integer.len() + self.boolean.len()
     }
 
-    fn push(&mut self, variable: &Variable) -> Result<usize, String> {
-        let list = match variable.base_type {
-            BaseType::Real => &mut self.real,
-            BaseType::Integer | BaseType::Enumeration => &mut self.integer,
-            BaseType::Boolean => &mut self.boolean,
-            BaseType::String => {
-                return Err(format!(
-                    "{}: String variables are not supported",
-                    variable.name
-                ))
-            }
+    fn push(&mut self, variable: &Variable) -> Result<(), String> {
+        let list = match type_group(variable)? {
+            0 => &mut self.real,
+            1 => &mut self.integer,
+            _ => &mut self.boolean,
         };
         list.push(variable.value_reference);
-        Ok(list.len() - 1)
+        Ok(())
+    }
+}
+
+/// Which FMI accessor a variable needs: 0 Real, 1 Integer (and Enumeration), 2 Boolean.
+/// Buffers that hold several types keep this order.
+pub fn type_group(variable: &Variable) -> Result<usize, String> {
+    match variable.base_type {
+        BaseType::Real => Ok(0),
+        BaseType::Integer | BaseType::Enumeration => Ok(1),
+        BaseType::Boolean => Ok(2),
+        BaseType::String => Err(format!(
+            "{}: String variables are not supported",
+            variable.name
+        )),
     }
 }
 
@@ -242,13 +250,9 @@ impl Plan {
 
 /// Where each first-use slot lands in a buffer of reals, then integers, then booleans.
 fn buffer_layout(vars: &[&Variable]) -> Vec<usize> {
-    let rank = |v: &Variable| match v.base_type {
-        BaseType::Real => 0,
-        BaseType::Integer | BaseType::Enumeration => 1,
-        _ => 2,
-    };
     let mut order: Vec<usize> = (0..vars.len()).collect();
-    order.sort_by_key(|&i| rank(vars[i])); // stable: first-use order within a type
+    // Stable: first-use order within a type. (Strings were refused when the slot was made.)
+    order.sort_by_key(|&i| type_group(vars[i]).unwrap_or(2));
     let mut layout = vec![0; vars.len()];
     for (position, &slot) in order.iter().enumerate() {
         layout[slot] = position;

@@ -8,7 +8,7 @@ use std::time::Instant;
 use crate::description::Description;
 use crate::fmi::{Instance, Library, Status};
 use crate::messages;
-use crate::plan::{ByType, Plan};
+use crate::plan::{type_group, ByType, Plan};
 
 /// How a point ended, as the results table spells it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,16 +87,7 @@ impl Assignments {
                     v.causality
                 ));
             }
-            let group = match v.base_type {
-                crate::description::BaseType::Real => 0,
-                crate::description::BaseType::Integer
-                | crate::description::BaseType::Enumeration => 1,
-                crate::description::BaseType::Boolean => 2,
-                crate::description::BaseType::String => {
-                    return Err(format!("{name}: String variables are not supported"))
-                }
-            };
-            groups[group].push((v.value_reference, source, name));
+            groups[type_group(v)?].push((v.value_reference, source, name));
         }
         let [real, integer, boolean] = groups;
         let vr = ByType {
@@ -245,14 +236,18 @@ impl Runner {
         Ok(())
     }
 
-    /// Read every metric and series variable into `self.read`.
-    fn read(&mut self, plan: &Plan) -> Result<(), Stop> {
+    /// Size the read buffers for the plan (once per point, not per step).
+    fn size_buffers(&mut self, plan: &Plan) {
         let r = &plan.reads;
-        let n = r.len();
         self.reals.resize(r.real.len(), 0.0);
         self.integers.resize(r.integer.len(), 0);
         self.booleans.resize(r.boolean.len(), 0);
-        self.read.resize(n, 0.0);
+        self.read.resize(r.len(), 0.0);
+    }
+
+    /// Read every metric and series variable into `self.read` (buffers sized).
+    fn read(&mut self, plan: &Plan) -> Result<(), Stop> {
+        let r = &plan.reads;
         let instance = self.instance.as_mut().expect("prepared");
         for (s, call) in [
             (instance.get_real(&r.real, &mut self.reals), "fmi2GetReal"),
@@ -274,7 +269,11 @@ impl Runner {
             .iter()
             .copied()
             .chain(self.integers.iter().map(|&i| i as f64))
-            .chain(self.booleans.iter().map(|&b| (b != 0) as i32 as f64));
+            .chain(
+                self.booleans
+                    .iter()
+                    .map(|&b| if b != 0 { 1.0 } else { 0.0 }),
+            );
         for (slot, x) in self.read.iter_mut().zip(values) {
             *slot = x;
         }
@@ -315,6 +314,7 @@ impl Runner {
         started: Instant,
     ) -> Result<(), Stop> {
         self.prepare(plan, assignments, row, true)?;
+        self.size_buffers(plan);
         self.record(plan, 0, result)?;
         let mut inputs_now: Vec<f64> = plan.inputs.iter().map(|i| i.at(plan.start)).collect();
         for k in 0..plan.n_steps {
@@ -434,9 +434,8 @@ impl Runner {
         for row in rows {
             self.prepare(plan, assignments, row, true)
                 .map_err(|Stop(_, m)| m)?;
+            self.size_buffers(plan);
             let instance = self.instance.as_mut().expect("prepared");
-            self.reals.resize(plan.reads.real.len(), 0.0);
-            self.integers.resize(plan.reads.integer.len(), 0);
             for k in 0..plan.n_steps {
                 let (t, t_next) = (plan.time(k), plan.time(k + 1));
                 if !instance.do_step(t, t_next - t).proceeds() {
