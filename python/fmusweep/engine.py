@@ -153,7 +153,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     """
     started = time.perf_counter()
     spec = Spec.load(spec)
-    design = design_module.generate(spec)
+    design = spec.points if spec.points is not None else design_module.generate(spec)
     plan = spec.plan()
     if spec.ssp is not None and fmu is None:
         target = Archive.read(spec.ssp)

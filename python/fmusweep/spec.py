@@ -85,6 +85,9 @@ class Spec:
     metrics: list[MetricSpec]
     series_variables: list[str] = field(default_factory=list)
     series_every: int = 0
+    # The design's points, generated once when the spec is checked (a large design costs
+    # seconds to generate).
+    points: object = field(default=None, repr=False)
 
     # --- loading -------------------------------------------------------------------
     @staticmethod
@@ -182,7 +185,7 @@ class Spec:
                     seed=seed, metrics=metrics, series_variables=series_variables,
                     series_every=every)
         from . import design as _design  # the design's own fields are checked there
-        _design.generate(spec)
+        spec.points = _design.generate(spec)
         return spec
 
     # --- derived ---------------------------------------------------------------------

@@ -23,21 +23,23 @@ def worker_name() -> str:
     return f"local-{os.getpid()}"
 
 
-def prepare_worker(fmu: Archive, plan: dict) -> str:
-    """Unpack the FMU, start and configure this worker's runner: the one-off costs."""
+def _configured_runner(fmu: Archive, plan: dict):
     runner = local_runner(fmu)
     if runner.plan != plan:
         runner.configure(plan)
+    return runner
+
+
+def prepare_worker(fmu: Archive, plan: dict) -> str:
+    """Unpack the FMU, start and configure this worker's runner: the one-off costs."""
+    _configured_runner(fmu, plan)
     return worker_name()
 
 
 def run_batch(fmu: Archive, plan: dict, names: list[str], rows: np.ndarray,
               points: np.ndarray) -> dict:
     _trace("start", points)
-    runner = local_runner(fmu)
-    if runner.plan != plan:
-        runner.configure(plan)
-    results = runner.run(names, rows)
+    results = _configured_runner(fmu, plan).run(names, rows)
     _trace("end", points)
     return {"points": points, "results": results, "worker": worker_name()}
 

@@ -171,7 +171,7 @@ fn build_portable_library() -> Result<PathBuf> {
 /// pinned `ziglang` Python package.
 fn build_portable(selection: &[&str], artifact: &str) -> Result<PathBuf> {
     let python = ensure_venv()?;
-    let has_zigbuild = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+    let has_zigbuild = cargo()
         .args(["zigbuild", "--help"])
         .output()
         .is_ok_and(|o| o.status.success());
@@ -378,12 +378,11 @@ fn sweep(args: &[String]) -> Result {
     }
     let fmu = build_fmu()?;
     let python = ensure_sweep_package()?;
-    let cwd = std::env::current_dir().map_err(|e| e.to_string())?;
+    // Run where the user is: spec paths are theirs.
     run(Command::new(python)
         .args(["-m", "fmusweep"])
         .args(args)
-        .env("FMUSWEEP_FMU", &fmu)
-        .current_dir(cwd))
+        .env("FMUSWEEP_FMU", &fmu))
 }
 
 fn bench_sweep(args: &[String]) -> Result {
