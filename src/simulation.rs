@@ -260,23 +260,25 @@ impl Simulation {
             anchor: self.time,
         };
         let limit = self.limit.max(t_end);
-        let gap = t_end - self.integrator_time;
-        if gap > 0.0 && gap <= UNRESOLVED_STEP * self.integrator_time.abs().max(1.0) {
-            // Shorter than any step the integrator takes: one Taylor step, y + h·f(t, y),
-            // whose error h²·|ÿ|/2 lies far below the rounding of y. The integrator
-            // continues from there (with its step size).
-            let mut f = [0.0; STATE_SIZE];
-            system.rhs(self.integrator_time, &self.integrator_state, &mut f);
-            for (y, dy) in self.integrator_state.iter_mut().zip(f) {
-                *y += gap * dy;
-            }
-            self.integrator_time = t_end;
-            self.solver.invalidate();
-        } else if self.integrator_time < t_end {
-            let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
-            if let Err(error) = self.solver.integrate(&system, t, y, t_end, limit) {
-                self.restart = true;
-                return Err(error);
+        if self.integrator_time < t_end {
+            let gap = t_end - self.integrator_time;
+            if gap <= UNRESOLVED_STEP * self.integrator_time.abs().max(1.0) {
+                // Shorter than any step the integrator takes: one Taylor step, y + h·f(t, y),
+                // whose error h²·|ÿ|/2 lies far below the rounding of y. The integrator
+                // continues from there (with its step size).
+                let mut f = [0.0; STATE_SIZE];
+                system.rhs(self.integrator_time, &self.integrator_state, &mut f);
+                for (y, dy) in self.integrator_state.iter_mut().zip(f) {
+                    *y += gap * dy;
+                }
+                self.integrator_time = t_end;
+                self.solver.invalidate();
+            } else {
+                let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
+                if let Err(error) = self.solver.integrate(&system, t, y, t_end, limit) {
+                    self.restart = true;
+                    return Err(error);
+                }
             }
         }
         let (y, g) = match self.at_communication_point(t_end) {
@@ -295,6 +297,7 @@ impl Simulation {
     /// The state at communication point `t_end` from the integrator (its state, or its
     /// dense output inside the last step), projected onto the constraint; with the
     /// closure g there.
+    #[inline]
     fn at_communication_point(&mut self, t_end: f64) -> Result<(State, f64), SolverError> {
         let system = Driven {
             params: &self.params,
@@ -470,15 +473,32 @@ impl Simulation {
         (f(&ya, ta) - f(&yb, tb)) / (2.0 * h)
     }
 
-    /// A Real variable's value: the hot path of fmi2GetReal. φ and ω take one lookup.
+    /// A Real variable's value: the hot path of fmi2GetReal. φ and ω take one lookup, and
+    /// need no check (`advance` keeps the state finite; inputs and parameters are checked
+    /// when set). The computed outputs are checked: none leaves the FMU non-finite.
     #[inline]
     pub fn read_real(&self, vr: u32) -> Result<f64, AccessError> {
         if let Some(Some(component)) = STATE_COMPONENT.get(vr as usize) {
             return Ok(self.state[*component as usize]);
         }
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
-        self.real_of(var.slot)
-            .ok_or_else(|| check_type(var, Value::Real(0.0)).unwrap_err())
+        let value = self
+            .real_of(var.slot)
+            .ok_or_else(|| check_type(var, Value::Real(0.0)).unwrap_err())?;
+        if !value.is_finite() {
+            return Err(self.not_finite(var.name, value));
+        }
+        Ok(value)
+    }
+
+    /// The refusal of a value that would leave the FMU non-finite: the last guard.
+    pub fn not_finite(&self, name: &str, value: f64) -> AccessError {
+        let y = &self.state;
+        AccessError::NotAllowed(format!(
+            "{name} = {value} at t = {} is not finite: the model left its valid range \
+             (state: phi2 = {}, phi3 = {}, omega2 = {}, omega3 = {})",
+            self.time, y[1], y[2], y[5], y[6]
+        ))
     }
 
     /// The value in a Real slot; `None` for the Integer and Enumeration slots.
