@@ -95,7 +95,7 @@ fn bits(values: &[f64]) -> Vec<u64> {
 }
 
 #[test]
-fn a_non_finite_number_anywhere_is_refused() {
+fn a_forged_state_restores_only_if_it_runs_like_the_original() {
     let (c, bytes) = running_instance();
     let original = restore(c, &bytes).expect("the untouched state restores");
     let (mut restored, mut identical) = (0, 0);
