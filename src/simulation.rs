@@ -9,12 +9,17 @@
 //! constraint). Only when the master changes an input, a parameter or the state does the
 //! integrator restart from the communication point.
 
+use crate::model::chart::{handover_indicator, preferred_chart};
 use crate::model::params::check_rule;
-use crate::model::{self, Inputs, ModelError, Parameters, SinCosMemo, State, STATE_SIZE};
+use crate::model::{
+    self, Chart, Coordinates, Dual, Independent, Inputs, ModelError, Parameters, Projected, Scalar,
+    SinCosMemo, State, STATE_SIZE,
+};
 use crate::snapshot::{FormatError, Reader, Writer};
 use crate::solver::{Choice, Integrator, Method, OdeSystem, SolverError, Statistics, Tolerances};
 use crate::variables::{
-    build_table, variable, Input, Output, Slot, Statistic, VarType, Variable, COUNT, SOLVER_ITEMS,
+    build_table, variable, Input, Local, Output, Slot, Statistic, VarType, Variable, COUNT,
+    SOLVER_ITEMS,
 };
 
 /// Relative tolerance when the master gives none (the DefaultExperiment's).
@@ -153,6 +158,9 @@ pub struct Simulation {
     restart: bool,
     /// The integrator never steps past this (the experiment's stop time, if defined).
     limit: f64,
+    /// Which loop angle leads (the `loop_*` variables; docs/model.md §6), switched with
+    /// the same hysteresis as Model Exchange's charts.
+    chart: Chart,
     solver: Integrator<STATE_SIZE>,
     /// Sines and cosines for projecting communication points; a memo that does not
     /// change results, so it is not serialized.
@@ -181,6 +189,7 @@ impl Simulation {
             integrator_state: [0.0; STATE_SIZE],
             restart: true,
             limit: f64::INFINITY,
+            chart: Chart::Crank,
             solver: Integrator::new(Choice::Auto, tolerances(DEFAULT_TOLERANCE)),
             sin_cos: SinCosMemo::default(),
         }
@@ -196,6 +205,30 @@ impl Simulation {
 
     pub fn state(&self) -> &State {
         &self.state
+    }
+
+    pub fn inputs(&self) -> &Inputs {
+        &self.inputs
+    }
+
+    pub fn chart(&self) -> Chart {
+        self.chart
+    }
+
+    /// Model Exchange: the master moves time (fmi2SetTime).
+    pub fn set_time(&mut self, time: f64) {
+        self.time = time;
+        self.restart = true;
+    }
+
+    /// Model Exchange: the master moves time and state (`state` on the constraint, with
+    /// `chart` leading). The integrator is not used; it restarts if Co-Simulation resumes.
+    pub fn place(&mut self, time: f64, state: State, chart: Chart) {
+        self.time = time;
+        self.state = state;
+        self.chart = chart;
+        self.residual = model::length_residual(&self.params, state[1], state[2]);
+        self.restart = true;
     }
 
     pub fn statistics(&self) -> Statistics {
@@ -229,6 +262,9 @@ impl Simulation {
     pub fn initialize(&mut self, start_time: f64) -> Result<(), ModelError> {
         self.state = model::initial_state(&self.params)?;
         self.residual = model::length_residual(&self.params, self.state[1], self.state[2]);
+        let (_, b1, c1) =
+            model::kinematics::closure_with_gradient(&self.params, self.state[1], self.state[2]);
+        self.chart = preferred_chart(&self.params, b1, c1);
         self.time = start_time;
         self.restart = true;
         self.solver = Integrator::new(self.solver_kind.choice(), tolerances(self.tolerance));
@@ -281,7 +317,7 @@ impl Simulation {
                 }
             }
         }
-        let (y, g) = match self.at_communication_point(t_end) {
+        let (y, at) = match self.at_communication_point(t_end) {
             Ok(found) => found,
             Err(error) => {
                 self.restart = true;
@@ -290,15 +326,18 @@ impl Simulation {
         };
         self.time = t_end;
         self.state = y;
-        self.residual = model::length_residual_from_closure(&self.params, g);
+        self.residual = model::length_residual_from_closure(&self.params, at.closure);
+        if handover_indicator(&self.params, self.chart, at.b1, at.c1) < 0.0 {
+            self.chart = self.chart.other();
+        }
         Ok(())
     }
 
     /// The state at communication point `t_end` from the integrator (its state, or its
     /// dense output inside the last step), projected onto the constraint; with the
-    /// closure g there.
+    /// closure g and the gradient terms there.
     #[inline]
-    fn at_communication_point(&mut self, t_end: f64) -> Result<(State, f64), SolverError> {
+    fn at_communication_point(&mut self, t_end: f64) -> Result<(State, Projected), SolverError> {
         let system = Driven {
             params: &self.params,
             inputs: &self.inputs,
@@ -317,7 +356,7 @@ impl Simulation {
         match model::project_with(&self.params, &mut y, &mut |slot, phi| {
             memo.sin_cos(slot, phi)
         }) {
-            Ok(at) if y.iter().all(|v| v.is_finite()) => Ok((y, at.closure)),
+            Ok(at) if y.iter().all(|v| v.is_finite()) => Ok((y, at)),
             Ok(_) => Err(refused("the interpolated state is not finite".into())),
             Err(error) => Err(refused(error.to_string())),
         }
@@ -509,7 +548,8 @@ impl Simulation {
             Slot::Input(Input::MotorTorque) => Some(self.inputs.motor_torque),
             Slot::Input(Input::LoadTorque) => Some(self.inputs.load_torque),
             Slot::Parameter(i) => Some(self.params.get(i).unwrap_or(f64::NAN)),
-            Slot::Statistic(_) | Slot::SolverChoice | Slot::LinkageClass => None,
+            Slot::Local(local) => Some(self.local(local)),
+            Slot::Statistic(_) | Slot::SolverChoice | Slot::LinkageClass | Slot::LoopChart => None,
         }
     }
 
@@ -530,7 +570,10 @@ impl Simulation {
             }
             Slot::SolverChoice => Value::Integer(self.solver_kind as i32),
             Slot::LinkageClass => Value::Integer(model::classify(&self.params) as i32),
-            Slot::Output(_) | Slot::Input(_) | Slot::Parameter(_) => unreachable!("Real slots"),
+            Slot::LoopChart => Value::Integer(self.chart as i32),
+            Slot::Output(_) | Slot::Input(_) | Slot::Parameter(_) | Slot::Local(_) => {
+                unreachable!("Real slots")
+            }
         }
     }
 
@@ -606,27 +649,118 @@ impl Simulation {
                 }
             }
             _ => {
+                let what = if var.causality() == crate::variables::Causality::Local {
+                    "a Model Exchange state or derivative, set through fmi2SetContinuousStates"
+                } else {
+                    "an output"
+                };
                 return Err(AccessError::NotAllowed(format!(
-                    "{} is an output and cannot be set",
+                    "{} is {what} and cannot be set",
                     var.name
-                )))
+                )));
             }
         }
         Ok(var.slot)
     }
 
+    /// The independent coordinates and their derivatives (docs/model.md §6).
+    pub fn local(&self, local: Local) -> f64 {
+        real_value(
+            &self.params,
+            &self.inputs,
+            &self.state,
+            self.chart,
+            Slot::Local(local),
+        )
+        .expect("a Real slot")
+    }
+
     /// An output, computed from the current state and inputs; diagnostics only on demand.
     #[inline]
     pub fn output(&self, output: Output) -> f64 {
-        let (p, y) = (&self.params, &self.state);
         match output {
-            Output::Angle(i) => y[i],
-            Output::Speed(i) => y[4 + i],
-            Output::RodForce => model::rod_force(p, &self.inputs, y),
+            // Kept from the projection: no second pair of sin_cos per communication point.
             Output::ConstraintResidual => self.residual,
-            Output::Energy => model::energy(p, y),
+            _ => real_value(
+                &self.params,
+                &self.inputs,
+                &self.state,
+                self.chart,
+                Slot::Output(output),
+            )
+            .expect("a Real slot"),
         }
     }
+
+    /// The derivatives of the Real `unknowns` along a direction of the knowns (fmi2GetDirectionalDerivative),
+    /// exact by forward-mode differentiation: `input_seed` moves M_m and M_r; `states`, in
+    /// Model Exchange, gives the independent coordinates with their seed. Without
+    /// `states` the state is held (Co-Simulation's outputs at a communication point).
+    pub fn directional_derivatives(
+        &self,
+        states: Option<(&Coordinates, &Independent, &[f64; 6])>,
+        input_seed: [f64; 2],
+        unknowns: &[u32],
+        out: &mut [f64],
+    ) -> Result<(), AccessError> {
+        let inputs = Inputs {
+            motor_torque: Dual::new(self.inputs.motor_torque, input_seed[0]),
+            load_torque: Dual::new(self.inputs.load_torque, input_seed[1]),
+        };
+        let y: [Dual; STATE_SIZE] = match states {
+            Some((at, x, seed)) => {
+                let x: [Dual; 6] = std::array::from_fn(|i| Dual::new(x[i], seed[i]));
+                model::chart::full_state(&self.params, at, &x).map_err(AccessError::Invalid)?
+            }
+            None => self.state.map(Dual::constant),
+        };
+        for (vr, value) in unknowns.iter().zip(out.iter_mut()) {
+            let var = variable(*vr).ok_or(AccessError::UnknownReference(*vr))?;
+            let derivative = real_value(&self.params, &inputs, &y, self.chart, var.slot)
+                .ok_or_else(|| {
+                    AccessError::NotAllowed(format!(
+                        "{} is not an unknown: directional derivatives are of Real outputs and \
+                         state derivatives",
+                        var.name
+                    ))
+                })?
+                .d;
+            if !derivative.is_finite() {
+                return Err(self.not_finite(&format!("the derivative of {}", var.name), derivative));
+            }
+            *value = derivative;
+        }
+        Ok(())
+    }
+}
+
+/// A Real output or Model Exchange variable of state `y` under `inputs` with `chart` leading,
+/// generic so that one definition serves values and exact derivatives; `None` for the
+/// slots that are not computed from the state.
+#[inline]
+fn real_value<T: Scalar>(
+    p: &Parameters,
+    inputs: &Inputs<T>,
+    y: &[T; STATE_SIZE],
+    chart: Chart,
+    slot: Slot,
+) -> Option<T> {
+    let lead = chart.leader();
+    Some(match slot {
+        Slot::Output(Output::Angle(i)) => y[i],
+        Slot::Output(Output::Speed(i)) => y[4 + i],
+        Slot::Output(Output::RodForce) => model::rod_force(p, inputs, y),
+        Slot::Output(Output::ConstraintResidual) => model::length_residual(p, y[1], y[2]),
+        Slot::Output(Output::Energy) => model::energy(p, y),
+        Slot::Local(Local::LoopAngle) => y[lead],
+        Slot::Local(Local::LoopSpeed) => y[lead + 4],
+        Slot::Local(Local::Derivative(i)) if i < 3 => [y[4], y[lead + 4], y[7]][i],
+        Slot::Local(Local::Derivative(i)) => {
+            let a = model::accelerations(p, inputs, y).omega_dot;
+            [a[0], a[lead], a[3]][i - 3]
+        }
+        _ => return None,
+    })
 }
 
 /// The state component a variable reads: φ_i is y[i], ω_i is y[4 + i] (docs/model.md §2's order),
@@ -676,6 +810,7 @@ impl Simulation {
         } else {
             0.0
         });
+        w.u8(self.chart as u8);
         self.solver.serialize_into(w);
     }
 
@@ -706,6 +841,9 @@ impl Simulation {
         } else {
             f64::INFINITY
         };
+        let code = r.u8()?;
+        let chart = Chart::from_code(code as i32)
+            .ok_or_else(|| FormatError(format!("invalid serialized state: loop chart {code}")))?;
         let solver = Integrator::deserialize_from(r)?;
         let simulation = Self {
             params,
@@ -723,6 +861,7 @@ impl Simulation {
             integrator_state,
             restart,
             limit,
+            chart,
             solver,
             sin_cos: SinCosMemo::default(),
         };
@@ -787,10 +926,11 @@ impl Simulation {
         if self.restart || !self.input_derivatives.is_zero() {
             return Ok(());
         }
-        let (y, g) = self
+        let (y, at) = self
             .clone()
             .at_communication_point(self.time)
             .map_err(|e| e.to_string())?;
+        let g = at.closure;
         let same = y
             .iter()
             .zip(&self.state)

@@ -12,6 +12,7 @@ pub enum Causality {
     Input,
     Output,
     Parameter,
+    Local,
 }
 
 impl Causality {
@@ -20,6 +21,7 @@ impl Causality {
             Causality::Input => "input",
             Causality::Output => "output",
             Causality::Parameter => "parameter",
+            Causality::Local => "local",
         }
     }
 }
@@ -53,6 +55,18 @@ pub enum Statistic {
     ActiveSolver,
 }
 
+/// The loop's independent coordinates (docs/model.md §6): the continuous states of Model
+/// Exchange, x = (φ1, q, φ4, ω1, q̇, ω4) with q = φ2 or φ3, and their derivatives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Local {
+    /// q: φ2 in the crank chart, φ3 in the rocker chart.
+    LoopAngle,
+    /// q̇: ω2 or ω3.
+    LoopSpeed,
+    /// The time derivative of component i of x.
+    Derivative(usize),
+}
+
 /// Where a variable's value lives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Slot {
@@ -65,6 +79,9 @@ pub enum Slot {
     SolverChoice,
     /// The linkage's class, one of [`LINKAGE_CLASSES`] (an Enumeration output).
     LinkageClass,
+    Local(Local),
+    /// Which angle q is: 2 (φ2) or 3 (φ3), an Integer local.
+    LoopChart,
 }
 
 /// FMI base types used here.
@@ -123,13 +140,14 @@ impl Variable {
             Slot::Input(_) => Causality::Input,
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => Causality::Output,
             Slot::Parameter(_) | Slot::SolverChoice => Causality::Parameter,
+            Slot::Local(_) | Slot::LoopChart => Causality::Local,
         }
     }
 
     pub fn var_type(&self) -> VarType {
         match self.slot {
             Slot::Statistic(Statistic::ActiveSolver) => VarType::Enumeration,
-            Slot::Statistic(_) => VarType::Integer,
+            Slot::Statistic(_) | Slot::LoopChart => VarType::Integer,
             Slot::SolverChoice | Slot::LinkageClass => VarType::Enumeration,
             _ => VarType::Real,
         }
@@ -139,7 +157,7 @@ impl Variable {
     pub fn variability(&self) -> &'static str {
         match self.slot {
             Slot::Parameter(_) | Slot::SolverChoice => "fixed",
-            Slot::Statistic(_) | Slot::LinkageClass => "discrete",
+            Slot::Statistic(_) | Slot::LinkageClass | Slot::LoopChart => "discrete",
             _ => "continuous",
         }
     }
@@ -148,7 +166,7 @@ impl Variable {
     pub fn initial(&self) -> Option<&'static str> {
         match self.causality() {
             Causality::Input => None,
-            Causality::Output => Some("calculated"),
+            Causality::Output | Causality::Local => Some("calculated"),
             Causality::Parameter => Some("exact"),
         }
     }
@@ -160,6 +178,15 @@ impl Variable {
             Slot::Input(_) => Some(INPUT_RULE.range()),
             Slot::SolverChoice => Some((SOLVER_ITEMS[0].1 as f64, SOLVER_ITEMS[2].1 as f64)),
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
+            Slot::Local(_) | Slot::LoopChart => None,
+        }
+    }
+
+    /// For a state derivative, the value reference of its state (`derivative` in the XML).
+    pub fn derivative_of(&self) -> Option<u32> {
+        match self.slot {
+            Slot::Local(Local::Derivative(i)) => Some(STATE_REFERENCES[i]),
+            _ => None,
         }
     }
 
@@ -178,6 +205,7 @@ impl Variable {
         match self.slot {
             Slot::Input(_) => Some(0.0),
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
+            Slot::Local(_) | Slot::LoopChart => None,
             Slot::Parameter(i) => Some(PARAMETERS[i].default),
             Slot::SolverChoice => Some(SOLVER_ITEMS[0].1 as f64),
         }
@@ -296,8 +324,111 @@ const SOLVER_VARIABLES: [Variable; 6] = [
     },
 ];
 
+const fn local(
+    name: &'static str,
+    unit: &'static str,
+    description: &'static str,
+    which: Local,
+) -> Variable {
+    Variable {
+        name,
+        unit,
+        description,
+        slot: Slot::Local(which),
+    }
+}
+
+/// The Model Exchange states and derivatives (docs/model.md §6); readable in both interfaces.
+const EXCHANGE_VARIABLES: [Variable; 9] = [
+    local(
+        "loop_angle",
+        "rad",
+        "The loop's independent angle: phi2 or phi3, as loop_chart says (a Model Exchange state)",
+        Local::LoopAngle,
+    ),
+    local(
+        "loop_speed",
+        "rad/s",
+        "The loop's independent speed: omega2 or omega3, as loop_chart says (a Model Exchange state)",
+        Local::LoopSpeed,
+    ),
+    Variable {
+        name: "loop_chart",
+        unit: "",
+        description: "Which angle loop_angle is: 2 (phi2, the crank) or 3 (phi3, the rocker)",
+        slot: Slot::LoopChart,
+    },
+    local("der(phi1)", "rad/s", "Time derivative of phi1", Local::Derivative(0)),
+    local(
+        "der(loop_angle)",
+        "rad/s",
+        "Time derivative of loop_angle",
+        Local::Derivative(1),
+    ),
+    local("der(phi4)", "rad/s", "Time derivative of phi4", Local::Derivative(2)),
+    local(
+        "der(omega1)",
+        "rad/s2",
+        "Time derivative of omega1",
+        Local::Derivative(3),
+    ),
+    local(
+        "der(loop_speed)",
+        "rad/s2",
+        "Time derivative of loop_speed",
+        Local::Derivative(4),
+    ),
+    local(
+        "der(omega4)",
+        "rad/s2",
+        "Time derivative of omega4",
+        Local::Derivative(5),
+    ),
+];
+
 /// Number of variables (and one past the largest value reference).
-pub const COUNT: usize = INPUTS.len() + OUTPUTS.len() + PARAMETERS.len() + SOLVER_VARIABLES.len();
+pub const COUNT: usize = INPUTS.len()
+    + OUTPUTS.len()
+    + PARAMETERS.len()
+    + SOLVER_VARIABLES.len()
+    + EXCHANGE_VARIABLES.len();
+
+/// The value references of the Model Exchange states x = (φ1, q, φ4, ω1, q̇, ω4).
+pub const STATE_REFERENCES: [u32; 6] = {
+    let table = build_table();
+    let mut refs = [0u32; 6];
+    let mut vr = 0;
+    while vr < COUNT {
+        let index = match table[vr].slot {
+            Slot::Output(Output::Angle(0)) => 0,
+            Slot::Local(Local::LoopAngle) => 1,
+            Slot::Output(Output::Angle(3)) => 2,
+            Slot::Output(Output::Speed(0)) => 3,
+            Slot::Local(Local::LoopSpeed) => 4,
+            Slot::Output(Output::Speed(3)) => 5,
+            _ => usize::MAX,
+        };
+        if index != usize::MAX {
+            refs[index] = vr as u32;
+        }
+        vr += 1;
+    }
+    refs
+};
+
+/// The value references of their derivatives, in the same order.
+pub const DERIVATIVE_REFERENCES: [u32; 6] = {
+    let table = build_table();
+    let mut refs = [0u32; 6];
+    let mut vr = 0;
+    while vr < COUNT {
+        if let Slot::Local(Local::Derivative(i)) = table[vr].slot {
+            refs[i] = vr as u32;
+        }
+        vr += 1;
+    }
+    refs
+};
 
 /// The table itself, built at compile time: position = value reference.
 static TABLE: [Variable; COUNT] = build_table();
@@ -330,6 +461,11 @@ pub(crate) const fn build_table() -> [Variable; COUNT] {
         table[i] = SOLVER_VARIABLES[k];
         (i, k) = (i + 1, k + 1);
     }
+    k = 0;
+    while k < EXCHANGE_VARIABLES.len() {
+        table[i] = EXCHANGE_VARIABLES[k];
+        (i, k) = (i + 1, k + 1);
+    }
     table
 }
 
@@ -354,6 +490,119 @@ pub fn value_reference(name: &str) -> Option<u32> {
     variables().find(|(_, v)| v.name == name).map(|(vr, _)| vr)
 }
 
+/// How an unknown depends on a known (ModelStructure's `dependenciesKind`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// A factor of 1: the unknown is the known (a state's derivative that is a state).
+    Constant,
+    /// A factor of fixed parameters only (linear in the known).
+    Fixed,
+    /// Any other dependence.
+    Dependent,
+}
+
+impl Kind {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Kind::Constant => "constant",
+            Kind::Fixed => "fixed",
+            Kind::Dependent => "dependent",
+        }
+    }
+}
+
+/// The unknowns of ModelStructure: which list, hence which knowns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unknowns {
+    /// Outputs and state derivatives while running: the knowns are the inputs and the Model
+    /// Exchange states (in Co-Simulation only the inputs apply).
+    Running,
+    /// At initialisation: the knowns are the inputs and the parameters.
+    Initial,
+}
+
+/// The Model Exchange states' names, in the order of x.
+pub const STATES: [&str; 6] = [
+    "phi1",
+    "loop_angle",
+    "phi4",
+    "omega1",
+    "loop_speed",
+    "omega4",
+];
+
+/// Which knowns each unknown depends on directly, from the equations (docs/model.md §2,
+/// §3, §6), with how: the `dependencies` and `dependenciesKind` of ModelStructure.
+/// While running, no output feels an input directly: the torques act on bodies 1 and 4,
+/// which reach the loop (and λ, the rod force) only through springs and dampers; only
+/// the accelerations der(omega1) and der(omega4) feel them.
+pub fn dependencies(unknown: &Variable, list: Unknowns) -> Vec<(&'static str, Kind)> {
+    let mut pairs = match list {
+        Unknowns::Running => running_dependencies(unknown.slot),
+        Unknowns::Initial => initial_dependencies(unknown.slot)
+            .into_iter()
+            .map(|name| (name, Kind::Dependent))
+            .collect(),
+    };
+    pairs.sort_by_key(|(n, _)| value_reference(n).expect("a variable of the table"));
+    pairs
+}
+
+/// Whether a variable is an unknown of `list` (listed in ModelStructure there).
+pub fn is_unknown(v: &Variable, list: Unknowns) -> bool {
+    match (v.slot, list) {
+        (Slot::Local(Local::Derivative(_)), _) => true,
+        (Slot::Local(_), Unknowns::Initial) => true,
+        _ => v.causality() == Causality::Output,
+    }
+}
+
+fn running_dependencies(slot: Slot) -> Vec<(&'static str, Kind)> {
+    use Kind::*;
+    let states = |kind: Kind| STATES.iter().map(|s| (*s, kind)).collect::<Vec<_>>();
+    // By slot, exhaustively: a new variable must say what it depends on.
+    match slot {
+        Slot::Output(Output::Angle(0)) => vec![("phi1", Constant)],
+        Slot::Output(Output::Angle(3)) => vec![("phi4", Constant)],
+        Slot::Output(Output::Angle(_)) | Slot::Output(Output::ConstraintResidual) => {
+            vec![("loop_angle", Dependent)]
+        }
+        Slot::Output(Output::Speed(0)) => vec![("omega1", Constant)],
+        Slot::Output(Output::Speed(3)) => vec![("omega4", Constant)],
+        Slot::Output(Output::Speed(_)) => {
+            vec![("loop_angle", Dependent), ("loop_speed", Dependent)]
+        }
+        Slot::Output(Output::Energy) | Slot::Output(Output::RodForce) => states(Dependent),
+        Slot::Local(Local::Derivative(0)) => vec![("omega1", Constant)],
+        Slot::Local(Local::Derivative(1)) => vec![("loop_speed", Constant)],
+        Slot::Local(Local::Derivative(2)) => vec![("omega4", Constant)],
+        // J1·ω̇1 = M_m + motor law(ω1) + k12·(φ2 − φ1) + d12·(ω2 − ω1).
+        Slot::Local(Local::Derivative(3)) => vec![
+            ("M_m", Fixed),
+            ("phi1", Fixed),
+            ("loop_angle", Dependent),
+            ("omega1", Dependent),
+            ("loop_speed", Dependent),
+        ],
+        // The loop feels everything but the torques.
+        Slot::Local(Local::Derivative(4)) => states(Dependent),
+        // J4·ω̇4 = k34·(φ3 − φ4) + d34·(ω3 − ω4) − M_r − load law(ω1) − c4·ω4.
+        Slot::Local(Local::Derivative(_)) => vec![
+            ("M_r", Fixed),
+            ("loop_angle", Dependent),
+            ("phi4", Fixed),
+            ("omega1", Fixed),
+            ("loop_speed", Dependent),
+            ("omega4", Fixed),
+        ],
+        // Integer and Enumeration outputs change only at steps and events.
+        Slot::Statistic(_) | Slot::LinkageClass => vec![],
+        // Not unknowns while running.
+        Slot::Local(_) | Slot::LoopChart => vec![],
+        Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice => vec![],
+    }
+}
+
 /// The lengths and the assembly's inputs: what φ3(0) (and so the geometry) depends on.
 const ASSEMBLY: &[&str] = &["l", "l2", "l3", "L", "phi2_0", "phi3_guess"];
 const INERTIAS_AND_SPRINGS: &[&str] = &["J1", "J2", "J3", "J4", "k12", "k34"];
@@ -362,41 +611,51 @@ const TWISTS: &[&str] = &["twist12_0", "twist34_0"];
 /// What the loop's bodies 2 and 3 feel, besides their own geometry and states: their
 /// inertias, the springs and dampers that tie them to bodies 1 and 4.
 const LOOP_FORCES: &[&str] = &["J2", "J3", "k12", "k34", "d12", "d34"];
+const MOTOR: &[&str] = &["M_m", "J1", "k12", "d12", "Mm_a0", "Mm_a1", "Mm_a2"];
+const LOAD: &[&str] = &["M_r", "J4", "k34", "d34", "c4", "Mr_b0", "Mr_b1"];
 
-/// Which knowns each output depends on directly, from the equations (docs/model.md §2, §3): the
-/// `dependencies` of ModelStructure. At communication points (`Outputs`) the knowns are
-/// the inputs, and no output feels them without integrating: the torques act on bodies 1
-/// and 4, which reach the loop (and λ, the rod force) only through springs and dampers.
-/// At initialisation (`InitialUnknowns`) the knowns also include the parameters.
-pub fn dependencies(output: &Variable, initial: bool) -> Vec<&'static str> {
-    if !initial {
-        return vec![];
-    }
-    // By slot, exhaustively: a new variable must say what it depends on.
-    let mut names: Vec<&str> = match output.slot {
+fn initial_dependencies(slot: Slot) -> Vec<&'static str> {
+    match slot {
         Slot::Output(Output::Angle(0)) => vec!["phi2_0", "twist12_0"],
         Slot::Output(Output::Angle(1)) => vec!["phi2_0"],
         Slot::Output(Output::Angle(3)) => [ASSEMBLY, &["twist34_0"]].concat(),
         Slot::Output(Output::Angle(_)) | Slot::Output(Output::ConstraintResidual) => {
             ASSEMBLY.to_vec()
         }
-        Slot::Output(Output::Speed(0)) => vec!["omega1_0"],
+        Slot::Output(Output::Speed(0)) | Slot::Local(Local::Derivative(0)) => vec!["omega1_0"],
         Slot::Output(Output::Speed(1)) => vec!["omega2_0"],
-        Slot::Output(Output::Speed(3)) => vec!["omega4_0"],
+        Slot::Output(Output::Speed(3)) | Slot::Local(Local::Derivative(2)) => vec!["omega4_0"],
         Slot::Output(Output::Speed(_)) => [ASSEMBLY, &["omega2_0"]].concat(),
         Slot::Output(Output::Energy) => {
             [ASSEMBLY, INERTIAS_AND_SPRINGS, START_SPEEDS, TWISTS].concat()
         }
-        Slot::Output(Output::RodForce) => [ASSEMBLY, LOOP_FORCES, START_SPEEDS, TWISTS].concat(),
+        Slot::Output(Output::RodForce) | Slot::Local(Local::Derivative(4)) => {
+            [ASSEMBLY, LOOP_FORCES, START_SPEEDS, TWISTS].concat()
+        }
+        // Which angle leads depends on the assembly; φ2 or φ3 then as above.
+        Slot::Local(Local::LoopAngle) => ASSEMBLY.to_vec(),
+        Slot::Local(Local::LoopSpeed) | Slot::Local(Local::Derivative(1)) => {
+            [ASSEMBLY, &["omega2_0"]].concat()
+        }
+        // φ2 − φ1 = −twist12_0, ω1 and ω2 as set.
+        Slot::Local(Local::Derivative(3)) => {
+            [MOTOR, &["omega1_0", "omega2_0", "twist12_0"]].concat()
+        }
+        // φ3 − φ4 = twist34_0; ω3 from the assembly; the load law reads ω1.
+        Slot::Local(Local::Derivative(_)) => [
+            LOAD,
+            ASSEMBLY,
+            &["omega1_0", "omega2_0", "omega4_0", "twist34_0"],
+        ]
+        .concat(),
         Slot::Statistic(Statistic::ActiveSolver) => vec!["solver"],
         // The step counters: zero until the first step.
         Slot::Statistic(_) => vec![],
         Slot::LinkageClass => vec!["l", "l2", "l3", "L"],
+        Slot::LoopChart => ASSEMBLY.to_vec(),
         // Not unknowns: knowns.
         Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice => vec![],
-    };
-    names.sort_by_key(|n| value_reference(n).expect("a variable of the table"));
-    names
+    }
 }
 
 /// The units used by the variables, each with its SI base-unit exponents
@@ -412,6 +671,7 @@ pub const UNITS: &[(&str, [i32; 4])] = &[
     ("N.m/rad", [1, 2, -2, -1]),
     ("N.m.s/rad", [1, 2, -1, -1]),
     ("N.m.s2/rad2", [1, 2, 0, -2]),
+    ("rad/s2", [0, 0, -2, 1]),
 ];
 
 #[cfg(test)]

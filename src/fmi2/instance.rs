@@ -10,10 +10,11 @@ use fmi_sys::fmi2::{
 };
 
 use super::model_description::{guid, DEFAULT_EXPERIMENT, LOG_CATEGORIES};
-use super::state_machine::State;
+use super::state_machine::{Interface, State};
+use crate::exchange::{Exchange, STATES};
 use crate::simulation::{AccessError, Simulation, Value};
 use crate::snapshot::{fnv1a_64, Reader, Writer};
-use crate::variables::{variable, VarType};
+use crate::variables::{variable, Input, Slot, VarType, STATE_REFERENCES};
 
 /// Log categories, by their position in [`LOG_CATEGORIES`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -61,6 +62,7 @@ pub type Outcome = Result<(), Failure>;
 const TIME_MATCH: f64 = 1e-12;
 
 pub struct Instance {
+    pub interface: Interface,
     name: CString,
     logger: fmi2CallbackLogger,
     environment: fmi2ComponentEnvironment,
@@ -69,6 +71,8 @@ pub struct Instance {
     enabled: [bool; LOG_CATEGORIES.len()],
     pub state: State,
     pub sim: Simulation,
+    /// Model Exchange's continuous states, once the simulation is assembled.
+    exchange: Option<Exchange>,
     start_time: f64,
     stop_time: Option<f64>,
     /// Whether `sim` holds the assembly for the current parameters (initialization mode).
@@ -84,7 +88,9 @@ pub struct Instance {
 /// belong to the instance.
 #[derive(Clone, Debug)]
 pub struct FmuState {
+    interface: Interface,
     sim: Simulation,
+    exchange: Option<Exchange>,
     state: State,
     start_time: f64,
     stop_time: Option<f64>,
@@ -95,18 +101,32 @@ impl FmuState {
     /// The versioned, position-independent byte form (see [`crate::snapshot`]).
     pub fn serialize(&self) -> Vec<u8> {
         let mut w = Writer::default();
+        w.u8(self.interface as u8);
         w.u8(self.state.code());
         w.f64(self.start_time);
         w.bool(self.stop_time.is_some());
         w.f64(self.stop_time.unwrap_or(self.start_time));
         w.bool(self.assembled);
         self.sim.serialize_into(&mut w);
+        w.bool(self.exchange.is_some());
+        if let Some(exchange) = &self.exchange {
+            exchange.serialize_into(&mut w);
+        }
         w.finish(interface_hash())
     }
 
     pub fn deserialize(bytes: &[u8]) -> Result<Self, Failure> {
         let fail = |e: crate::snapshot::FormatError| Failure::error(e.to_string());
         let mut r = Reader::open(bytes, interface_hash()).map_err(fail)?;
+        let interface = match r.u8().map_err(fail)? {
+            0 => Interface::ModelExchange,
+            1 => Interface::CoSimulation,
+            other => {
+                return Err(Failure::error(format!(
+                    "invalid serialized state: interface {other}"
+                )))
+            }
+        };
         let code = r.u8().map_err(fail)?;
         let state = State::from_code(code).ok_or_else(|| {
             Failure::error(format!("invalid serialized state: FMI state code {code}"))
@@ -116,7 +136,25 @@ impl FmuState {
         let stop = r.f64().map_err(fail)?;
         let assembled = r.bool().map_err(fail)?;
         let sim = Simulation::deserialize_from(&mut r).map_err(fail)?;
+        let exchange = if r.bool().map_err(fail)? {
+            Some(Exchange::deserialize_from(&mut r, &sim).map_err(fail)?)
+        } else {
+            None
+        };
         r.finish().map_err(fail)?;
+        let exchange_states = matches!(state, State::EventMode | State::ContinuousTimeMode);
+        let cs_states = matches!(state, State::StepComplete | State::StepFailed);
+        let consistent = match interface {
+            Interface::ModelExchange => !cs_states && (exchange.is_some() || !exchange_states),
+            Interface::CoSimulation => !exchange_states && exchange.is_none(),
+        };
+        if !consistent {
+            return Err(Failure::error(format!(
+                "invalid serialized state: {} in a {} instance",
+                state.describe(),
+                interface.name()
+            )));
+        }
         let initialised = !matches!(state, State::Instantiated | State::InitializationMode);
         if !initialised && (sim.time() != start_time || sim.statistics().n_steps != 0) {
             return Err(Failure::error(
@@ -133,13 +171,25 @@ impl FmuState {
             ));
         }
         Ok(Self {
+            interface,
             sim,
+            exchange,
             state,
             start_time,
             stop_time: has_stop.then_some(stop),
             assembled,
         })
     }
+}
+
+/// The master's array length must be the number of continuous states.
+fn check_state_count(name: &str, n: usize) -> Outcome {
+    if n != STATES {
+        return Err(Failure::error(format!(
+            "{name} = {n}: this FMU has {STATES} continuous states"
+        )));
+    }
+    Ok(())
 }
 
 /// Serialized states carry this hash of the GUID: a state of another FMU is refused.
@@ -149,12 +199,14 @@ fn interface_hash() -> u64 {
 
 impl Instance {
     pub fn new(
+        interface: Interface,
         name: CString,
         logger: fmi2CallbackLogger,
         environment: fmi2ComponentEnvironment,
         debug_logging: bool,
     ) -> Self {
         Self {
+            interface,
             name,
             logger,
             environment,
@@ -162,6 +214,7 @@ impl Instance {
             enabled: [true; LOG_CATEGORIES.len()],
             state: State::Instantiated,
             sim: Simulation::new(),
+            exchange: None,
             start_time: DEFAULT_EXPERIMENT.0,
             stop_time: None,
             assembled: false,
@@ -281,10 +334,11 @@ impl Instance {
     }
 
     pub fn exit_initialization_mode(&mut self) -> Outcome {
-        self.sim
-            .initialize(self.start_time)
-            .map_err(|e| Failure::error(format!("initialisation failed: {e}")))?;
-        self.state = State::StepComplete;
+        self.initialise_simulation()?;
+        self.state = match self.interface {
+            Interface::CoSimulation => State::StepComplete,
+            Interface::ModelExchange => State::EventMode,
+        };
         self.warned_stability = false;
         self.log_linkage_class();
         Ok(())
@@ -305,15 +359,176 @@ impl Instance {
         }
     }
 
+    /// The consistent start for the current parameters; in Model Exchange with the
+    /// independent coordinates.
+    fn initialise_simulation(&mut self) -> Outcome {
+        let failed =
+            |e: crate::model::ModelError| Failure::error(format!("initialisation failed: {e}"));
+        self.sim.initialize(self.start_time).map_err(failed)?;
+        if self.interface == Interface::ModelExchange {
+            self.exchange = Some(Exchange::start(&mut self.sim).map_err(failed)?);
+        }
+        Ok(())
+    }
+
     /// Outputs in initialization mode reflect the parameters set so far.
     fn assemble_if_needed(&mut self) -> Outcome {
         if self.state == State::InitializationMode && !self.assembled {
-            self.sim
-                .initialize(self.start_time)
-                .map_err(|e| Failure::error(format!("initialisation failed: {e}")))?;
+            self.initialise_simulation()?;
             self.assembled = true;
         }
         Ok(())
+    }
+
+    /// Model Exchange's states (assembled first in initialization mode).
+    fn exchange(&mut self) -> Result<&mut Exchange, Failure> {
+        self.assemble_if_needed()?;
+        self.exchange
+            .as_mut()
+            .ok_or_else(|| Failure::error("the continuous states exist from initialisation on"))
+    }
+
+    pub fn set_time(&mut self, time: f64) -> Outcome {
+        if !time.is_finite() {
+            return Err(Failure::error(format!("time = {time} must be finite")));
+        }
+        self.sim.set_time(time);
+        Ok(())
+    }
+
+    pub fn set_continuous_states(&mut self, x: &[f64]) -> Outcome {
+        check_state_count("nx", x.len())?;
+        let Some(exchange) = self.exchange.as_mut() else {
+            return Err(Failure::error(
+                "the continuous states exist from initialisation on",
+            ));
+        };
+        exchange
+            .set_states(&mut self.sim, x)
+            .map_err(|e| Failure::error(e.to_string()))
+    }
+
+    pub fn get_continuous_states(&mut self, x: &mut [f64]) -> Outcome {
+        check_state_count("nx", x.len())?;
+        x.copy_from_slice(self.exchange()?.states());
+        Ok(())
+    }
+
+    pub fn get_derivatives(&mut self, dx: &mut [f64]) -> Outcome {
+        check_state_count("nx", dx.len())?;
+        self.exchange()?;
+        dx.copy_from_slice(&Exchange::derivatives(&self.sim));
+        if let Some(i) = dx.iter().position(|v| !v.is_finite()) {
+            let name = crate::variables::STATES[i];
+            return Err(self.sim.not_finite(&format!("der({name})"), dx[i]).into());
+        }
+        Ok(())
+    }
+
+    pub fn get_event_indicators(&mut self, z: &mut [f64]) -> Outcome {
+        let expected = super::model_description::EVENT_INDICATORS;
+        if z.len() != expected {
+            return Err(Failure::error(format!(
+                "ni = {}: this FMU has {expected} event indicator",
+                z.len()
+            )));
+        }
+        self.exchange()?;
+        z.copy_from_slice(&Exchange::indicators(&self.sim));
+        Ok(())
+    }
+
+    pub fn get_nominals(&mut self, nominals: &mut [f64]) -> Outcome {
+        check_state_count("nx", nominals.len())?;
+        // Angles and speeds of order one: the solver's absolute tolerance applies as is.
+        nominals.fill(1.0);
+        Ok(())
+    }
+
+    pub fn enter_event_mode(&mut self) -> Outcome {
+        self.state = State::EventMode;
+        Ok(())
+    }
+
+    pub fn enter_continuous_time_mode(&mut self) -> Outcome {
+        self.state = State::ContinuousTimeMode;
+        Ok(())
+    }
+
+    /// fmi2NewDiscreteStates: the chart's handover, if its indicator has crossed. Returns
+    /// whether the continuous states changed.
+    pub fn new_discrete_states(&mut self) -> Result<bool, Failure> {
+        let exchange = self.exchange()?;
+        let mut next = exchange.clone();
+        let mut sim = self.sim.clone();
+        let changed = next
+            .update(&mut sim)
+            .map_err(|e| Failure::error(e.to_string()))?;
+        if changed && self.log_enabled(Category::Solver) {
+            let message = format!(
+                "t = {}: the loop's leading angle is now phi{}",
+                sim.time(),
+                sim.chart() as i32
+            );
+            self.log(fmi2Status_fmi2OK, Category::Solver, &message);
+        }
+        self.exchange = Some(next);
+        self.sim = sim;
+        Ok(changed)
+    }
+
+    /// fmi2GetDirectionalDerivative: the knowns are the inputs, and in Model Exchange the
+    /// continuous states; the unknowns any Real outputs and state derivatives.
+    pub fn directional_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Outcome {
+        self.assemble_if_needed()?;
+        let (mut input_seed, mut state_seed) = ([0.0; 2], [0.0; STATES]);
+        let exchange = self.interface == Interface::ModelExchange;
+        for (vr, s) in knowns.iter().zip(seed) {
+            let var = variable(*vr).ok_or(AccessError::UnknownReference(*vr))?;
+            if !s.is_finite() {
+                return Err(Failure::error(format!(
+                    "the seed of {} = {s}: must be finite",
+                    var.name
+                )));
+            }
+            let state = STATE_REFERENCES.iter().position(|r| r == vr);
+            match (var.slot, state) {
+                (Slot::Input(Input::MotorTorque), _) => input_seed[0] += s,
+                (Slot::Input(Input::LoadTorque), _) => input_seed[1] += s,
+                (_, Some(i)) if exchange => state_seed[i] += s,
+                _ => {
+                    let knowns = if exchange {
+                        "the inputs and the continuous states"
+                    } else {
+                        "the inputs (in Co-Simulation)"
+                    };
+                    return Err(Failure::error(format!(
+                        "{} is not a known: the knowns are {knowns}",
+                        var.name
+                    )));
+                }
+            }
+        }
+        let states = match &self.exchange {
+            Some(e) if exchange => Some((e.coordinates(), e.states(), &state_seed)),
+            _ => None,
+        };
+        self.sim
+            .directional_derivatives(states, input_seed, unknowns, sensitivity)
+            .map_err(Failure::from)
+    }
+
+    /// fmi2CompletedIntegratorStep: asks for an event where the indicator has crossed (for
+    /// masters that do not locate state events themselves).
+    pub fn completed_integrator_step(&mut self) -> Result<bool, Failure> {
+        self.exchange()?;
+        Ok(Exchange::indicators(&self.sim)[0] < 0.0)
     }
 
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
@@ -445,6 +660,7 @@ impl Instance {
     /// Back to the state just after fmi2Instantiate, every variable at its start value.
     pub fn reset(&mut self) -> Outcome {
         self.sim = Simulation::new();
+        self.exchange = None;
         self.state = State::Instantiated;
         self.start_time = DEFAULT_EXPERIMENT.0;
         self.stop_time = None;
@@ -458,7 +674,9 @@ impl Instance {
 
     pub fn save(&self) -> FmuState {
         FmuState {
+            interface: self.interface,
             sim: self.sim.clone(),
+            exchange: self.exchange.clone(),
             state: self.state,
             start_time: self.start_time,
             stop_time: self.stop_time,
@@ -466,12 +684,21 @@ impl Instance {
         }
     }
 
-    pub fn restore(&mut self, saved: &FmuState) {
+    pub fn restore(&mut self, saved: &FmuState) -> Outcome {
+        if saved.interface != self.interface {
+            return Err(Failure::error(format!(
+                "the FMU state was saved by a {} instance; this one is {}",
+                saved.interface.name(),
+                self.interface.name()
+            )));
+        }
         self.sim = saved.sim.clone();
+        self.exchange = saved.exchange.clone();
         self.state = saved.state;
         self.start_time = saved.start_time;
         self.stop_time = saved.stop_time;
         self.assembled = saved.assembled;
+        Ok(())
     }
 
     /// Hand out `saved` as a new FMU state pointer.

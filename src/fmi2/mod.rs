@@ -1,4 +1,4 @@
-//! The FMI 2.0 Co-Simulation C ABI: every function of `fmi2Functions.h`, with the
+//! The FMI 2.0 C ABI, Co-Simulation and Model Exchange: every function of `fmi2Functions.h`, with the
 //! official types of `fmi-sys`. This module holds the crate's only `unsafe` code: it turns
 //! C pointers into safe calls on [`Instance`], enforces the state machine through
 //! [`guarded`], and catches every panic so that none crosses the C boundary (a panic makes
@@ -20,7 +20,7 @@ use fmi_sys::fmi2::*;
 use crate::simulation::Value;
 use instance::{send_log, Category, Failure, FmuState, Instance, Outcome};
 use model_description::guid;
-use state_machine::{Call, State};
+use state_machine::{Call, Interface, State};
 
 /// Run `body` on the instance behind `c` if the state machine allows `call` now; log and
 /// map its failure to a status; turn a panic into fmi2Fatal.
@@ -37,6 +37,17 @@ fn guarded(
     };
     if instance.log_enabled(Category::Calls) {
         instance.log(fmi2Status_fmi2OK, Category::Calls, function);
+    }
+    if let Some(interface) = call.interface() {
+        if interface != instance.interface {
+            let failure = Failure::error(format!(
+                "a {} function, and this instance was instantiated for {}",
+                interface.name(),
+                instance.interface.name()
+            ));
+            instance.report(&failure, function);
+            return failure.status;
+        }
     }
     if !call.allowed_in(instance.state) {
         let failure = Failure::error(format!(
@@ -67,13 +78,6 @@ fn guarded(
             fmi2Status_fmi2Fatal
         }
     }
-}
-
-/// Refuse a call that this FMU does not offer, naming the reason.
-fn refuse(c: fmi2Component, function: &str, reason: &str) -> fmi2Status {
-    guarded(c, Call::Capability, function, |_| {
-        Err(Failure::error(reason.to_string()))
-    })
 }
 
 /// A C array as a slice; `None` for a null pointer with a non-zero length.
@@ -218,11 +222,15 @@ unsafe fn instantiate(
     if name.is_empty() {
         return fail("instanceName must be a non-empty string".into());
     }
-    if fmu_type != fmi2Type_fmi2CoSimulation {
-        return fail(format!(
-            "fmuType = {fmu_type}: this FMU implements only fmi2CoSimulation (1)"
-        ));
-    }
+    let interface = match fmu_type {
+        t if t == fmi2Type_fmi2ModelExchange => Interface::ModelExchange,
+        t if t == fmi2Type_fmi2CoSimulation => Interface::CoSimulation,
+        _ => {
+            return fail(format!(
+                "fmuType = {fmu_type}: must be fmi2ModelExchange (0) or fmi2CoSimulation (1)"
+            ))
+        }
+    };
     let expected = guid();
     // SAFETY: non-null C string by the FMI contract.
     let given = (!fmu_guid.is_null()).then(|| {
@@ -237,6 +245,7 @@ unsafe fn instantiate(
         ));
     }
     Box::into_raw(Box::new(Instance::new(
+        interface,
         name,
         logger,
         environment,
@@ -409,8 +418,7 @@ no_variables_of_type!(fmi2SetBoolean, Call::Set, "Boolean", *const fmi2Boolean);
 no_variables_of_type!(fmi2SetString, Call::Set, "String", *const fmi2String);
 
 // ---------------------------------------------------------------------------------------
-// Optional capabilities: FMU state, input and output derivatives (directional derivatives
-// are not declared in modelDescription.xml and are refused with a reason).
+// Optional capabilities: FMU state, directional derivatives, input and output derivatives.
 
 /// # Safety
 /// `FMUstate` must be NULL or point to a writable pointer (NULL, or a state of `c`).
@@ -437,8 +445,7 @@ pub unsafe extern "C" fn fmi2GetFMUstate(
 pub extern "C" fn fmi2SetFMUstate(c: fmi2Component, FMUstate: fmi2FMUstate) -> fmi2Status {
     guarded(c, Call::FmuState, "fmi2SetFMUstate", |instance| {
         let saved = instance.issued_state(FMUstate)?.clone();
-        instance.restore(&saved);
-        Ok(())
+        instance.restore(&saved)
     })
 }
 
@@ -534,20 +541,39 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
     })
 }
 
+/// # Safety
+/// `vUnknown_ref` and `dvUnknown` must hold `nUnknown` elements, `vKnown_ref` and
+/// `dvKnown` `nKnown` (FMI 2.0 contract).
 #[no_mangle]
-pub extern "C" fn fmi2GetDirectionalDerivative(
+pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
     c: fmi2Component,
-    _unknowns: *const fmi2ValueReference,
-    _n_unknowns: usize,
-    _knowns: *const fmi2ValueReference,
-    _n_knowns: usize,
-    _seed: *const fmi2Real,
-    _sensitivity: *mut fmi2Real,
+    vUnknown_ref: *const fmi2ValueReference,
+    nUnknown: usize,
+    vKnown_ref: *const fmi2ValueReference,
+    nKnown: usize,
+    dvKnown: *const fmi2Real,
+    dvUnknown: *mut fmi2Real,
 ) -> fmi2Status {
-    refuse(
+    guarded(
         c,
+        Call::DirectionalDerivative,
         "fmi2GetDirectionalDerivative",
-        "providesDirectionalDerivative is false for this FMU",
+        |instance| {
+            // SAFETY: FMI contract on the arrays.
+            let (unknowns, knowns, seed, sensitivity) = unsafe {
+                (
+                    slice(vUnknown_ref, nUnknown),
+                    slice(vKnown_ref, nKnown),
+                    slice(dvKnown, nKnown),
+                    slice_mut(dvUnknown, nUnknown),
+                )
+            };
+            let unknowns = unknowns.ok_or_else(|| null_argument("vUnknown_ref", nUnknown))?;
+            let knowns = knowns.ok_or_else(|| null_argument("vKnown_ref", nKnown))?;
+            let seed = seed.ok_or_else(|| null_argument("dvKnown", nKnown))?;
+            let sensitivity = sensitivity.ok_or_else(|| null_argument("dvUnknown", nUnknown))?;
+            instance.directional_derivative(unknowns, knowns, seed, sensitivity)
+        },
     )
 }
 
@@ -561,15 +587,20 @@ pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
     order: *const fmi2Integer,
     value: *const fmi2Real,
 ) -> fmi2Status {
-    guarded(c, Call::Set, "fmi2SetRealInputDerivatives", |instance| {
-        // SAFETY: FMI contract on the arrays.
-        let (vrs, orders, values) =
-            unsafe { (slice(vr, nvr), slice(order, nvr), slice(value, nvr)) };
-        let vrs = vrs.ok_or_else(|| null_argument("vr", nvr))?;
-        let orders = orders.ok_or_else(|| null_argument("order", nvr))?;
-        let values = values.ok_or_else(|| null_argument("value", nvr))?;
-        instance.set_input_derivatives(vrs, orders, values)
-    })
+    guarded(
+        c,
+        Call::SetInputDerivatives,
+        "fmi2SetRealInputDerivatives",
+        |instance| {
+            // SAFETY: FMI contract on the arrays.
+            let (vrs, orders, values) =
+                unsafe { (slice(vr, nvr), slice(order, nvr), slice(value, nvr)) };
+            let vrs = vrs.ok_or_else(|| null_argument("vr", nvr))?;
+            let orders = orders.ok_or_else(|| null_argument("order", nvr))?;
+            let values = values.ok_or_else(|| null_argument("value", nvr))?;
+            instance.set_input_derivatives(vrs, orders, values)
+        },
+    )
 }
 
 /// # Safety
@@ -582,15 +613,20 @@ pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
     order: *const fmi2Integer,
     value: *mut fmi2Real,
 ) -> fmi2Status {
-    guarded(c, Call::Get, "fmi2GetRealOutputDerivatives", |instance| {
-        // SAFETY: FMI contract on the arrays.
-        let (vrs, orders, values) =
-            unsafe { (slice(vr, nvr), slice(order, nvr), slice_mut(value, nvr)) };
-        let vrs = vrs.ok_or_else(|| null_argument("vr", nvr))?;
-        let orders = orders.ok_or_else(|| null_argument("order", nvr))?;
-        let values = values.ok_or_else(|| null_argument("value", nvr))?;
-        instance.get_output_derivatives(vrs, orders, values)
-    })
+    guarded(
+        c,
+        Call::GetOutputDerivatives,
+        "fmi2GetRealOutputDerivatives",
+        |instance| {
+            // SAFETY: FMI contract on the arrays.
+            let (vrs, orders, values) =
+                unsafe { (slice(vr, nvr), slice(order, nvr), slice_mut(value, nvr)) };
+            let vrs = vrs.ok_or_else(|| null_argument("vr", nvr))?;
+            let orders = orders.ok_or_else(|| null_argument("order", nvr))?;
+            let values = values.ok_or_else(|| null_argument("value", nvr))?;
+            instance.get_output_derivatives(vrs, orders, values)
+        },
+    )
 }
 
 // ---------------------------------------------------------------------------------------
@@ -702,86 +738,139 @@ pub unsafe extern "C" fn fmi2GetStringStatus(
 }
 
 // ---------------------------------------------------------------------------------------
-// Model Exchange functions: exported because fmi2Functions.h declares them; this is a
-// co-simulation FMU, so each is refused with a message.
-
-const NOT_MODEL_EXCHANGE: &str =
-    "this FMU implements only Co-Simulation; this is a Model Exchange function";
+// Model Exchange (docs/model.md §6)
 
 #[no_mangle]
 pub extern "C" fn fmi2EnterEventMode(c: fmi2Component) -> fmi2Status {
-    refuse(c, "fmi2EnterEventMode", NOT_MODEL_EXCHANGE)
+    guarded(
+        c,
+        Call::EnterEventMode,
+        "fmi2EnterEventMode",
+        Instance::enter_event_mode,
+    )
 }
 
+/// # Safety
+/// `eventInfo` must be NULL or writable.
 #[no_mangle]
-pub extern "C" fn fmi2NewDiscreteStates(c: fmi2Component, _info: *mut fmi2EventInfo) -> fmi2Status {
-    refuse(c, "fmi2NewDiscreteStates", NOT_MODEL_EXCHANGE)
+pub unsafe extern "C" fn fmi2NewDiscreteStates(
+    c: fmi2Component,
+    eventInfo: *mut fmi2EventInfo,
+) -> fmi2Status {
+    guarded(
+        c,
+        Call::NewDiscreteStates,
+        "fmi2NewDiscreteStates",
+        |instance| {
+            // SAFETY: NULL or writable by the FMI contract.
+            let info =
+                unsafe { eventInfo.as_mut() }.ok_or_else(|| null_argument("eventInfo", 1))?;
+            let changed = instance.new_discrete_states()?;
+            *info = fmi2EventInfo {
+                newDiscreteStatesNeeded: fmi2False as fmi2Boolean,
+                terminateSimulation: fmi2False as fmi2Boolean,
+                nominalsOfContinuousStatesChanged: fmi2False as fmi2Boolean,
+                valuesOfContinuousStatesChanged: fmi2Boolean::from(changed),
+                nextEventTimeDefined: fmi2False as fmi2Boolean,
+                nextEventTime: 0.0,
+            };
+            Ok(())
+        },
+    )
 }
 
 #[no_mangle]
 pub extern "C" fn fmi2EnterContinuousTimeMode(c: fmi2Component) -> fmi2Status {
-    refuse(c, "fmi2EnterContinuousTimeMode", NOT_MODEL_EXCHANGE)
+    guarded(
+        c,
+        Call::EnterContinuousTimeMode,
+        "fmi2EnterContinuousTimeMode",
+        Instance::enter_continuous_time_mode,
+    )
 }
 
+/// # Safety
+/// `enterEventMode` and `terminateSimulation` must be NULL or writable.
 #[no_mangle]
-pub extern "C" fn fmi2CompletedIntegratorStep(
+pub unsafe extern "C" fn fmi2CompletedIntegratorStep(
     c: fmi2Component,
-    _no_set_prior: fmi2Boolean,
-    _enter_event_mode: *mut fmi2Boolean,
-    _terminate: *mut fmi2Boolean,
+    _noSetFMUStatePriorToCurrentPoint: fmi2Boolean,
+    enterEventMode: *mut fmi2Boolean,
+    terminateSimulation: *mut fmi2Boolean,
 ) -> fmi2Status {
-    refuse(c, "fmi2CompletedIntegratorStep", NOT_MODEL_EXCHANGE)
+    guarded(
+        c,
+        Call::CompletedIntegratorStep,
+        "fmi2CompletedIntegratorStep",
+        |instance| {
+            // SAFETY: NULL or writable by the FMI contract.
+            let (event, terminate) =
+                unsafe { (enterEventMode.as_mut(), terminateSimulation.as_mut()) };
+            let event = event.ok_or_else(|| null_argument("enterEventMode", 1))?;
+            let terminate = terminate.ok_or_else(|| null_argument("terminateSimulation", 1))?;
+            *event = fmi2Boolean::from(instance.completed_integrator_step()?);
+            *terminate = fmi2False as fmi2Boolean;
+            Ok(())
+        },
+    )
 }
 
 #[no_mangle]
-pub extern "C" fn fmi2SetTime(c: fmi2Component, _time: fmi2Real) -> fmi2Status {
-    refuse(c, "fmi2SetTime", NOT_MODEL_EXCHANGE)
+pub extern "C" fn fmi2SetTime(c: fmi2Component, time: fmi2Real) -> fmi2Status {
+    guarded(c, Call::SetTime, "fmi2SetTime", |instance| {
+        instance.set_time(time)
+    })
 }
 
+/// # Safety
+/// `x` must hold `nx` elements.
 #[no_mangle]
-pub extern "C" fn fmi2SetContinuousStates(
+pub unsafe extern "C" fn fmi2SetContinuousStates(
     c: fmi2Component,
-    _x: *const fmi2Real,
-    _nx: usize,
+    x: *const fmi2Real,
+    nx: usize,
 ) -> fmi2Status {
-    refuse(c, "fmi2SetContinuousStates", NOT_MODEL_EXCHANGE)
+    guarded(
+        c,
+        Call::SetContinuousStates,
+        "fmi2SetContinuousStates",
+        |instance| {
+            // SAFETY: FMI contract on the array.
+            let x = unsafe { slice(x, nx) }.ok_or_else(|| null_argument("x", nx))?;
+            instance.set_continuous_states(x)
+        },
+    )
 }
 
-#[no_mangle]
-pub extern "C" fn fmi2GetDerivatives(
-    c: fmi2Component,
-    _dx: *mut fmi2Real,
-    _nx: usize,
-) -> fmi2Status {
-    refuse(c, "fmi2GetDerivatives", NOT_MODEL_EXCHANGE)
+/// The four functions that fill an array of continuous-time values.
+macro_rules! continuous_values {
+    ($name:ident, $array:literal, $method:ident) => {
+        /// # Safety
+        /// The array must hold `n` writable elements.
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi2Component,
+            values: *mut fmi2Real,
+            n: usize,
+        ) -> fmi2Status {
+            guarded(c, Call::GetContinuous, stringify!($name), |instance| {
+                // SAFETY: FMI contract on the array.
+                let values =
+                    unsafe { slice_mut(values, n) }.ok_or_else(|| null_argument($array, n))?;
+                instance.$method(values)
+            })
+        }
+    };
 }
 
-#[no_mangle]
-pub extern "C" fn fmi2GetEventIndicators(
-    c: fmi2Component,
-    _z: *mut fmi2Real,
-    _ni: usize,
-) -> fmi2Status {
-    refuse(c, "fmi2GetEventIndicators", NOT_MODEL_EXCHANGE)
-}
-
-#[no_mangle]
-pub extern "C" fn fmi2GetContinuousStates(
-    c: fmi2Component,
-    _x: *mut fmi2Real,
-    _nx: usize,
-) -> fmi2Status {
-    refuse(c, "fmi2GetContinuousStates", NOT_MODEL_EXCHANGE)
-}
-
-#[no_mangle]
-pub extern "C" fn fmi2GetNominalsOfContinuousStates(
-    c: fmi2Component,
-    _x: *mut fmi2Real,
-    _nx: usize,
-) -> fmi2Status {
-    refuse(c, "fmi2GetNominalsOfContinuousStates", NOT_MODEL_EXCHANGE)
-}
+continuous_values!(fmi2GetDerivatives, "derivatives", get_derivatives);
+continuous_values!(
+    fmi2GetEventIndicators,
+    "eventIndicators",
+    get_event_indicators
+);
+continuous_values!(fmi2GetContinuousStates, "x", get_continuous_states);
+continuous_values!(fmi2GetNominalsOfContinuousStates, "x_nominal", get_nominals);
 
 /// Every export has exactly the type the official header declares: the build fails if not.
 const _: () = {

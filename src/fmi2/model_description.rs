@@ -10,8 +10,8 @@ use std::io;
 use crate::model::LINKAGE_CLASSES;
 use crate::simulation::DEFAULT_TOLERANCE;
 use crate::variables::{
-    dependencies, value_reference, variables, Causality, VarType, Variable, LINKAGE_TYPE,
-    SOLVER_ITEMS, SOLVER_TYPE, UNITS,
+    dependencies, is_unknown, value_reference, variables, Causality, Unknowns, VarType, Variable,
+    LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE, STATE_REFERENCES, UNITS,
 };
 
 pub const MODEL_IDENTIFIER: &str = "CyclicMechanism";
@@ -21,6 +21,21 @@ pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// DefaultExperiment: startTime, stopTime, stepSize (tolerance is DEFAULT_TOLERANCE).
 pub const DEFAULT_EXPERIMENT: (f64, f64, f64) = (0.0, 10.0, 1e-3);
+
+/// Model Exchange capability flags, as declared.
+pub const EXCHANGE_CAPABILITIES: &[(&str, bool)] = &[
+    ("needsExecutionTool", false),
+    // Chart changes come from the event indicator, not from completed steps.
+    ("completedIntegratorStepNotNeeded", true),
+    ("canBeInstantiatedOnlyOncePerProcess", false),
+    ("canNotUseMemoryManagementFunctions", true),
+    ("canGetAndSetFMUstate", true),
+    ("canSerializeFMUstate", true),
+    ("providesDirectionalDerivative", true),
+];
+
+/// The number of event indicators: one, the chart's handover (docs/model.md §6).
+pub const EVENT_INDICATORS: usize = 1;
 
 /// Co-simulation capability flags, as declared; the FMI functions refuse what is false.
 pub const CAPABILITIES: &[(&str, bool)] = &[
@@ -32,7 +47,7 @@ pub const CAPABILITIES: &[(&str, bool)] = &[
     ("canNotUseMemoryManagementFunctions", true),
     ("canGetAndSetFMUstate", true),
     ("canSerializeFMUstate", true),
-    ("providesDirectionalDerivative", false),
+    ("providesDirectionalDerivative", true),
 ];
 
 /// maxOutputDerivativeOrder: fmi2GetRealOutputDerivatives serves orders 1 and 2.
@@ -67,9 +82,10 @@ pub fn guid() -> &'static str {
 
 fn interface_guid() -> String {
     let mut text = format!("{MODEL_IDENTIFIER} {FMI_VERSION} {MAX_OUTPUT_DERIVATIVE_ORDER}");
-    for (name, value) in CAPABILITIES {
+    for (name, value) in CAPABILITIES.iter().chain(EXCHANGE_CAPABILITIES) {
         text += &format!(" {name}={value}");
     }
+    text += &format!(" indicators={EVENT_INDICATORS} states={STATE_REFERENCES:?}");
     for (vr, v) in variables() {
         text += &format!(
             " {vr}:{}:{}:{}:{}:{}:{:?}:{:?}",
@@ -143,9 +159,10 @@ fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
             ("generationTool", "cyclic-mechanism (Rust)"),
             ("generationDateAndTime", GENERATION_DATE),
             ("variableNamingConvention", "flat"),
-            ("numberOfEventIndicators", "0"),
+            ("numberOfEventIndicators", EVENT_INDICATORS.to_string().as_str()),
         ])
         .write_inner_content(|w| {
+            write_model_exchange(w)?;
             write_co_simulation(w)?;
             write_units(w)?;
             write_types(w)?;
@@ -154,6 +171,17 @@ fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
             write_variables(w)?;
             write_structure(w)
         })?;
+    Ok(())
+}
+
+fn write_model_exchange(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    let mut element = w
+        .create_element("ModelExchange")
+        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
+    for (name, value) in EXCHANGE_CAPABILITIES {
+        element = element.with_attribute((*name, if *value { "true" } else { "false" }));
+    }
+    element.write_empty()?;
     Ok(())
 }
 
@@ -283,6 +311,7 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
     if let Some(initial) = v.initial() {
         element = element.with_attribute(("initial", initial));
     }
+    let derivative = v.derivative_of().map(|state| (state + 1).to_string());
     element.write_inner_content(|w| {
         let mut typed = w.create_element(v.var_type().as_str());
         match v.var_type() {
@@ -308,35 +337,48 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
         if let Some(start) = &start {
             typed = typed.with_attribute(("start", start.as_str()));
         }
+        if let Some(index) = &derivative {
+            typed = typed.with_attribute(("derivative", index.as_str()));
+        }
         typed.write_empty()?;
         Ok(())
     })?;
     Ok(())
 }
 
-/// Outputs and initial unknowns, by 1-based index into ModelVariables, each with the
-/// knowns it depends on (see [`dependencies`]).
+/// Outputs, state derivatives and initial unknowns, by 1-based index into ModelVariables,
+/// each with the knowns it depends on and how (see [`dependencies`]).
 fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
-    let outputs: Vec<(usize, Variable)> = variables()
-        .enumerate()
-        .filter(|(_, (_, v))| v.causality() == Causality::Output)
-        .map(|(i, (_, v))| (i + 1, v))
-        .collect();
-    let unknowns = |w: &mut Writer<Vec<u8>>, list: &str, initial: bool| -> io::Result<()> {
+    let listed = |keep: &dyn Fn(&Variable) -> bool| -> Vec<(usize, Variable)> {
+        variables()
+            .filter(|(_, v)| keep(v))
+            .map(|(vr, v)| (vr as usize + 1, v))
+            .collect()
+    };
+    let outputs = listed(&|v| v.causality() == Causality::Output);
+    let derivatives = listed(&|v| v.derivative_of().is_some());
+    let initial = listed(&|v| is_unknown(v, Unknowns::Initial));
+    let unknowns = |w: &mut Writer<Vec<u8>>,
+                    list: &str,
+                    members: &[(usize, Variable)],
+                    which: Unknowns|
+     -> io::Result<()> {
         w.create_element(list).write_inner_content(|w| {
-            for (index, v) in &outputs {
-                let known: Vec<String> = dependencies(v, initial)
+            for (index, v) in members {
+                let pairs = dependencies(v, which);
+                let known: Vec<String> = pairs
                     .iter()
-                    .map(|n| (value_reference(n).expect("known") + 1).to_string())
+                    .map(|(n, _)| (value_reference(n).expect("known") + 1).to_string())
                     .collect();
-                let kinds = vec!["dependent"; known.len()].join(" ");
+                let kinds: Vec<&str> = pairs.iter().map(|(_, k)| k.as_str()).collect();
                 let mut unknown = w.create_element("Unknown").with_attributes([
                     ("index", index.to_string().as_str()),
                     ("dependencies", known.join(" ").as_str()),
                 ]);
                 // An empty list says "depends on none"; its kinds would be an empty list too.
                 if !known.is_empty() {
-                    unknown = unknown.with_attribute(("dependenciesKind", kinds.as_str()));
+                    unknown =
+                        unknown.with_attribute(("dependenciesKind", kinds.join(" ").as_str()));
                 }
                 unknown.write_empty()?;
             }
@@ -346,8 +388,10 @@ fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     };
     w.create_element("ModelStructure")
         .write_inner_content(|w| {
-            unknowns(w, "Outputs", false)?;
-            unknowns(w, "InitialUnknowns", true)
+            unknowns(w, "Outputs", &outputs, Unknowns::Running)?;
+            // Their order is the order of the continuous states (FMI 2.0).
+            unknowns(w, "Derivatives", &derivatives, Unknowns::Running)?;
+            unknowns(w, "InitialUnknowns", &initial, Unknowns::Initial)
         })?;
     Ok(())
 }

@@ -1,4 +1,5 @@
-//! The FMI 2.0 Co-Simulation state machine (FMI 2.0.4, section 4.2.4), in one place.
+//! The FMI 2.0 state machines of Co-Simulation (FMI 2.0.4, section 4.2.4) and Model
+//! Exchange (section 3.2.3), in one place.
 //!
 //! Every exported function names its [`Call`]; [`Call::allowed_in`] is the standard's table
 //! of which calls each state admits. An argument error leaves the state unchanged (the
@@ -17,6 +18,27 @@ pub enum State {
     StepFailed,
     Terminated,
     Fatal,
+    /// Model Exchange: events are handled (after initialisation, or fmi2EnterEventMode).
+    EventMode,
+    /// Model Exchange: the master integrates.
+    ContinuousTimeMode,
+}
+
+/// Which interface an instance was created for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Interface {
+    ModelExchange = 0,
+    CoSimulation = 1,
+}
+
+impl Interface {
+    pub fn name(self) -> &'static str {
+        match self {
+            Interface::ModelExchange => "Model Exchange",
+            Interface::CoSimulation => "Co-Simulation",
+        }
+    }
 }
 
 /// Calls that take an instance, grouped where the standard treats them alike.
@@ -33,41 +55,87 @@ pub enum Call {
     Get,
     /// fmi2SetReal, fmi2SetInteger, fmi2SetBoolean, fmi2SetString.
     Set,
-    /// FMU state, directional derivatives, input and output derivatives: optional
-    /// capabilities, refused with a message in every state while not declared.
-    Capability,
+    /// fmi2SetRealInputDerivatives (Co-Simulation).
+    SetInputDerivatives,
+    /// fmi2GetRealOutputDerivatives (Co-Simulation).
+    GetOutputDerivatives,
     DoStep,
     CancelStep,
     /// fmi2GetStatus and its typed variants.
     GetStatus,
-    /// Model Exchange functions: never allowed in a co-simulation FMU.
-    ModelExchange,
     /// Getting, setting, freeing and (de)serializing FMU states.
     FmuState,
+    DirectionalDerivative,
+    EnterEventMode,
+    NewDiscreteStates,
+    EnterContinuousTimeMode,
+    CompletedIntegratorStep,
+    SetTime,
+    SetContinuousStates,
+    /// fmi2GetDerivatives, fmi2GetEventIndicators, fmi2GetContinuousStates,
+    /// fmi2GetNominalsOfContinuousStates.
+    GetContinuous,
 }
 
 impl Call {
-    /// Whether the standard allows this call in `state`.
+    /// The interface a call belongs to, if only one.
+    pub fn interface(self) -> Option<Interface> {
+        match self {
+            Call::SetInputDerivatives
+            | Call::GetOutputDerivatives
+            | Call::DoStep
+            | Call::CancelStep
+            | Call::GetStatus => Some(Interface::CoSimulation),
+            Call::EnterEventMode
+            | Call::NewDiscreteStates
+            | Call::EnterContinuousTimeMode
+            | Call::CompletedIntegratorStep
+            | Call::SetTime
+            | Call::SetContinuousStates
+            | Call::GetContinuous => Some(Interface::ModelExchange),
+            _ => None,
+        }
+    }
+
+    /// Whether the standard allows this call in `state` (the states of the two interfaces
+    /// after initialisation are distinct, so one table serves both).
     pub fn allowed_in(self, state: State) -> bool {
         use State::*;
+        let initialised = matches!(
+            state,
+            StepComplete | StepFailed | EventMode | ContinuousTimeMode
+        );
         match self {
             Call::FreeInstance => true,
             _ if state == Fatal => false,
             Call::SetDebugLogging | Call::Reset => true,
             Call::SetupExperiment | Call::EnterInitializationMode => state == Instantiated,
             Call::ExitInitializationMode => state == InitializationMode,
-            Call::Terminate => matches!(state, StepComplete | StepFailed),
-            Call::Get => matches!(
+            Call::Terminate => initialised,
+            Call::Get | Call::DirectionalDerivative | Call::GetOutputDerivatives => {
+                initialised || matches!(state, InitializationMode | Terminated)
+            }
+            Call::Set => matches!(
                 state,
-                InitializationMode | StepComplete | StepFailed | Terminated
+                Instantiated | InitializationMode | StepComplete | EventMode | ContinuousTimeMode
             ),
-            Call::Set => matches!(state, Instantiated | InitializationMode | StepComplete),
-            Call::Capability => true,
+            Call::SetInputDerivatives => {
+                matches!(state, Instantiated | InitializationMode | StepComplete)
+            }
             Call::DoStep => state == StepComplete,
             Call::CancelStep => false,
             Call::GetStatus => matches!(state, StepComplete | StepFailed | Terminated),
-            Call::ModelExchange => false,
             Call::FmuState => true,
+            Call::EnterEventMode => matches!(state, EventMode | ContinuousTimeMode),
+            Call::NewDiscreteStates | Call::EnterContinuousTimeMode => state == EventMode,
+            Call::CompletedIntegratorStep | Call::SetContinuousStates => {
+                state == ContinuousTimeMode
+            }
+            Call::SetTime => matches!(state, EventMode | ContinuousTimeMode),
+            Call::GetContinuous => matches!(
+                state,
+                InitializationMode | EventMode | ContinuousTimeMode | Terminated
+            ),
         }
     }
 }
@@ -87,6 +155,8 @@ impl State {
             StepComplete,
             StepFailed,
             Terminated,
+            EventMode,
+            ContinuousTimeMode,
         ]
         .into_iter()
         .find(|s| s.code() == code)
@@ -105,6 +175,8 @@ impl State {
             State::StepFailed => "step failed (after fmi2Discard)",
             State::Terminated => "terminated",
             State::Fatal => "fatal (after an internal error)",
+            State::EventMode => "event mode",
+            State::ContinuousTimeMode => "continuous-time mode",
         }
     }
 }

@@ -2,37 +2,37 @@
 //! with the paper's sign slips corrected (docs/model.md §5).
 
 use super::kinematics::{constraint_terms, ConstraintTerms};
-use super::{Inputs, Parameters, State};
+use super::{Inputs, Parameters, Scalar, State};
 
 /// Motor and load torques after adding the built-in laws (docs/model.md §4).
 #[inline]
-pub fn applied_torques(p: &Parameters, inputs: &Inputs, omega1: f64) -> (f64, f64) {
-    let motor = inputs.motor_torque + p.Mm_a0 + (p.Mm_a1 + p.Mm_a2 * omega1) * omega1;
-    let load = inputs.load_torque + p.Mr_b0 + p.Mr_b1 * omega1;
+pub fn applied_torques<T: Scalar>(p: &Parameters, inputs: &Inputs<T>, omega1: T) -> (T, T) {
+    let motor = inputs.motor_torque + p.Mm_a0 + (omega1 * p.Mm_a2 + p.Mm_a1) * omega1;
+    let load = inputs.load_torque + p.Mr_b0 + omega1 * p.Mr_b1;
     (motor, load)
 }
 
 /// Generalised forces Q1..Q4 (docs/model.md §2; the k12 spring sign corrected, docs/model.md §5).
 #[inline]
-pub fn generalized_forces(p: &Parameters, inputs: &Inputs, y: &State) -> [f64; 4] {
+pub fn generalized_forces<T: Scalar>(p: &Parameters, inputs: &Inputs<T>, y: &[T; 8]) -> [T; 4] {
     let [phi1, phi2, phi3, phi4, w1, w2, w3, w4] = *y;
     let (motor, load) = applied_torques(p, inputs, w1);
-    let spring12 = p.k12 * (phi2 - phi1) + p.d12 * (w2 - w1);
-    let spring34 = p.k34 * (phi3 - phi4) + p.d34 * (w3 - w4);
+    let spring12 = (phi2 - phi1) * p.k12 + (w2 - w1) * p.d12;
+    let spring34 = (phi3 - phi4) * p.k34 + (w3 - w4) * p.d34;
     [
         motor + spring12,
         -spring12,
         -spring34,
-        spring34 - load - p.c4 * w4,
+        spring34 - load - w4 * p.c4,
     ]
 }
 
 /// Accelerations ω̇ with the terms they were computed from.
 #[derive(Clone, Copy, Debug)]
-pub struct Accelerations {
-    pub omega_dot: [f64; 4],
-    pub forces: [f64; 4],
-    pub terms: ConstraintTerms,
+pub struct Accelerations<T = f64> {
+    pub omega_dot: [T; 4],
+    pub forces: [T; 4],
+    pub terms: ConstraintTerms<T>,
 }
 
 /// Solve the four orthogonal-complement equations for ω̇ (docs/model.md §2):
@@ -47,7 +47,11 @@ pub struct Accelerations {
 /// The 2×2 block has determinant −(C1²·J2 + B1²·J3), zero only at a change point where
 /// B1 = C1 = 0; there the result is not finite, which the caller detects.
 #[inline]
-pub fn accelerations(p: &Parameters, inputs: &Inputs, y: &State) -> Accelerations {
+pub fn accelerations<T: Scalar>(
+    p: &Parameters,
+    inputs: &Inputs<T>,
+    y: &[T; 8],
+) -> Accelerations<T> {
     let forces = generalized_forces(p, inputs, y);
     let terms = constraint_terms(p, y[1], y[2], y[5], y[6]);
     let ConstraintTerms {
@@ -82,26 +86,27 @@ pub fn state_derivative(p: &Parameters, inputs: &Inputs, y: &State, dy: &mut Sta
 
 /// Rod axial force, tension positive: −λ·L (docs/model.md §2), with λ from whichever of
 /// λ = (J2·ω̇2 − Q2)/B1 = −(J3·ω̇3 − Q3)/C1 has the larger denominator.
-pub fn rod_force(p: &Parameters, inputs: &Inputs, y: &State) -> f64 {
+pub fn rod_force<T: Scalar>(p: &Parameters, inputs: &Inputs<T>, y: &[T; 8]) -> T {
     let Accelerations {
         omega_dot,
         forces,
         terms,
     } = accelerations(p, inputs, y);
-    let lambda = if terms.b1.abs() >= terms.c1.abs() {
-        (p.J2 * omega_dot[1] - forces[1]) / terms.b1
+    let lambda = if terms.b1.value().abs() >= terms.c1.value().abs() {
+        (omega_dot[1] * p.J2 - forces[1]) / terms.b1
     } else {
-        -(p.J3 * omega_dot[2] - forces[2]) / terms.c1
+        -(omega_dot[2] * p.J3 - forces[2]) / terms.c1
     };
     -lambda * p.L
 }
 
 /// Mechanical energy E = ½ΣJi·ωi² + ½k12(φ1 − φ2)² + ½k34(φ3 − φ4)² (docs/model.md §2).
-pub fn energy(p: &Parameters, y: &State) -> f64 {
+pub fn energy<T: Scalar>(p: &Parameters, y: &[T; 8]) -> T {
     let [phi1, phi2, phi3, phi4, w1, w2, w3, w4] = *y;
-    0.5 * (p.J1 * w1 * w1 + p.J2 * w2 * w2 + p.J3 * w3 * w3 + p.J4 * w4 * w4)
-        + 0.5 * p.k12 * (phi1 - phi2).powi(2)
-        + 0.5 * p.k34 * (phi3 - phi4).powi(2)
+    let (twist12, twist34) = (phi1 - phi2, phi3 - phi4);
+    (w1 * p.J1 * w1 + w2 * p.J2 * w2 + w3 * p.J3 * w3 + w4 * p.J4 * w4) * 0.5
+        + twist12 * twist12 * (0.5 * p.k12)
+        + twist34 * twist34 * (0.5 * p.k34)
 }
 
 /// dE/dt = M_m·ω1 − (M_r + c4·ω4)·ω4 − d12·(ω2 − ω1)² − d34·(ω3 − ω4)² (docs/model.md §2),

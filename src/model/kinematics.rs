@@ -1,30 +1,30 @@
 //! Loop geometry (docs/model.md §1–§3): pin positions, the closure constraint g(φ), its gradient
 //! G = [0, B1, −C1, 0] and time derivatives, and the assembly of a consistent start.
 
-use super::{ModelError, Parameters};
+use super::{ModelError, Parameters, Scalar};
 
 /// Geometric terms of the constraint at one configuration (docs/model.md §2).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ConstraintTerms {
+pub struct ConstraintTerms<T = f64> {
     /// B1 = l2·(l·sin φ2 + l3·sin(φ2 − φ3)) = ∂g/∂φ2.
-    pub b1: f64,
+    pub b1: T,
     /// C1 = l3·(l2·sin(φ2 − φ3) + l·sin φ3) = −∂g/∂φ3.
-    pub c1: f64,
+    pub c1: T,
     /// Ḃ1 = l2·(l·cos φ2·ω2 + l3·cos(φ2 − φ3)·(ω2 − ω3)).
-    pub b1_dot: f64,
+    pub b1_dot: T,
     /// Ċ1 = l3·(l2·cos(φ2 − φ3)·(ω2 − ω3) + l·cos φ3·ω3).
-    pub c1_dot: f64,
+    pub c1_dot: T,
 }
 
 /// Evaluate B1, C1 (docs/model.md §2, [44]–[46]) and their time derivatives ([49]).
 #[inline]
-pub fn constraint_terms(
+pub fn constraint_terms<T: Scalar>(
     p: &Parameters,
-    phi2: f64,
-    phi3: f64,
-    omega2: f64,
-    omega3: f64,
-) -> ConstraintTerms {
+    phi2: T,
+    phi3: T,
+    omega2: T,
+    omega3: T,
+) -> ConstraintTerms<T> {
     let (s2, c2) = phi2.sin_cos();
     let (s3, c3) = phi3.sin_cos();
     // sin and cos of φ2 − φ3 from the two pairs above: saves a third sin_cos.
@@ -32,10 +32,10 @@ pub fn constraint_terms(
     let c23 = c2 * c3 + s2 * s3;
     let w23 = omega2 - omega3;
     ConstraintTerms {
-        b1: p.l2 * (p.l * s2 + p.l3 * s23),
-        c1: p.l3 * (p.l2 * s23 + p.l * s3),
-        b1_dot: p.l2 * (p.l * c2 * omega2 + p.l3 * c23 * w23),
-        c1_dot: p.l3 * (p.l2 * c23 * w23 + p.l * c3 * omega3),
+        b1: (s2 * p.l + s23 * p.l3) * p.l2,
+        c1: (s23 * p.l2 + s3 * p.l) * p.l3,
+        b1_dot: (c2 * p.l * omega2 + c23 * p.l3 * w23) * p.l2,
+        c1_dot: (c23 * p.l2 * w23 + c3 * p.l * omega3) * p.l3,
     }
 }
 
@@ -150,10 +150,10 @@ pub fn length_residual_from_closure(p: &Parameters, g: f64) -> f64 {
 
 /// d = A2 − A3, the rod vector (docs/model.md §1).
 #[inline]
-pub fn rod_vector(p: &Parameters, phi2: f64, phi3: f64) -> [f64; 2] {
+pub fn rod_vector<T: Scalar>(p: &Parameters, phi2: T, phi3: T) -> [T; 2] {
     let (s2, c2) = phi2.sin_cos();
     let (s3, c3) = phi3.sin_cos();
-    [p.l2 * c2 - (p.l + p.l3 * c3), p.l2 * s2 - p.l3 * s3]
+    [c2 * p.l2 - (c3 * p.l3 + p.l), s2 * p.l2 - s3 * p.l3]
 }
 
 /// The closure constraint g(φ) = ½(|d|² − L²) (docs/model.md §2).
@@ -164,7 +164,7 @@ pub fn closure(p: &Parameters, phi2: f64, phi3: f64) -> f64 {
 }
 
 /// |A2A3| − L, the `constraint_residual` output (m).
-pub fn length_residual(p: &Parameters, phi2: f64, phi3: f64) -> f64 {
+pub fn length_residual<T: Scalar>(p: &Parameters, phi2: T, phi3: T) -> T {
     let [dx, dy] = rod_vector(p, phi2, phi3);
     dx.hypot(dy) - p.L
 }

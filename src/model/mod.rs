@@ -2,17 +2,21 @@
 //! projection, assembly and energy. Pure Rust; it knows nothing of FMI or of the solver
 //! that drives it.
 
+pub mod chart;
 pub mod dynamics;
 pub mod kinematics;
 pub mod linkage;
 pub mod params;
 pub mod projection;
+pub mod scalar;
 
+pub use chart::{Chart, Coordinates, Independent};
 pub use dynamics::{accelerations, energy, power, rod_force, state_derivative};
 pub use kinematics::{length_residual, length_residual_from_closure, SinCosMemo};
 pub use linkage::{classify, LinkageClass, LINKAGE_CLASSES};
 pub use params::{Parameters, PARAMETERS};
 pub use projection::{check_passage, initial_state, project, project_with, Projected};
+pub use scalar::{Dual, Scalar};
 
 /// The state vector y = (φ1, φ2, φ3, φ4, ω1, ω2, ω3, ω4).
 pub type State = [f64; 8];
@@ -22,9 +26,9 @@ pub const STATE_SIZE: usize = 8;
 
 /// The external torques: the FMU inputs M_m and M_r (N·m), held over a step.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Inputs {
-    pub motor_torque: f64,
-    pub load_torque: f64,
+pub struct Inputs<T = f64> {
+    pub motor_torque: T,
+    pub load_torque: T,
 }
 
 /// A number as messages print it: plainly for ordinary magnitudes, in scientific notation

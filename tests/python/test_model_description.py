@@ -24,10 +24,27 @@ def by_name(model_description):
     return {v.name: v for v in model_description.modelVariables}
 
 
+# The Model Exchange variables (docs/model.md §6): unit, and whose derivative each is.
+EXCHANGE = {"loop_angle": ("rad", None), "loop_speed": ("rad/s", None), "loop_chart": (None, None),
+            "der(phi1)": ("rad/s", "phi1"), "der(loop_angle)": ("rad/s", "loop_angle"),
+            "der(phi4)": ("rad/s", "phi4"), "der(omega1)": ("rad/s2", "omega1"),
+            "der(loop_speed)": ("rad/s2", "loop_speed"), "der(omega4)": ("rad/s2", "omega4")}
+
+
 def test_interface_is_as_specified(model_description):
     variables = by_name(model_description)
     assert set(variables) == (set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS
-                              | {"solver", "linkage_class"})
+                              | {"solver", "linkage_class"} | set(EXCHANGE))
+    for name, (unit, derivative_of) in EXCHANGE.items():
+        v = variables[name]
+        assert (v.causality, v.unit, v.initial) == ("local", unit, "calculated"), name
+        assert (v.derivative.name if v.derivative else None) == derivative_of, name
+    # Model Exchange: six states, in the order of their derivatives, and one event indicator.
+    assert [d.variable.derivative.name for d in model_description.derivatives] == [
+        "phi1", "loop_angle", "phi4", "omega1", "loop_speed", "omega4"]
+    assert model_description.numberOfEventIndicators == 1
+    assert model_description.modelExchange.providesDirectionalDerivative
+    assert model_description.coSimulation.providesDirectionalDerivative
     for name, unit in INPUTS.items():
         v = variables[name]
         assert (v.causality, v.variability, v.unit, float(v.start)) == ("input", "continuous", unit, 0.0)
@@ -81,7 +98,7 @@ def test_binary_serves_every_declared_variable_with_its_start(unzipped, model_de
         if v.start is not None:
             assert value == (float(v.start) if real else int(v.start)), v.name
         assert math.isfinite(value), v.name
-        if v.causality == "output":
+        if v.causality in ("output", "local"):
             with pytest.raises(Exception):
                 set_([v.valueReference], [1])
         else:

@@ -1,0 +1,218 @@
+//! Model Exchange: the mechanism as an ODE in the loop's independent coordinates
+//! (docs/model.md §6), integrated by the master. The continuous states are
+//! x = (φ1, q, φ4, ω1, q̇, ω4), q the leading loop angle; the follower's angle and speed are
+//! computed in closed form from q and q̇, so the loop closes exactly whatever integrator
+//! the master uses, and nothing drifts. One event indicator tells the master where the
+//! leading angle should change (a dead point ahead); at that event the states change
+//! meaning, and the master is told so.
+//!
+//! The [`Simulation`] holds parameters, inputs, time and the full state, so every variable
+//! reads as in Co-Simulation; this module keeps what Model Exchange adds: the chart with
+//! its branch and turns, and the master's x.
+
+use crate::model::chart::{coordinates_for, full_state, handover_indicator, independent};
+use crate::model::{Chart, Coordinates, Independent, ModelError};
+use crate::simulation::Simulation;
+use crate::snapshot::{FormatError, Reader, Writer};
+use crate::variables::{Local, STATES as STATE_NAMES};
+
+/// The number of continuous states.
+pub const STATES: usize = STATE_NAMES.len();
+
+/// An indicator below this counts as crossed: a master's root finder may stop just before
+/// the zero, and leaving a chart early is harmless (the other one is good there).
+const CROSSED: f64 = 1e-9;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Exchange {
+    at: Coordinates,
+    x: Independent,
+}
+
+impl Exchange {
+    /// Model Exchange from the simulation's (initialised) state, in its chart.
+    pub fn start(sim: &mut Simulation) -> Result<Self, ModelError> {
+        let mut exchange = Self::enter(sim, sim.chart())?;
+        exchange.place(sim)?;
+        Ok(exchange)
+    }
+
+    /// The chart `chart` entered at the simulation's current configuration.
+    fn enter(sim: &Simulation, chart: Chart) -> Result<Self, ModelError> {
+        let y = sim.state();
+        Ok(Self {
+            at: coordinates_for(sim.params(), y, chart)?,
+            x: independent(y, chart),
+        })
+    }
+
+    /// Put the full state of x into the simulation.
+    fn place(&mut self, sim: &mut Simulation) -> Result<(), ModelError> {
+        let y = full_state(sim.params(), &self.at, &self.x)?;
+        sim.place(sim.time(), y, self.at.chart);
+        Ok(())
+    }
+
+    pub fn states(&self) -> &Independent {
+        &self.x
+    }
+
+    pub fn coordinates(&self) -> &Coordinates {
+        &self.at
+    }
+
+    /// fmi2SetContinuousStates: a rejected x changes nothing.
+    pub fn set_states(&mut self, sim: &mut Simulation, x: &[f64]) -> Result<(), ModelError> {
+        if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+            return Err(ModelError::new(format!(
+                "continuous state {} ({}) = {}: must be finite",
+                i, STATE_NAMES[i], x[i]
+            )));
+        }
+        let mut next = self.clone();
+        next.x.copy_from_slice(x);
+        next.place(sim)?;
+        *self = next;
+        Ok(())
+    }
+
+    /// ẋ at the current time, state and inputs.
+    pub fn derivatives(sim: &Simulation) -> [f64; STATES] {
+        std::array::from_fn(|i| sim.local(Local::Derivative(i)))
+    }
+
+    /// The event indicator: the current chart's handover function.
+    pub fn indicators(sim: &Simulation) -> [f64; 1] {
+        let y = sim.state();
+        let (_, b1, c1) = crate::model::kinematics::closure_with_gradient(sim.params(), y[1], y[2]);
+        [handover_indicator(sim.params(), sim.chart(), b1, c1)]
+    }
+
+    /// fmi2NewDiscreteStates: hand over to the other chart if the indicator has crossed.
+    /// Returns whether the continuous states changed (their meaning did).
+    pub fn update(&mut self, sim: &mut Simulation) -> Result<bool, ModelError> {
+        if Self::indicators(sim)[0] >= CROSSED {
+            return Ok(false);
+        }
+        let mut next = Self::enter(sim, sim.chart().other())?;
+        next.place(sim)?;
+        if Self::indicators(sim)[0] < CROSSED {
+            let y = sim.state();
+            return Err(ModelError::new(format!(
+                "neither loop angle determines the motion at phi2 = {}, phi3 = {}: crank, rod \
+                 and rocker are collinear, a change point; {}",
+                y[1],
+                y[2],
+                crate::model::projection::equal_sums(sim.params())
+            )));
+        }
+        *self = next;
+        Ok(true)
+    }
+
+    pub fn serialize_into(&self, w: &mut Writer) {
+        w.u8(self.at.chart as u8);
+        w.f64s(&[self.at.branch, self.at.turns]);
+        w.f64s(&self.x);
+    }
+
+    /// The exchange written by [`Exchange::serialize_into`], checked against the simulation
+    /// restored with it: x must give exactly its state.
+    pub fn deserialize_from(r: &mut Reader, sim: &Simulation) -> Result<Self, FormatError> {
+        let invalid = |what: String| FormatError(format!("invalid serialized state: {what}"));
+        let code = r.u8()?;
+        let chart =
+            Chart::from_code(code as i32).ok_or_else(|| invalid(format!("chart {code}")))?;
+        let [branch, turns] = r.f64s()?;
+        let x: Independent = r.f64s()?;
+        if branch.abs() != 1.0 || (turns / std::f64::consts::TAU).fract() != 0.0 {
+            return Err(invalid("the follower's branch or turns".into()));
+        }
+        let exchange = Self {
+            at: Coordinates {
+                chart,
+                branch,
+                turns,
+            },
+            x,
+        };
+        let y = full_state(sim.params(), &exchange.at, &x).map_err(|e| invalid(e.to_string()))?;
+        let same = y
+            .iter()
+            .zip(sim.state())
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        if chart != sim.chart() || !same {
+            return Err(invalid(
+                "the continuous states do not give the simulation's state".into(),
+            ));
+        }
+        Ok(exchange)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::simulation::Value;
+    use crate::variables::value_reference;
+
+    fn simulation(values: &[(&str, f64)]) -> Simulation {
+        let mut sim = Simulation::new();
+        for (name, value) in values {
+            sim.set(value_reference(name).unwrap(), Value::Real(*value), true)
+                .unwrap();
+        }
+        sim.initialize(0.0).unwrap();
+        sim
+    }
+
+    #[test]
+    fn derivatives_are_the_constrained_dynamics() {
+        let mut sim = simulation(&[("omega2_0", 3.0), ("twist12_0", 0.1), ("Mm_a0", 10.0)]);
+        let y0 = *sim.state();
+        let exchange = Exchange::start(&mut sim).unwrap();
+        for (a, b) in sim.state().iter().zip(&y0) {
+            assert!((a - b).abs() < 1e-14, "{a} {b}");
+        }
+        let dx = Exchange::derivatives(&sim);
+        let a = crate::model::accelerations(sim.params(), sim.inputs(), sim.state()).omega_dot;
+        assert_eq!(dx, [y0[4], y0[5], y0[7], a[0], a[1], a[3]]);
+        assert_eq!(exchange.states()[1], y0[1]);
+    }
+
+    #[test]
+    fn a_crossed_indicator_hands_over_and_keeps_the_configuration() {
+        // A non-Grashof linkage swinging into a dead point of the crank.
+        let mut sim = simulation(&[
+            ("l", 0.5),
+            ("l2", 0.4),
+            ("l3", 0.45),
+            ("L", 0.42),
+            ("phi2_0", 1.0),
+            ("omega2_0", 1.0),
+        ]);
+        let mut exchange = Exchange::start(&mut sim).unwrap();
+        assert!(!exchange.update(&mut sim).unwrap());
+        // Walk q until the indicator crosses, as a master's integrator would.
+        let mut x = *exchange.states();
+        let mut crossed = false;
+        for _ in 0..2000 {
+            x[1] += 1e-3 * x[4].signum();
+            if exchange.set_states(&mut sim, &x).is_err() {
+                break;
+            }
+            if Exchange::indicators(&sim)[0] < 0.0 {
+                crossed = true;
+                break;
+            }
+        }
+        assert!(crossed, "no handover on the way to the dead point");
+        let (before, chart) = (*sim.state(), sim.chart());
+        assert!(exchange.update(&mut sim).unwrap());
+        assert_ne!(sim.chart(), chart);
+        for (a, b) in sim.state().iter().zip(&before) {
+            assert!((a - b).abs() < 1e-12, "{a} {b}");
+        }
+        assert!(Exchange::indicators(&sim)[0] > 0.0);
+    }
+}
