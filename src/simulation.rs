@@ -736,8 +736,9 @@ impl Simulation {
 
 /// A Real output or Model Exchange variable of state `y` under `inputs` with `chart` leading,
 /// generic so that one definition serves values and exact derivatives; `None` for the
-/// slots that are not computed from the state.
-#[inline]
+/// slots that are not computed from the state. Inlined: in fmi2GetReal's path the match
+/// on the slot then folds into the caller's.
+#[inline(always)]
 fn real_value<T: Scalar>(
     p: &Parameters,
     inputs: &Inputs<T>,

@@ -272,6 +272,57 @@ fn check_glibc(library: &Path) -> Result {
     Ok(())
 }
 
+/// Binaries for other platforms, built elsewhere (this machine has no Windows or macOS
+/// toolchain): every `binaries/<platform>/<file>` found under this directory of the
+/// checkout, or under `$FMU_EXTRA_BINARIES`, is packed beside linux64.
+const EXTRA_BINARIES: &str = "target/fmu/extra-binaries";
+
+/// The extra binaries to pack, as (path in the FMU, file).
+fn extra_binaries() -> Result<Vec<(String, PathBuf)>> {
+    let base = std::env::var_os("FMU_EXTRA_BINARIES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join(EXTRA_BINARIES));
+    extra_binaries_in(&base)
+}
+
+fn extra_binaries_in(base: &Path) -> Result<Vec<(String, PathBuf)>> {
+    let mut found = Vec::new();
+    let Ok(platforms) = fs::read_dir(base.join("binaries")) else {
+        return Ok(found);
+    };
+    for platform in platforms {
+        let platform = platform.map_err(|e| e.to_string())?.path();
+        let name = platform
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        if name == "linux64" {
+            return Err(format!(
+                "{}: linux64 is built here; remove it from the extra binaries",
+                platform.display()
+            ));
+        }
+        for file in fs::read_dir(&platform).map_err(|e| e.to_string())? {
+            let file = file.map_err(|e| e.to_string())?.path();
+            let file_name = file
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned();
+            if !file_name.starts_with(MODEL_IDENTIFIER) {
+                return Err(format!(
+                    "{}: an FMU binary must be named {MODEL_IDENTIFIER}.<dll|dylib|so>",
+                    file.display()
+                ));
+            }
+            println!("xtask: packing {} built elsewhere", file.display());
+            found.push((format!("binaries/{name}/{file_name}"), file));
+        }
+    }
+    Ok(found)
+}
+
 /// Build the library (against the glibc baseline), generate the model description and
 /// documentation from the variable table, and pack `target/fmu/CyclicMechanism.fmu`.
 fn build_fmu() -> Result<PathBuf> {
@@ -292,7 +343,7 @@ fn build_fmu() -> Result<PathBuf> {
         ])
         .arg(&assets))?;
     let fmu = root.join(format!("target/fmu/{MODEL_IDENTIFIER}.fmu"));
-    let files = [
+    let mut files = vec![
         (
             "modelDescription.xml".to_string(),
             assets.join("modelDescription.xml"),
@@ -303,6 +354,7 @@ fn build_fmu() -> Result<PathBuf> {
             assets.join("index.html"),
         ),
     ];
+    files.extend(extra_binaries()?);
     pack(&fmu, &files)?;
     Ok(fmu)
 }
@@ -465,7 +517,19 @@ fn fmpy_under_valgrind(python: &Path, fmu: &Path) -> Result {
         );
     }
     let suite = out.join("fmpy_suite.xml");
-    let files = ["test_fmi_api.py", "test_fmu_state.py", "test_discard.py"];
+    let files = [
+        "test_fmi_api.py",
+        "test_fmu_state.py",
+        "test_discard.py",
+        // Model Exchange: the state machine, FMU states, Jacobians, and CVODE through the
+        // handovers at dead points.
+        "test_model_exchange.py::test_bad_states_and_wrong_calls_are_refused_and_change_nothing",
+        "test_model_exchange.py::test_fmu_state_restores_model_exchange_exactly",
+        "test_model_exchange.py::test_derivatives_match_the_variables_and_states_round_trip",
+        "test_model_exchange.py::test_directional_derivatives_are_exact",
+        "test_model_exchange.py::test_cvode_reproduces_the_paper_cases",
+        "test_model_exchange.py::test_linkages_through_their_dead_points",
+    ];
     run(memcheck(&suite)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .args(files.map(|f| root().join("tests/python").join(f))))?;
@@ -547,4 +611,55 @@ fn bench(quick: bool) -> Result {
         driver.arg("--quick");
     }
     run(&mut driver)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Binaries built elsewhere land in the FMU beside linux64, under their platform.
+    #[test]
+    fn extra_platform_binaries_are_packed() {
+        let dir = std::env::temp_dir().join(format!("xtask-extra-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        for (platform, file) in [
+            ("win64", "CyclicMechanism.dll"),
+            ("darwin64", "CyclicMechanism.dylib"),
+        ] {
+            fs::create_dir_all(dir.join("binaries").join(platform)).unwrap();
+            fs::write(dir.join("binaries").join(platform).join(file), platform).unwrap();
+        }
+        let linux = dir.join("linux.so");
+        fs::write(&linux, "linux").unwrap();
+        let mut files = vec![("binaries/linux64/CyclicMechanism.so".to_string(), linux)];
+        files.extend(extra_binaries_in(&dir).unwrap());
+        let fmu = dir.join("test.fmu");
+        pack(&fmu, &files).unwrap();
+        let mut archive = zip::ZipArchive::new(fs::File::open(&fmu).unwrap()).unwrap();
+        let mut names: Vec<String> = archive.file_names().map(str::to_string).collect();
+        names.sort();
+        assert_eq!(
+            names,
+            [
+                "binaries/darwin64/CyclicMechanism.dylib",
+                "binaries/linux64/CyclicMechanism.so",
+                "binaries/win64/CyclicMechanism.dll"
+            ]
+        );
+        let mut content = String::new();
+        std::io::Read::read_to_string(
+            &mut archive
+                .by_name("binaries/win64/CyclicMechanism.dll")
+                .unwrap(),
+            &mut content,
+        )
+        .unwrap();
+        assert_eq!(content, "win64");
+        // A misnamed binary is refused with the rule.
+        fs::write(dir.join("binaries/win64/other.dll"), "x").unwrap();
+        assert!(extra_binaries_in(&dir)
+            .unwrap_err()
+            .contains("must be named"));
+        fs::remove_dir_all(&dir).unwrap();
+    }
 }
