@@ -1,5 +1,6 @@
 //! Random FMI call sequences with random, often invalid, arguments through the exported C
-//! functions: never a crash, never fmi2Fatal (a caught panic, i.e. a bug),
+//! functions of both interfaces (every other sequence is a Model Exchange instance, which
+//! also gets the Co-Simulation calls, and the reverse): never a crash, never fmi2Fatal (a caught panic, i.e. a bug),
 //! only documented statuses, and finite values whenever a read succeeds. Deterministic
 //! (a fixed seed), and run under valgrind memcheck by `cargo xtask test`.
 
@@ -96,7 +97,7 @@ impl Fuzz {
     unsafe fn call(&mut self) {
         let c = self.c;
         let r = &mut self.rng;
-        let choice = r.below(20);
+        let choice = r.below(26);
         unsafe {
             match choice {
                 0 => {
@@ -241,6 +242,7 @@ impl Fuzz {
                         self.time = 0.0;
                     }
                 }
+                20..=24 => self.model_exchange_call(),
                 _ => {
                     let mut flag = 0;
                     self.check(
@@ -249,6 +251,91 @@ impl Fuzz {
                     );
                     self.check(fmi2CancelStep(c), "fmi2CancelStep");
                     self.check(fmi2GetDerivatives(c, null_mut(), 0), "fmi2GetDerivatives");
+                }
+            }
+        }
+    }
+
+    /// One random Model Exchange call (refused with a message by a Co-Simulation
+    /// instance): states moved near the current ones or anywhere, time, events, Jacobians.
+    unsafe fn model_exchange_call(&mut self) {
+        let c = self.c;
+        let n = if self.rng.chance(90) {
+            6
+        } else {
+            self.rng.below(8) as usize
+        };
+        let mut x = vec![0.0; n.max(6)];
+        unsafe {
+            match self.rng.below(7) {
+                0 => {
+                    let s = fmi2SetTime(c, self.time + self.rng.real().min(0.1));
+                    self.check(s, "fmi2SetTime");
+                }
+                1 => {
+                    if fmi2GetContinuousStates(c, x.as_mut_ptr(), 6) == fmi2Status_fmi2OK {
+                        for v in x.iter_mut() {
+                            if self.rng.chance(30) {
+                                *v += if self.rng.chance(80) {
+                                    0.01
+                                } else {
+                                    self.rng.real()
+                                };
+                            }
+                        }
+                    }
+                    let s = fmi2SetContinuousStates(c, x.as_ptr(), n);
+                    self.check(s, "fmi2SetContinuousStates");
+                }
+                2 => {
+                    let s = fmi2GetDerivatives(c, x.as_mut_ptr(), n);
+                    if self.check(s, "fmi2GetDerivatives") == fmi2Status_fmi2OK {
+                        assert!(
+                            x.iter().all(|v| v.is_finite()),
+                            "non-finite derivative {x:?}"
+                        );
+                    }
+                    let mut z = [0.0; 2];
+                    let s = fmi2GetEventIndicators(c, z.as_mut_ptr(), self.rng.below(3) as usize);
+                    if self.check(s, "fmi2GetEventIndicators") == fmi2Status_fmi2OK {
+                        assert!(z[0].is_finite(), "non-finite indicator {z:?}");
+                    }
+                }
+                3 => {
+                    let s = fmi2EnterEventMode(c);
+                    self.check(s, "fmi2EnterEventMode");
+                    let mut info = std::mem::zeroed::<fmi2EventInfo>();
+                    let s = fmi2NewDiscreteStates(c, &mut info);
+                    self.check(s, "fmi2NewDiscreteStates");
+                }
+                4 => {
+                    let s = fmi2EnterContinuousTimeMode(c);
+                    self.check(s, "fmi2EnterContinuousTimeMode");
+                    let (mut event, mut stop) = (0, 0);
+                    let s = fmi2CompletedIntegratorStep(c, 1, &mut event, &mut stop);
+                    self.check(s, "fmi2CompletedIntegratorStep");
+                }
+                5 => {
+                    let (unknowns, nu) = self.arrays();
+                    let (knowns, nk) = self.arrays();
+                    let seed: Vec<f64> = (0..nk).map(|_| self.rng.real()).collect();
+                    let mut out = vec![0.0; nu];
+                    let s = fmi2GetDirectionalDerivative(
+                        c,
+                        unknowns.as_ptr(),
+                        nu,
+                        knowns.as_ptr(),
+                        nk,
+                        seed.as_ptr(),
+                        out.as_mut_ptr(),
+                    );
+                    if self.check(s, "fmi2GetDirectionalDerivative") == fmi2Status_fmi2OK {
+                        assert!(out.iter().all(|v| v.is_finite()), "non-finite {out:?}");
+                    }
+                }
+                _ => {
+                    let s = fmi2GetNominalsOfContinuousStates(c, x.as_mut_ptr(), n);
+                    self.check(s, "fmi2GetNominalsOfContinuousStates");
                 }
             }
         }
@@ -337,7 +424,12 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
     let mut rng = Rng(0x9E3779B97F4A7C15);
     let mut total_calls = 0;
     for sequence in 0..sequences {
-        let c = common::instantiate(c"fuzz");
+        let kind = if sequence % 2 == 0 {
+            fmi2Type_fmi2CoSimulation
+        } else {
+            fmi2Type_fmi2ModelExchange
+        };
+        let c = common::instantiate_as(c"fuzz", kind);
         let mut fuzz = Fuzz {
             rng: Rng(rng.next() | 1),
             c,

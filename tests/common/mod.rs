@@ -13,6 +13,11 @@ use fmi_sys::fmi2::{fmi2CallbackFunctions, fmi2Component, fmi2Type_fmi2CoSimulat
 /// A co-simulation instance without callbacks (no logger: nothing is formatted). The FMU
 /// keeps only the logger and environment from `functions`, so a temporary struct is fine.
 pub fn instantiate(name: &CStr) -> fmi2Component {
+    instantiate_as(name, fmi2Type_fmi2CoSimulation)
+}
+
+/// An instance of either interface (`fmi2Type_fmi2ModelExchange` or `…CoSimulation`).
+pub fn instantiate_as(name: &CStr, kind: fmi_sys::fmi2::fmi2Type) -> fmi2Component {
     let functions = fmi2CallbackFunctions {
         logger: None,
         allocateMemory: None,
@@ -22,17 +27,8 @@ pub fn instantiate(name: &CStr) -> fmi2Component {
     };
     let guid = CString::new(guid()).expect("the GUID has no NUL");
     // SAFETY: valid C strings and callbacks for the duration of the call.
-    let c = unsafe {
-        fmi2Instantiate(
-            name.as_ptr(),
-            fmi2Type_fmi2CoSimulation,
-            guid.as_ptr(),
-            null(),
-            &functions,
-            0,
-            0,
-        )
-    };
+    let c =
+        unsafe { fmi2Instantiate(name.as_ptr(), kind, guid.as_ptr(), null(), &functions, 0, 0) };
     assert!(!c.is_null(), "fmi2Instantiate failed");
     c
 }
