@@ -502,6 +502,7 @@ fn fmpy_under_valgrind(python: &Path, fmu: &Path) -> Result {
             .arg(python)
             .env("PYTHONMALLOC", "malloc")
             .env("CYCLIC_MECHANISM_FMU", fmu)
+            .env("MEASUREMENTS", out.join("measurements.json"))
             .current_dir(root());
         command
     };
