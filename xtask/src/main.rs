@@ -459,6 +459,18 @@ fn demo() -> Result {
         .arg(&out))
 }
 
+/// The benchmark harness, built in a target directory of its own: its peer crates unify
+/// features of the build dependencies (fmi-sys's bindgen) differently, and in the shared
+/// `target/release` that would rebuild the FMU's library and every test binary on the next
+/// `cargo test`, changed or not.
+fn build_bench_harness() -> Result<PathBuf> {
+    let target = root().join("target/bench-build");
+    run(cargo()
+        .args(["build", "--release", "--quiet", "--package", "bench"])
+        .env("CARGO_TARGET_DIR", &target))?;
+    Ok(target.join("release/bench"))
+}
+
 fn test() -> Result {
     ensure_libclang()?;
     run(cargo().args(["test", "--release"]))?;
@@ -466,10 +478,10 @@ fn test() -> Result {
     let fmu = build_fmu()?;
     // The benchmark harness builds and drives the packed FMU (a smoke run, no timings
     // judged), so that `cargo xtask bench` keeps working from a fresh clone.
-    run(cargo().args(["build", "--release", "--quiet", "--package", "bench"]))?;
+    let harness = build_bench_harness()?;
     let smoke = root().join("target/bench/smoke.json");
     fs::create_dir_all(root().join("target/bench")).map_err(|e| e.to_string())?;
-    run(Command::new(root().join("target/release/bench"))
+    run(Command::new(&harness)
         .arg(&fmu)
         .arg(&smoke)
         .args(["--quick", "--fmu-only"]))?;
@@ -592,11 +604,11 @@ fn fuzz_under_valgrind() -> Result {
 fn bench(quick: bool) -> Result {
     let fmu = build_fmu()?;
     let python = ensure_venv()?;
-    run(cargo().args(["build", "--release", "--quiet", "--package", "bench"]))?;
+    let program = build_bench_harness()?;
     let out = root().join("target/bench");
     fs::create_dir_all(&out).map_err(|e| e.to_string())?;
     let harness = out.join("harness.json");
-    let mut command = Command::new(root().join("target/release/bench"));
+    let mut command = Command::new(&program);
     command.arg(&fmu).arg(&harness);
     if quick {
         command.arg("--quick");
