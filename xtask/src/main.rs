@@ -330,17 +330,11 @@ fn build_fmu() -> Result<PathBuf> {
     let root = root();
     let library = build_portable_library()?;
     let assets = root.join("target/fmu/assets");
+    // Without `--package`: features are then unified over the default members, as for
+    // `cargo test`. With it they differ, and the library's cdylib (whose file name carries
+    // no hash) would be rebuilt by each in turn, changed or not.
     run(cargo()
-        .args([
-            "run",
-            "--release",
-            "--quiet",
-            "--package",
-            "cyclic-mechanism",
-            "--bin",
-            "fmu-assets",
-            "--",
-        ])
+        .args(["run", "--release", "--quiet", "--bin", "fmu-assets", "--"])
         .arg(&assets))?;
     let fmu = root.join(format!("target/fmu/{MODEL_IDENTIFIER}.fmu"));
     let mut files = vec![
