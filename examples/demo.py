@@ -106,6 +106,18 @@ def animate_linkage(result, path, title, duration=3.0, fps=25, l=0.5, l2=0.05, l
     dial1, dial4 = np.array([-l2 - 0.18, -reach - 0.15]), np.array([l + l3 + 0.18, -reach - 0.15])
     for centre in (dial1, dial4):
         ax.add_patch(plt.Circle(centre, 0.06, fill=False, color="0.6"))
+    # A short crank (case 1: 5 cm beside a 50 cm rocker) would be a few pixels: it gets an
+    # inset, magnified, with the rod's first part.
+    zoom = None
+    if l2 < 0.2 * l3:
+        half = 1.25 * l2  # half the inset's span (m)
+        zoom = ax.inset_axes([0.34, 0.02, 0.32, 0.32])
+        zoom.set(xlim=(-half, half), ylim=(-half, half), aspect="equal", xticks=[], yticks=[])
+        zoom.set_title("the crank, magnified", fontsize=8)
+        zoom.plot([0.0], [0.0], "k^", ms=8)
+        zoom.add_patch(plt.Circle((0.0, 0.0), l2, fill=False, color="0.8", ls=":"))
+        zoom_crank, = zoom.plot([], [], "-o", lw=3, color="tab:blue")
+        zoom_rod, = zoom.plot([], [], "-", lw=2, color="tab:gray")
 
     def draw(i):
         phi1, phi2, phi3, phi4 = (result[f"phi{k}"][i] for k in range(1, 5))
@@ -121,7 +133,12 @@ def animate_linkage(result, path, title, duration=3.0, fps=25, l=0.5, l2=0.05, l
         along, arm = a3 - a2, a3 - np.array([l, 0.0])
         aligned = abs(along[0] * arm[1] - along[1] * arm[0]) < 0.06 * np.linalg.norm(along) * l3
         dead.set_text("rod and rocker aligned: the crank's dead point" if aligned else "")
-        return crank, rod, rocker, motor, load, label, dead
+        if zoom is None:
+            return crank, rod, rocker, motor, load, label, dead
+        toward = a2 + along / np.linalg.norm(along) * 3.0 * l2
+        zoom_crank.set_data([0.0, a2[0]], [0.0, a2[1]])
+        zoom_rod.set_data([a2[0], toward[0]], [a2[1], toward[1]])
+        return crank, rod, rocker, motor, load, label, dead, zoom_crank, zoom_rod
 
     FuncAnimation(fig, draw, frames=frames, blit=True).save(path, writer=PillowWriter(fps=fps))
     plt.close(fig)
