@@ -11,13 +11,19 @@
 //! its branch and turns, and the master's x.
 
 use crate::model::chart::{coordinates_for, full_state, handover_indicator, independent};
-use crate::model::{Chart, Coordinates, Independent, ModelError};
+use crate::model::{Chart, Coordinates, Independent, ModelError, State};
 use crate::simulation::Simulation;
-use crate::snapshot::{FormatError, Reader, Writer};
+use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 use crate::variables::{Local, STATES as STATE_NAMES};
 
 /// The number of continuous states.
 pub const STATES: usize = STATE_NAMES.len();
+
+/// The handover indicator of `chart` at configuration `y`.
+fn indicator(p: &crate::model::Parameters, chart: Chart, y: &State) -> f64 {
+    let (_, b1, c1) = crate::model::kinematics::closure_with_gradient(p, y[1], y[2]);
+    handover_indicator(p, chart, b1, c1)
+}
 
 /// An indicator below this counts as crossed: a master's root finder may stop just before
 /// the zero, and leaving a chart early is harmless (the other one is good there).
@@ -32,8 +38,8 @@ pub struct Exchange {
 impl Exchange {
     /// Model Exchange from the simulation's (initialised) state, in its chart.
     pub fn start(sim: &mut Simulation) -> Result<Self, ModelError> {
-        let mut exchange = Self::enter(sim, sim.chart())?;
-        exchange.place(sim)?;
+        let exchange = Self::enter(sim, sim.chart())?;
+        exchange.place(sim, exchange.full_state(sim)?);
         Ok(exchange)
     }
 
@@ -46,11 +52,15 @@ impl Exchange {
         })
     }
 
-    /// Put the full state of x into the simulation.
-    fn place(&mut self, sim: &mut Simulation) -> Result<(), ModelError> {
-        let y = full_state(sim.params(), &self.at, &self.x)?;
+    /// The full state of x.
+    fn full_state(&self, sim: &Simulation) -> Result<State, ModelError> {
+        full_state(sim.params(), &self.at, &self.x)
+    }
+
+    /// Put `y`, the full state of x, into the simulation. Callers compute `y` (and check
+    /// what they need) first, so that a refusal leaves the simulation as it was.
+    fn place(&self, sim: &mut Simulation, y: State) {
         sim.place(sim.time(), y, self.at.chart);
-        Ok(())
     }
 
     pub fn states(&self) -> &Independent {
@@ -69,9 +79,12 @@ impl Exchange {
                 i, STATE_NAMES[i], x[i]
             )));
         }
-        let mut next = self.clone();
-        next.x.copy_from_slice(x);
-        next.place(sim)?;
+        let next = Self {
+            at: self.at,
+            x: std::array::from_fn(|i| x[i]),
+        };
+        let y = next.full_state(sim)?;
+        next.place(sim, y);
         *self = next;
         Ok(())
     }
@@ -83,21 +96,19 @@ impl Exchange {
 
     /// The event indicator: the current chart's handover function.
     pub fn indicators(sim: &Simulation) -> [f64; 1] {
-        let y = sim.state();
-        let (_, b1, c1) = crate::model::kinematics::closure_with_gradient(sim.params(), y[1], y[2]);
-        [handover_indicator(sim.params(), sim.chart(), b1, c1)]
+        [indicator(sim.params(), sim.chart(), sim.state())]
     }
 
     /// fmi2NewDiscreteStates: hand over to the other chart if the indicator has crossed.
-    /// Returns whether the continuous states changed (their meaning did).
+    /// Returns whether the continuous states changed (their meaning did). A refusal (a
+    /// change point, where neither chart holds) changes nothing.
     pub fn update(&mut self, sim: &mut Simulation) -> Result<bool, ModelError> {
         if Self::indicators(sim)[0] >= CROSSED {
             return Ok(false);
         }
-        let mut next = Self::enter(sim, sim.chart().other())?;
-        next.place(sim)?;
-        if Self::indicators(sim)[0] < CROSSED {
-            let y = sim.state();
+        let next = Self::enter(sim, sim.chart().other())?;
+        let y = next.full_state(sim)?;
+        if indicator(sim.params(), next.at.chart, &y) < CROSSED {
             return Err(ModelError::new(format!(
                 "neither loop angle determines the motion at phi2 = {}, phi3 = {}: crank, rod \
                  and rocker are collinear, a change point; {}",
@@ -106,6 +117,7 @@ impl Exchange {
                 crate::model::projection::equal_sums(sim.params())
             )));
         }
+        next.place(sim, y);
         *self = next;
         Ok(true)
     }
@@ -125,7 +137,9 @@ impl Exchange {
             Chart::from_code(code as i32).ok_or_else(|| invalid(format!("chart {code}")))?;
         let [branch, turns] = r.f64s()?;
         let x: Independent = r.f64s()?;
-        if branch.abs() != 1.0 || (turns / std::f64::consts::TAU).fract() != 0.0 {
+        // Turns are formed as round(·)·2π (coordinates_for): the same product must return.
+        let whole = (turns / std::f64::consts::TAU).round() * std::f64::consts::TAU;
+        if branch.abs() != 1.0 || whole.to_bits() != turns.to_bits() {
             return Err(invalid("the follower's branch or turns".into()));
         }
         let exchange = Self {
@@ -137,11 +151,7 @@ impl Exchange {
             x,
         };
         let y = full_state(sim.params(), &exchange.at, &x).map_err(|e| invalid(e.to_string()))?;
-        let same = y
-            .iter()
-            .zip(sim.state())
-            .all(|(a, b)| a.to_bits() == b.to_bits());
-        if chart != sim.chart() || !same {
+        if chart != sim.chart() || !same_bits(&y, sim.state()) {
             return Err(invalid(
                 "the continuous states do not give the simulation's state".into(),
             ));

@@ -15,7 +15,7 @@ use crate::model::{
     self, Chart, Coordinates, Dual, Independent, Inputs, ModelError, Parameters, Projected, Scalar,
     SinCosMemo, State, STATE_SIZE,
 };
-use crate::snapshot::{FormatError, Reader, Writer};
+use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 use crate::solver::{Choice, Integrator, Method, OdeSystem, SolverError, Statistics, Tolerances};
 use crate::variables::{
     build_table, variable, Input, Local, Output, Slot, Statistic, VarType, Variable, COUNT,
@@ -932,11 +932,7 @@ impl Simulation {
             .at_communication_point(self.time)
             .map_err(|e| e.to_string())?;
         let g = at.closure;
-        let same = y
-            .iter()
-            .zip(&self.state)
-            .all(|(a, b)| a.to_bits() == b.to_bits());
-        if !same
+        if !same_bits(&y, &self.state)
             || model::length_residual_from_closure(&self.params, g).to_bits()
                 != self.residual.to_bits()
         {

@@ -156,6 +156,12 @@ impl<'a> Reader<'a> {
     }
 }
 
+/// Whether two arrays hold the same numbers bit for bit: how restored values are checked
+/// against their recomputation (== would take −0 for 0 and refuse a NaN for itself).
+pub fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 pub fn fnv1a_64(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf29ce484222325, |h, &b| {
         (h ^ b as u64).wrapping_mul(0x100000001b3)

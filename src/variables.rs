@@ -416,20 +416,6 @@ pub const STATE_REFERENCES: [u32; 6] = {
     refs
 };
 
-/// The value references of their derivatives, in the same order.
-pub const DERIVATIVE_REFERENCES: [u32; 6] = {
-    let table = build_table();
-    let mut refs = [0u32; 6];
-    let mut vr = 0;
-    while vr < COUNT {
-        if let Slot::Local(Local::Derivative(i)) = table[vr].slot {
-            refs[i] = vr as u32;
-        }
-        vr += 1;
-    }
-    refs
-};
-
 /// The table itself, built at compile time: position = value reference.
 static TABLE: [Variable; COUNT] = build_table();
 

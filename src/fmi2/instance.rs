@@ -382,10 +382,18 @@ impl Instance {
 
     /// Model Exchange's states (assembled first in initialization mode).
     fn exchange(&mut self) -> Result<&mut Exchange, Failure> {
+        self.exchange_and_simulation().map(|(exchange, _)| exchange)
+    }
+
+    /// Model Exchange's states with the simulation they describe, borrowed together.
+    fn exchange_and_simulation(&mut self) -> Result<(&mut Exchange, &mut Simulation), Failure> {
         self.assemble_if_needed()?;
-        self.exchange
-            .as_mut()
-            .ok_or_else(|| Failure::error("the continuous states exist from initialisation on"))
+        match self.exchange.as_mut() {
+            Some(exchange) => Ok((exchange, &mut self.sim)),
+            None => Err(Failure::error(
+                "the continuous states exist from initialisation on",
+            )),
+        }
     }
 
     pub fn set_time(&mut self, time: f64) -> Outcome {
@@ -398,13 +406,9 @@ impl Instance {
 
     pub fn set_continuous_states(&mut self, x: &[f64]) -> Outcome {
         check_state_count("nx", x.len())?;
-        let Some(exchange) = self.exchange.as_mut() else {
-            return Err(Failure::error(
-                "the continuous states exist from initialisation on",
-            ));
-        };
+        let (exchange, sim) = self.exchange_and_simulation()?;
         exchange
-            .set_states(&mut self.sim, x)
+            .set_states(sim, x)
             .map_err(|e| Failure::error(e.to_string()))
     }
 
@@ -458,22 +462,18 @@ impl Instance {
     /// fmi2NewDiscreteStates: the chart's handover, if its indicator has crossed. Returns
     /// whether the continuous states changed.
     pub fn new_discrete_states(&mut self) -> Result<bool, Failure> {
-        let exchange = self.exchange()?;
-        let mut next = exchange.clone();
-        let mut sim = self.sim.clone();
-        let changed = next
-            .update(&mut sim)
+        let (exchange, sim) = self.exchange_and_simulation()?;
+        let changed = exchange
+            .update(sim)
             .map_err(|e| Failure::error(e.to_string()))?;
         if changed && self.log_enabled(Category::Solver) {
             let message = format!(
                 "t = {}: the loop's leading angle is now phi{}",
-                sim.time(),
-                sim.chart() as i32
+                self.sim.time(),
+                self.sim.chart() as i32
             );
             self.log(fmi2Status_fmi2OK, Category::Solver, &message);
         }
-        self.exchange = Some(next);
-        self.sim = sim;
         Ok(changed)
     }
 

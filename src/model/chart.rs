@@ -286,10 +286,12 @@ mod tests {
     #[test]
     fn handover_is_hysteretic() {
         let p = Parameters::default();
-        // Where the crank chart's indicator crosses zero, the rocker chart's is positive.
+        // Where the crank chart's indicator crosses zero, the rocker chart's is
+        // (1 − HANDOVER⁴)·(B1/B̄)² = 15/16 of its term (docs/model.md §6).
         let (sb, sc) = pivot_scales(&p);
         let (b1, c1) = (0.8 * sb, HANDOVER * 0.8 * sc);
         assert!(handover_indicator(&p, Chart::Crank, b1, c1).abs() < 1e-15);
-        assert!(handover_indicator(&p, Chart::Rocker, b1, c1) > 0.5 * (0.8f64).powi(2));
+        let rocker = handover_indicator(&p, Chart::Rocker, b1, c1);
+        assert!((rocker - 15.0 / 16.0 * 0.64).abs() < 1e-15, "{rocker}");
     }
 }

@@ -18,7 +18,7 @@ use super::{
     check_step_size, combine, initial_step, plan_step, OdeSystem, Progress, SolverError,
     Statistics, Tolerances,
 };
-use crate::snapshot::{FormatError, Reader, Writer};
+use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 
 const STAGES: usize = 12;
 /// Stage slots: the twelve stages, f(t + h, y_new) (the next step's first stage), and the
@@ -364,8 +364,7 @@ impl<const N: usize> Dop853<N> {
         t: f64,
         y: &[f64; N],
     ) -> Result<(), String> {
-        let same =
-            |a: &[f64; N], b: &[f64; N]| a.iter().zip(b).all(|(x, z)| x.to_bits() == z.to_bits());
+        let same = |a: &[f64; N], b: &[f64; N]| same_bits(a, b);
         let mut copy = self.clone();
         if self.first_stage_valid {
             copy.eval(system, t, y, NEXT_FIRST);

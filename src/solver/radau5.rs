@@ -18,7 +18,7 @@ use super::{
     check_step_size, combine, initial_step, plan_step, OdeSystem, Progress, SolverError,
     Statistics, Tolerances,
 };
-use crate::snapshot::{FormatError, Reader, Writer};
+use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 
 const SQRT6: f64 = 2.449_489_742_783_178;
 /// Nodes c of Radau IIA (order 5).
@@ -606,7 +606,6 @@ fn spectral_radius<const N: usize>(j: &[[f64; N]; N]) -> f64 {
 }
 
 impl<const N: usize> Radau5<N> {
-    /// Everything the integrator remembers, for a serialized FMU state.
     /// Check restored memory against `system` at the integrator's point (t, y): the stored
     /// f(t, y) must be the system's bit for bit, and the last step must end at (t, y). (The
     /// Jacobian and the inner stages only steer Newton's iteration and the interpolant
@@ -620,11 +619,7 @@ impl<const N: usize> Radau5<N> {
         if self.f0_valid {
             let mut stats = Statistics::default();
             let f = evaluate(system, &mut stats, t, y);
-            if !f
-                .iter()
-                .zip(&self.f0)
-                .all(|(a, b)| a.to_bits() == b.to_bits())
-            {
+            if !same_bits(&f, &self.f0) {
                 return Err("the stored f(t, y) is not the system's".into());
             }
         }
@@ -638,6 +633,7 @@ impl<const N: usize> Radau5<N> {
         Ok(())
     }
 
+    /// Everything the integrator remembers, for a serialized FMU state.
     pub fn serialize_into(&self, w: &mut Writer) {
         self.progress.serialize_into(w);
         w.f64s(&self.f0);
