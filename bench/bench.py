@@ -1,8 +1,11 @@
 """Work-precision study, driven by `cargo xtask bench`:
 
+    python bench/bench.py reference <output directory> [--quick]
     python bench/bench.py <harness.json> <CyclicMechanism.fmu> <output directory> [--quick]
 
-Takes the Rust harness's timings and sampled states (the FMU through its C ABI, and the
+The first writes the independent reference at every communication point of the finest
+grid (for the harness's error at every point); the second
+takes the Rust harness's timings and sampled states (the FMU through its C ABI, and the
 Rust ODE crates), adds scipy's solve_ivp methods on the same equations and FMPy's wall
 time for the same FMU runs, computes errors against a reference at rtol 1e-13 (the
 independent formulation of tests/python/reference.py), and writes results.json,
@@ -67,20 +70,43 @@ def sample_times(stop, samples):
     return stop * np.arange(1, samples + 1) / samples
 
 
+def reference_step(quick):
+    """The finest communication step of the study: the reference is written at its grid."""
+    return 1e-3 if quick else 1e-4
+
+
+def write_references(out, quick):
+    """The independent reference (rtol 1e-13) at every communication point of the finest
+    grid, for the harness: little-endian f64, the step first, then 8 states per point."""
+    out.mkdir(parents=True, exist_ok=True)
+    step = reference_step(quick)
+    for name, s in SCENARIOS.items():
+        path, tag = out / f"reference_{name}.f64", out / f"reference_{name}.json"
+        key = dict(step=step, stop=s["stop"], values=s["values"],
+                   source=hash_of(pathlib.Path(reference.__file__)))
+        if path.exists() and tag.exists() and json.loads(tag.read_text()) == key:
+            continue
+        start = time.perf_counter()
+        times = np.arange(round(s["stop"] / step) + 1) * step
+        states = reference.solve(reference.Params(**s["values"]), times, rtol=1e-13)
+        path.write_bytes(np.concatenate([[step], states.ravel()]).astype("<f8").tobytes())
+        tag.write_text(json.dumps(key))
+        print(f"reference {name}: {len(times)} points in {time.perf_counter() - start:.1f} s", flush=True)
+
+
+def hash_of(path):
+    import hashlib
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
 def reference_states(out, samples):
-    cache = out / "reference.json"
-    if cache.exists():
-        stored = json.loads(cache.read_text())
-        if stored.get("samples") == samples:
-            return {k: np.array(v) for k, v in stored["states"].items()}
+    """The reference at the harness's evenly spaced sample points (from the written grid)."""
     states = {}
     for name, s in SCENARIOS.items():
-        p = reference.Params(**s["values"])
-        times = np.concatenate([[0.0], sample_times(s["stop"], samples)])
-        start = time.perf_counter()
-        states[name] = reference.solve(p, times, rtol=1e-13)[1:]
-        print(f"reference {name}: {time.perf_counter() - start:.1f} s", flush=True)
-    cache.write_text(json.dumps({"samples": samples, "states": {k: v.tolist() for k, v in states.items()}}))
+        values = np.frombuffer((out / f"reference_{name}.f64").read_bytes(), dtype="<f8")
+        step, grid = values[0], values[1:].reshape(-1, 8)
+        stride = round(s["stop"] / samples / step)
+        states[name] = grid[stride::stride][:samples]
     return states
 
 
@@ -201,15 +227,54 @@ def main(harness_json, fmu, out, quick):
         if 1e-3 in n and 0.1 in n:
             warm.append(dict(tol=tol, n_rhs_h_1e_3=n[1e-3], n_rhs_h_0_1=n[0.1], ratio=n[1e-3] / n[0.1]))
 
+    promise = tolerance_promise(fmu_rows)
+    at_every_point = point_comparisons(rows, fmu_rows)
+
     machine = dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
                    cpus=__import__("os").cpu_count(), python=platform.python_version())
     summary = dict(machine=machine, ns_per_rhs=harness["ns_per_rhs"], proportionality=proportionality,
+                   promise=promise, at_every_point=at_every_point,
                    comparisons=comparisons, fmpy=fmpy_rows,
                    seconds_per_evaluation=per_evaluation, warm_restarts=warm, stiff=harness.get("stiff", []), results=rows)
     (out / "results.json").write_text(json.dumps(summary, indent=1))
     (out / "results.md").write_text(markdown(summary))
     plot(rows, out / "work_precision.png")
     print((out / "results.md").read_text())
+
+
+PROMISE_TOLERANCES = [10.0 ** -e for e in range(3, 11)]
+
+
+def tolerance_promise(fmu_rows):
+    """The FMU's worst error over every communication point, in units of tol, per scenario,
+    H and tol (the promise: ≤ 10 for tol 1e-3…1e-10)."""
+    table = {}
+    for r in fmu_rows:
+        if r.get("max_point_error") is not None:
+            table.setdefault(r["scenario"], {}).setdefault(r["H"], {})[r["tol"]] = r["max_point_error"] / r["tol"]
+    worst = max((v for sc in table.values() for h in sc.values() for t, v in h.items()
+                 if any(math.isclose(t, p) for p in PROMISE_TOLERANCES)), default=None)
+    return dict(table={sc: {str(h): {f"{t:.0e}": v for t, v in row.items()} for h, row in hs.items()}
+                       for sc, hs in table.items()}, worst=worst)
+
+
+def point_comparisons(rows, fmu_rows):
+    """Against each peer at the same H: the fastest of its runs whose error at every
+    communication point is at most the FMU's; ratio = peer time / FMU time."""
+    peers = sorted({r["method"] for r in rows if r.get("max_point_error") is not None} - {"fmu"})
+    out = []
+    for r in fmu_rows:
+        if r.get("max_point_error") is None:
+            continue
+        entry = dict(scenario=r["scenario"], H=r["H"], tol=r["tol"], fmu_seconds=r["seconds"],
+                     fmu_point_error=r["max_point_error"], fmu_n_rhs=r["n_rhs"], peers={})
+        for peer in peers:
+            runs = [p for p in rows if p["method"] == peer and p["scenario"] == r["scenario"] and p.get("H") == r["H"]
+                    and p.get("max_point_error") is not None and p["max_point_error"] <= r["max_point_error"]]
+            best = min(runs, key=lambda p: p["seconds"], default=None)
+            entry["peers"][peer] = best and best["seconds"] / r["seconds"]
+        out.append(entry)
+    return out
 
 
 def fmt_ratio(value, method):
@@ -249,6 +314,28 @@ def markdown(s):
               "| --- | --- | --- | --- | --- |"]
     for row in by_step(s["comparisons"]):
         lines.append("| {H:g} | {scipy} | {crate} | {scipy_met} | {crate_met} |".format(**row))
+    if s["promise"]["table"]:
+        lines += ["", "The tolerance at every communication point: the FMU's worst error over all points and states, "
+                  "in units of tol and of each state's scale max(1, max |y|) (promise: ≤ 10 for tol 1e-3…1e-10; "
+                  f"worst in that range {s['promise']['worst']:.1f}):", ""]
+        columns = [(sc, h) for sc, hs in s["promise"]["table"].items() for h in hs]
+        lines += ["| tol | " + " | ".join(f"{sc} H={float(h):g}" for sc, h in columns) + " |",
+                  "| --- |" + " --- |" * len(columns)]
+        tols = sorted({t for sc, h in columns for t in s["promise"]["table"][sc][h]}, key=float, reverse=True)
+        for t in tols:
+            cells = [s["promise"]["table"][sc][h].get(t) for sc, h in columns]
+            lines.append(f"| {t} | " + " | ".join("—" if c is None else f"{c:.2f}" for c in cells) + " |")
+    if s["at_every_point"]:
+        peers = sorted({p for e in s["at_every_point"] for p in e["peers"]})
+        lines += ["", "Against each peer at equal error at every communication point (the fastest peer run whose worst "
+                  "error over all points is at most the FMU's, same H); peer time / FMU time, — when no peer run was "
+                  "that accurate:", "",
+                  "| scenario | H | tol | FMU worst point error | " + " | ".join(peers) + " |",
+                  "| --- | --- | --- | --- |" + " --- |" * len(peers)]
+        for e in s["at_every_point"]:
+            cells = ["—" if e["peers"][p] is None else f"{e['peers'][p]:.2f}" for p in peers]
+            lines.append(f"| {e['scenario']} | {e['H']:g} | {e['tol']:.0e} | {e['fmu_point_error']:.1e} | "
+                         + " | ".join(cells) + " |")
     lines += ["", "Tolerance proportionality (final error in units of the solution's scale, tol 1e-3…1e-10):", "",
               "| run | slope | worst error / tol |", "| --- | --- | --- |"]
     for k, v in s["proportionality"].items():
@@ -305,6 +392,9 @@ def plot(rows, path):
 
 
 if __name__ == "__main__":
+    if len(sys.argv) >= 3 and sys.argv[1] == "reference":
+        write_references(pathlib.Path(sys.argv[2]), "--quick" in sys.argv)
+        sys.exit(0)
     if len(sys.argv) < 4:
         sys.exit("usage: bench.py <harness.json> <CyclicMechanism.fmu> <output directory> [--quick]")
     main(sys.argv[1], pathlib.Path(sys.argv[2]), pathlib.Path(sys.argv[3]), "--quick" in sys.argv)

@@ -9,7 +9,7 @@ use fmi_sys::fmi2::{
     fmi2CallbackFunctions, fmi2Component, fmi2Status_fmi2OK, fmi2Type_fmi2CoSimulation, Fmi2Binding,
 };
 
-use crate::{Outcome, Scenario, SAMPLES};
+use crate::{Outcome, PointError, Reference, Scenario, SAMPLES};
 
 pub struct Fmu {
     binding: Fmi2Binding,
@@ -90,7 +90,13 @@ impl Fmu {
 
     /// One simulation: instantiate, initialise, step with H to the stop time reading every
     /// output after every step, as a master does.
-    pub fn run(&self, scenario: &Scenario, h: f64, tol: f64) -> Option<Outcome> {
+    pub fn run(
+        &self,
+        scenario: &Scenario,
+        h: f64,
+        tol: f64,
+        reference: Option<&Reference>,
+    ) -> Option<Outcome> {
         let functions = fmi2CallbackFunctions {
             logger: None,
             allocateMemory: None,
@@ -114,7 +120,7 @@ impl Fmu {
                 eprintln!("fmi2Instantiate failed");
                 return None;
             }
-            let outcome = self.simulate(c, scenario, h, tol);
+            let outcome = self.simulate(c, scenario, h, tol, reference);
             b.fmi2FreeInstance(c);
             outcome
         }
@@ -128,6 +134,7 @@ impl Fmu {
         scenario: &Scenario,
         h: f64,
         tol: f64,
+        reference: Option<&Reference>,
     ) -> Option<Outcome> {
         let b = &self.binding;
         let outputs: Vec<u32> = [
@@ -176,6 +183,7 @@ impl Fmu {
         let every = n / SAMPLES;
         let (mut samples, mut max_residual, mut max_drift) =
             (Vec::with_capacity(SAMPLES), 0.0f64, 0.0f64);
+        let mut errors = PointError::new(reference, h);
         for k in 0..n {
             unsafe {
                 check(b.fmi2DoStep(c, k as f64 * h, h, 1), "fmi2DoStep")?;
@@ -186,6 +194,7 @@ impl Fmu {
             }
             max_residual = max_residual.max(values[8].abs());
             max_drift = max_drift.max((values[9] - energy0).abs() / energy0.abs().max(1e-300));
+            errors.record(k + 1, &std::array::from_fn(|i| values[i]));
             if (k + 1).is_multiple_of(every) {
                 samples.push(std::array::from_fn(|i| values[i]));
             }
@@ -203,6 +212,7 @@ impl Fmu {
             samples,
             max_residual,
             max_energy_drift: max_drift,
+            max_point_error: errors.value(),
             n_rhs: rhs as u64,
         })
     }

@@ -79,7 +79,7 @@ fn stiff_study(fmu: &fmu::Fmu, out: &mut String) {
         solver,
     };
     // The reference: DOP853 at 1e-12 (the implicit method's error is then independent).
-    let Some(reference) = fmu.run(&scenario("reference", 2), 1e-2, 1e-12) else {
+    let Some(reference) = fmu.run(&scenario("reference", 2), 1e-2, 1e-12, None) else {
         eprintln!("stiff reference failed");
         return;
     };
@@ -90,7 +90,7 @@ fn stiff_study(fmu: &fmu::Fmu, out: &mut String) {
         .enumerate()
     {
         let case = scenario(name, *solver);
-        let run = || fmu.run(&case, 1e-2, 1e-6);
+        let run = || fmu.run(&case, 1e-2, 1e-6, None);
         let Some((seconds, runs, o)) = timed(&TIMING, run) else {
             eprintln!("stiff {name}: failed");
             continue;
@@ -135,6 +135,85 @@ impl Scenario {
     }
 }
 
+/// The independent reference (tests/python/reference.py at rtol 1e-13, written by
+/// `bench.py reference`) at every point of the finest communication grid: a file of
+/// little-endian f64, the grid step first, then 8 states per point from t = 0.
+pub struct Reference {
+    step: f64,
+    points: Vec<State>,
+    /// Each state's scale, max(1, max |y|) over the run: errors are measured in it.
+    scale: State,
+}
+
+impl Reference {
+    fn load(path: &std::path::Path) -> Result<Self, String> {
+        let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let values: Vec<f64> = bytes
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
+            .collect();
+        let (step, rows) = values.split_first().ok_or("empty reference")?;
+        let points: Vec<State> = rows
+            .chunks_exact(8)
+            .map(|r| r.try_into().expect("8 states"))
+            .collect();
+        let mut scale = [1.0f64; 8];
+        for y in &points {
+            for (s, v) in scale.iter_mut().zip(y) {
+                *s = s.max(v.abs());
+            }
+        }
+        Ok(Self {
+            step: *step,
+            points,
+            scale,
+        })
+    }
+}
+
+/// The worst error over every communication point and state, in units of each state's
+/// scale: what a user who plots the outputs sees.
+pub struct PointError<'a> {
+    reference: Option<&'a Reference>,
+    /// Reference points per communication step.
+    stride: usize,
+    pub worst: f64,
+}
+
+impl<'a> PointError<'a> {
+    pub fn new(reference: Option<&'a Reference>, h: f64) -> Self {
+        let stride = reference.map_or(0, |r| (h / r.step).round() as usize);
+        Self {
+            reference,
+            stride,
+            worst: 0.0,
+        }
+    }
+
+    /// The state `y` at communication point `k` (time k·h).
+    #[inline]
+    pub fn record(&mut self, k: usize, y: &State) {
+        let Some(reference) = self.reference else {
+            return;
+        };
+        let expected = &reference.points[k * self.stride];
+        for i in 0..8 {
+            self.worst = self
+                .worst
+                .max((y[i] - expected[i]).abs() / reference.scale[i]);
+        }
+    }
+
+    /// NaN when no reference was given.
+    pub fn value(&self) -> f64 {
+        if self.reference.is_some() {
+            self.worst
+        } else {
+            f64::NAN
+        }
+    }
+}
+
 /// What one method did on one configuration.
 pub struct Outcome {
     pub seconds: f64,
@@ -143,6 +222,8 @@ pub struct Outcome {
     pub samples: Vec<State>,
     pub max_residual: f64,
     pub max_energy_drift: f64,
+    /// [`PointError`]'s value.
+    pub max_point_error: f64,
     pub n_rhs: u64,
 }
 
@@ -232,10 +313,35 @@ fn json_states(samples: &[State]) -> String {
     format!("[{}]", rows.join(","))
 }
 
+/// The directory after `--reference`, if given.
+fn reference_dir(args: &[String]) -> Option<std::path::PathBuf> {
+    let at = args.iter().position(|a| a == "--reference")?;
+    args.get(at + 1).map(std::path::PathBuf::from)
+}
+
+/// `scenario`'s reference from `dir`, checked to cover its whole run.
+fn load_reference(dir: &std::path::Path, scenario: &Scenario) -> Result<Reference, String> {
+    let path = dir.join(format!("reference_{}.f64", scenario.name));
+    let reference = Reference::load(&path)?;
+    let points = (scenario.stop / reference.step).round() as usize + 1;
+    if reference.points.len() != points {
+        return Err(format!(
+            "{}: {} points, expected {points} (t = 0…{} every {})",
+            path.display(),
+            reference.points.len(),
+            scenario.stop,
+            reference.step
+        ));
+    }
+    Ok(reference)
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
-        eprintln!("usage: bench <CyclicMechanism.fmu> <out.json> [--quick] [--fmu-only]");
+        eprintln!(
+            "usage: bench <CyclicMechanism.fmu> <out.json> [--quick] [--fmu-only] [--reference DIR]"
+        );
         std::process::exit(2);
     }
     let quick = args.iter().any(|a| a == "--quick");
@@ -246,6 +352,20 @@ fn main() {
             eprintln!("bench: cannot load {}: {e}", args[1]);
             std::process::exit(1);
         }
+    };
+    let references: Vec<Option<Reference>> = match reference_dir(&args) {
+        None => SCENARIOS.iter().map(|_| None).collect(),
+        Some(dir) => match SCENARIOS
+            .iter()
+            .map(|s| load_reference(&dir, s).map(Some))
+            .collect()
+        {
+            Ok(references) => references,
+            Err(e) => {
+                eprintln!("bench: {e}");
+                std::process::exit(1);
+            }
+        },
     };
     let tolerances: Vec<f64> = if quick {
         vec![1e-4, 1e-8]
@@ -274,7 +394,8 @@ fn main() {
     )
     .unwrap();
     let mut first = true;
-    for scenario in &SCENARIOS {
+    for (scenario, reference) in SCENARIOS.iter().zip(&references) {
+        let reference = reference.as_ref();
         for &h in &steps {
             let methods = peers::METHODS
                 .iter()
@@ -288,9 +409,9 @@ fn main() {
                     }
                     let run = || {
                         if method == "fmu" {
-                            fmu.run(scenario, h, tol)
+                            fmu.run(scenario, h, tol, reference)
                         } else {
-                            peers::run(&method, scenario, h, tol)
+                            peers::run(&method, scenario, h, tol, reference)
                         }
                     };
                     let Some((seconds, runs, outcome)) = timed(&TIMING, run) else {
@@ -312,7 +433,7 @@ fn main() {
                         out,
                         "{}\n{{\"method\": \"{method}\", \"scenario\": \"{}\", \"H\": {h:e}, \"tol\": {tol:e}, \
                          \"seconds\": {:e}, \"runs\": {}, \"n_rhs\": {}, \"max_residual\": {}, \
-                         \"max_energy_drift\": {}, \"states\": {}}}",
+                         \"max_energy_drift\": {}, \"max_point_error\": {}, \"states\": {}}}",
                         if first { "" } else { "," },
                         scenario.name,
                         o.seconds,
@@ -320,6 +441,7 @@ fn main() {
                         o.n_rhs,
                         number(o.max_residual),
                         number(o.max_energy_drift),
+                        number(o.max_point_error),
                         json_states(&o.samples)
                     )
                     .unwrap();

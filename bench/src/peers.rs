@@ -9,7 +9,7 @@ use cyclic_mechanism::model::{state_derivative, Inputs, Parameters, State};
 use diffsol::{NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod, OdeSolverStopReason};
 use ode_solvers::{SVector, System};
 
-use crate::{Outcome, Scenario, SAMPLES};
+use crate::{Outcome, PointError, Reference, Scenario, SAMPLES};
 
 pub const METHODS: [&str; 4] = [
     "ode_solvers_dop853",
@@ -18,25 +18,33 @@ pub const METHODS: [&str; 4] = [
     "diffsol_esdirk34",
 ];
 
-pub fn run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Outcome> {
+pub fn run(
+    method: &str,
+    scenario: &Scenario,
+    h: f64,
+    tol: f64,
+    reference: Option<&Reference>,
+) -> Option<Outcome> {
     match method {
-        "ode_solvers_dop853" => ode_solvers_dop853(scenario, h, tol),
-        _ => diffsol_run(method, scenario, h, tol),
+        "ode_solvers_dop853" => ode_solvers_dop853(scenario, h, tol, reference),
+        _ => diffsol_run(method, scenario, h, tol, reference),
     }
 }
 
-/// Samples, energy drift and constraint residual along a run of communication points.
-struct Recorder {
+/// Samples, energy drift, constraint residual and the error at every communication point
+/// along a run.
+struct Recorder<'a> {
     params: Parameters,
     every: usize,
     energy0: f64,
     samples: Vec<State>,
     max_residual: f64,
     max_drift: f64,
+    errors: PointError<'a>,
 }
 
-impl Recorder {
-    fn new(scenario: &Scenario, h: f64, y0: &State) -> Self {
+impl<'a> Recorder<'a> {
+    fn new(scenario: &Scenario, h: f64, y0: &State, reference: Option<&'a Reference>) -> Self {
         let params = scenario.parameters();
         let steps = (scenario.stop / h).round() as usize;
         Self {
@@ -46,6 +54,7 @@ impl Recorder {
             samples: Vec::with_capacity(SAMPLES),
             max_residual: 0.0,
             max_drift: 0.0,
+            errors: PointError::new(reference, h),
         }
     }
 
@@ -56,6 +65,7 @@ impl Recorder {
         self.max_drift = self
             .max_drift
             .max((energy - self.energy0).abs() / self.energy0.abs());
+        self.errors.record(k, y);
         if k.is_multiple_of(self.every) {
             self.samples.push(*y);
         }
@@ -68,6 +78,7 @@ impl Recorder {
             samples: self.samples,
             max_residual: self.max_residual,
             max_energy_drift: self.max_drift,
+            max_point_error: self.errors.value(),
             n_rhs,
         }
     }
@@ -90,14 +101,19 @@ impl System<f64, SVector<f64, 8>> for Mechanism<'_> {
 }
 
 /// ode_solvers' Dop853 integrates one span per solver: a new one for every interval.
-fn ode_solvers_dop853(scenario: &Scenario, h: f64, tol: f64) -> Option<Outcome> {
+fn ode_solvers_dop853(
+    scenario: &Scenario,
+    h: f64,
+    tol: f64,
+    reference: Option<&Reference>,
+) -> Option<Outcome> {
     let counter = Cell::new(0);
     let system = Mechanism {
         params: scenario.parameters(),
         counter: &counter,
     };
     let mut y = scenario.initial_state();
-    let mut recorder = Recorder::new(scenario, h, &y);
+    let mut recorder = Recorder::new(scenario, h, &y, reference);
     let n = (scenario.stop / h).round() as usize;
     for k in 1..=n {
         let t = (k - 1) as f64 * h;
@@ -115,9 +131,9 @@ fn ode_solvers_dop853(scenario: &Scenario, h: f64, tol: f64) -> Option<Outcome> 
 /// Stop a diffsol solver at every communication point and record the state there
 /// (a macro: the solvers' types involve the closures' unnameable types).
 macro_rules! step_through {
-    ($solver:expr, $scenario:expr, $h:expr, $y0:expr) => {{
+    ($solver:expr, $scenario:expr, $h:expr, $y0:expr, $reference:expr) => {{
         let mut solver = $solver;
-        let mut recorder = Recorder::new($scenario, $h, $y0);
+        let mut recorder = Recorder::new($scenario, $h, $y0, $reference);
         let n = ($scenario.stop / $h).round() as usize;
         let mut ok = true;
         for k in 1..=n {
@@ -146,7 +162,13 @@ macro_rules! step_through {
 }
 
 /// diffsol's solvers are kept alive and stopped at each communication point.
-fn diffsol_run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Outcome> {
+fn diffsol_run(
+    method: &str,
+    scenario: &Scenario,
+    h: f64,
+    tol: f64,
+    reference: Option<&Reference>,
+) -> Option<Outcome> {
     let counter = Rc::new(Cell::new(0u64));
     let (params, y0) = (scenario.parameters(), scenario.initial_state());
     let rhs_counter = counter.clone();
@@ -184,13 +206,20 @@ fn diffsol_run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Ou
         .build()
         .ok()?;
     let outcome = match method {
-        "diffsol_tsit45" => step_through!(problem.tsit45().ok()?, scenario, h, &y0),
-        "diffsol_bdf" => step_through!(problem.bdf::<NalgebraLU<f64>>().ok()?, scenario, h, &y0),
+        "diffsol_tsit45" => step_through!(problem.tsit45().ok()?, scenario, h, &y0, reference),
+        "diffsol_bdf" => step_through!(
+            problem.bdf::<NalgebraLU<f64>>().ok()?,
+            scenario,
+            h,
+            &y0,
+            reference
+        ),
         "diffsol_esdirk34" => step_through!(
             problem.esdirk34::<NalgebraLU<f64>>().ok()?,
             scenario,
             h,
-            &y0
+            &y0,
+            reference
         ),
         _ => None,
     }?;

@@ -602,11 +602,20 @@ fn bench(quick: bool) -> Result {
     let out = root().join("target/bench");
     fs::create_dir_all(&out).map_err(|e| e.to_string())?;
     let harness = out.join("harness.json");
+    let quick_flag: &[&str] = if quick { &["--quick"] } else { &[] };
+    // The reference at every communication point first: the harness measures against it.
+    run(Command::new(&python)
+        .arg(root().join("bench/bench.py"))
+        .arg("reference")
+        .arg(&out)
+        .args(quick_flag))?;
     let mut command = Command::new(&program);
-    command.arg(&fmu).arg(&harness);
-    if quick {
-        command.arg("--quick");
-    }
+    command
+        .arg(&fmu)
+        .arg(&harness)
+        .arg("--reference")
+        .arg(&out)
+        .args(quick_flag);
     run(&mut command)?;
     let mut driver = Command::new(python);
     driver
