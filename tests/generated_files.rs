@@ -1,6 +1,8 @@
-//! Files generated from the variable table and committed to the repository stay in sync
-//! with it: `modelDescription/modelDescription.xml` and the README's variable table.
-//! Regenerate with `cargo run --bin fmu-assets -- modelDescription` (and paste
+//! Generated files committed to the repository stay in sync with their sources:
+//! `modelDescription/modelDescription.xml` and the README's variable table (from the
+//! variable table), and `modelDescription/index.html`, the FMU's documentation (from
+//! docs/fmu.md, the README and docs/model.md). Regenerate with
+//! `cargo run --release --bin fmu-assets -- modelDescription` (and paste
 //! `modelDescription/variables.md` into the README).
 
 use cyclic_mechanism::fmi2::model_description::{variables_markdown, xml};
@@ -23,5 +25,21 @@ fn readme_shows_the_generated_variable_table() {
     assert!(
         read("README.md").contains(&variables_markdown()),
         "README.md's variable table differs from modelDescription/variables.md: paste the generated one"
+    );
+}
+
+#[test]
+fn committed_documentation_is_the_generated_one() {
+    let dir = std::env::temp_dir().join(format!("fmu-assets-{}", std::process::id()));
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_fmu-assets"))
+        .arg(&dir)
+        .status()
+        .expect("fmu-assets runs");
+    assert!(status.success());
+    let generated = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(
+        read("modelDescription/index.html") == generated,
+        "modelDescription/index.html is stale: run `cargo run --release --bin fmu-assets -- modelDescription`"
     );
 }

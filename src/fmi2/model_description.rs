@@ -397,7 +397,7 @@ fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
 }
 
 /// One row per variable: name, causality, unit, start, description (for the tables of the
-/// README and of `documentation/index.html`).
+/// README and of the FMU's `documentation/index.html`).
 pub fn variable_rows() -> Vec<[String; 5]> {
     variables()
         .map(|(_, v)| {
