@@ -82,7 +82,7 @@ def run(mechanism_fmu, out, stop_time=5.0, step=1e-3):
 
 
 def plot(data, path):
-    fig, axes = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(9.5, 8), sharex=True)
     t = data[:, 0]
     axes[0].plot(t, data[:, 3], label="ω1 (rad/s)")
     axes[0].set_ylabel("speed (rad/s)")
@@ -94,7 +94,8 @@ def plot(data, path):
     axes[2].set(xlabel="time (s)", ylabel="angle (rad)")
     for ax in axes:
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="lower right")
+        # Beside the axes, where no curve runs.
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.suptitle("DC motor FMU driving the mechanism FMU (FMPy master, H = 1 ms)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
