@@ -112,30 +112,51 @@ fn apt_install(packages: &[&str]) -> Result {
         .env("DEBIAN_FRONTEND", "noninteractive"))
 }
 
-/// The Python venv with the pinned test and demo packages; reinstalled when the pins change.
-fn ensure_venv() -> Result<PathBuf> {
+/// What the Python venv must hold: the demo's packages (also the FMU's build, for zig), or
+/// those and the tests'.
+#[derive(Clone, Copy, PartialEq)]
+enum Packages {
+    Demo,
+    Tests,
+}
+
+/// The Python venv `target/venv` with the pinned packages of `tests/python/requirements-demo.txt`
+/// (and of `requirements.txt` for [`Packages::Tests`]); added to or rebuilt when the pins
+/// change. The demo's set is a subset of the tests', so one venv serves both.
+fn ensure_venv(packages: Packages) -> Result<PathBuf> {
     let root = root();
     let venv = root.join("target/venv");
     let python = venv.join("bin/python");
-    let requirements = root.join("tests/python/requirements.txt");
-    let wanted = fs::read_to_string(&requirements)
-        .map_err(|e| format!("{}: {e}", requirements.display()))?;
+    let read = |name: &str| {
+        let path = root.join("tests/python").join(name);
+        fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))
+    };
+    let demo = format!("demo\n{}", read("requirements-demo.txt")?);
+    let tests = format!("{demo}tests\n{}", read("requirements.txt")?);
     let stamp = venv.join("requirements.installed");
-    if python.exists() && fs::read_to_string(&stamp).is_ok_and(|installed| installed == wanted) {
+    let installed = fs::read_to_string(&stamp).unwrap_or_default();
+    let (wanted, file) = match packages {
+        Packages::Demo => (&demo, "requirements-demo.txt"),
+        Packages::Tests => (&tests, "requirements.txt"),
+    };
+    if python.exists() && (installed == *wanted || installed == tests) {
         return Ok(python);
     }
-    println!("xtask: creating the Python venv in {}", venv.display());
-    if run(Command::new("python3")
-        .args(["-m", "venv", "--clear"])
-        .arg(&venv))
-    .is_err()
-    {
-        apt_install(&["python3-venv"])?;
-        run(Command::new("python3")
+    if !(python.exists() && installed == demo) {
+        println!("xtask: creating the Python venv in {}", venv.display());
+        if run(Command::new("python3")
             .args(["-m", "venv", "--clear"])
-            .arg(&venv))?;
+            .arg(&venv))
+        .is_err()
+        {
+            apt_install(&["python3-venv"])?;
+            run(Command::new("python3")
+                .args(["-m", "venv", "--clear"])
+                .arg(&venv))?;
+        }
     }
-    run(pip_install(&python).arg("-r").arg(&requirements))?;
+    println!("xtask: installing the pinned packages of tests/python/{file}");
+    run(pip_install(&python).arg("-r").arg(root.join("tests/python").join(file)))?;
     fs::write(&stamp, wanted).map_err(|e| e.to_string())?;
     Ok(python)
 }
@@ -170,7 +191,7 @@ fn build_portable_library() -> Result<PathBuf> {
 /// Build `artifact` (in release) against glibc 2.17 with cargo-zigbuild and the zig of the
 /// pinned `ziglang` Python package.
 fn build_portable(selection: &[&str], artifact: &str) -> Result<PathBuf> {
-    let python = ensure_venv()?;
+    let python = ensure_venv(Packages::Demo)?;
     let has_zigbuild = cargo()
         .args(["zigbuild", "--help"])
         .output()
@@ -373,7 +394,7 @@ fn pack(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
 /// manylinux_2_17 wheel: workers on older Linux install it too.
 fn build_wheel() -> Result<PathBuf> {
     ensure_libclang()?;
-    let python = ensure_venv()?;
+    let python = ensure_venv(Packages::Tests)?;
     let runner = build_portable(
         &["--package", "fmu-runner", "--bin", "fmu-runner"],
         "fmu-runner",
@@ -403,7 +424,7 @@ fn build_wheel() -> Result<PathBuf> {
 /// Build the wheel and install it in the venv, unless that very wheel is installed.
 fn ensure_sweep_package() -> Result<PathBuf> {
     let wheel = build_wheel()?;
-    let python = ensure_venv()?;
+    let python = ensure_venv(Packages::Tests)?;
     let stamp = root().join("target/venv/fmusweep.installed.whl");
     let bytes = fs::read(&wheel).map_err(|e| format!("{}: {e}", wheel.display()))?;
     if fs::read(&stamp).is_ok_and(|installed| installed == bytes) {
@@ -445,7 +466,7 @@ fn bench_sweep(args: &[String]) -> Result {
 
 fn demo() -> Result {
     let fmu = build_fmu()?;
-    let python = ensure_venv()?;
+    let python = ensure_venv(Packages::Demo)?;
     let out = root().join("target/demo");
     run(Command::new(python)
         .arg(root().join("examples/demo.py"))
@@ -597,7 +618,7 @@ fn fuzz_under_valgrind() -> Result {
 /// right-hand side), then the Python driver (reference, scipy, FMPy, table and plot).
 fn bench(quick: bool) -> Result {
     let fmu = build_fmu()?;
-    let python = ensure_venv()?;
+    let python = ensure_venv(Packages::Tests)?;
     let program = build_bench_harness()?;
     let out = root().join("target/bench");
     fs::create_dir_all(&out).map_err(|e| e.to_string())?;
