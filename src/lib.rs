@@ -14,4 +14,5 @@ pub mod model;
 pub mod simulation;
 pub mod snapshot;
 pub mod solver;
+pub mod text;
 pub mod variables;

@@ -254,7 +254,8 @@ impl Simulation {
         let (low, high) = TOLERANCE_RANGE;
         if !(low..=high).contains(&tolerance) {
             return Err(ModelError::new(format!(
-                "tolerance = {tolerance} must lie in [{low:e}, {high:e}]"
+                "tolerance = {} must lie in [{low:e}, {high:e}]",
+                model::number(tolerance)
             )));
         }
         self.tolerance = tolerance;

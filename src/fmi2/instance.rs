@@ -14,6 +14,7 @@ use super::state_machine::{Interface, State};
 use crate::exchange::{Exchange, STATES};
 use crate::simulation::{AccessError, Simulation, Value};
 use crate::snapshot::{fnv1a_64, Reader, Writer};
+use crate::text::number;
 use crate::variables::{variable, Input, Slot, VarType, STATE_REFERENCES};
 
 /// Log categories, by their position in [`LOG_CATEGORIES`].
@@ -312,7 +313,9 @@ impl Instance {
         if let Some(stop) = stop {
             if !(stop.is_finite() && stop >= start) {
                 return Err(Failure::error(format!(
-                    "stopTime = {stop} must be finite and >= startTime = {start}"
+                    "stopTime = {} must be finite and >= startTime = {}",
+                    number(stop),
+                    number(start)
                 )));
             }
         }
@@ -604,12 +607,15 @@ impl Instance {
         let now = self.sim.time();
         if !(step.is_finite() && step > 0.0) {
             return Err(Failure::error(format!(
-                "communicationStepSize = {step} must be finite and > 0"
+                "communicationStepSize = {} must be finite and > 0",
+                number(step)
             )));
         }
         if !current.is_finite() || (current - now).abs() > TIME_MATCH * now.abs().max(step) {
             return Err(Failure::error(format!(
-                "currentCommunicationPoint = {current} does not match the FMU's time {now}"
+                "currentCommunicationPoint = {} does not match the FMU's time {}",
+                number(current),
+                number(now)
             )));
         }
         let target = current + step;

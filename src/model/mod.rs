@@ -31,15 +31,7 @@ pub struct Inputs<T = f64> {
     pub load_torque: T,
 }
 
-/// A number as messages print it: plainly for ordinary magnitudes, in scientific notation
-/// for very large or very small ones (4.9e-37, not 0.0000…49).
-pub fn number(x: f64) -> String {
-    if x == 0.0 || !x.is_finite() || (1e-4..1e7).contains(&x.abs()) {
-        format!("{x}")
-    } else {
-        format!("{x:e}")
-    }
-}
+pub use crate::text::number;
 
 /// A model error: the message says which variable and which rule.
 #[derive(Clone, Debug, PartialEq)]

@@ -12,6 +12,7 @@ pub use radau5::Radau5;
 pub use switching::{Choice, Integrator, Method};
 
 use crate::snapshot::{FormatError, Reader, Writer};
+use crate::text::number;
 
 /// An ODE y' = f(t, y) on a manifold the system can project onto.
 pub trait OdeSystem<const N: usize> {
@@ -153,12 +154,19 @@ impl std::fmt::Display for SolverError {
             SolverError::StepSizeTooSmall { t, h } => {
                 write!(
                     f,
-                    "step size {h:e} too small at t = {t} (stiff, singular or non-finite dynamics)"
+                    "step size {h:e} too small at t = {} (stiff, singular or non-finite dynamics)",
+                    number(*t)
                 )
             }
-            SolverError::ProjectionFailed { t, reason } => write!(f, "at t = {t}: {reason}"),
+            SolverError::ProjectionFailed { t, reason } => {
+                write!(f, "at t = {}: {reason}", number(*t))
+            }
             SolverError::TooManySteps { t, limit } => {
-                write!(f, "more than {limit} steps in one call, stopped at t = {t}")
+                write!(
+                    f,
+                    "more than {limit} steps in one call, stopped at t = {}",
+                    number(*t)
+                )
             }
         }
     }

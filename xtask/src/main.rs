@@ -156,7 +156,9 @@ fn ensure_venv(packages: Packages) -> Result<PathBuf> {
         }
     }
     println!("xtask: installing the pinned packages of tests/python/{file}");
-    run(pip_install(&python).arg("-r").arg(root.join("tests/python").join(file)))?;
+    run(pip_install(&python)
+        .arg("-r")
+        .arg(root.join("tests/python").join(file)))?;
     fs::write(&stamp, wanted).map_err(|e| e.to_string())?;
     Ok(python)
 }
