@@ -12,6 +12,7 @@ independent formulation of tests/python/reference.py), and writes results.json,
 results.md and work_precision.png.
 """
 
+import hashlib
 import json
 import math
 import pathlib
@@ -95,7 +96,6 @@ def write_references(out, quick):
 
 
 def hash_of(path):
-    import hashlib
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 

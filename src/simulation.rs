@@ -39,7 +39,7 @@ const SECOND_DIFFERENCE_STEP: f64 = 1e-4;
 /// error accumulates. Measured through FMPy against an independent reference at every
 /// communication point (error in units of each state's scale max(1, max|y|), paper case 1
 /// and the 100 s free run, H 1e-4…0.1, tol 1e-3…1e-10): with 0.05 the free run reached
-/// 15.3 x tol (tol 1e-10) and case 1 4.7 x; with 0.02 at most 6.2 x, for 10 % more
+/// 15.3 x tol (tol 1e-10) and case 1 4.7 x; with 0.02 at most 6.3 x, for 10 % more
 /// evaluations.
 pub const TOLERANCE_SAFETY: f64 = 0.02;
 /// Above this internal tolerance DOP853's steps on the paper's mechanism reach about

@@ -135,13 +135,15 @@ fn list(lines: &[&str]) -> (usize, String) {
     (end, format!("<ul>\n{body}</ul>\n"))
 }
 
+/// Lines up to the next block; the first always belongs to the paragraph (a line such as
+/// "#5" is text, and must not stop the paragraph before it starts).
 fn paragraph(lines: &[&str]) -> (usize, String) {
-    let end = lines
+    let end = 1 + lines[1..]
         .iter()
         .position(|l| {
             l.trim().is_empty() || l.starts_with('#') || l.starts_with("- ") || l.starts_with("```")
         })
-        .unwrap_or(lines.len());
+        .unwrap_or(lines.len() - 1);
     let text: Vec<&str> = lines[..end].iter().map(|l| l.trim()).collect();
     (end, format!("<p>{}</p>\n", inline(&text.join(" "))))
 }
@@ -226,5 +228,10 @@ mod tests {
              <pre>code &lt;x&gt;</pre>\n<table>\n<tr><th>a</th><th>b | c</th></tr>\n\
              <tr><td>1</td><td>2</td></tr>\n</table>\n"
         );
+    }
+
+    #[test]
+    fn a_hash_without_a_space_is_text() {
+        assert_eq!(to_html("#5 is a number\n", 0), "<p>#5 is a number</p>\n");
     }
 }
