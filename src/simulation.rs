@@ -53,6 +53,7 @@ pub const LOOSEST_INTERNAL_TOLERANCE: f64 = 2e-6;
 pub enum Value {
     Real(f64),
     Integer(i32),
+    Boolean(bool),
 }
 
 /// The integration method chosen by the `solver` parameter.
@@ -377,14 +378,14 @@ impl Simulation {
         Ok(self.value_of(var.slot))
     }
 
-    /// The current value of `vr` read through an accessor of type `accessor` (Real; or
-    /// Integer, for Integer and Enumeration variables): one lookup, type checked.
+    /// The current value of `vr` read through an accessor of type `accessor` (Real;
+    /// Integer, for Integer and Enumeration variables; Boolean): one lookup, type checked.
     pub fn read(&self, vr: u32, accessor: VarType) -> Result<Value, AccessError> {
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
-        let probe = if accessor == VarType::Real {
-            Value::Real(0.0)
-        } else {
-            Value::Integer(0)
+        let probe = match accessor {
+            VarType::Real => Value::Real(0.0),
+            VarType::Integer | VarType::Enumeration => Value::Integer(0),
+            VarType::Boolean => Value::Boolean(false),
         };
         check_type(var, probe)?;
         Ok(self.value_of(var.slot))
@@ -558,7 +559,11 @@ impl Simulation {
             Slot::Input(Input::LoadTorque) => Some(self.inputs.load_torque),
             Slot::Parameter(i) => Some(self.params.get(i).unwrap_or(f64::NAN)),
             Slot::Local(local) => Some(self.local(local)),
-            Slot::Statistic(_) | Slot::SolverChoice | Slot::LinkageClass | Slot::LoopChart => None,
+            Slot::Statistic(_)
+            | Slot::SolverChoice
+            | Slot::LinkageClass
+            | Slot::LoopChart
+            | Slot::BuiltinLaws => None,
         }
     }
 
@@ -580,6 +585,7 @@ impl Simulation {
             Slot::SolverChoice => Value::Integer(self.solver_kind as i32),
             Slot::LinkageClass => Value::Integer(model::classify(&self.params) as i32),
             Slot::LoopChart => Value::Integer(self.chart as i32),
+            Slot::BuiltinLaws => Value::Boolean(self.params.builtin_laws),
             Slot::Output(_) | Slot::Input(_) | Slot::Parameter(_) | Slot::Local(_) => {
                 unreachable!("Real slots")
             }
@@ -607,6 +613,7 @@ impl Simulation {
             (Slot::SolverChoice, Value::Integer(v)) => {
                 self.solver_kind = solver_kind(v).expect("checked")
             }
+            (Slot::BuiltinLaws, Value::Boolean(on)) => self.params.builtin_laws = on,
             _ => unreachable!("check_set admits only writable slots of the right type"),
         }
         // The right-hand side changed: restart the integrator from the communication point.
@@ -644,7 +651,9 @@ impl Simulation {
                     AccessError::NotAllowed(format!("{} = {} {rule}", var.name, model::number(v)))
                 })?
             }
-            (Slot::Parameter(_) | Slot::SolverChoice, _) if !parameters_writable => {
+            (Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws, _)
+                if !parameters_writable =>
+            {
                 return Err(fixed())
             }
             (Slot::Parameter(i), Value::Real(v)) => {
@@ -657,6 +666,7 @@ impl Simulation {
                     )));
                 }
             }
+            (Slot::BuiltinLaws, Value::Boolean(_)) => {}
             _ => {
                 let what = if var.causality() == crate::variables::Causality::Local {
                     "a Model Exchange state or derivative, set through fmi2SetContinuousStates"
@@ -808,6 +818,7 @@ impl Simulation {
         w.f64s(&[self.inputs.motor_torque, self.inputs.load_torque]);
         w.f64s(&self.input_derivatives.motor_torque);
         w.f64s(&self.input_derivatives.load_torque);
+        w.bool(self.params.builtin_laws);
         w.u8(self.solver_kind as u8);
         w.f64s(&[self.tolerance, self.time]);
         w.f64s(&self.state);
@@ -836,6 +847,7 @@ impl Simulation {
             motor_torque: r.f64s()?,
             load_torque: r.f64s()?,
         };
+        params.builtin_laws = r.bool()?;
         let kind = r.u8()?;
         let solver_kind = solver_kind(kind as i32)
             .ok_or_else(|| FormatError(format!("invalid serialized state: solver = {kind}")))?;
@@ -997,14 +1009,15 @@ fn check_type(var: &Variable, value: Value) -> Result<(), AccessError> {
         (var.var_type(), value),
         (VarType::Real, Value::Real(_))
             | (VarType::Integer | VarType::Enumeration, Value::Integer(_))
+            | (VarType::Boolean, Value::Boolean(_))
     );
     if matches {
         return Ok(());
     }
-    let accessor = if var.var_type() == VarType::Real {
-        "Real"
-    } else {
-        "Integer"
+    let accessor = match var.var_type() {
+        VarType::Real => "Real",
+        VarType::Integer | VarType::Enumeration => "Integer",
+        VarType::Boolean => "Boolean",
     };
     Err(AccessError::NotAllowed(format!(
         "{} is of type {}: use fmi2Get{accessor}/fmi2Set{accessor}",

@@ -5,7 +5,7 @@
 //! README's table are all derived from here, so they cannot drift apart.
 
 use crate::model::params::INPUT_RULE;
-use crate::model::PARAMETERS;
+use crate::model::{Parameters, PARAMETERS};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Causality {
@@ -82,6 +82,8 @@ pub enum Slot {
     Local(Local),
     /// Which angle q is: 2 (φ2) or 3 (φ3), an Integer local.
     LoopChart,
+    /// Whether the built-in torque laws apply (a Boolean parameter).
+    BuiltinLaws,
 }
 
 /// FMI base types used here.
@@ -90,6 +92,7 @@ pub enum VarType {
     Real,
     Integer,
     Enumeration,
+    Boolean,
 }
 
 impl VarType {
@@ -98,6 +101,7 @@ impl VarType {
             VarType::Real => "Real",
             VarType::Integer => "Integer",
             VarType::Enumeration => "Enumeration",
+            VarType::Boolean => "Boolean",
         }
     }
 }
@@ -139,7 +143,7 @@ impl Variable {
         match self.slot {
             Slot::Input(_) => Causality::Input,
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => Causality::Output,
-            Slot::Parameter(_) | Slot::SolverChoice => Causality::Parameter,
+            Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => Causality::Parameter,
             Slot::Local(_) | Slot::LoopChart => Causality::Local,
         }
     }
@@ -149,6 +153,7 @@ impl Variable {
             Slot::Statistic(Statistic::ActiveSolver) => VarType::Enumeration,
             Slot::Statistic(_) | Slot::LoopChart => VarType::Integer,
             Slot::SolverChoice | Slot::LinkageClass => VarType::Enumeration,
+            Slot::BuiltinLaws => VarType::Boolean,
             _ => VarType::Real,
         }
     }
@@ -156,7 +161,7 @@ impl Variable {
     /// FMI variability: parameters are fixed (settable before initialisation ends).
     pub fn variability(&self) -> &'static str {
         match self.slot {
-            Slot::Parameter(_) | Slot::SolverChoice => "fixed",
+            Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => "fixed",
             Slot::Statistic(_) | Slot::LinkageClass | Slot::LoopChart => "discrete",
             _ => "continuous",
         }
@@ -178,7 +183,7 @@ impl Variable {
             Slot::Input(_) => Some(INPUT_RULE.range()),
             Slot::SolverChoice => Some((SOLVER_ITEMS[0].1 as f64, SOLVER_ITEMS[2].1 as f64)),
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
-            Slot::Local(_) | Slot::LoopChart => None,
+            Slot::Local(_) | Slot::LoopChart | Slot::BuiltinLaws => None,
         }
     }
 
@@ -200,7 +205,7 @@ impl Variable {
     }
 
     /// The start value, where the variable has one (Integer and Enumeration values are
-    /// whole numbers).
+    /// whole numbers; a Boolean's is 1 for true, 0 for false).
     pub fn start(&self) -> Option<f64> {
         match self.slot {
             Slot::Input(_) => Some(0.0),
@@ -208,6 +213,7 @@ impl Variable {
             Slot::Local(_) | Slot::LoopChart => None,
             Slot::Parameter(i) => Some(PARAMETERS[i].default),
             Slot::SolverChoice => Some(SOLVER_ITEMS[0].1 as f64),
+            Slot::BuiltinLaws => Some(f64::from(u8::from(Parameters::default().builtin_laws))),
         }
     }
 }
@@ -386,12 +392,22 @@ const EXCHANGE_VARIABLES: [Variable; 9] = [
     ),
 ];
 
+/// Variables added after the first release, last so that every earlier value reference
+/// keeps its number.
+const LATER_VARIABLES: [Variable; 1] = [Variable {
+    name: "builtin_laws",
+    unit: "",
+    description: "Whether the built-in motor and load laws (Mm_a0..Mm_a2, Mr_b0, Mr_b1; the paper's by default) add to the inputs M_m and M_r; false for external motor and load models, whose torques are then the inputs alone",
+    slot: Slot::BuiltinLaws,
+}];
+
 /// Number of variables (and one past the largest value reference).
 pub const COUNT: usize = INPUTS.len()
     + OUTPUTS.len()
     + PARAMETERS.len()
     + SOLVER_VARIABLES.len()
-    + EXCHANGE_VARIABLES.len();
+    + EXCHANGE_VARIABLES.len()
+    + LATER_VARIABLES.len();
 
 /// The value references of the Model Exchange states x = (φ1, q, φ4, ω1, q̇, ω4).
 pub const STATE_REFERENCES: [u32; 6] = {
@@ -450,6 +466,11 @@ pub(crate) const fn build_table() -> [Variable; COUNT] {
     k = 0;
     while k < EXCHANGE_VARIABLES.len() {
         table[i] = EXCHANGE_VARIABLES[k];
+        (i, k) = (i + 1, k + 1);
+    }
+    k = 0;
+    while k < LATER_VARIABLES.len() {
+        table[i] = LATER_VARIABLES[k];
         (i, k) = (i + 1, k + 1);
     }
     table
@@ -585,7 +606,7 @@ fn running_dependencies(slot: Slot) -> Vec<(&'static str, Kind)> {
         Slot::Statistic(_) | Slot::LinkageClass => vec![],
         // Not unknowns while running.
         Slot::Local(_) | Slot::LoopChart => vec![],
-        Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice => vec![],
+        Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
     }
 }
 
@@ -597,8 +618,26 @@ const TWISTS: &[&str] = &["twist12_0", "twist34_0"];
 /// What the loop's bodies 2 and 3 feel, besides their own geometry and states: their
 /// inertias, the springs and dampers that tie them to bodies 1 and 4.
 const LOOP_FORCES: &[&str] = &["J2", "J3", "k12", "k34", "d12", "d34"];
-const MOTOR: &[&str] = &["M_m", "J1", "k12", "d12", "Mm_a0", "Mm_a1", "Mm_a2"];
-const LOAD: &[&str] = &["M_r", "J4", "k34", "d34", "c4", "Mr_b0", "Mr_b1"];
+const MOTOR: &[&str] = &[
+    "M_m",
+    "J1",
+    "k12",
+    "d12",
+    "Mm_a0",
+    "Mm_a1",
+    "Mm_a2",
+    "builtin_laws",
+];
+const LOAD: &[&str] = &[
+    "M_r",
+    "J4",
+    "k34",
+    "d34",
+    "c4",
+    "Mr_b0",
+    "Mr_b1",
+    "builtin_laws",
+];
 
 fn initial_dependencies(slot: Slot) -> Vec<&'static str> {
     match slot {
@@ -640,7 +679,7 @@ fn initial_dependencies(slot: Slot) -> Vec<&'static str> {
         Slot::LinkageClass => vec!["l", "l2", "l3", "L"],
         Slot::LoopChart => ASSEMBLY.to_vec(),
         // Not unknowns: knowns.
-        Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice => vec![],
+        Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
     }
 }
 

@@ -161,11 +161,21 @@ impl Fuzz {
                 10 => {
                     let (vrs, n) = self.arrays();
                     let values: Vec<i32> = (0..n).map(|_| self.rng.below(5) as i32 - 1).collect();
-                    let s = fmi2SetInteger(c, vrs.as_ptr(), n, values.as_ptr());
-                    self.check(s, "fmi2SetInteger");
                     let mut read = vec![0; n];
-                    let s = fmi2GetInteger(c, vrs.as_ptr(), n, read.as_mut_ptr());
-                    self.check(s, "fmi2GetInteger");
+                    // Integers and Booleans (builtin_laws) share the C type.
+                    if self.rng.chance(50) {
+                        let s = fmi2SetInteger(c, vrs.as_ptr(), n, values.as_ptr());
+                        self.check(s, "fmi2SetInteger");
+                        let s = fmi2GetInteger(c, vrs.as_ptr(), n, read.as_mut_ptr());
+                        self.check(s, "fmi2GetInteger");
+                    } else {
+                        let s = fmi2SetBoolean(c, vrs.as_ptr(), n, values.as_ptr());
+                        self.check(s, "fmi2SetBoolean");
+                        let s = fmi2GetBoolean(c, vrs.as_ptr(), n, read.as_mut_ptr());
+                        if self.check(s, "fmi2GetBoolean") == fmi2Status_fmi2OK {
+                            assert!(read.iter().all(|v| *v == 0 || *v == 1), "{read:?}");
+                        }
+                    }
                 }
                 11 => {
                     let mut state: fmi2FMUstate = null_mut();

@@ -52,6 +52,9 @@ fn communication_step_does_not_change_the_answer() {
 #[test]
 fn free_run_conserves_energy() {
     let mut sim = Simulation::new();
+    // No torques: the built-in laws off, the inputs at 0.
+    let laws = value_reference("builtin_laws").unwrap();
+    sim.set(laws, Value::Boolean(false), true).unwrap();
     set(&mut sim, "omega2_0", 6.0);
     set(&mut sim, "twist12_0", 0.2);
     set(&mut sim, "twist34_0", -0.1);

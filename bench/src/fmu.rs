@@ -169,6 +169,11 @@ impl Fmu {
                 b.fmi2SetInteger(c, &self.vr("solver"), 1, &scenario.solver),
                 "fmi2SetInteger",
             )?;
+            let laws = i32::from(scenario.builtin_laws);
+            check(
+                b.fmi2SetBoolean(c, &self.vr("builtin_laws"), 1, &laws),
+                "fmi2SetBoolean",
+            )?;
             check(
                 b.fmi2ExitInitializationMode(c),
                 "fmi2ExitInitializationMode",

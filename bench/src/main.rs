@@ -22,12 +22,13 @@ use std::time::{Duration, Instant};
 
 use cyclic_mechanism::model::{self, Inputs, Parameters, State};
 
-/// A benchmark scenario: parameters by FMI name, the stop time, and the FMU's `solver`
-/// (1 auto, 2 dop853, 3 implicit).
+/// A benchmark scenario: parameters by FMI name, whether the built-in torque laws apply
+/// (`builtin_laws`), the stop time, and the FMU's `solver` (1 auto, 2 dop853, 3 implicit).
 pub struct Scenario {
     pub name: &'static str,
     pub stop: f64,
     pub values: &'static [(&'static str, f64)],
+    pub builtin_laws: bool,
     pub solver: i32,
 }
 
@@ -42,6 +43,7 @@ pub const SCENARIOS: [Scenario; 2] = [
             ("Mr_b0", 20.0),
             ("Mr_b1", -0.05),
         ],
+        builtin_laws: true,
         solver: 1,
     },
     Scenario {
@@ -53,6 +55,7 @@ pub const SCENARIOS: [Scenario; 2] = [
             ("twist34_0", -0.1),
             ("omega4_0", -1.0),
         ],
+        builtin_laws: false,
         solver: 1,
     },
 ];
@@ -76,6 +79,7 @@ fn stiff_study(fmu: &fmu::Fmu, out: &mut String) {
         name,
         stop: 1.0,
         values: STIFF_VALUES,
+        builtin_laws: true,
         solver,
     };
     // The reference: DOP853 at 1e-12 (the implicit method's error is then independent).
@@ -122,7 +126,10 @@ pub const SAMPLES: usize = 100;
 
 impl Scenario {
     pub fn parameters(&self) -> Parameters {
-        let mut p = Parameters::default();
+        let mut p = Parameters {
+            builtin_laws: self.builtin_laws,
+            ..Parameters::default()
+        };
         for (name, value) in self.values {
             p.set_by_name(name, *value)
                 .expect("scenario parameters are valid");

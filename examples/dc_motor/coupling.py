@@ -5,8 +5,9 @@
 The motor (examples/dc_motor/dc_motor.py) is built into an FMU with pythonfmu; each
 communication step the master passes the mechanism's `omega1` to the motor and the motor's
 `torque` to the mechanism's `M_m` (Jacobi coupling: both step from the previous outputs).
-The load is the paper's law [80], built into the mechanism, plus dampers (c4 on the load,
-d34 across its spring): M_r acts on body 4, which only swings, so the dampers are what
+The motor replaces the mechanism's built-in motor law, whose coefficients are set to 0;
+the load is the paper's law [80], still built in, plus dampers (c4 on the load, d34
+across its spring). (`builtin_laws = false` would switch off both laws at once.) M_r acts on body 4, which only swings, so the dampers are what
 consume power. The motor runs up towards its no-load speed V/k = 12 rad/s and settles
 below it, drawing the current that feeds the dampers. (Without damping the crank, turning
 near √(k34/J4) ≈ 12 rad/s, drives the load spring into resonance.)
@@ -28,6 +29,11 @@ import numpy as np  # noqa: E402
 from fmpy.fmi2 import FMU2Slave  # noqa: E402
 
 HERE = pathlib.Path(__file__).resolve().parent
+
+# The mechanism's settings: no built-in motor law (the DC motor drives M_m), the paper's
+# load law, and dampers.
+MECHANISM = {"Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0, "Mr_b0": 20.0, "Mr_b1": -0.05,
+             "c4": 0.5, "d34": 1.0}
 
 
 def build_motor(out):
@@ -55,8 +61,7 @@ def run(mechanism_fmu, out, stop_time=5.0, step=1e-3):
         slave.instantiate()
         slave.setupExperiment(startTime=0.0, stopTime=stop_time)
         slave.enterInitializationMode()
-    load_law = {"Mr_b0": 20.0, "Mr_b1": -0.05, "c4": 0.5, "d34": 1.0}
-    mech.setReal([mech_vr[n] for n in load_law], list(load_law.values()))
+    mech.setReal([mech_vr[n] for n in MECHANISM], list(MECHANISM.values()))
     for slave in (motor, mech):
         slave.exitInitializationMode()
     rows = []

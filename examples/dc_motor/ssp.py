@@ -17,7 +17,7 @@ from fmpy.ssp.ssd import read_ssv
 
 import coupling
 
-LOAD = {"Mr_b0": 20.0, "Mr_b1": -0.05, "c4": 0.5, "d34": 1.0}
+LOAD = coupling.MECHANISM  # the built-in motor law off, the load law and dampers
 
 SSD = """<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription version="1.0" name="MotorDrivenMechanism"

@@ -11,7 +11,7 @@ A specification is a TOML file or the equivalent dict::
     step = 0.01                        # communication step
     tolerance = 1e-8                   # optional: passed to fmi2SetupExperiment
     timeout = 60.0                     # optional: wall-time budget per point, seconds
-    parameters = { Mm_a0 = 100.0 }     # fixed for every point
+    parameters = { d34 = 0.5 }         # fixed for every point (a Boolean: true or false)
     inputs = { M_r = 5.0, M_m = { times = [0, 1], values = [0, 10] } }
 
     [design]
@@ -142,7 +142,7 @@ class Spec:
             if timeout <= 0:
                 raise SpecError("scenario.timeout", f"must be > 0 seconds, got {timeout}")
         parameters = {
-            name: _number(value, f"scenario.parameters.{name}")
+            name: _setting(value, f"scenario.parameters.{name}")
             for name, value in _table(scenario, "parameters", "scenario").items()
         }
         inputs = {
@@ -243,6 +243,14 @@ def _number(value, where: str) -> float:
     if not math.isfinite(value):
         raise SpecError(where, f"must be finite, got {value}")
     return value
+
+
+def _setting(value, where: str) -> float:
+    """A fixed parameter's value: a number, or true/false for a Boolean (1 or 0, as the
+    runner passes Booleans)."""
+    if isinstance(value, bool):
+        return float(value)
+    return _number(value, where)
 
 
 def _input(value, where: str) -> dict:

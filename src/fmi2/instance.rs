@@ -552,6 +552,16 @@ impl Instance {
         Ok(())
     }
 
+    pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [i32]) -> Outcome {
+        self.assemble_if_needed()?;
+        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
+            if let Value::Boolean(v) = self.sim.read(*vr, VarType::Boolean)? {
+                *value = i32::from(v);
+            }
+        }
+        Ok(())
+    }
+
     /// Validate every value first, then apply: a rejected batch changes nothing.
     pub fn set_values(
         &mut self,

@@ -114,7 +114,7 @@ fn unknown_references(kind: &str, vrs: &[fmi2ValueReference]) -> Outcome {
     match vrs.first() {
         None => Ok(()),
         Some(vr) => Err(Failure::error(format!(
-            "no {kind} variable has value reference {vr} (all variables are Real)"
+            "no {kind} variable has value reference {vr} (this FMU has no {kind} variables)"
         ))),
     }
 }
@@ -390,7 +390,44 @@ pub unsafe extern "C" fn fmi2SetInteger(
     })
 }
 
-/// Boolean and String accessors: this FMU has no such variables, so any value reference is
+/// # Safety
+/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2GetBoolean(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *mut fmi2Boolean,
+) -> fmi2Status {
+    guarded(c, Call::Get, "fmi2GetBoolean", |instance| {
+        // SAFETY: FMI contract on the arrays.
+        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+        // SAFETY: FMI contract on the arrays.
+        let values = unsafe { slice_mut(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
+        instance.get_boolean(vrs, values)
+    })
+}
+
+/// # Safety
+/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
+#[no_mangle]
+pub unsafe extern "C" fn fmi2SetBoolean(
+    c: fmi2Component,
+    vr: *const fmi2ValueReference,
+    nvr: usize,
+    value: *const fmi2Boolean,
+) -> fmi2Status {
+    guarded(c, Call::Set, "fmi2SetBoolean", |instance| {
+        // SAFETY: FMI contract on the arrays.
+        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+        // SAFETY: FMI contract on the arrays.
+        let values = unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
+        // C's convention, which fmi2True (1) and fmi2False (0) follow: any non-zero is true.
+        instance.set_values(vrs, values.iter().map(|v| Value::Boolean(*v != 0)))
+    })
+}
+
+/// String accessors: this FMU has no String variables, so any value reference is
 /// unknown; an empty request succeeds.
 macro_rules! no_variables_of_type {
     ($name:ident, $call:expr, $kind:literal, $ptr:ty) => {
@@ -412,9 +449,7 @@ macro_rules! no_variables_of_type {
     };
 }
 
-no_variables_of_type!(fmi2GetBoolean, Call::Get, "Boolean", *mut fmi2Boolean);
 no_variables_of_type!(fmi2GetString, Call::Get, "String", *mut fmi2String);
-no_variables_of_type!(fmi2SetBoolean, Call::Set, "Boolean", *const fmi2Boolean);
 no_variables_of_type!(fmi2SetString, Call::Set, "String", *const fmi2String);
 
 // ---------------------------------------------------------------------------------------

@@ -325,7 +325,7 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
                 typed =
                     typed.with_attribute(("declaredType", v.declared_type().unwrap_or(SOLVER_TYPE)))
             }
-            VarType::Integer => {}
+            VarType::Integer | VarType::Boolean => {}
         }
         let range = v
             .range()
@@ -333,7 +333,7 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
         if let Some((low, high)) = &range {
             typed = typed.with_attributes([("min", low.as_str()), ("max", high.as_str())]);
         }
-        let start = v.start().map(|s| s.to_string());
+        let start = start_text(v);
         if let Some(start) = &start {
             typed = typed.with_attribute(("start", start.as_str()));
         }
@@ -396,14 +396,20 @@ fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     Ok(())
 }
 
+/// The start value as the XML writes it: a number, or `true`/`false` for a Boolean.
+fn start_text(v: &Variable) -> Option<String> {
+    v.start().map(|s| match v.var_type() {
+        VarType::Boolean => (s != 0.0).to_string(),
+        _ => s.to_string(),
+    })
+}
+
 /// One row per variable: name, causality, unit, start, description (for the tables of the
 /// README and of the FMU's `documentation/index.html`).
 pub fn variable_rows() -> Vec<[String; 5]> {
     variables()
         .map(|(_, v)| {
-            let start = v
-                .start()
-                .map_or("calculated".to_string(), |s| s.to_string());
+            let start = start_text(&v).unwrap_or_else(|| "calculated".to_string());
             [
                 v.name,
                 v.causality().as_str(),

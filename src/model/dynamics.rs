@@ -4,9 +4,13 @@
 use super::kinematics::{constraint_terms, ConstraintTerms};
 use super::{Inputs, Parameters, Scalar, State};
 
-/// Motor and load torques after adding the built-in laws (docs/model.md §4).
+/// Motor and load torques: the inputs, plus the built-in laws while they are on
+/// (docs/model.md §4, the paper's [79] and [80]).
 #[inline]
 pub fn applied_torques<T: Scalar>(p: &Parameters, inputs: &Inputs<T>, omega1: T) -> (T, T) {
+    if !p.builtin_laws {
+        return (inputs.motor_torque, inputs.load_torque);
+    }
     let motor = inputs.motor_torque + p.Mm_a0 + (omega1 * p.Mm_a2 + p.Mm_a1) * omega1;
     let load = inputs.load_torque + p.Mr_b0 + omega1 * p.Mr_b1;
     (motor, load)
@@ -141,10 +145,12 @@ mod tests {
 
     #[test]
     fn accelerations_satisfy_the_constrained_equations() {
-        let mut p = Parameters::default().with_paper_laws();
-        p.d12 = 0.3;
-        p.d34 = 0.2;
-        p.c4 = 0.1;
+        let p = Parameters {
+            d12: 0.3,
+            d34: 0.2,
+            c4: 0.1,
+            ..Parameters::default()
+        };
         let inputs = Inputs {
             motor_torque: 1.5,
             load_torque: -0.5,
@@ -164,8 +170,21 @@ mod tests {
     }
 
     #[test]
+    fn builtin_laws_add_to_the_inputs_and_switch_off() {
+        let inputs = Inputs {
+            motor_torque: 3.0,
+            load_torque: -2.0,
+        };
+        // The paper's laws by default: at omega1 = 2, 100 - 40 - 4 and 20 - 0.1.
+        let on = applied_torques(&Parameters::default(), &inputs, 2.0);
+        assert_eq!(on, (3.0 + 56.0, -2.0 + 19.9));
+        let off = applied_torques(&Parameters::default().without_builtin_laws(), &inputs, 2.0);
+        assert_eq!(off, (3.0, -2.0));
+    }
+
+    #[test]
     fn restoring_springs_with_corrected_sign() {
-        let p = Parameters::default();
+        let p = Parameters::default().without_builtin_laws();
         // Body 2 ahead of body 1: the k12 spring pulls body 1 forward (docs/model.md §5).
         let y = [0.0, 0.1, 1.48, 1.48, 0.0, 0.0, 0.0, 0.0];
         let q = generalized_forces(&p, &Inputs::default(), &y);
@@ -177,10 +196,12 @@ mod tests {
 
     #[test]
     fn power_is_the_energy_rate() {
-        let mut p = Parameters::default().with_paper_laws();
-        p.d12 = 0.4;
-        p.d34 = 0.7;
-        p.c4 = 0.2;
+        let p = Parameters {
+            d12: 0.4,
+            d34: 0.7,
+            c4: 0.2,
+            ..Parameters::default()
+        };
         let inputs = Inputs {
             motor_torque: 2.0,
             load_torque: 1.0,
@@ -203,8 +224,10 @@ mod tests {
     fn rod_force_is_the_tension_that_turns_the_rocker() {
         // Independent of λ: a tension T pulls pin A3 towards A2 with force T·d/|d|; its
         // moment about O3 must be the rocker's J3·ω̇3 − Q3, and likewise for the crank.
-        let mut p = Parameters::default().with_paper_laws();
-        p.d34 = 0.3;
+        let p = Parameters {
+            d34: 0.3,
+            ..Parameters::default()
+        };
         let inputs = Inputs {
             motor_torque: 3.0,
             load_torque: 0.0,

@@ -80,10 +80,17 @@ macro_rules! parameters {
         /// Parameter values, by their FMI names (docs/model.md §1, §3, §4).
         #[allow(non_snake_case)]
         #[derive(Clone, Copy, Debug, PartialEq)]
-        pub struct Parameters { $(#[doc = $descr] pub $field: f64,)* }
+        pub struct Parameters {
+            $(#[doc = $descr] pub $field: f64,)*
+            /// Whether the built-in motor and load laws (the coefficients `Mm_a*`, `Mr_b*`)
+            /// add to the inputs M_m and M_r; off, the torques are the inputs alone, for
+            /// external motor and load models (docs/model.md §4). The FMI Boolean
+            /// parameter `builtin_laws`.
+            pub builtin_laws: bool,
+        }
 
         impl Default for Parameters {
-            fn default() -> Self { Self { $($field: $default,)* } }
+            fn default() -> Self { Self { $($field: $default,)* builtin_laws: true } }
         }
 
         /// Every parameter's metadata, in field order: index `i` here is index `i` of
@@ -131,11 +138,11 @@ parameters! {
     omega1_0: "rad/s", 0.0, Rule::Finite(MAX_SPEED), "Initial speed of body 1";
     omega2_0: "rad/s", 0.0, Rule::Finite(MAX_SPEED), "Initial speed of the crank; omega3(0) follows from the constraint";
     omega4_0: "rad/s", 0.0, Rule::Finite(MAX_SPEED), "Initial speed of body 4";
-    Mm_a0: "N.m", 0.0, Rule::Finite(MAX_TORQUE), "Built-in motor law: M_m += Mm_a0 + Mm_a1*omega1 + Mm_a2*omega1^2 (paper: 100)";
-    Mm_a1: "N.m.s/rad", 0.0, Rule::Finite(MAX_TORQUE), "Built-in motor law, linear coefficient (paper: -20)";
-    Mm_a2: "N.m.s2/rad2", 0.0, Rule::Finite(MAX_TORQUE), "Built-in motor law, quadratic coefficient (paper: -1)";
-    Mr_b0: "N.m", 0.0, Rule::Finite(MAX_TORQUE), "Built-in load law: M_r += Mr_b0 + Mr_b1*omega1 (paper: 20)";
-    Mr_b1: "N.m.s/rad", 0.0, Rule::Finite(MAX_TORQUE), "Built-in load law, linear coefficient in omega1 (paper: -0.05)";
+    Mm_a0: "N.m", 100.0, Rule::Finite(MAX_TORQUE), "Built-in motor law (while builtin_laws): M_m += Mm_a0 + Mm_a1*omega1 + Mm_a2*omega1^2; the paper's 100";
+    Mm_a1: "N.m.s/rad", -20.0, Rule::Finite(MAX_TORQUE), "Built-in motor law, linear coefficient; the paper's -20";
+    Mm_a2: "N.m.s2/rad2", -1.0, Rule::Finite(MAX_TORQUE), "Built-in motor law, quadratic coefficient; the paper's -1";
+    Mr_b0: "N.m", 20.0, Rule::Finite(MAX_TORQUE), "Built-in load law (while builtin_laws): M_r += Mr_b0 + Mr_b1*omega1; the paper's 20";
+    Mr_b1: "N.m.s/rad", -0.05, Rule::Finite(MAX_TORQUE), "Built-in load law, linear coefficient in omega1; the paper's -0.05";
 }
 
 impl Parameters {
@@ -164,13 +171,10 @@ impl Parameters {
         self.set(index, value)
     }
 
-    /// The paper's built-in motor and load laws, [79] and [80] (docs/model.md §4).
-    pub fn with_paper_laws(mut self) -> Self {
-        self.Mm_a0 = 100.0;
-        self.Mm_a1 = -20.0;
-        self.Mm_a2 = -1.0;
-        self.Mr_b0 = 20.0;
-        self.Mr_b1 = -0.05;
+    /// The same parameters with the built-in laws off: the torques are the inputs alone
+    /// (an external motor and load, or a free run) (docs/model.md §4).
+    pub fn without_builtin_laws(mut self) -> Self {
+        self.builtin_laws = false;
         self
     }
 

@@ -14,6 +14,10 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 PAPER_LAWS = dict(Mm_a0=100.0, Mm_a1=-20.0, Mm_a2=-1.0, Mr_b0=20.0, Mr_b1=-0.05)
+# No torque at all: the built-in laws off (the inputs stay at 0).
+NO_LAWS = dict(builtin_laws=False)
+# The 100 s free run: spring windings and pushes, no torque, no damper.
+FREE_RUN = dict(NO_LAWS, omega2_0=6.0, twist12_0=0.2, twist34_0=-0.1, omega4_0=-1.0)
 
 
 @dataclass
@@ -35,11 +39,13 @@ class Params:
     omega1_0: float = 0.0
     omega2_0: float = 0.0
     omega4_0: float = 0.0
-    Mm_a0: float = 0.0
-    Mm_a1: float = 0.0
-    Mm_a2: float = 0.0
-    Mr_b0: float = 0.0
-    Mr_b1: float = 0.0
+    # The FMU's interface: the paper's laws by default, off with builtin_laws=False.
+    Mm_a0: float = 100.0
+    Mm_a1: float = -20.0
+    Mm_a2: float = -1.0
+    Mr_b0: float = 20.0
+    Mr_b1: float = -0.05
+    builtin_laws: bool = True
     M_m: float = 0.0  # constant inputs
     M_r: float = 0.0
     extra: dict = field(default_factory=dict)
@@ -64,6 +70,8 @@ def pins(p, phi2, phi3):
 
 
 def torques(p, w1):
+    if not p.builtin_laws:
+        return p.M_m, p.M_r
     motor = p.M_m + p.Mm_a0 + p.Mm_a1 * w1 + p.Mm_a2 * w1**2
     load = p.M_r + p.Mr_b0 + p.Mr_b1 * w1
     return motor, load

@@ -75,6 +75,10 @@ def test_initial_unknowns_depend_on_exactly_their_declared_knowns(unzipped, mode
             fmu.set(known.name, moved_to)
             changed = moved(base, read(fmu, unknowns), rounding=1e-12)
             fmu.set(known.name, value)
+        elif known.type == "Boolean":  # builtin_laws: on -> off
+            fmu.slave.setBoolean([known.valueReference], [False])
+            changed = moved(base, read(fmu, unknowns))
+            fmu.slave.setBoolean([known.valueReference], [True])
         else:  # solver: auto (1) -> implicit (3)
             fmu.slave.setInteger([known.valueReference], [3])
             changed = moved(base, read(fmu, unknowns))

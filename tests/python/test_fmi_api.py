@@ -52,7 +52,10 @@ class Harness:
         return values[0] if len(names) == 1 else values
 
     def set(self, name, value):
-        self.slave.setReal([self.vr[name]], [value])
+        if isinstance(value, bool):
+            self.slave.setBoolean([self.vr[name]], [value])
+        else:
+            self.slave.setReal([self.vr[name]], [value])
 
     def expect(self, status, call, *args):
         """Call and expect `status`; returns the messages logged by the call."""
@@ -233,7 +236,7 @@ def test_calls_of_the_other_interface_are_refused_with_a_reason(fmu):
 
 
 def test_terminate_then_reset_restores_start_values(fmu):
-    fmu.initialise(k34=40.0, Mm_a0=100.0)
+    fmu.initialise(k34=40.0, Mm_a0=50.0, builtin_laws=False, omega1_0=2.0)
     fmu.slave.doStep(0.0, 0.5)
     fmu.slave.terminate()
     fmu.expect(ERROR, fmu.slave.doStep, 0.5, 0.1)
@@ -242,7 +245,8 @@ def test_terminate_then_reset_restores_start_values(fmu):
     assert fmu.slave.getBooleanStatus(fmi2.fmi2Terminated) is False
     fmu.slave.reset()
     fmu.initialise()
-    assert fmu.get("k34") == 100.0 and fmu.get("Mm_a0") == 0.0 and fmu.get("phi1") == 0.0
+    assert fmu.get("k34") == 100.0 and fmu.get("Mm_a0") == 100.0 and fmu.get("phi1") == 0.0
+    assert fmu.slave.getBoolean([fmu.vr["builtin_laws"]]) == [True]
     fmu.slave.doStep(0.0, 0.1)
     assert fmu.slave.getRealStatus(fmi2.fmi2LastSuccessfulTime) == 0.1
 

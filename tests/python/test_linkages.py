@@ -12,10 +12,10 @@ import reference
 from conftest import simulate, states
 from test_fmi_api import DISCARD, Harness
 
-FREE = dict(omega1_0=6.0, twist12_0=0.3)  # a push and a wound spring, no torque, no damper
+FREE = dict(reference.NO_LAWS, omega1_0=6.0, twist12_0=0.3)  # a push and a wound spring, no torque, no damper
 # The double-rocker with that much energy is chaotic (the reference at 1e-11 and at 1e-12
 # part by 0.2 within 10 s): it gets a gentler push.
-FREE_GENTLE = dict(omega1_0=2.0)
+FREE_GENTLE = dict(reference.NO_LAWS, omega1_0=2.0)
 GEOMETRIES = {
     # s + ℓ > p + q: no link turns fully; the crank swings back at its dead points.
     "non_grashof": dict(L=0.96, phi2_0=np.pi),

@@ -14,8 +14,8 @@ OUTPUTS = {**{f"phi{i}": "rad" for i in range(1, 5)}, **{f"omega{i}": "rad/s" fo
 PARAMETERS = {"J1": 0.5, "J2": 0.2, "J3": 0.3, "J4": 0.7, "k12": 100.0, "k34": 100.0, "d12": 0.0,
               "d34": 0.0, "c4": 0.0, "l": 0.5, "l2": 0.05, "l3": 0.5, "L": 0.7, "phi2_0": 0.0,
               "phi3_guess": math.pi / 2, "twist12_0": 0.0, "twist34_0": 0.0, "omega1_0": 0.0,
-              "omega2_0": 0.0, "omega4_0": 0.0, "Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0,
-              "Mr_b0": 0.0, "Mr_b1": 0.0}
+              "omega2_0": 0.0, "omega4_0": 0.0, "Mm_a0": 100.0, "Mm_a1": -20.0, "Mm_a2": -1.0,
+              "Mr_b0": 20.0, "Mr_b1": -0.05}  # the laws default to the paper's case 1
 INTEGER_OUTPUTS = {"n_steps", "n_rejected", "n_rhs", "active_solver"}
 ENUMERATION_OUTPUTS = {"active_solver"}
 
@@ -34,7 +34,7 @@ EXCHANGE = {"loop_angle": ("rad", None), "loop_speed": ("rad/s", None), "loop_ch
 def test_interface_is_as_specified(model_description):
     variables = by_name(model_description)
     assert set(variables) == (set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS
-                              | {"solver", "linkage_class"} | set(EXCHANGE))
+                              | {"solver", "linkage_class", "builtin_laws"} | set(EXCHANGE))
     for name, (unit, derivative_of) in EXCHANGE.items():
         v = variables[name]
         assert (v.causality, v.unit, v.initial) == ("local", unit, "calculated"), name
@@ -69,6 +69,8 @@ def test_interface_is_as_specified(model_description):
     solver = variables["solver"]
     assert (solver.type, solver.causality, solver.variability, int(solver.start)) == ("Enumeration", "parameter", "fixed", 1)
     assert [(i.name, int(i.value)) for i in solver.declaredType.items] == [("auto", 1), ("dop853", 2), ("implicit", 3)]
+    laws = variables["builtin_laws"]
+    assert (laws.type, laws.causality, laws.variability, laws.start) == ("Boolean", "parameter", "fixed", "true")
     linkage = variables["linkage_class"]
     assert (linkage.type, linkage.causality, linkage.variability) == ("Enumeration", "output", "discrete")
     assert [i.name for i in linkage.declaredType.items][:2] == ["crank_rocker", "double_crank"]
@@ -91,20 +93,24 @@ def test_binary_serves_every_declared_variable_with_its_start(unzipped, model_de
     fmu = Harness(unzipped, model_description).instantiate()
     fmu.slave.setupExperiment(startTime=0.0)
     fmu.slave.enterInitializationMode()
+    accessors = {"Real": (fmu.slave.getReal, fmu.slave.setReal, float),
+                 "Boolean": (fmu.slave.getBoolean, fmu.slave.setBoolean, lambda s: s == "true")}
     for v in model_description.modelVariables:
         real = v.type == "Real"
-        get, set_ = (fmu.slave.getReal, fmu.slave.setReal) if real else (fmu.slave.getInteger, fmu.slave.setInteger)
+        get, set_, parse = accessors.get(v.type, (fmu.slave.getInteger, fmu.slave.setInteger, int))
         value = get([v.valueReference])[0]
         if v.start is not None:
-            assert value == (float(v.start) if real else int(v.start)), v.name
+            assert value == parse(v.start), v.name
         assert math.isfinite(value), v.name
         if v.causality in ("output", "local"):
             with pytest.raises(Exception):
                 set_([v.valueReference], [1])
         else:
             set_([v.valueReference], [value])  # writable in initialisation mode
-        # The other accessor type is refused.
+        # The other accessor types are refused.
         wrong = fmu.slave.getInteger if real else fmu.slave.getReal
+        assert f"{v.name} is of type" in fmu.expect(ERROR, wrong, [v.valueReference])
+        wrong = fmu.slave.getReal if v.type == "Boolean" else fmu.slave.getBoolean
         assert f"{v.name} is of type" in fmu.expect(ERROR, wrong, [v.valueReference])
     references = sorted(v.valueReference for v in model_description.modelVariables)
     assert references == list(range(len(references))), "the binary's table is dense"

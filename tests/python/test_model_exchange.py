@@ -18,7 +18,7 @@ from test_linkages import GEOMETRIES
 
 CONTINUOUS = ["phi1", "loop_angle", "phi4", "omega1", "loop_speed", "omega4"]
 DERIVATIVES = [f"der({name})" for name in CONTINUOUS]
-FREE_RUN = dict(omega2_0=6.0, twist12_0=0.2, twist34_0=-0.1, omega4_0=-1.0)
+FREE_RUN = reference.FREE_RUN
 
 
 def exchange(unzipped, values, stop_time, interval, tolerance=1e-10, outputs=STATES, **options):
@@ -110,7 +110,7 @@ def test_forward_euler_converges_at_order_one(unzipped, paper_cases, report):
 def test_linkages_through_their_dead_points(unzipped, name, report):
     """The crank's dead points are crossed by handing the lead to the rocker at the event
     indicator's zero; a double crank winds both angles without any event."""
-    values = dict(GEOMETRIES[name], omega1_0=6.0, twist12_0=0.3)
+    values = dict(GEOMETRIES[name], **reference.NO_LAWS, omega1_0=6.0, twist12_0=0.3)
     times = np.linspace(0.0, 10.0, 1001)
     expected = reference.solve(reference.Params(**values), times, rtol=1e-13)
     errors = []
@@ -135,7 +135,7 @@ def test_linkages_through_their_dead_points(unzipped, name, report):
 def test_cvode_hands_over_at_every_dead_point(unzipped):
     """The handover path alone, cheap enough for the valgrind run: a non-Grashof linkage
     swings through the crank's dead points; every output stays finite and on the loop."""
-    values = dict(GEOMETRIES["non_grashof"], omega1_0=6.0, twist12_0=0.3)
+    values = dict(GEOMETRIES["non_grashof"], **reference.NO_LAWS, omega1_0=6.0, twist12_0=0.3)
     result = exchange(unzipped, values, 3.0, 0.01, tolerance=1e-8,
                       outputs=STATES + ["loop_chart", "constraint_residual", "rod_force"])
     assert np.sum(np.diff(result["loop_chart"]) != 0) >= 2
@@ -161,7 +161,10 @@ class Model:
         self.fmu.setupExperiment(startTime=0.0)
         self.fmu.enterInitializationMode()
         for name, value in values.items():
-            self.fmu.setReal([self.vr[name]], [value])
+            if isinstance(value, bool):
+                self.fmu.setBoolean([self.vr[name]], [value])
+            else:
+                self.fmu.setReal([self.vr[name]], [value])
         self.fmu.exitInitializationMode()
         if isinstance(self.fmu, FMU2Model):
             assert not self.fmu.newDiscreteStates()[0]

@@ -68,7 +68,7 @@ def test_rod_force_against_reference_multiplier(paper_runs):
         assert abs(fmu["rod_force"][i] - (-lam * p.L)) < 1e-6 * max(1.0, abs(lam)), i
 
 
-FREE_RUN = dict(omega2_0=6.0, twist12_0=0.2, twist34_0=-0.1, omega4_0=-1.0)
+FREE_RUN = reference.FREE_RUN
 
 
 def test_free_undamped_run_conserves_energy(unzipped, report):

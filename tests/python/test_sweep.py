@@ -34,6 +34,24 @@ def test_a_grid_runs_and_a_point_that_cannot_assemble_is_a_row(fmu_path, tmp_pat
     assert again.points.drop(columns=["wall_s", "worker"]).equals(p.drop(columns=["wall_s", "worker"]))
 
 
+def test_a_boolean_parameter_is_fixed_by_true_or_false_and_swept_by_0_or_1(fmu_path, tmp_path):
+    """builtin_laws off leaves the mechanism without torque: at rest it stays at rest."""
+    metrics = {"omega1": {"variable": "omega1", "kind": "final"},
+               "energy": {"variable": "energy", "kind": "max"}}
+    fixed = {"scenario": {"stop": 1.0, "step": 0.01, "parameters": {"builtin_laws": False}},
+             "design": {"kind": "list", "parameters": {"k34": {"values": [50.0, 100.0]}}},
+             "outputs": {"metrics": metrics}}
+    p = run_sweep(fixed, fmu=fmu_path, out=tmp_path / "fixed", serial=True, progress=False).points
+    assert (p["status"] == "ok").all() and (p["omega1"] == 0.0).all() and (p["energy"] == 0.0).all()
+    swept = dict(fixed, scenario={"stop": 1.0, "step": 0.01},
+                 design={"kind": "list", "parameters": {"builtin_laws": {"values": [0, 1]}}})
+    p = run_sweep(swept, fmu=fmu_path, out=tmp_path / "swept", serial=True, progress=False).points
+    assert list(p["omega1"] == 0.0) == [True, False] and p["omega1"].iloc[1] > 3.0, p
+    with pytest.raises(SpecError, match="builtin_laws"):
+        run_sweep(dict(swept, design={"kind": "list", "parameters": {"builtin_laws": {"values": [0, 2]}}}),
+                  fmu=fmu_path, out=tmp_path / "bad", serial=True, progress=False)
+
+
 def _broken(change):
     spec = grid_spec()
     change(spec)

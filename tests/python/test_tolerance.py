@@ -16,7 +16,7 @@ from conftest import STATES, simulate, states
 PROMISE = 10.0
 SCENARIOS = {
     "case1": (10.0, dict(reference.PAPER_LAWS)),
-    "free": (100.0, dict(omega2_0=6.0, twist12_0=0.2, twist34_0=-0.1, omega4_0=-1.0)),
+    "free": (100.0, dict(reference.FREE_RUN)),
 }
 REFERENCES = {}
 
