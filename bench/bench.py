@@ -231,11 +231,14 @@ def main(harness_json, fmu, out, quick):
 
     promise = tolerance_promise(fmu_rows)
     at_every_point = point_comparisons(rows, fmu_rows)
+    floor = distance_from_floor(fmu_rows, harness.get("c_ns_per_rhs"))
 
     machine = dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
                    cpus=__import__("os").cpu_count(), python=platform.python_version())
-    summary = dict(machine=machine, ns_per_rhs=harness["ns_per_rhs"], proportionality=proportionality,
-                   promise=promise, at_every_point=at_every_point,
+    summary = dict(machine=machine, ns_per_rhs=harness["ns_per_rhs"], c_ns_per_rhs=harness.get("c_ns_per_rhs"),
+                   proportionality=proportionality,
+                   promise=promise, at_every_point=at_every_point, floor=floor,
+                   compiled_targets=compiled_targets(at_every_point),
                    comparisons=comparisons, fmpy=fmpy_rows,
                    seconds_per_evaluation=per_evaluation, warm_restarts=warm, stiff=harness.get("stiff", []), results=rows)
     (out / "results.json").write_text(json.dumps(summary, indent=1))
@@ -258,6 +261,34 @@ def tolerance_promise(fmu_rows):
                  if any(math.isclose(t, p) for p in PROMISE_TOLERANCES)), default=None)
     return dict(table={sc: {str(h): {f"{t:.0e}": v for t, v in row.items()} for h, row in hs.items()}
                        for sc, hs in table.items()}, worst=worst)
+
+
+def distance_from_floor(fmu_rows, c_ns):
+    """The FMU's time against n_rhs × the bare compiled right-hand side (the floor); the
+    targets: ≤ 1.6 at H = 0.1, ≤ 2 at H = 0.01."""
+    if not c_ns:
+        return []
+    return [dict(scenario=r["scenario"], H=r["H"], tol=r["tol"], ratio=r["seconds"] / (r["n_rhs"] * c_ns * 1e-9))
+            for r in fmu_rows if r.get("n_rhs")]
+
+
+# Ratio targets at equal error at every point, tol ≤ 1e-6 (peer time / FMU time).
+COMPILED_TARGETS = {"hairer_dop853": 1.3, "lsoda": 2.0}
+
+
+def compiled_targets(at_every_point):
+    """Per peer with a target, scenario and H: the smallest ratio at tol ≤ 1e-6, and at
+    how many tolerances the target is met."""
+    out = []
+    for peer, target in COMPILED_TARGETS.items():
+        for key in sorted({(e["scenario"], e["H"]) for e in at_every_point}):
+            ratios = [e["peers"].get(peer) for e in at_every_point
+                      if (e["scenario"], e["H"]) == key and e["tol"] <= 1e-6 * (1 + 1e-9)]
+            known = [r for r in ratios if r is not None]
+            if known:
+                out.append(dict(peer=peer, scenario=key[0], H=key[1], target=target, worst=min(known),
+                                met=sum(r >= target for r in known), of=len(known)))
+    return out
 
 
 def point_comparisons(rows, fmu_rows):
@@ -300,7 +331,9 @@ def by_step(comparisons):
 def markdown(s):
     lines = [f"Machine: {s['machine']['processor']}, {s['machine']['cpus']} cores, {s['machine']['platform']}; "
              f"one run of `cargo xtask bench`.", "",
-             f"Right-hand side with its 2×2 solve: **{s['ns_per_rhs']:.1f} ns per evaluation**.", "",
+             f"Right-hand side with its 2×2 solve: **{s['ns_per_rhs']:.1f} ns per evaluation**"
+             + (f" (the bare C right-hand side of the compiled peers: {s['c_ns_per_rhs']:.1f} ns)."
+                if s.get("c_ns_per_rhs") else "."), "",
              "FMU through the C ABI against the fastest peer that reaches an equal or smaller final-time error "
              "(scipy: any method; Rust crates: same H). Ratio = peer time / FMU time; — means no peer run was "
              "that accurate.", "",
@@ -338,6 +371,19 @@ def markdown(s):
             cells = ["—" if e["peers"][p] is None else f"{e['peers'][p]:.2f}" for p in peers]
             lines.append(f"| {e['scenario']} | {e['H']:g} | {e['tol']:.0e} | {e['fmu_point_error']:.1e} | "
                          + " | ".join(cells) + " |")
+    if s.get("compiled_targets"):
+        lines += ["", "The targets against the compiled peers at tol ≤ 1e-6 (the smallest ratio at equal error at "
+                  "every point, and at how many tolerances the target is met):", "",
+                  "| peer | scenario | H | target | smallest ratio | met |", "| --- | --- | --- | --- | --- | --- |"]
+        for t in s["compiled_targets"]:
+            lines.append(f"| {t['peer']} | {t['scenario']} | {t['H']:g} | ≥ {t['target']}× | {t['worst']:.2f} | "
+                         f"{t['met']} of {t['of']} |")
+    if s.get("floor"):
+        lines += ["", "Distance from the floor: the FMU's time / (its n_rhs × the bare compiled right-hand side, "
+                  "timed in the same run); targets ≤ 1.6 at H = 0.1, ≤ 2 at H = 0.01:", "",
+                  "| scenario | H | tol | FMU / floor |", "| --- | --- | --- | --- |"]
+        for f in s["floor"]:
+            lines.append(f"| {f['scenario']} | {f['H']:g} | {f['tol']:.0e} | {f['ratio']:.2f} |")
     lines += ["", "Tolerance proportionality (final error in units of the solution's scale, tol 1e-3…1e-10):", "",
               "| run | slope | worst error / tol |", "| --- | --- | --- |"]
     for k, v in s["proportionality"].items():
@@ -374,9 +420,10 @@ def plot(rows, path):
     """Run time against the error at every communication point (what a user plots), for
     the methods the harness runs on the same communication grid; each panel's legend sits
     below it, off the data."""
-    fig, axes = plt.subplots(1, 2, figsize=(13, 7.5))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 8.5))
     for ax, name in zip(axes, SCENARIOS):
         methods = sorted({r["method"] for r in rows if r["scenario"] == name and r.get("max_point_error")})
+        ax.set_prop_cycle(color=plt.cm.tab20(np.linspace(0, 1, 20)))
         for method in methods:
             for h in sorted({r["H"] for r in rows if r["method"] == method and r.get("max_point_error")}):
                 if method != "fmu" and h != 1e-3:

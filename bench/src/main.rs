@@ -14,6 +14,7 @@
 //! states at 100 evenly spaced points; the Python driver computes the errors against the
 //! reference and writes the table and plot.
 
+mod compiled;
 mod fmu;
 mod peers;
 
@@ -320,10 +321,40 @@ fn json_states(samples: &[State]) -> String {
     format!("[{}]", rows.join(","))
 }
 
+/// The path after `flag`, if given.
+fn path_after(args: &[String], flag: &str) -> Option<std::path::PathBuf> {
+    let at = args.iter().position(|a| a == flag)?;
+    args.get(at + 1).map(std::path::PathBuf::from)
+}
+
 /// The directory after `--reference`, if given.
 fn reference_dir(args: &[String]) -> Option<std::path::PathBuf> {
-    let at = args.iter().position(|a| a == "--reference")?;
-    args.get(at + 1).map(std::path::PathBuf::from)
+    path_after(args, "--reference")
+}
+
+/// The compiled peers (`--compiled target/bench/libpeers.so --numbalsoda DIR`), checked to
+/// solve the model's equations; `None` without the flags. Exits on a load failure.
+fn load_compiled(args: &[String]) -> Option<compiled::Compiled> {
+    let library = path_after(args, "--compiled")?;
+    let numbalsoda = path_after(args, "--numbalsoda").unwrap_or_else(|| {
+        eprintln!("bench: --compiled needs --numbalsoda DIR (the package's shared libraries)");
+        std::process::exit(2);
+    });
+    let peers = compiled::Compiled::load(&library, &numbalsoda).unwrap_or_else(|e| {
+        eprintln!("bench: {e}");
+        std::process::exit(1);
+    });
+    for scenario in &SCENARIOS {
+        let difference = peers.rhs_difference(scenario);
+        if difference > 1e-12 {
+            eprintln!(
+                "bench: the C right-hand side differs from the model's by {difference:e} ({})",
+                scenario.name
+            );
+            std::process::exit(1);
+        }
+    }
+    Some(peers)
 }
 
 /// `scenario`'s reference from `dir`, checked to cover its whole run.
@@ -347,7 +378,8 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 3 {
         eprintln!(
-            "usage: bench <CyclicMechanism.fmu> <out.json> [--quick] [--fmu-only] [--reference DIR]"
+            "usage: bench <CyclicMechanism.fmu> <out.json> [--quick] [--fmu-only] [--reference DIR] \
+             [--compiled LIBPEERS --numbalsoda DIR] [--steps H,H] [--only METHOD,METHOD]"
         );
         std::process::exit(2);
     }
@@ -379,36 +411,66 @@ fn main() {
     } else {
         (3..=12).map(|e| 10f64.powi(-e)).collect()
     };
-    let steps: Vec<f64> = if quick {
-        vec![1e-3, 1e-1]
-    } else {
-        vec![1e-4, 1e-3, 1e-2, 1e-1]
+    let steps: Vec<f64> = match path_after(&args, "--steps") {
+        // A focused run: `--steps 0.01,0.1`.
+        Some(list) => list
+            .to_string_lossy()
+            .split(',')
+            .filter_map(|h| h.parse().ok())
+            .collect(),
+        None if quick => vec![1e-3, 1e-1],
+        None => vec![1e-4, 1e-3, 1e-2, 1e-1],
     };
+    // `--only fmu,hairer_dop853`: these methods alone.
+    let only: Option<Vec<String>> = path_after(&args, "--only").map(|list| {
+        list.to_string_lossy()
+            .split(',')
+            .map(str::to_string)
+            .collect()
+    });
+    let wanted = |method: &str| only.as_ref().is_none_or(|o| o.iter().any(|m| m == method));
     let rhs_ns = if fmu_only { f64::NAN } else { ns_per_rhs() };
     if !fmu_only {
         eprintln!("right-hand side: {rhs_ns:.1} ns per evaluation");
     }
+    let compiled = load_compiled(&args);
+    let c_rhs_ns = compiled
+        .as_ref()
+        .map_or(f64::NAN, |c| c.ns_per_rhs(&SCENARIOS[0]));
+    if compiled.is_some() {
+        eprintln!("bare C right-hand side: {c_rhs_ns:.1} ns per evaluation");
+    }
+    // Not measured: null, not NaN (which is not JSON).
+    let json = |v: f64| {
+        if v.is_finite() {
+            v.to_string()
+        } else {
+            "null".to_string()
+        }
+    };
     let mut out = String::new();
     write!(
         out,
-        "{{\"ns_per_rhs\": {}, \"samples\": {SAMPLES}, \"results\": [",
-        // Not measured in the smoke run: null, not NaN (which is not JSON).
-        if fmu_only {
-            "null".to_string()
-        } else {
-            rhs_ns.to_string()
-        }
+        "{{\"ns_per_rhs\": {}, \"c_ns_per_rhs\": {}, \"samples\": {SAMPLES}, \"results\": [",
+        json(rhs_ns),
+        json(c_rhs_ns)
     )
     .unwrap();
     let mut first = true;
     for (scenario, reference) in SCENARIOS.iter().zip(&references) {
         let reference = reference.as_ref();
         for &h in &steps {
+            let compiled_methods = compiled.iter().flat_map(|_| compiled::METHODS);
             let methods = peers::METHODS
                 .iter()
+                .copied()
+                .chain(compiled_methods)
                 .filter(|_| !fmu_only)
                 .map(|m| m.to_string());
-            for method in std::iter::once("fmu".to_string()).chain(methods) {
+            for method in std::iter::once("fmu".to_string())
+                .chain(methods)
+                .filter(|m| wanted(m))
+            {
                 let mut too_slow = false;
                 for &tol in &tolerances {
                     if too_slow {
@@ -417,6 +479,8 @@ fn main() {
                     let run = |reference| {
                         if method == "fmu" {
                             fmu.run(scenario, h, tol, reference)
+                        } else if compiled::METHODS.contains(&method.as_str()) {
+                            compiled.as_ref()?.run(&method, scenario, h, tol, reference)
                         } else {
                             peers::run(&method, scenario, h, tol, reference)
                         }

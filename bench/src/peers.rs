@@ -33,7 +33,7 @@ pub fn run(
 
 /// Samples, energy drift, constraint residual and the error at every communication point
 /// along a run.
-struct Recorder<'a> {
+pub(crate) struct Recorder<'a> {
     params: Parameters,
     every: usize,
     energy0: f64,
@@ -44,7 +44,12 @@ struct Recorder<'a> {
 }
 
 impl<'a> Recorder<'a> {
-    fn new(scenario: &Scenario, h: f64, y0: &State, reference: Option<&'a Reference>) -> Self {
+    pub(crate) fn new(
+        scenario: &Scenario,
+        h: f64,
+        y0: &State,
+        reference: Option<&'a Reference>,
+    ) -> Self {
         let params = scenario.parameters();
         let steps = (scenario.stop / h).round() as usize;
         Self {
@@ -58,7 +63,7 @@ impl<'a> Recorder<'a> {
         }
     }
 
-    fn record(&mut self, k: usize, y: &State) {
+    pub(crate) fn record(&mut self, k: usize, y: &State) {
         let residual = cyclic_mechanism::model::length_residual(&self.params, y[1], y[2]);
         self.max_residual = self.max_residual.max(residual.abs());
         let energy = cyclic_mechanism::model::energy(&self.params, y);
@@ -71,7 +76,7 @@ impl<'a> Recorder<'a> {
         }
     }
 
-    fn finish(self, n_rhs: u64) -> Outcome {
+    pub(crate) fn finish(self, n_rhs: u64) -> Outcome {
         Outcome {
             seconds: 0.0,
             runs: 0,

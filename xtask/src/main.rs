@@ -663,6 +663,58 @@ fn fuzz_under_valgrind() -> Result {
         .env("FUZZ_SEQUENCES", "300"))
 }
 
+/// The compiled peers: bench/compiled/peers.c (the C right-hand side, GSL's rk8pd and
+/// CVODE) built against Debian's libgsl-dev and libsundials-dev into
+/// target/bench/libpeers.so, and numbalsoda's DOP853 and LSODA libraries (built from
+/// PyPI's source with gfortran, without numba). Returns the library and numbalsoda's
+/// directory.
+fn build_compiled_peers(python: &Path) -> Result<(PathBuf, PathBuf)> {
+    let headers = [
+        "/usr/include/gsl/gsl_odeiv2.h",
+        "/usr/include/cvode/cvode.h",
+    ];
+    if !headers.iter().all(|h| Path::new(h).exists())
+        || Command::new("gfortran").arg("--version").output().is_err()
+    {
+        println!("xtask: installing gfortran, libgsl-dev and libsundials-dev (the compiled peers)");
+        apt_install(&["gfortran", "libgsl-dev", "libsundials-dev"])?;
+    }
+    let platlib = Command::new(python)
+        .args([
+            "-c",
+            "import sysconfig; print(sysconfig.get_paths()['platlib'])",
+        ])
+        .output()
+        .map_err(|e| format!("{}: {e}", python.display()))?;
+    let site = PathBuf::from(String::from_utf8_lossy(&platlib.stdout).trim()).join("numbalsoda");
+    let pins = root().join("bench/requirements.txt");
+    let stamp = site.join("requirements.installed");
+    let wanted = fs::read_to_string(&pins).map_err(|e| format!("{}: {e}", pins.display()))?;
+    if fs::read_to_string(&stamp).ok().as_deref() != Some(wanted.as_str()) {
+        println!("xtask: building numbalsoda's DOP853 and LSODA (bench/requirements.txt)");
+        run(Command::new(python)
+            .args(["-m", "pip", "install", "--quiet", "--no-deps", "-r"])
+            .arg(&pins))?;
+        fs::write(&stamp, &wanted).map_err(|e| e.to_string())?;
+    }
+    let library = root().join("target/bench/libpeers.so");
+    run(Command::new("cc")
+        .args([
+            "-O3", "-shared", "-fPIC", "-Wall", "-Wextra", "-Werror", "-o",
+        ])
+        .arg(&library)
+        .arg(root().join("bench/compiled/peers.c"))
+        .args([
+            "-lgsl",
+            "-lgslcblas",
+            "-lsundials_cvode",
+            "-lsundials_nvecserial",
+        ])
+        .args(["-lsundials_sunlinsoldense", "-lsundials_sunmatrixdense"])
+        .args(["-lsundials_sunnonlinsolfixedpoint", "-lm"]))?;
+    Ok((library, site))
+}
+
 /// The work-precision study: the Rust harness (FMU through its C ABI, Rust crates, ns per
 /// right-hand side), then the Python driver (reference, scipy, FMPy, table and plot).
 fn bench(quick: bool) -> Result {
@@ -679,12 +731,17 @@ fn bench(quick: bool) -> Result {
         .arg("reference")
         .arg(&out)
         .args(quick_flag))?;
+    let (peers, numbalsoda) = build_compiled_peers(&python)?;
     let mut command = Command::new(&program);
     command
         .arg(&fmu)
         .arg(&harness)
         .arg("--reference")
         .arg(&out)
+        .arg("--compiled")
+        .arg(&peers)
+        .arg("--numbalsoda")
+        .arg(&numbalsoda)
         .args(quick_flag);
     run(&mut command)?;
     let mut driver = Command::new(python);
