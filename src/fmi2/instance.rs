@@ -543,21 +543,22 @@ impl Instance {
     }
 
     pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> Outcome {
-        self.assemble_if_needed()?;
-        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            if let Value::Integer(v) = self.sim.read(*vr, VarType::Integer)? {
-                *value = v;
-            }
-        }
-        Ok(())
+        self.get_whole(vrs, values, VarType::Integer)
     }
 
     pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [i32]) -> Outcome {
+        self.get_whole(vrs, values, VarType::Boolean)
+    }
+
+    /// Integer (and Enumeration) or Boolean values, which C passes alike (1 for true).
+    fn get_whole(&mut self, vrs: &[u32], values: &mut [i32], accessor: VarType) -> Outcome {
         self.assemble_if_needed()?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            if let Value::Boolean(v) = self.sim.read(*vr, VarType::Boolean)? {
-                *value = i32::from(v);
-            }
+            *value = match self.sim.read(*vr, accessor)? {
+                Value::Integer(v) => v,
+                Value::Boolean(v) => i32::from(v),
+                Value::Real(_) => unreachable!("read checks the accessor's type"),
+            };
         }
         Ok(())
     }

@@ -318,114 +318,65 @@ pub extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
 // ---------------------------------------------------------------------------------------
 // Getting and setting values
 
-/// # Safety
-/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetReal(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    nvr: usize,
-    value: *mut fmi2Real,
-) -> fmi2Status {
-    guarded(c, Call::Get, "fmi2GetReal", |instance| {
-        // SAFETY: FMI contract on the arrays.
-        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
-        // SAFETY: FMI contract on the arrays.
-        let values = unsafe { slice_mut(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
-        instance.get_real(vrs, values)
-    })
+/// A getter of `fmi2Functions.h`: reads the variables `vr` through `Instance::$read`.
+macro_rules! getter {
+    ($name:ident, $ctype:ty, $read:ident) => {
+        /// # Safety
+        /// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi2Component,
+            vr: *const fmi2ValueReference,
+            nvr: usize,
+            value: *mut $ctype,
+        ) -> fmi2Status {
+            guarded(c, Call::Get, stringify!($name), |instance| {
+                // SAFETY: FMI contract on the arrays.
+                let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+                // SAFETY: FMI contract on the arrays.
+                let values =
+                    unsafe { slice_mut(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
+                instance.$read(vrs, values)
+            })
+        }
+    };
 }
 
-/// # Safety
-/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetReal(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    nvr: usize,
-    value: *const fmi2Real,
-) -> fmi2Status {
-    guarded(c, Call::Set, "fmi2SetReal", |instance| {
-        // SAFETY: FMI contract on the arrays.
-        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
-        // SAFETY: FMI contract on the arrays.
-        let values = unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
-        instance.set_values(vrs, values.iter().map(|v| Value::Real(*v)))
-    })
+/// A setter of `fmi2Functions.h`: each C value becomes a [`Value`] through `$value`.
+macro_rules! setter {
+    ($name:ident, $ctype:ty, $value:expr) => {
+        /// # Safety
+        /// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
+        #[no_mangle]
+        pub unsafe extern "C" fn $name(
+            c: fmi2Component,
+            vr: *const fmi2ValueReference,
+            nvr: usize,
+            value: *const $ctype,
+        ) -> fmi2Status {
+            guarded(c, Call::Set, stringify!($name), |instance| {
+                // SAFETY: FMI contract on the arrays.
+                let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
+                // SAFETY: FMI contract on the arrays.
+                let values =
+                    unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
+                instance.set_values(vrs, values.iter().map(|v| $value(*v)))
+            })
+        }
+    };
 }
 
-/// # Safety
-/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetInteger(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    nvr: usize,
-    value: *mut fmi2Integer,
-) -> fmi2Status {
-    guarded(c, Call::Get, "fmi2GetInteger", |instance| {
-        // SAFETY: FMI contract on the arrays.
-        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
-        // SAFETY: FMI contract on the arrays.
-        let values = unsafe { slice_mut(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
-        instance.get_integer(vrs, values)
-    })
-}
-
-/// # Safety
-/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetInteger(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    nvr: usize,
-    value: *const fmi2Integer,
-) -> fmi2Status {
-    guarded(c, Call::Set, "fmi2SetInteger", |instance| {
-        // SAFETY: FMI contract on the arrays.
-        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
-        // SAFETY: FMI contract on the arrays.
-        let values = unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
-        instance.set_values(vrs, values.iter().map(|v| Value::Integer(*v)))
-    })
-}
-
-/// # Safety
-/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
-#[no_mangle]
-pub unsafe extern "C" fn fmi2GetBoolean(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    nvr: usize,
-    value: *mut fmi2Boolean,
-) -> fmi2Status {
-    guarded(c, Call::Get, "fmi2GetBoolean", |instance| {
-        // SAFETY: FMI contract on the arrays.
-        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
-        // SAFETY: FMI contract on the arrays.
-        let values = unsafe { slice_mut(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
-        instance.get_boolean(vrs, values)
-    })
-}
-
-/// # Safety
-/// `vr` and `value` must hold `nvr` elements (FMI 2.0 contract).
-#[no_mangle]
-pub unsafe extern "C" fn fmi2SetBoolean(
-    c: fmi2Component,
-    vr: *const fmi2ValueReference,
-    nvr: usize,
-    value: *const fmi2Boolean,
-) -> fmi2Status {
-    guarded(c, Call::Set, "fmi2SetBoolean", |instance| {
-        // SAFETY: FMI contract on the arrays.
-        let vrs = unsafe { slice(vr, nvr) }.ok_or_else(|| null_argument("vr", nvr))?;
-        // SAFETY: FMI contract on the arrays.
-        let values = unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
-        // C's convention, which fmi2True (1) and fmi2False (0) follow: any non-zero is true.
-        instance.set_values(vrs, values.iter().map(|v| Value::Boolean(*v != 0)))
-    })
-}
+getter!(fmi2GetReal, fmi2Real, get_real);
+getter!(fmi2GetInteger, fmi2Integer, get_integer);
+getter!(fmi2GetBoolean, fmi2Boolean, get_boolean);
+setter!(fmi2SetReal, fmi2Real, Value::Real);
+setter!(fmi2SetInteger, fmi2Integer, Value::Integer);
+// C's convention, which fmi2True (1) and fmi2False (0) follow: any non-zero is true.
+setter!(
+    fmi2SetBoolean,
+    fmi2Boolean,
+    |v: fmi2Boolean| Value::Boolean(v != 0)
+);
 
 /// String accessors: this FMU has no String variables, so any value reference is
 /// unknown; an empty request succeeds.
