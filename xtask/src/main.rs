@@ -308,6 +308,14 @@ fn extra_binaries() -> Result<Vec<(String, PathBuf)>> {
     extra_binaries_in(&base)
 }
 
+/// The last component of `path`, as text.
+fn file_name(path: &Path) -> String {
+    path.file_name()
+        .unwrap_or_default()
+        .to_string_lossy()
+        .into_owned()
+}
+
 fn extra_binaries_in(base: &Path) -> Result<Vec<(String, PathBuf)>> {
     let mut found = Vec::new();
     let Ok(platforms) = fs::read_dir(base.join("binaries")) else {
@@ -315,11 +323,7 @@ fn extra_binaries_in(base: &Path) -> Result<Vec<(String, PathBuf)>> {
     };
     for platform in platforms {
         let platform = platform.map_err(|e| e.to_string())?.path();
-        let name = platform
-            .file_name()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into_owned();
+        let name = file_name(&platform);
         if name == "linux64" {
             return Err(format!(
                 "{}: linux64 is built here; remove it from the extra binaries",
@@ -328,11 +332,7 @@ fn extra_binaries_in(base: &Path) -> Result<Vec<(String, PathBuf)>> {
         }
         for file in fs::read_dir(&platform).map_err(|e| e.to_string())? {
             let file = file.map_err(|e| e.to_string())?.path();
-            let file_name = file
-                .file_name()
-                .unwrap_or_default()
-                .to_string_lossy()
-                .into_owned();
+            let file_name = file_name(&file);
             if !file_name.starts_with(MODEL_IDENTIFIER) {
                 return Err(format!(
                     "{}: an FMU binary must be named {MODEL_IDENTIFIER}.<dll|dylib|so>",
@@ -509,10 +509,12 @@ fn test() -> Result {
         .env("CYCLIC_MECHANISM_FMU", &fmu)
         .current_dir(root()))?;
     // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
-    // by the packed FMU, the test files and the installed packages alone.
+    // by the packed FMU, the test files, the installed packages and the selection and
+    // options below (in this file) alone.
     let mut inputs = vec![
         fmu.clone(),
         root().join("target/venv/requirements.installed"),
+        root().join("xtask/src/main.rs"),
     ];
     inputs.extend(files_with_extension(&root().join("tests/python"), "py")?);
     unless_passed_before("valgrind memcheck of the FMPy suite", &inputs, || {
