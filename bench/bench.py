@@ -45,7 +45,7 @@ def spec_rhs(p):
     J1, J2, J3, J4 = p.J
     l, l2, l3 = p.l, p.l2, p.l3
     laws = (p.Mm_a0, p.Mm_a1, p.Mm_a2, p.Mr_b0, p.Mr_b1) if p.builtin_laws else (0.0,) * 5
-    a0, a1, a2, b0, b1_ = laws
+    m0, m1, m2, r0, r1 = laws
 
     def rhs(t, y):
         phi1, phi2, phi3, phi4, w1, w2, w3, w4 = y
@@ -55,8 +55,8 @@ def spec_rhs(p):
         c1 = l3 * (l2 * s23 + l * s3)
         b1d = l2 * (l * c2 * w2 + l3 * c23 * (w2 - w3))
         c1d = l3 * (l2 * c23 * (w2 - w3) + l * c3 * w3)
-        motor = p.M_m + a0 + a1 * w1 + a2 * w1 * w1
-        load = p.M_r + b0 + b1_ * w1
+        motor = p.M_m + m0 + m1 * w1 + m2 * w1 * w1
+        load = p.M_r + r0 + r1 * w1
         s12 = p.k12 * (phi2 - phi1) + p.d12 * (w2 - w1)
         s34 = p.k34 * (phi3 - phi4) + p.d34 * (w3 - w4)
         q1, q2, q3, q4 = motor + s12, -s12, -s34, s34 - load - p.c4 * w4
@@ -328,6 +328,48 @@ def by_step(comparisons):
     return rows
 
 
+def at_every_point_lines(at_every_point):
+    """The table of ratios against each peer at equal error at every communication point."""
+    if not at_every_point:
+        return []
+    peers = sorted({p for e in at_every_point for p in e["peers"]})
+    lines = ["", "Against each peer at equal error at every communication point (the fastest peer run whose worst "
+             "error over all points is at most the FMU's, same H); peer time / FMU time, — when no peer run was "
+             "that accurate:", "",
+             "| scenario | H | tol | FMU worst point error | " + " | ".join(peers) + " |",
+             "| --- | --- | --- | --- |" + " --- |" * len(peers)]
+    for e in at_every_point:
+        cells = ["—" if e["peers"][p] is None else f"{e['peers'][p]:.2f}" for p in peers]
+        lines.append(f"| {e['scenario']} | {e['H']:g} | {e['tol']:.0e} | {e['fmu_point_error']:.1e} | "
+                     + " | ".join(cells) + " |")
+    return lines
+
+
+def compiled_target_lines(targets):
+    if not targets:
+        return []
+    lines = ["", "The targets against the compiled peers at tol ≤ 1e-6 (the smallest ratio at equal error at "
+             "every point, and at how many tolerances the target is met):", "",
+             "| peer | scenario | H | target | smallest ratio | met |", "| --- | --- | --- | --- | --- | --- |"]
+    for t in targets:
+        lines.append(f"| {t['peer']} | {t['scenario']} | {t['H']:g} | ≥ {t['target']}× | {t['worst']:.2f} | "
+                     f"{t['met']} of {t['of']} |")
+    return lines
+
+
+def floor_lines(floor):
+    """The distance from the floor, as its range over the tolerances per scenario and H."""
+    if not floor:
+        return []
+    lines = ["", "Distance from the floor: the FMU's time / (its n_rhs × the bare compiled right-hand side, "
+             "timed in the same run), over the tolerances run; targets ≤ 1.6 at H = 0.1, ≤ 2 at H = 0.01:", "",
+             "| scenario | H | FMU / floor |", "| --- | --- | --- |"]
+    for scenario, h in sorted({(f["scenario"], f["H"]) for f in floor}):
+        ratios = [f["ratio"] for f in floor if (f["scenario"], f["H"]) == (scenario, h)]
+        lines.append(f"| {scenario} | {h:g} | {min(ratios):.2f}–{max(ratios):.2f} |")
+    return lines
+
+
 def markdown(s):
     lines = [f"Machine: {s['machine']['processor']}, {s['machine']['cpus']} cores, {s['machine']['platform']}; "
              f"one run of `cargo xtask bench`.", "",
@@ -360,30 +402,9 @@ def markdown(s):
         for t in tols:
             cells = [s["promise"]["table"][sc][h].get(t) for sc, h in columns]
             lines.append(f"| {t} | " + " | ".join("—" if c is None else f"{c:.2f}" for c in cells) + " |")
-    if s["at_every_point"]:
-        peers = sorted({p for e in s["at_every_point"] for p in e["peers"]})
-        lines += ["", "Against each peer at equal error at every communication point (the fastest peer run whose worst "
-                  "error over all points is at most the FMU's, same H); peer time / FMU time, — when no peer run was "
-                  "that accurate:", "",
-                  "| scenario | H | tol | FMU worst point error | " + " | ".join(peers) + " |",
-                  "| --- | --- | --- | --- |" + " --- |" * len(peers)]
-        for e in s["at_every_point"]:
-            cells = ["—" if e["peers"][p] is None else f"{e['peers'][p]:.2f}" for p in peers]
-            lines.append(f"| {e['scenario']} | {e['H']:g} | {e['tol']:.0e} | {e['fmu_point_error']:.1e} | "
-                         + " | ".join(cells) + " |")
-    if s.get("compiled_targets"):
-        lines += ["", "The targets against the compiled peers at tol ≤ 1e-6 (the smallest ratio at equal error at "
-                  "every point, and at how many tolerances the target is met):", "",
-                  "| peer | scenario | H | target | smallest ratio | met |", "| --- | --- | --- | --- | --- | --- |"]
-        for t in s["compiled_targets"]:
-            lines.append(f"| {t['peer']} | {t['scenario']} | {t['H']:g} | ≥ {t['target']}× | {t['worst']:.2f} | "
-                         f"{t['met']} of {t['of']} |")
-    if s.get("floor"):
-        lines += ["", "Distance from the floor: the FMU's time / (its n_rhs × the bare compiled right-hand side, "
-                  "timed in the same run); targets ≤ 1.6 at H = 0.1, ≤ 2 at H = 0.01:", "",
-                  "| scenario | H | tol | FMU / floor |", "| --- | --- | --- | --- |"]
-        for f in s["floor"]:
-            lines.append(f"| {f['scenario']} | {f['H']:g} | {f['tol']:.0e} | {f['ratio']:.2f} |")
+    lines += at_every_point_lines(s["at_every_point"])
+    lines += compiled_target_lines(s.get("compiled_targets"))
+    lines += floor_lines(s.get("floor"))
     lines += ["", "Tolerance proportionality (final error in units of the solution's scale, tol 1e-3…1e-10):", "",
               "| run | slope | worst error / tol |", "| --- | --- | --- |"]
     for k, v in s["proportionality"].items():

@@ -142,11 +142,11 @@ int cvode_run(mechanism *m, const double *y0, double h, long n, double tol, int 
     }
     if (status == 0) status = CVodeSetUserData(cvode, m);
     if (status == 0) status = CVodeSStolerances(cvode, tol, tol);
-    /* A bound per communication interval: where the step collapses (the free run at tight
-     * tolerances under Adams), the run fails instead of creeping on for ever. */
+    /* A bound per communication interval: where the step collapses (the free run at
+     * tol 1e-3), the run fails instead of creeping on for ever. */
     if (status == 0) status = CVodeSetMaxNumSteps(cvode, 100000);
-    /* Silent about steps too small to change t (tight tolerances): the bench's log is
-     * for results. */
+    /* Silent about steps too small to change t (where the step collapses): the bench's
+     * log is for results. */
     if (status == 0) status = CVodeSetMaxHnilWarns(cvode, -1);
     if (status == 0 && bdf) {
         matrix = SUNDenseMatrix(8, 8, sun);

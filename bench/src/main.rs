@@ -185,7 +185,7 @@ pub struct PointError<'a> {
     reference: Option<&'a Reference>,
     /// Reference points per communication step.
     stride: usize,
-    pub worst: f64,
+    worst: f64,
 }
 
 impl<'a> PointError<'a> {
@@ -327,11 +327,6 @@ fn path_after(args: &[String], flag: &str) -> Option<std::path::PathBuf> {
     args.get(at + 1).map(std::path::PathBuf::from)
 }
 
-/// The directory after `--reference`, if given.
-fn reference_dir(args: &[String]) -> Option<std::path::PathBuf> {
-    path_after(args, "--reference")
-}
-
 /// The compiled peers (`--compiled target/bench/libpeers.so --numbalsoda DIR`), checked to
 /// solve the model's equations; `None` without the flags. Exits on a load failure.
 fn load_compiled(args: &[String]) -> Option<compiled::Compiled> {
@@ -392,7 +387,7 @@ fn main() {
             std::process::exit(1);
         }
     };
-    let references: Vec<Option<Reference>> = match reference_dir(&args) {
+    let references: Vec<Option<Reference>> = match path_after(&args, "--reference") {
         None => SCENARIOS.iter().map(|_| None).collect(),
         Some(dir) => match SCENARIOS
             .iter()
@@ -440,20 +435,13 @@ fn main() {
     if compiled.is_some() {
         eprintln!("bare C right-hand side: {c_rhs_ns:.1} ns per evaluation");
     }
-    // Not measured: null, not NaN (which is not JSON).
-    let json = |v: f64| {
-        if v.is_finite() {
-            v.to_string()
-        } else {
-            "null".to_string()
-        }
-    };
     let mut out = String::new();
     write!(
         out,
         "{{\"ns_per_rhs\": {}, \"c_ns_per_rhs\": {}, \"samples\": {SAMPLES}, \"results\": [",
-        json(rhs_ns),
-        json(c_rhs_ns)
+        // Not measured: null, not NaN (which is not JSON).
+        number(rhs_ns),
+        number(c_rhs_ns)
     )
     .unwrap();
     let mut first = true;
