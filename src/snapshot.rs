@@ -5,7 +5,7 @@
 
 const MAGIC: &[u8; 8] = b"CYCMSTAT";
 /// Bump when the layout of the payload changes.
-pub const FORMAT_VERSION: u32 = 8;
+pub const FORMAT_VERSION: u32 = 9;
 const HEADER: usize = 8 + 4 + 8 + 8;
 
 /// Appends fields to a payload.
@@ -225,7 +225,7 @@ mod tests {
         other[0] = b'X';
         assert!(Reader::open(&other, 42).unwrap_err().0.contains("magic"));
         let mut version = buffer;
-        version[8] = 9;
+        version[8] = (FORMAT_VERSION + 1) as u8;
         assert!(Reader::open(&version, 42)
             .unwrap_err()
             .0

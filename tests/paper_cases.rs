@@ -82,10 +82,11 @@ fn unchanged_inputs_cost_about_the_same_at_any_communication_step() {
 }
 
 #[test]
-fn only_a_changed_input_restarts_the_integrator() {
-    let run = |torque: &dyn Fn(usize) -> f64| {
+fn only_an_input_change_that_matters_restarts_the_integrator() {
+    // The motor's torque: the law's constant `law` plus the input M_m.
+    let run_with = |law: f64, torque: &dyn Fn(usize) -> f64| {
         let mut sim = Simulation::new();
-        set(&mut sim, "Mm_a0", 100.0);
+        set(&mut sim, "Mm_a0", law);
         sim.initialize(0.0).unwrap();
         for k in 1..=1000 {
             sim.set(
@@ -96,32 +97,52 @@ fn only_a_changed_input_restarts_the_integrator() {
             .unwrap();
             sim.advance(k as f64 * 1e-3).unwrap();
         }
-        (sim.statistics().n_rhs, sim.state()[0])
+        (sim.statistics().n_rhs, sim.state()[4])
     };
-    let (held, phi_held) = run(&|_| 0.0);
-    let (varying, _) = run(&|k| if k % 2 == 0 { 0.0 } else { 1e-9 });
+    let run = |torque: &dyn Fn(usize) -> f64| run_with(100.0, torque);
+    let (held, omega_held) = run(&|_| 0.0);
+    let (varying, _) = run(&|k| if k % 2 == 0 { 0.0 } else { 1e-3 });
     // Restarting on every doStep forces at least one full step (12 stages) per doStep;
     // held inputs let the integrator take far fewer, longer steps.
     assert!(
         varying >= 12 * 1000,
-        "a changed input must restart: {varying} evaluations"
+        "a change that matters must restart: {varying} evaluations"
     );
     assert!(
         3 * held < varying,
         "held inputs must not restart: {held} vs {varying}"
     );
-    let (baseline, phi_baseline) = {
+    // A master interpolating a held input: it flickers by an ulp around its value. The
+    // law's constant is 0, so that the ulp is not lost in the sum of law and input.
+    let flicker = |k: usize| match k % 3 {
+        0 => 100.0,
+        1 => f64::from_bits(100f64.to_bits() + 1),
+        _ => f64::from_bits(100f64.to_bits() - 1),
+    };
+    let (steady, omega_steady) = run_with(0.0, &|_| 100.0);
+    let (flickering, omega_flickering) = run_with(0.0, &flicker);
+    assert!(
+        flickering <= steady + steady / 10,
+        "an ulp's change must not restart: {flickering} evaluations against {steady}"
+    );
+    // The default tolerance, 1e-8, in units of max(1, |omega1|).
+    let scale = omega_steady.abs().max(1.0);
+    assert!(
+        (omega_flickering - omega_steady).abs() <= 1e-8 * scale,
+        "omega1 {omega_flickering} against {omega_steady}"
+    );
+    let (baseline, omega_baseline) = {
         let mut sim = Simulation::new();
         set(&mut sim, "Mm_a0", 100.0);
         sim.initialize(0.0).unwrap();
         for k in 1..=1000 {
             sim.advance(k as f64 * 1e-3).unwrap();
         }
-        (sim.statistics().n_rhs, sim.state()[0])
+        (sim.statistics().n_rhs, sim.state()[4])
     };
     assert_eq!(
         held, baseline,
         "setting an input to its current value must not restart"
     );
-    assert_eq!(phi_held, phi_baseline);
+    assert_eq!(omega_held, omega_baseline);
 }
