@@ -45,7 +45,8 @@ def spec_rhs(p):
     J1, J2, J3, J4 = p.J
     l, l2, l3 = p.l, p.l2, p.l3
     laws = (p.Mm_a0, p.Mm_a1, p.Mm_a2, p.Mr_b0, p.Mr_b1) if p.builtin_laws else (0.0,) * 5
-    m0, m1, m2, r0, r1 = laws
+    # Named apart from the solve's own r1, r2 below.
+    motor0, motor1, motor2, load0, load1 = laws
 
     def rhs(t, y):
         phi1, phi2, phi3, phi4, w1, w2, w3, w4 = y
@@ -55,8 +56,8 @@ def spec_rhs(p):
         c1 = l3 * (l2 * s23 + l * s3)
         b1d = l2 * (l * c2 * w2 + l3 * c23 * (w2 - w3))
         c1d = l3 * (l2 * c23 * (w2 - w3) + l * c3 * w3)
-        motor = p.M_m + m0 + m1 * w1 + m2 * w1 * w1
-        load = p.M_r + r0 + r1 * w1
+        motor = p.M_m + motor0 + motor1 * w1 + motor2 * w1 * w1
+        load = p.M_r + load0 + load1 * w1
         s12 = p.k12 * (phi2 - phi1) + p.d12 * (w2 - w1)
         s34 = p.k34 * (phi3 - phi4) + p.d34 * (w3 - w4)
         q1, q2, q3, q4 = motor + s12, -s12, -s34, s34 - load - p.c4 * w4
@@ -67,6 +68,15 @@ def spec_rhs(p):
                 (c1 * J2 * r2 - b1 * r1) / det, q4 / J4]
 
     return rhs
+
+
+def check_spec_rhs(p, y):
+    """spec_rhs against the reference's formulation at state y: a slip in the scipy
+    baseline's equations must stop the benchmark, not bend its figures."""
+    ours, theirs = np.array(spec_rhs(p)(0.0, y)), reference.rhs(0.0, y, p)
+    gap = float(np.abs(ours - theirs).max() / max(1.0, np.abs(theirs).max()))
+    if not gap <= 1e-9:
+        raise ValueError(f"bench.py's spec_rhs differs from reference.rhs by {gap:.3g} (relative)")
 
 
 def sample_times(stop, samples):
@@ -127,6 +137,7 @@ def run_scipy(samples, refs, quick):
     for name, s in SCENARIOS.items():
         p = reference.Params(**s["values"])
         rhs, y0 = spec_rhs(p), reference.initial_state(p)
+        check_spec_rhs(p, y0)
         t_eval = sample_times(s["stop"], samples)
         for method in SCIPY_METHODS:
             for tol in tolerances:
