@@ -117,11 +117,12 @@ impl Driven<'_> {
 }
 
 impl OdeSystem<STATE_SIZE> for Driven<'_> {
-    #[inline]
+    #[inline(always)]
     fn rhs(&self, t: f64, y: &State, dy: &mut State) {
         model::state_derivative(self.params, &self.inputs_at(t), y, dy);
     }
 
+    #[inline(always)]
     fn project(&self, previous: &State, y: &mut State) -> Result<(), String> {
         let at = model::project(self.params, y).map_err(|e| e.to_string())?;
         model::check_passage(self.params, previous, y, &at).map_err(|e| e.to_string())
@@ -289,6 +290,7 @@ impl Simulation {
 
     /// Advance the communication point to `t_end`. On error the time and state stay as
     /// they were.
+    #[inline(always)]
     pub fn advance(&mut self, t_end: f64) -> Result<(), SolverError> {
         if self.solver.reconsider(t_end - self.time) {
             // `auto` changed method: the new one starts from the communication point.
@@ -361,7 +363,7 @@ impl Simulation {
     /// The state at communication point `t_end` from the integrator (its state, or its
     /// dense output inside the last step), projected onto the constraint; with the
     /// closure g and the gradient terms there.
-    #[inline]
+    #[inline(always)]
     fn at_communication_point(&mut self, t_end: f64) -> Result<(State, Projected), SolverError> {
         let system = Driven {
             params: &self.params,

@@ -637,7 +637,7 @@ impl Instance {
                 )));
             }
         }
-        if let Err(error) = self.sim.advance(target) {
+        if let Err(error) = super::isa::advance(&mut self.sim, target) {
             self.state = State::StepFailed;
             let y = self.sim.state();
             return Err(Failure::discard(format!(

@@ -8,6 +8,7 @@
 #![allow(non_snake_case)]
 
 pub mod instance;
+pub mod isa;
 pub mod model_description;
 pub mod state_machine;
 

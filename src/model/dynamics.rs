@@ -6,7 +6,7 @@ use super::{Inputs, Parameters, Scalar, State};
 
 /// Motor and load torques: the inputs, plus the built-in laws while they are on
 /// (docs/model.md §4, the paper's [79] and [80]).
-#[inline]
+#[inline(always)]
 pub fn applied_torques<T: Scalar>(p: &Parameters, inputs: &Inputs<T>, omega1: T) -> (T, T) {
     if !p.builtin_laws {
         return (inputs.motor_torque, inputs.load_torque);
@@ -17,7 +17,7 @@ pub fn applied_torques<T: Scalar>(p: &Parameters, inputs: &Inputs<T>, omega1: T)
 }
 
 /// Generalised forces Q1..Q4 (docs/model.md §2; the k12 spring sign corrected, docs/model.md §5).
-#[inline]
+#[inline(always)]
 pub fn generalized_forces<T: Scalar>(p: &Parameters, inputs: &Inputs<T>, y: &[T; 8]) -> [T; 4] {
     let [phi1, phi2, phi3, phi4, w1, w2, w3, w4] = *y;
     let (motor, load) = applied_torques(p, inputs, w1);
@@ -50,7 +50,7 @@ pub struct Accelerations<T = f64> {
 ///
 /// The 2×2 block has determinant −(C1²·J2 + B1²·J3), zero only at a change point where
 /// B1 = C1 = 0; there the result is not finite, which the caller detects.
-#[inline]
+#[inline(always)]
 pub fn accelerations<T: Scalar>(
     p: &Parameters,
     inputs: &Inputs<T>,
@@ -81,7 +81,7 @@ pub fn accelerations<T: Scalar>(
 }
 
 /// The state derivative ẏ = (ω, ω̇): the right-hand side integrated by the solver.
-#[inline]
+#[inline(always)]
 pub fn state_derivative(p: &Parameters, inputs: &Inputs, y: &State, dy: &mut State) {
     let a = accelerations(p, inputs, y);
     dy[..4].copy_from_slice(&y[4..]);

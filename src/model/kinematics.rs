@@ -17,7 +17,7 @@ pub struct ConstraintTerms<T = f64> {
 }
 
 /// Evaluate B1, C1 (docs/model.md §2, [44]–[46]) and their time derivatives ([49]).
-#[inline]
+#[inline(always)]
 pub fn constraint_terms<T: Scalar>(
     p: &Parameters,
     phi2: T,
@@ -47,7 +47,7 @@ pub fn closure_with_gradient(p: &Parameters, phi2: f64, phi3: f64) -> (f64, f64,
 }
 
 /// [`closure_with_gradient`] from the sines and cosines of φ2 and φ3.
-#[inline]
+#[inline(always)]
 pub fn closure_with_gradient_from(
     p: &Parameters,
     (s2, c2): (f64, f64),
@@ -66,7 +66,7 @@ pub fn closure_with_gradient_from(
 /// (sin, cos) of `angle`, given (sin, cos) of `angle − delta`: a rotation by the small
 /// `delta` with Taylor terms exact in double precision for |delta| < 1e-4 (the next terms
 /// are below 1e-22); larger turns are evaluated directly.
-#[inline]
+#[inline(always)]
 pub fn rotate((s, c): (f64, f64), delta: f64, angle: f64) -> (f64, f64) {
     if delta.abs() >= 1e-4 {
         return angle.sin_cos();
@@ -106,7 +106,7 @@ impl Default for SinCosMemo {
 
 impl SinCosMemo {
     /// (sin φ, cos φ), with `slot` (0 or 1) the memo cell of this angle.
-    #[inline]
+    #[inline(always)]
     pub fn sin_cos(&mut self, slot: usize, phi: f64) -> (f64, f64) {
         // Round to nearest by adding and removing 1.5·2⁵²: `round()` is a libm call on
         // baseline x86-64. Beyond 2⁵¹ grid steps (and for NaN) sin_cos is used directly.

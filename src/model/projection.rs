@@ -31,12 +31,14 @@ const MAX_POSITION_ITERATIONS: usize = 8;
 /// so each iteration rotates the previous sines and cosines by the change of the stored
 /// angles ([`rotate`]). Returns g, B1 and C1 at the result; fails where G vanishes (a
 /// change point) or Newton does not converge.
+#[inline(always)]
 pub fn project(p: &Parameters, y: &mut State) -> Result<Projected, ModelError> {
     project_with(p, y, &mut |_, phi| phi.sin_cos())
 }
 
 /// [`project`] with the first pair of sines and cosines from `sin_cos(slot, angle)`
 /// (slot 0 for φ2, 1 for φ3), e.g. a [`SinCosMemo`](super::kinematics::SinCosMemo).
+#[inline(always)]
 pub fn project_with(
     p: &Parameters,
     y: &mut State,
@@ -89,6 +91,7 @@ pub fn project_with(
 /// where C1 changed sign with B1 also near zero at the crossing (a change point passed
 /// within the step): there the linkage may continue on either of two branches and the
 /// equations do not say which.
+#[inline(always)]
 pub fn check_passage(
     p: &Parameters,
     previous: &State,

@@ -140,6 +140,7 @@ impl<const N: usize> Dop853<N> {
     /// (a step that would, lands on it exactly); `target == limit` lands exactly on the
     /// target. The solution in between comes from [`Dop853::dense_output`]. On error,
     /// `*t` and `*y` hold the last accepted (projected) step.
+    #[inline(always)]
     pub fn integrate<S: OdeSystem<N>>(
         &mut self,
         system: &S,
@@ -228,6 +229,7 @@ impl<const N: usize> Dop853<N> {
     /// extension of DOP853 (HNW I, II.6). Its three extra stages are evaluated on the
     /// first request after a step. `None` when no step is available (none taken since the
     /// last [`Dop853::invalidate`]) or `t` lies outside it.
+    #[inline(always)]
     pub fn dense_output<S: OdeSystem<N>>(&mut self, system: &S, t: f64) -> Option<[f64; N]> {
         let step = self.last_step.as_ref()?;
         let x = (t - step.t_old) / step.h;
@@ -254,6 +256,7 @@ impl<const N: usize> Dop853<N> {
     }
 
     /// Evaluate the extra stages and form the interpolant's seven coefficient vectors.
+    #[inline(always)]
     fn dense_coefficients<S: OdeSystem<N>>(
         &mut self,
         system: &S,
@@ -290,6 +293,7 @@ impl<const N: usize> Dop853<N> {
     /// step's end, or a fresh evaluation).
     /// Writes the 8th-order result to `y_new`, leaves the last stage's argument (at t + h)
     /// in `y_stage` for the stiffness test, and returns the scaled error norm.
+    #[inline(always)]
     fn attempt<S: OdeSystem<N>>(
         &mut self,
         system: &S,
@@ -330,6 +334,7 @@ impl<const N: usize> Dop853<N> {
 
     /// |hλ| along the last step: f at its end `y_end` (slot 12) against f at its last stage
     /// (slot 11, argument `y_stage`), over the distance between the two points.
+    #[inline(always)]
     fn stiffness_estimate(&self, h: f64, y_end: &[f64; N], y_stage: &[f64; N]) -> f64 {
         let (mut num, mut den) = (0.0, 0.0);
         let (f_end, f_stage) = (&self.stages[NEXT_FIRST], &self.stages[STAGES - 1]);
@@ -346,7 +351,7 @@ impl<const N: usize> Dop853<N> {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn eval<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N], stage: usize) {
         system.rhs(t, y, &mut self.stages[stage]);
         self.progress.stats.n_rhs += 1;

@@ -114,6 +114,7 @@ impl<const N: usize> Integrator<N> {
     }
 
     /// See [`Dop853::integrate`] and [`Radau5::integrate`] (which ends on `target`).
+    #[inline(always)]
     pub fn integrate<S: OdeSystem<N>>(
         &mut self,
         system: &S,
@@ -129,6 +130,7 @@ impl<const N: usize> Integrator<N> {
     }
 
     /// The solution at `t` within the last accepted step, if any.
+    #[inline(always)]
     pub fn dense_output<S: OdeSystem<N>>(&mut self, system: &S, t: f64) -> Option<[f64; N]> {
         match &mut self.active {
             Active::Explicit(s) => s.dense_output(system, t),

@@ -1,0 +1,28 @@
+//! Run the co-simulation step with the widest vector instructions the processor has, in a
+//! binary built for the x86-64 baseline (SSE2) so that it loads on any x86-64 machine.
+//!
+//! [`advance`] calls a second copy of [`Simulation::advance`] compiled with AVX (it and what
+//! is marked `#[inline(always)]` beneath it: the integrator's stages, the right-hand side,
+//! the dense output and the projection) when the processor supports AVX. Only the
+//! instruction encoding and the vector width change: Rust never fuses a multiplication and
+//! an addition on its own, so both copies round alike and give the same bits
+//! (tests/isa.rs compares them).
+
+use crate::simulation::Simulation;
+use crate::solver::SolverError;
+
+/// [`Simulation::advance`], through the AVX copy where the processor has AVX.
+pub fn advance(sim: &mut Simulation, t_end: f64) -> Result<(), SolverError> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: the processor supports AVX, the only feature `advance_avx` enables.
+        return unsafe { advance_avx(sim, t_end) };
+    }
+    sim.advance(t_end)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn advance_avx(sim: &mut Simulation, t_end: f64) -> Result<(), SolverError> {
+    sim.advance(t_end)
+}
