@@ -14,7 +14,7 @@ use crate::model::chart::{handover_indicator, preferred_chart};
 use crate::model::params::check_rule;
 use crate::model::{
     self, Chart, Coordinates, Dual, Independent, Inputs, ModelError, Parameters, Projected, Scalar,
-    SinCosMemo, State, STATE_SIZE,
+    State, STATE_SIZE,
 };
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 use crate::solver::{Choice, Integrator, Method, OdeSystem, SolverError, Statistics, Tolerances};
@@ -177,9 +177,6 @@ pub struct Simulation {
     /// the same hysteresis as Model Exchange's charts.
     chart: Chart,
     solver: Integrator<STATE_SIZE>,
-    /// Sines and cosines for projecting communication points; a memo that does not
-    /// change results, so it is not serialized.
-    sin_cos: SinCosMemo,
 }
 
 impl Default for Simulation {
@@ -207,7 +204,6 @@ impl Simulation {
             limit: f64::INFINITY,
             chart: Chart::Crank,
             solver: Integrator::new(Choice::Auto, tolerances(DEFAULT_TOLERANCE)),
-            sin_cos: SinCosMemo::default(),
         }
     }
 
@@ -379,10 +375,7 @@ impl Simulation {
                 .dense_output(&system, t_end)
                 .ok_or_else(|| refused("no dense output covers this time".into()))?
         };
-        let memo = &mut self.sin_cos;
-        match model::project_with(&self.params, &mut y, &mut |slot, phi| {
-            memo.sin_cos(slot, phi)
-        }) {
+        match model::project(&self.params, &mut y) {
             Ok(at) if y.iter().all(|v| v.is_finite()) => Ok((y, at)),
             Ok(_) => Err(refused("the interpolated state is not finite".into())),
             Err(error) => Err(refused(error.to_string())),
@@ -949,7 +942,6 @@ impl Simulation {
             limit,
             chart,
             solver,
-            sin_cos: SinCosMemo::default(),
         };
         simulation
             .check_restored()

@@ -1,6 +1,7 @@
 //! Loop geometry (docs/model.md §1–§3): pin positions, the closure constraint g(φ), its gradient
 //! G = [0, B1, −C1, 0] and time derivatives, and the assembly of a consistent start.
 
+use super::trig::{sin_cos, sin_cos_pair};
 use super::{ModelError, Parameters, Scalar};
 
 /// Geometric terms of the constraint at one configuration (docs/model.md §2).
@@ -25,8 +26,7 @@ pub fn constraint_terms<T: Scalar>(
     omega2: T,
     omega3: T,
 ) -> ConstraintTerms<T> {
-    let (s2, c2) = phi2.sin_cos();
-    let (s3, c3) = phi3.sin_cos();
+    let [(s2, c2), (s3, c3)] = T::sin_cos_pair(phi2, phi3);
     // sin and cos of φ2 − φ3 from the two pairs above: saves a third sin_cos.
     let s23 = s2 * c3 - c2 * s3;
     let c23 = c2 * c3 + s2 * s3;
@@ -43,7 +43,8 @@ pub fn constraint_terms<T: Scalar>(
 /// sin_cos (what the projection needs at every Newton iteration).
 #[inline]
 pub fn closure_with_gradient(p: &Parameters, phi2: f64, phi3: f64) -> (f64, f64, f64) {
-    closure_with_gradient_from(p, phi2.sin_cos(), phi3.sin_cos())
+    let [sc2, sc3] = sin_cos_pair([phi2, phi3]);
+    closure_with_gradient_from(p, sc2, sc3)
 }
 
 /// [`closure_with_gradient`] from the sines and cosines of φ2 and φ3.
@@ -69,7 +70,7 @@ pub fn closure_with_gradient_from(
 #[inline(always)]
 pub fn rotate((s, c): (f64, f64), delta: f64, angle: f64) -> (f64, f64) {
     if delta.abs() >= 1e-4 {
-        return angle.sin_cos();
+        return sin_cos(angle);
     }
     let d2 = delta * delta;
     // Multiplications by the reciprocals: these terms are below 1e-8 of the result, so
@@ -81,67 +82,6 @@ pub fn rotate((s, c): (f64, f64), delta: f64, angle: f64) -> (f64, f64) {
     (s * cd + c * sd, c * cd - s * sd)
 }
 
-/// Spacing (rad) of the grid angles whose sines and cosines [`SinCosMemo`] keeps.
-const GRID: f64 = 0.25;
-
-/// sin_cos for angles that move little between calls (φ2 and φ3 at consecutive
-/// communication points): φ = a + δ with a the nearest multiple of [`GRID`], (sin a, cos a)
-/// memoised per slot, and the rotation by |δ| ≤ GRID/2 from Taylor polynomials. The result is a function of φ alone, whatever the memo
-/// holds (δ = φ − a is exact: both are multiples of φ's last place and |δ| is small), and
-/// within about an ulp of `sin_cos`. A memo hit costs about a third of a `sin_cos` of a
-/// wound-up angle: valgrind counts 1425 instructions per communication point of paper
-/// case 1 through the C ABI (doStep and reading ten outputs), against 1600 with `sin_cos`.
-#[derive(Clone, Copy, Debug)]
-pub struct SinCosMemo {
-    cells: [(f64, (f64, f64)); 2],
-}
-
-impl Default for SinCosMemo {
-    fn default() -> Self {
-        Self {
-            cells: [(f64::NAN, (f64::NAN, f64::NAN)); 2],
-        }
-    }
-}
-
-impl SinCosMemo {
-    /// (sin φ, cos φ), with `slot` (0 or 1) the memo cell of this angle.
-    #[inline(always)]
-    pub fn sin_cos(&mut self, slot: usize, phi: f64) -> (f64, f64) {
-        // Round to nearest by adding and removing 1.5·2⁵²: `round()` is a libm call on
-        // baseline x86-64. Beyond 2⁵¹ grid steps (and for NaN) sin_cos is used directly.
-        const SHIFT: f64 = 6755399441055744.0;
-        let steps = phi * (1.0 / GRID);
-        if steps.is_nan() || steps.abs() >= 2251799813685248.0 {
-            return phi.sin_cos();
-        }
-        let a = ((steps + SHIFT) - SHIFT) * GRID;
-        let cell = &mut self.cells[slot];
-        if cell.0 != a {
-            *cell = (a, a.sin_cos());
-        }
-        let (s, c) = cell.1;
-        let d = phi - a;
-        let d2 = d * d;
-        // sin d to d⁹ and cos d to d¹⁰, Horner in d²: the first omitted terms, d¹¹/11! and
-        // d¹²/12! at |d| = 1/8, are 3e-18 and 7e-20, a few percent of the result's last place.
-        let sd = d
-            * (1.0
-                - d2 * (1.0 / 6.0)
-                    * (1.0
-                        - d2 * (1.0 / 20.0)
-                            * (1.0 - d2 * (1.0 / 42.0) * (1.0 - d2 * (1.0 / 72.0)))));
-        let cd = 1.0
-            - d2 * 0.5
-                * (1.0
-                    - d2 * (1.0 / 12.0)
-                        * (1.0
-                            - d2 * (1.0 / 30.0)
-                                * (1.0 - d2 * (1.0 / 56.0) * (1.0 - d2 * (1.0 / 90.0)))));
-        (s * cd + c * sd, c * cd - s * sd)
-    }
-}
-
 /// |A2A3| − L from g = ½(|d|² − L²), without cancellation: 2g/(|d| + L).
 #[inline]
 pub fn length_residual_from_closure(p: &Parameters, g: f64) -> f64 {
@@ -151,8 +91,7 @@ pub fn length_residual_from_closure(p: &Parameters, g: f64) -> f64 {
 /// d = A2 − A3, the rod vector (docs/model.md §1).
 #[inline]
 pub fn rod_vector<T: Scalar>(p: &Parameters, phi2: T, phi3: T) -> [T; 2] {
-    let (s2, c2) = phi2.sin_cos();
-    let (s3, c3) = phi3.sin_cos();
+    let [(s2, c2), (s3, c3)] = T::sin_cos_pair(phi2, phi3);
     [c2 * p.l2 - (c3 * p.l3 + p.l), s2 * p.l2 - s3 * p.l3]
 }
 
@@ -174,7 +113,7 @@ pub fn length_residual<T: Scalar>(p: &Parameters, phi2: T, phi3: T) -> T {
 pub fn assemble_rocker(p: &Parameters, phi2: f64, guess: f64) -> Result<f64, ModelError> {
     // e = A2 − O3; A3 = O3 + l3·(cos φ3, sin φ3) must lie at distance L from A2:
     // |e|² − 2·l3·(e·u) + l3² = L², so cos(φ3 − θ) = (|e|² + l3² − L²)/(2·l3·|e|).
-    let (s2, c2) = phi2.sin_cos();
+    let (s2, c2) = sin_cos(phi2);
     let (ex, ey) = (p.l2 * c2 - p.l, p.l2 * s2);
     let r = ex.hypot(ey);
     let cos_angle = (r * r + p.l3 * p.l3 - p.L * p.L) / (2.0 * p.l3 * r);
@@ -284,8 +223,8 @@ mod tests {
         ] {
             // As in the projection: the difference of two stored angles, exact.
             let start = angle - delta;
-            let (s, c) = rotate(start.sin_cos(), angle - start, angle);
-            let (s0, c0) = angle.sin_cos();
+            let (s, c) = rotate(sin_cos(start), angle - start, angle);
+            let (s0, c0) = sin_cos(angle);
             assert!(
                 (s - s0).abs() < 4e-16 && (c - c0).abs() < 4e-16,
                 "{angle} {delta}"
@@ -293,46 +232,6 @@ mod tests {
         }
     }
 
-    /// Angles the memo sees: wound-up and negative ones, cell edges (δ = ±1/8), exact grid
-    /// points, tiny ones, and one beyond the grid's range.
-    fn memo_angles() -> Vec<f64> {
-        let mut angles = vec![
-            0.0, 1e-300, -3e-9, 0.125, -0.125, 0.375, 2.5, -1000.125, 1e17,
-        ];
-        let mut x = 0.1234f64;
-        for _ in 0..20_000 {
-            // A deterministic scatter over ±1000 rad.
-            x = (x * 7919.0 + 0.618).fract();
-            angles.push((x - 0.5) * 2000.0);
-        }
-        angles
-    }
-
-    #[test]
-    fn memoised_sin_cos_matches_direct_evaluation() {
-        let mut memo = SinCosMemo::default();
-        let mut worst = 0.0f64;
-        for phi in memo_angles() {
-            let (s, c) = memo.sin_cos(0, phi);
-            let (s0, c0) = phi.sin_cos();
-            worst = worst.max((s - s0).abs()).max((c - c0).abs());
-        }
-        // Direct sin_cos is within half an ulp; the rotation adds about one more.
-        assert!(worst <= 2.3e-16, "worst difference {worst:e}");
-    }
-
-    #[test]
-    fn memoised_sin_cos_does_not_depend_on_what_the_memo_holds() {
-        let mut warm = SinCosMemo::default();
-        for phi in memo_angles() {
-            // Warm: the cell usually holds a neighbour's grid angle; fresh: it is empty.
-            let fresh = SinCosMemo::default().sin_cos(1, phi);
-            let warmed = warm.sin_cos(1, phi);
-            assert_eq!(warmed.0.to_bits(), fresh.0.to_bits(), "{phi}");
-            assert_eq!(warmed.1.to_bits(), fresh.1.to_bits(), "{phi}");
-            warm.sin_cos(1, phi + 0.01);
-        }
-    }
     #[test]
     fn wrap_angle_range() {
         use std::f64::consts::PI;

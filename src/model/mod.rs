@@ -9,13 +9,14 @@ pub mod linkage;
 pub mod params;
 pub mod projection;
 pub mod scalar;
+pub mod trig;
 
 pub use chart::{Chart, Coordinates, Independent};
 pub use dynamics::{accelerations, energy, power, rod_force, state_derivative};
-pub use kinematics::{length_residual, length_residual_from_closure, SinCosMemo};
+pub use kinematics::{length_residual, length_residual_from_closure};
 pub use linkage::{classify, LinkageClass, LINKAGE_CLASSES};
 pub use params::{Parameters, PARAMETERS};
-pub use projection::{check_passage, initial_state, project, project_with, Projected};
+pub use projection::{check_passage, initial_state, project, Projected};
 pub use scalar::{Dual, Scalar};
 
 /// The state vector y = (φ1, φ2, φ3, φ4, ω1, ω2, ω3, ω4).

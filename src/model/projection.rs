@@ -4,6 +4,7 @@
 use super::kinematics::{
     assemble_rocker, closure, closure_with_gradient_from, constraint_terms, rotate,
 };
+use super::trig::sin_cos_pair;
 use super::{ModelError, Parameters, State};
 
 /// The constraint's conditioning (B1²/J2 + C1²/J3, normalised by its largest possible
@@ -33,21 +34,10 @@ const MAX_POSITION_ITERATIONS: usize = 8;
 /// change point) or Newton does not converge.
 #[inline(always)]
 pub fn project(p: &Parameters, y: &mut State) -> Result<Projected, ModelError> {
-    project_with(p, y, &mut |_, phi| phi.sin_cos())
-}
-
-/// [`project`] with the first pair of sines and cosines from `sin_cos(slot, angle)`
-/// (slot 0 for φ2, 1 for φ3), e.g. a [`SinCosMemo`](super::kinematics::SinCosMemo).
-#[inline(always)]
-pub fn project_with(
-    p: &Parameters,
-    y: &mut State,
-    sin_cos: &mut impl FnMut(usize, f64) -> (f64, f64),
-) -> Result<Projected, ModelError> {
     let tolerance = 4.0 * f64::EPSILON * p.L * p.L;
     // Three divisions per call instead of five per iteration: they dominate its cost.
     let (inverse_j2, inverse_j3) = (1.0 / p.J2, 1.0 / p.J3);
-    let (mut sc2, mut sc3) = (sin_cos(0, y[1]), sin_cos(1, y[2]));
+    let [mut sc2, mut sc3] = sin_cos_pair([y[1], y[2]]);
     for iteration in 0..=MAX_POSITION_ITERATIONS {
         let (g, b1, c1) = closure_with_gradient_from(p, sc2, sc3);
         let (move2, move3) = (b1 * inverse_j2, c1 * inverse_j3);

@@ -24,6 +24,11 @@ pub trait Scalar:
     /// The value without its derivative.
     fn value(self) -> f64;
     fn sin_cos(self) -> (Self, Self);
+    /// (sin, cos) of two numbers.
+    #[inline(always)]
+    fn sin_cos_pair(a: Self, b: Self) -> [(Self, Self); 2] {
+        [a.sin_cos(), b.sin_cos()]
+    }
     fn sqrt(self) -> Self;
     fn acos(self) -> Self;
     /// atan2(self, x): the angle of (x, self).
@@ -42,7 +47,11 @@ impl Scalar for f64 {
     }
     #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
-        f64::sin_cos(self)
+        super::trig::sin_cos(self)
+    }
+    #[inline(always)]
+    fn sin_cos_pair(a: Self, b: Self) -> [(Self, Self); 2] {
+        super::trig::sin_cos_pair([a, b])
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
@@ -147,7 +156,7 @@ impl Scalar for Dual {
         self.v
     }
     fn sin_cos(self) -> (Self, Self) {
-        let (s, c) = self.v.sin_cos();
+        let (s, c) = super::trig::sin_cos(self.v);
         (Dual::new(s, c * self.d), Dual::new(c, -s * self.d))
     }
     fn sqrt(self) -> Self {
@@ -187,8 +196,9 @@ mod tests {
                 "{x}"
             );
         };
-        check(&|x| x.sin_cos().0, &f64::sin, 0.7);
-        check(&|x| x.sin_cos().1, &f64::cos, 0.7);
+        use crate::model::trig::sin_cos;
+        check(&|x| x.sin_cos().0, &|x| sin_cos(x).0, 0.7);
+        check(&|x| x.sin_cos().1, &|x| sin_cos(x).1, 0.7);
         check(&|x| Scalar::sqrt(x), &f64::sqrt, 2.5);
         check(&|x| Scalar::acos(x), &f64::acos, 0.3);
         check(

@@ -1,0 +1,239 @@
+//! sin and cos together, of one angle or of two at once, without a call into the C library.
+//!
+//! The right-hand side needs (sin, cos) of φ2 and φ3 at every evaluation, and the C
+//! library's `sincos` spends much of its time saving and restoring the rounding mode; two
+//! calls cannot share a vector register either. Here the angle is reduced to
+//! r ∈ [−π/4, π/4] by the nearest multiple q of π/2, with π/2 in three parts (Cody and
+//! Waite's reduction) so that the first two products q·(π/2)ᵢ are exact, and r is carried
+//! as a sum r_hi + r_lo. sin r and cos r are then Taylor polynomials in r² (every omitted
+//! term is below 1e-19 at |r| = π/4), evaluated by Estrin's scheme (short dependency
+//! chains). Only plain multiplications and additions are used, so the result is the same
+//! on every machine; it stays within 2 ulp of the C library's (tested below). Beyond
+//! |x| = 2²⁰, at zero and for non-finite x, the C library is called.
+//!
+//! [`sin_cos_pair`] computes φ2's and φ3's lane by lane, without branches, so that both
+//! run in one vector register. Paper case 1 through the C ABI on an AMD EPYC: 48 against
+//! 57 ns per evaluation at H = 0.1 and 67 against 75 at H = 0.01 (tol 1e-8), against two
+//! calls of the C library's `sincos`.
+
+/// π/2 in three parts: 33 significant bits, the next 33, and the next 53 (what is left
+/// is below 1.1e-37). With |q| < 2²⁰ the products q·P1 and q·P2 are exact.
+const PIO2_1: f64 = 1.570_796_326_734_125_6;
+const PIO2_2: f64 = 6.077_100_506_303_966e-11;
+const PIO2_3: f64 = 2.022_266_248_795_950_6e-21;
+
+/// Largest |x| reduced here: q stays below 2²⁰, where q·P1 and q·P2 are exact.
+const LIMIT: f64 = 1_048_576.0;
+
+/// (−1)ᵏ/(2k+1)! for k = 1…8: sin r = r + r·z·(S1 + S2·z + … + S8·z⁷), z = r².
+const S: [f64; 8] = [
+    -1.0 / 6.0,
+    1.0 / 120.0,
+    -1.0 / 5040.0,
+    1.0 / 362_880.0,
+    -1.0 / 39_916_800.0,
+    1.0 / 6_227_020_800.0,
+    -1.0 / 1_307_674_368_000.0,
+    1.0 / 355_687_428_096_000.0,
+];
+
+/// (−1)ᵏ/(2k)! for k = 2…8: cos r = 1 − z/2 + z²·(C2 + C3·z + … + C8·z⁶).
+const C: [f64; 7] = [
+    1.0 / 24.0,
+    -1.0 / 720.0,
+    1.0 / 40_320.0,
+    -1.0 / 3_628_800.0,
+    1.0 / 479_001_600.0,
+    -1.0 / 87_178_291_200.0,
+    1.0 / 20_922_789_888_000.0,
+];
+
+/// Whether x is reduced here: finite, below [`LIMIT`], and not zero (the C library gives
+/// sin(−0) its sign).
+#[inline(always)]
+fn reduced_here(x: f64) -> bool {
+    x.abs() < LIMIT && x != 0.0
+}
+
+/// (sin x, cos x).
+#[inline(always)]
+pub fn sin_cos(x: f64) -> (f64, f64) {
+    // Round x·2/π to the nearest integer by adding and removing 1.5·2⁵²: `round()` is a
+    // C library call on baseline x86-64.
+    const SHIFT: f64 = 6_755_399_441_055_744.0;
+    if !reduced_here(x) {
+        return x.sin_cos();
+    }
+    let q = (x * std::f64::consts::FRAC_2_PI + SHIFT) - SHIFT;
+    // x − q·P1 is exact (the two are within a factor of two, or q = 0); the subtraction
+    // of q·P2 is made exact as a sum hi + lo (Knuth's two-sum).
+    let a = x - q * PIO2_1;
+    let b = -(q * PIO2_2);
+    let hi = a + b;
+    let b_virtual = hi - a;
+    let lo = ((a - (hi - b_virtual)) + (b - b_virtual)) - q * PIO2_3;
+    let (s, c) = kernel(hi, lo);
+    match (q as i64) & 3 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// [`sin_cos`] of two angles at once, written lane by lane (no branch on the quadrant) so
+/// that the compiler can run the two in one vector register.
+#[inline(always)]
+pub fn sin_cos_pair(x: [f64; 2]) -> [(f64, f64); 2] {
+    const SHIFT: f64 = 6_755_399_441_055_744.0;
+    if !(reduced_here(x[0]) && reduced_here(x[1])) {
+        return [sin_cos(x[0]), sin_cos(x[1])];
+    }
+    let q = x.map(|x| (x * std::f64::consts::FRAC_2_PI + SHIFT) - SHIFT);
+    let a: [f64; 2] = std::array::from_fn(|i| x[i] - q[i] * PIO2_1);
+    let b: [f64; 2] = std::array::from_fn(|i| -(q[i] * PIO2_2));
+    let hi: [f64; 2] = std::array::from_fn(|i| a[i] + b[i]);
+    let b_virtual: [f64; 2] = std::array::from_fn(|i| hi[i] - a[i]);
+    let lo: [f64; 2] = std::array::from_fn(|i| {
+        ((a[i] - (hi[i] - b_virtual[i])) + (b[i] - b_virtual[i])) - q[i] * PIO2_3
+    });
+    let z: [f64; 2] = std::array::from_fn(|i| hi[i] * hi[i]);
+    let z2: [f64; 2] = std::array::from_fn(|i| z[i] * z[i]);
+    let z4: [f64; 2] = std::array::from_fn(|i| z2[i] * z2[i]);
+    let sin_poly: [f64; 2] = std::array::from_fn(|i| {
+        (S[0] + S[1] * z[i])
+            + z2[i] * (S[2] + S[3] * z[i])
+            + z4[i] * ((S[4] + S[5] * z[i]) + z2[i] * (S[6] + S[7] * z[i]))
+    });
+    let cos_poly: [f64; 2] = std::array::from_fn(|i| {
+        (C[0] + C[1] * z[i])
+            + z2[i] * (C[2] + C[3] * z[i])
+            + z4[i] * ((C[4] + C[5] * z[i]) + z2[i] * C[6])
+    });
+    let s: [f64; 2] =
+        std::array::from_fn(|i| hi[i] + (hi[i] * z[i] * sin_poly[i] + lo[i] * (1.0 - 0.5 * z[i])));
+    let c: [f64; 2] =
+        std::array::from_fn(|i| 1.0 - 0.5 * z[i] + (z2[i] * cos_poly[i] - hi[i] * lo[i]));
+    // Quadrant n: odd swaps sin and cos; sin is negative for n = 2, 3, cos for n = 1, 2.
+    let n = q.map(|q| q as i32);
+    std::array::from_fn(|i| {
+        let (s, c) = if n[i] & 1 == 0 {
+            (s[i], c[i])
+        } else {
+            (c[i], s[i])
+        };
+        let sin_sign = if n[i] & 2 == 0 { 1.0 } else { -1.0 };
+        let cos_sign = if (n[i] + 1) & 2 == 0 { 1.0 } else { -1.0 };
+        (s * sin_sign, c * cos_sign)
+    })
+}
+
+/// sin and cos of r + lo for |r| ≤ π/4 and |lo| ≪ ulp(r): the tail enters to first order.
+#[inline(always)]
+fn kernel(r: f64, lo: f64) -> (f64, f64) {
+    let z = r * r;
+    let z2 = z * z;
+    let z4 = z2 * z2;
+    let sin_poly = (S[0] + S[1] * z)
+        + z2 * (S[2] + S[3] * z)
+        + z4 * ((S[4] + S[5] * z) + z2 * (S[6] + S[7] * z));
+    let cos_poly =
+        (C[0] + C[1] * z) + z2 * (C[2] + C[3] * z) + z4 * ((C[4] + C[5] * z) + z2 * C[6]);
+    // sin(r + lo) ≈ sin r + lo·cos r, with cos r ≈ 1 − z/2 at this order.
+    let s = r + (r * z * sin_poly + lo * (1.0 - 0.5 * z));
+    let c = 1.0 - 0.5 * z + (z2 * cos_poly - r * lo);
+    (s, c)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Distance in units in the last place of `b`.
+    fn ulps(a: f64, b: f64) -> f64 {
+        let ulp = f64::from_bits(b.abs().to_bits() + 1) - b.abs();
+        if b == 0.0 {
+            return a.abs() / f64::MIN_POSITIVE;
+        }
+        (a - b).abs() / ulp
+    }
+
+    /// A reproducible stream of numbers in [0, 1).
+    fn uniform(seed: &mut u64) -> f64 {
+        *seed = seed
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (*seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn worst_over(xs: impl Iterator<Item = f64>) -> f64 {
+        let mut worst: f64 = 0.0;
+        for x in xs {
+            let (s, c) = sin_cos(x);
+            let (s0, c0) = x.sin_cos();
+            worst = worst.max(ulps(s, s0)).max(ulps(c, c0));
+        }
+        worst
+    }
+
+    #[test]
+    fn within_two_ulp_of_the_c_library() {
+        let mut seed = 7;
+        for range in [0.8, 10.0, 1e3, 1e6] {
+            let worst = worst_over((0..200_000).map(|_| (2.0 * uniform(&mut seed) - 1.0) * range));
+            eprintln!("|x| < {range}: {worst} ulp");
+            assert!(worst <= 2.0, "|x| < {range}: {worst} ulp");
+        }
+    }
+
+    #[test]
+    fn within_two_ulp_next_to_multiples_of_a_quarter_turn() {
+        // Where r is tiny and the reduction's cancellation is worst.
+        let mut seed = 11;
+        let worst = worst_over((1..20_000).flat_map(|k| {
+            let centre = k as f64 * std::f64::consts::FRAC_PI_2;
+            let near = (uniform(&mut seed) - 0.5) * 1e-6;
+            [
+                centre,
+                -centre,
+                centre + near,
+                centre.next_up(),
+                centre.next_down(),
+            ]
+        }));
+        eprintln!("near k·π/2: {worst} ulp");
+        assert!(worst <= 2.0, "{worst} ulp");
+    }
+
+    #[test]
+    fn a_pair_gives_the_bits_of_two_singles() {
+        let mut seed = 3;
+        let special = [0.0, -0.0, LIMIT, -LIMIT, 1e300, f64::INFINITY, f64::NAN];
+        let mut pairs: Vec<[f64; 2]> = (0..20_000)
+            .map(|_| [0, 1].map(|_| (2.0 * uniform(&mut seed) - 1.0) * 100.0))
+            .collect();
+        pairs.extend(special.map(|x| [x, 0.3]));
+        pairs.extend(special.map(|x| [-2.0, x]));
+        for pair in pairs {
+            for ((s, c), x) in sin_cos_pair(pair).into_iter().zip(pair) {
+                let (s0, c0) = sin_cos(x);
+                assert!(
+                    s.to_bits() == s0.to_bits() && c.to_bits() == c0.to_bits(),
+                    "{x}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_c_library_beyond_the_reduced_range() {
+        for x in [LIMIT, -2e7, 1e300, f64::INFINITY, f64::NAN, 0.0, -0.0] {
+            let (s, c) = sin_cos(x);
+            let (s0, c0) = x.sin_cos();
+            assert!(
+                s.to_bits() == s0.to_bits() && c.to_bits() == c0.to_bits(),
+                "{x}"
+            );
+        }
+    }
+}
