@@ -41,7 +41,8 @@ void mechanism_rhs(double t, double *y, double *dy, void *data) {
     double phi1 = y[0], phi2 = y[1], phi3 = y[2], phi4 = y[3];
     double w1 = y[4], w2 = y[5], w3 = y[6], w4 = y[7];
     double s2 = sin(phi2), c2 = cos(phi2), s3 = sin(phi3), c3 = cos(phi3);
-    double s23 = sin(phi2 - phi3), c23 = cos(phi2 - phi3);
+    /* sin and cos of φ2 − φ3 from the two pairs, as the FMU's model does: no third pair. */
+    double s23 = s2 * c3 - c2 * s3, c23 = c2 * c3 + s2 * s3;
     /* The constraint's coefficients B1, C1 [44]-[47] and their rates [49]-[51]. */
     double b1 = m->l2 * (m->l * s2 + m->l3 * s23);
     double c1 = m->l3 * (m->l2 * s23 + m->l * s3);
