@@ -296,7 +296,8 @@ impl Simulation {
             // The input polynomials are anchored at this step's start: a new right-hand side.
             self.restart = true;
         }
-        if self.inputs != self.integrator_inputs && !self.input_change_is_negligible() {
+        let inputs_changed = self.inputs != self.integrator_inputs;
+        if inputs_changed && !self.input_change_is_negligible() {
             self.restart = true;
         }
         if self.restart {
@@ -305,7 +306,7 @@ impl Simulation {
             self.integrator_inputs = self.inputs;
             self.solver.invalidate();
             self.restart = false;
-        } else if self.inputs != self.integrator_inputs && self.integrator_time < t_end {
+        } else if inputs_changed && self.integrator_time < t_end {
             // A negligible change: the next step takes the new inputs, from the integrator's
             // own point and with its step size.
             self.integrator_inputs = self.inputs;
