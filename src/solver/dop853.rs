@@ -268,9 +268,9 @@ impl<const N: usize> Dop853<N> {
             y_old,
             y_new,
         } = *step;
-        for (extra, (a, c)) in A_DENSE.iter().zip(C_DENSE).enumerate() {
+        for (extra, c) in C_DENSE.into_iter().enumerate() {
             let slot = NEXT_FIRST + 1 + extra;
-            let increment = combine(&a[..slot], &self.stages);
+            let increment = dense_stage_increment(extra, &self.stages);
             let y_stage: [f64; N] = std::array::from_fn(|n| y_old[n] + h * increment[n]);
             self.eval(system, t_old + c * h, &y_stage, slot);
         }
@@ -304,12 +304,12 @@ impl<const N: usize> Dop853<N> {
         y_stage: &mut [f64; N],
     ) -> f64 {
         self.stages[0] = self.stages[NEXT_FIRST];
-        for i in 1..STAGES {
-            let increment = combine(&A[i][..i], &self.stages);
+        for (i, &c) in C.iter().enumerate().skip(1) {
+            let increment = stage_increment(i, &self.stages);
             for n in 0..N {
                 y_stage[n] = y[n] + h * increment[n];
             }
-            self.eval(system, t + C[i] * h, y_stage, i);
+            self.eval(system, t + c * h, y_stage, i);
         }
         let stages = &self.stages[..STAGES];
         let (increment, e5, e3) = (
@@ -470,6 +470,34 @@ fn step_factor(error: f64, after_rejection: bool) -> f64 {
         factor.min(1.0)
     } else {
         factor
+    }
+}
+
+/// Σ_j A[i][j]·k_j for stage `i` of a step. Each arm combines one row of the tableau with
+/// its weights known to the compiler, so the zero entries cost nothing and the sums are
+/// straight-line code; one loop over `i` with the row read at run time tested every weight
+/// for zero, as many instructions as the multiply-adds themselves.
+#[inline(always)]
+fn stage_increment<const N: usize>(i: usize, stages: &[[f64; N]; SLOTS]) -> [f64; N] {
+    macro_rules! rows {
+        ($($row:literal)*) => {
+            match i {
+                $($row => combine(&A[$row][..$row], stages),)*
+                _ => [0.0; N],
+            }
+        };
+    }
+    rows!(1 2 3 4 5 6 7 8 9 10 11)
+}
+
+/// Σ_j A_DENSE[extra][j]·k_j for the interpolant's extra stage `extra`, as
+/// [`stage_increment`].
+#[inline(always)]
+fn dense_stage_increment<const N: usize>(extra: usize, stages: &[[f64; N]; SLOTS]) -> [f64; N] {
+    match extra {
+        0 => combine(&A_DENSE[0][..NEXT_FIRST + 1], stages),
+        1 => combine(&A_DENSE[1][..NEXT_FIRST + 2], stages),
+        _ => combine(&A_DENSE[2][..NEXT_FIRST + 3], stages),
     }
 }
 
