@@ -473,31 +473,33 @@ fn step_factor(error: f64, after_rejection: bool) -> f64 {
     }
 }
 
-/// Σ_j A[i][j]·k_j for stage `i` of a step. Each arm combines one row of the tableau with
-/// its weights known to the compiler, so the zero entries cost nothing and the sums are
-/// straight-line code; one loop over `i` with the row read at run time tested every weight
-/// for zero, as many instructions as the multiply-adds themselves.
+/// Σ_j A[i][j]·k_j for stage `i` of a step. The arms spell out the rows so that each
+/// combines its weights known to the compiler: the zero entries cost nothing and the sums
+/// are straight-line code. The general form, one loop over `i` with the row read at run
+/// time, tested every weight for zero, as many instructions as the multiply-adds
+/// themselves; it stays as the last arm, which the steps never reach.
 #[inline(always)]
 fn stage_increment<const N: usize>(i: usize, stages: &[[f64; N]; SLOTS]) -> [f64; N] {
     macro_rules! rows {
         ($($row:literal)*) => {
             match i {
                 $($row => combine(&A[$row][..$row], stages),)*
-                _ => [0.0; N],
+                _ => combine(&A[i][..i], stages),
             }
         };
     }
     rows!(1 2 3 4 5 6 7 8 9 10 11)
 }
 
-/// Σ_j A_DENSE[extra][j]·k_j for the interpolant's extra stage `extra`, as
-/// [`stage_increment`].
+/// Σ_j A_DENSE[extra][j]·k_j for the interpolant's extra stage `extra` (slot 13 + extra),
+/// spelled out as in [`stage_increment`].
 #[inline(always)]
 fn dense_stage_increment<const N: usize>(extra: usize, stages: &[[f64; N]; SLOTS]) -> [f64; N] {
     match extra {
         0 => combine(&A_DENSE[0][..NEXT_FIRST + 1], stages),
         1 => combine(&A_DENSE[1][..NEXT_FIRST + 2], stages),
-        _ => combine(&A_DENSE[2][..NEXT_FIRST + 3], stages),
+        2 => combine(&A_DENSE[2][..NEXT_FIRST + 3], stages),
+        _ => combine(&A_DENSE[extra][..NEXT_FIRST + 1 + extra], stages),
     }
 }
 
@@ -610,6 +612,28 @@ mod tests {
         );
         // Outside the last step there is no dense output.
         assert!(solver.dense_output(&Oscillator, t + 1.0).is_none());
+    }
+
+    #[test]
+    fn spelled_out_stage_sums_equal_the_tableau_rows() {
+        // Stage vectors with no zero and no pattern, so that any wrong weight or slice shows.
+        let stages: [[f64; 3]; SLOTS] =
+            std::array::from_fn(|j| std::array::from_fn(|n| ((j * 7 + n * 3 + 1) as f64).sin()));
+        let same =
+            |a: [f64; 3], b: [f64; 3]| a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits());
+        for i in 1..STAGES {
+            assert!(
+                same(stage_increment(i, &stages), combine(&A[i][..i], &stages)),
+                "stage {i}"
+            );
+        }
+        for extra in 0..3 {
+            let row = combine(&A_DENSE[extra][..NEXT_FIRST + 1 + extra], &stages);
+            assert!(
+                same(dense_stage_increment(extra, &stages), row),
+                "extra stage {extra}"
+            );
+        }
     }
 
     #[test]
