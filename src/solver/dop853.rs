@@ -473,34 +473,40 @@ fn step_factor(error: f64, after_rejection: bool) -> f64 {
     }
 }
 
-/// Σ_j A[i][j]·k_j for stage `i` of a step. The arms spell out the rows so that each
-/// combines its weights known to the compiler: the zero entries cost nothing and the sums
-/// are straight-line code. The general form, one loop over `i` with the row read at run
-/// time, tested every weight for zero, as many instructions as the multiply-adds
-/// themselves; it stays as the last arm, which the steps never reach.
+/// `$body` with `$index` bound to a literal in one arm per listed value, so that the
+/// compiler sees the tableau row it selects; any other value takes the same `$body` with
+/// the index read at run time.
+macro_rules! with_known_index {
+    ($index:expr, |$k:ident| $body:expr, $($value:literal)*) => {
+        match $index {
+            $($value => {
+                let $k: usize = $value;
+                $body
+            })*
+            $k => $body,
+        }
+    };
+}
+
+/// Σ_j A[i][j]·k_j for stage `i` of a step, with the row known to the compiler: the zero
+/// entries cost nothing and the sums are straight-line code. The general form, one loop
+/// over `i` with the row read at run time, tested every weight for zero, as many
+/// instructions as the multiply-adds themselves; it stays as the last arm, which the
+/// steps never reach.
 #[inline(always)]
 fn stage_increment<const N: usize>(i: usize, stages: &[[f64; N]; SLOTS]) -> [f64; N] {
-    macro_rules! rows {
-        ($($row:literal)*) => {
-            match i {
-                $($row => combine(&A[$row][..$row], stages),)*
-                _ => combine(&A[i][..i], stages),
-            }
-        };
-    }
-    rows!(1 2 3 4 5 6 7 8 9 10 11)
+    with_known_index!(i, |row| combine(&A[row][..row], stages), 1 2 3 4 5 6 7 8 9 10 11)
 }
 
 /// Σ_j A_DENSE[extra][j]·k_j for the interpolant's extra stage `extra` (slot 13 + extra),
-/// spelled out as in [`stage_increment`].
+/// with the row known to the compiler as in [`stage_increment`].
 #[inline(always)]
 fn dense_stage_increment<const N: usize>(extra: usize, stages: &[[f64; N]; SLOTS]) -> [f64; N] {
-    match extra {
-        0 => combine(&A_DENSE[0][..NEXT_FIRST + 1], stages),
-        1 => combine(&A_DENSE[1][..NEXT_FIRST + 2], stages),
-        2 => combine(&A_DENSE[2][..NEXT_FIRST + 3], stages),
-        _ => combine(&A_DENSE[extra][..NEXT_FIRST + 1 + extra], stages),
-    }
+    with_known_index!(
+        extra,
+        |row| combine(&A_DENSE[row][..NEXT_FIRST + 1 + row], stages),
+        0 1 2
+    )
 }
 
 #[cfg(test)]
