@@ -616,13 +616,16 @@ impl Instance {
 
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
         let now = self.sim.time();
-        if !(step.is_finite() && step > 0.0) {
+        // Comparisons rather than `is_finite`, which compiles to a classification: this
+        // runs at every communication point. NaN fails every comparison.
+        if !(step > 0.0 && step <= f64::MAX) {
             return Err(Failure::error(format!(
                 "communicationStepSize = {} must be finite and > 0",
                 number(step)
             )));
         }
-        if !current.is_finite() || (current - now).abs() > TIME_MATCH * now.abs().max(step) {
+        let current_is_finite = current.abs() <= f64::MAX;
+        if !current_is_finite || (current - now).abs() > TIME_MATCH * now.abs().max(step) {
             return Err(Failure::error(format!(
                 "currentCommunicationPoint = {} does not match the FMU's time {}",
                 number(current),

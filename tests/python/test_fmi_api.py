@@ -157,6 +157,13 @@ def test_communication_point_must_match_the_fmu_time(fmu):
     assert abs(fmu.slave.getRealStatus(fmi2.fmi2LastSuccessfulTime) - 0.2) < 1e-14
 
 
+@pytest.mark.parametrize("current", [math.nan, math.inf, -math.inf])
+def test_non_finite_communication_points_are_errors(fmu, current):
+    fmu.initialise()
+    assert "currentCommunicationPoint" in fmu.expect(ERROR, fmu.slave.doStep, current, 1e-3)
+    fmu.slave.doStep(0.0, 1e-3)  # and the instance still steps
+
+
 def test_stepping_past_stop_time_is_an_error(fmu):
     fmu.initialise(stop_time=0.3)
     for k in range(3):
