@@ -23,6 +23,8 @@ pub fn advance(sim: &mut Simulation, t_end: f64) -> Result<(), SolverError> {
     advance_baseline(sim, t_end)
 }
 
+/// The baseline copy behind a call of its own: inlined into [`advance`], its large frame
+/// would be set up on every step, also where the AVX copy runs.
 #[inline(never)]
 fn advance_baseline(sim: &mut Simulation, t_end: f64) -> Result<(), SolverError> {
     sim.advance(t_end)
