@@ -95,7 +95,8 @@ pub fn sin_cos_pair(x: [f64; 2]) -> [(f64, f64); 2] {
     if !(reduced_here(x[0]) & reduced_here(x[1])) {
         return [sin_cos(x[0]), sin_cos(x[1])];
     }
-    let q = x.map(|x| (x * std::f64::consts::FRAC_2_PI + SHIFT) - SHIFT);
+    let shifted = x.map(|x| x * std::f64::consts::FRAC_2_PI + SHIFT);
+    let q = shifted.map(|t| t - SHIFT);
     let a: [f64; 2] = std::array::from_fn(|i| x[i] - q[i] * PIO2_1);
     let b: [f64; 2] = std::array::from_fn(|i| -(q[i] * PIO2_2));
     let hi: [f64; 2] = std::array::from_fn(|i| a[i] + b[i]);
@@ -121,16 +122,20 @@ pub fn sin_cos_pair(x: [f64; 2]) -> [(f64, f64); 2] {
     let c: [f64; 2] =
         std::array::from_fn(|i| 1.0 - 0.5 * z[i] + (z2[i] * cos_poly[i] - hi[i] * lo[i]));
     // Quadrant n: odd swaps sin and cos; sin is negative for n = 2, 3, cos for n = 1, 2.
-    let n = q.map(|q| q as i32);
+    // n's low bits are those of `shifted`'s mantissa (SHIFT = 1.5·2⁵² puts q there), so
+    // the fix-up is bit arithmetic on the two lanes. With `q as i32` (a saturating
+    // conversion) the compiler paired each angle's sin with its cos instead of the two
+    // angles, mostly in scalar instructions: 133 instructions per pair on paper case 1
+    // (valgrind), against 83 this way.
+    let n = shifted.map(f64::to_bits);
+    let swap = n.map(|n| (n & 1).wrapping_neg());
+    let (s, c) = (s.map(f64::to_bits), c.map(f64::to_bits));
     std::array::from_fn(|i| {
-        let (s, c) = if n[i] & 1 == 0 {
-            (s[i], c[i])
-        } else {
-            (c[i], s[i])
-        };
-        let sin_sign = if n[i] & 2 == 0 { 1.0 } else { -1.0 };
-        let cos_sign = if (n[i] + 1) & 2 == 0 { 1.0 } else { -1.0 };
-        (s * sin_sign, c * cos_sign)
+        let sin_sign = (n[i] & 2) << 62;
+        let cos_sign = (n[i].wrapping_add(1) & 2) << 62;
+        let sin = ((c[i] & swap[i]) | (s[i] & !swap[i])) ^ sin_sign;
+        let cos = ((s[i] & swap[i]) | (c[i] & !swap[i])) ^ cos_sign;
+        (f64::from_bits(sin), f64::from_bits(cos))
     })
 }
 
