@@ -547,9 +547,11 @@ fn dense_coefficient_sum<const N: usize>(row: usize, stages: &[[f64; N]; SLOTS])
 /// and 3rd-order error estimates (E5, E3).
 #[inline(always)]
 fn step_sums<const N: usize>(stages: &[[f64; N]; SLOTS]) -> [[f64; N]; 3] {
-    let slots =
-        |weights: &[f64; STAGES]| tableau_sum!(weights[..], stages, 0 1 2 3 4 5 6 7 8 9 10 11);
-    [slots(&B), slots(&E5), slots(&E3)]
+    [
+        tableau_sum!(B, stages, 0 1 2 3 4 5 6 7 8 9 10 11),
+        tableau_sum!(E5, stages, 0 1 2 3 4 5 6 7 8 9 10 11),
+        tableau_sum!(E3, stages, 0 1 2 3 4 5 6 7 8 9 10 11),
+    ]
 }
 
 #[cfg(test)]
