@@ -105,14 +105,35 @@ impl InputDerivatives {
 struct Driven<'a> {
     params: &'a Parameters,
     inputs: &'a Inputs,
-    derivatives: &'a InputDerivatives,
+    /// `None` while the inputs are held (no derivatives set): the right-hand side then
+    /// skips the two polynomials (about 12 instructions per evaluation, 1.8 % of paper
+    /// case 1's).
+    derivatives: Option<&'a InputDerivatives>,
     anchor: f64,
 }
 
-impl Driven<'_> {
+impl<'a> Driven<'a> {
+    fn new(
+        params: &'a Parameters,
+        inputs: &'a Inputs,
+        derivatives: &'a InputDerivatives,
+        anchor: f64,
+    ) -> Self {
+        let derivatives = (!derivatives.is_zero()).then_some(derivatives);
+        Self {
+            params,
+            inputs,
+            derivatives,
+            anchor,
+        }
+    }
+
     #[inline]
     fn inputs_at(&self, t: f64) -> Inputs {
-        self.derivatives.at(self.inputs, self.anchor, t)
+        match self.derivatives {
+            None => *self.inputs,
+            Some(derivatives) => derivatives.at(self.inputs, self.anchor, t),
+        }
     }
 }
 
@@ -313,12 +334,12 @@ impl Simulation {
             self.solver.invalidate();
         }
         // Disjoint borrows of the fields (self.integrator_system() would borrow all of self).
-        let system = Driven {
-            params: &self.params,
-            inputs: &self.integrator_inputs,
-            derivatives: &self.input_derivatives,
-            anchor: self.time,
-        };
+        let system = Driven::new(
+            &self.params,
+            &self.integrator_inputs,
+            &self.input_derivatives,
+            self.time,
+        );
         let limit = self.limit.max(t_end);
         if self.integrator_time < t_end {
             let gap = t_end - self.integrator_time;
@@ -362,12 +383,12 @@ impl Simulation {
     /// closure g and the gradient terms there.
     #[inline(always)]
     fn at_communication_point(&mut self, t_end: f64) -> Result<(State, Projected), SolverError> {
-        let system = Driven {
-            params: &self.params,
-            inputs: &self.integrator_inputs,
-            derivatives: &self.input_derivatives,
-            anchor: self.time,
-        };
+        let system = Driven::new(
+            &self.params,
+            &self.integrator_inputs,
+            &self.input_derivatives,
+            self.time,
+        );
         let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
         let mut y = if self.integrator_time == t_end {
             self.integrator_state
@@ -404,12 +425,12 @@ impl Simulation {
 
     /// The system the integrator solves, anchored at the current communication point.
     fn system(&self) -> Driven<'_> {
-        Driven {
-            params: &self.params,
-            inputs: &self.inputs,
-            derivatives: &self.input_derivatives,
-            anchor: self.time,
-        }
+        Driven::new(
+            &self.params,
+            &self.inputs,
+            &self.input_derivatives,
+            self.time,
+        )
     }
 
     /// The system the integrator's memory belongs to: as [`Simulation::system`], with the
