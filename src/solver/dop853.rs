@@ -238,7 +238,7 @@ impl<const N: usize> Dop853<N> {
         }
         if self.dense.is_none() {
             let step = *step;
-            self.dense = Some(self.dense_coefficients(system, &step));
+            self.dense_coefficients(system, &step);
         }
         let (step, coefficients) = (self.last_step.as_ref()?, self.dense.as_ref()?);
         // Horner-like evaluation of the interpolant in x and 1 − x.
@@ -255,13 +255,12 @@ impl<const N: usize> Dop853<N> {
         Some(y)
     }
 
-    /// Evaluate the extra stages and form the interpolant's seven coefficient vectors.
+    /// Evaluate the extra stages and form the interpolant's seven coefficient vectors in
+    /// `self.dense`. Formed in place: returned by value, the 448 bytes were copied twice
+    /// on their way into the field (two calls of memcpy, 1.6 % of paper case 1's
+    /// instructions at H = 0.01).
     #[inline(always)]
-    fn dense_coefficients<S: OdeSystem<N>>(
-        &mut self,
-        system: &S,
-        step: &LastStep<N>,
-    ) -> [[f64; N]; 7] {
+    fn dense_coefficients<S: OdeSystem<N>>(&mut self, system: &S, step: &LastStep<N>) {
         let LastStep {
             t_old,
             h,
@@ -275,7 +274,7 @@ impl<const N: usize> Dop853<N> {
             self.eval(system, t_old + c * h, &y_stage, slot);
         }
         let (f_old, f_new) = (self.stages[0], self.stages[NEXT_FIRST]);
-        let mut coefficients = [[0.0; N]; 7];
+        let coefficients = self.dense.insert([[0.0; N]; 7]);
         for row in 0..D.len() {
             let sum = dense_coefficient_sum(row, &self.stages);
             coefficients[3 + row] = std::array::from_fn(|n| h * sum[n]);
@@ -286,7 +285,6 @@ impl<const N: usize> Dop853<N> {
             coefficients[1][n] = h * f_old[n] - delta;
             coefficients[2][n] = 2.0 * delta - h * (f_new[n] + f_old[n]);
         }
-        coefficients
     }
 
     /// One trial step of size `h` from (t, y), with f(t, y) in slot 12 (the previous
@@ -396,7 +394,8 @@ impl<const N: usize> Dop853<N> {
         if let Some(dense) = &self.dense {
             // The interpolant also uses f at the step's end, checked above.
             copy.stages[NEXT_FIRST] = self.stages[NEXT_FIRST];
-            let again = copy.dense_coefficients(system, &step);
+            copy.dense_coefficients(system, &step);
+            let again = copy.dense.as_ref().ok_or("no interpolant formed")?;
             if !(0..7).all(|i| same(&again[i], &dense[i])) {
                 return Err("the stored interpolant is not the last step's".into());
             }
