@@ -184,7 +184,7 @@ impl<const N: usize> Dop853<N> {
                 // Rejected, or a non-finite stage (error is NaN or infinite).
                 self.progress.stats.n_rejected += 1;
                 let factor = if error.is_finite() {
-                    (SAFETY * error.powf(-1.0 / 8.0)).max(FACTOR_MIN)
+                    (SAFETY * inverse_eighth_root(error)).max(FACTOR_MIN)
                 } else {
                     0.1
                 };
@@ -454,11 +454,19 @@ impl<const N: usize> Dop853<N> {
 
 /// Step-size factor after an accepted step with scaled error `error` ≤ 1: no growth
 /// right after a rejection (HNW I, II.4).
+/// error^(−1/8) by three square roots (a few instructions each) instead of `powf`, whose
+/// C library call took 1.4 % of paper case 1's instructions at H = 0.01; the two differ
+/// by a few ulps, far below what the step-size control can resolve.
+#[inline(always)]
+fn inverse_eighth_root(error: f64) -> f64 {
+    1.0 / error.sqrt().sqrt().sqrt()
+}
+
 fn step_factor(error: f64, after_rejection: bool) -> f64 {
     let factor = if error == 0.0 {
         FACTOR_MAX
     } else {
-        (SAFETY * error.powf(-1.0 / 8.0)).clamp(FACTOR_MIN, FACTOR_MAX)
+        (SAFETY * inverse_eighth_root(error)).clamp(FACTOR_MIN, FACTOR_MAX)
     };
     if after_rejection {
         factor.min(1.0)
