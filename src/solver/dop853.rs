@@ -452,8 +452,6 @@ impl<const N: usize> Dop853<N> {
     }
 }
 
-/// Step-size factor after an accepted step with scaled error `error` ≤ 1: no growth
-/// right after a rejection (HNW I, II.4).
 /// error^(−1/8) by three square roots (a few instructions each) instead of `powf`, whose
 /// C library call took 1.4 % of paper case 1's instructions at H = 0.01; the two differ
 /// by a few ulps, far below what the step-size control can resolve.
@@ -462,6 +460,8 @@ fn inverse_eighth_root(error: f64) -> f64 {
     1.0 / error.sqrt().sqrt().sqrt()
 }
 
+/// Step-size factor after an accepted step with scaled error `error` ≤ 1: no growth
+/// right after a rejection (HNW I, II.4).
 fn step_factor(error: f64, after_rejection: bool) -> f64 {
     let factor = if error == 0.0 {
         FACTOR_MAX
