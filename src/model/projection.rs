@@ -29,57 +29,168 @@ const MAX_POSITION_ITERATIONS: usize = 8;
 /// (Newton along J⁻¹Gᵀ); then velocities onto B1·ω2 − C1·ω3 = 0 with the J-weighted
 /// projection ω ← ω − J⁻¹Gᵀ(G·J⁻¹·Gᵀ)⁻¹·G·ω at the final positions. Only φ2, φ3, ω2, ω3
 /// move. Returns g, B1 and C1 at the result; fails where G vanishes (a change point) or
-/// Newton does not converge.
-///
-/// One pair of sin_cos serves the whole projection. A dense-output point or a step's end
-/// usually lies so near the manifold that one Newton step moves the angles by 1e-12…1e-8
-/// rad: then g, B1 and C1 at the new angles follow from their values here by Taylor's
-/// formula (second order for g, first for B1 and C1) to within rounding, which
-/// [`taylor_is_exact`] checks before they are used, and the velocity projected here gets a
-/// small correction for the moved gradient. No second closure or division waits on the
-/// first, and this chain of dependent operations, not the count of instructions, sets the
-/// cost of a communication point: paper case 1 at H = 0.01 took 3–4.5 % less time at tol
-/// 1e-6 and 1e-8 than with a second closure. Larger corrections (at tol 1e-3, 468 of the
-/// 1114 projections that move the angles; none from 1e-6 down) go on with Newton's
-/// iteration ([`iterate`]).
+/// Newton does not converge. One pair of sin_cos serves the whole projection: first
+/// [`one_newton_step`], then, where that does not settle it, Newton's iteration.
 #[inline(always)]
 pub fn project(p: &Parameters, y: &mut State) -> Result<Projected, ModelError> {
-    // Three divisions per call instead of five per iteration: they dominate its cost.
-    let (inverse_j2, inverse_j3) = (1.0 / p.J2, 1.0 / p.J3);
     let [sc2, sc3] = sin_cos_pair([y[1], y[2]]);
-    let (g, b1, c1) = closure_with_gradient_from(p, sc2, sc3);
-    let moves = (b1 * inverse_j2, c1 * inverse_j3);
-    let inverse_weight = 1.0 / (b1 * moves.0 + c1 * moves.1);
-    let velocity_scale = (b1 * y[5] - c1 * y[6]) * inverse_weight;
-    let tolerance = closure_tolerance(p, (b1, c1), (y[1], y[2]));
-    if g.abs() <= tolerance {
-        project_velocity(y, moves, velocity_scale);
-        return Ok(Projected { closure: g, b1, c1 });
+    match one_newton_step(p, y, sc2, sc3) {
+        Ok(at) => Ok(at),
+        Err([sc2, sc3]) => iterate(p, y, sc2, sc3),
     }
-    let scale = g * inverse_weight;
+}
+
+/// The projection's common case, with the sines and cosines (`sc2`, `sc3`) of the angles in
+/// `y`. A dense-output point or a step's end usually lies so near the manifold that one
+/// Newton step moves the angles by 1e-12…1e-8 rad: then g, B1 and C1 at the new angles
+/// follow from their values here by Taylor's formula (second order for g, first for B1
+/// and C1) to within rounding, which [`taylor_is_exact`] checks before they are used, and
+/// the velocity projected here gets a small correction for the moved gradient. No second
+/// closure or division waits on the first, and this chain of dependent operations, not
+/// the count of instructions, sets the cost of a communication point: paper case 1 at
+/// H = 0.01 took 3–4.5 % less time at tol 1e-6 and 1e-8 than with a second closure.
+///
+/// Where one step does not settle it (on paper case 1 at H = 0.01: 468 of the 1114
+/// projections that move the angles at tol 1e-3, none from 1e-6 down), `Err` gives the
+/// sines and cosines of the angles `y` now holds, for Newton's iteration to go on from.
+#[inline(always)]
+fn one_newton_step(
+    p: &Parameters,
+    y: &mut State,
+    sc2: (f64, f64),
+    sc3: (f64, f64),
+) -> Result<Projected, [(f64, f64); 2]> {
+    let tolerance = closure_tolerance(p);
+    let inverse_j = inverse_inertias(p);
+    let here = Linearised::at(p, inverse_j, sc2, sc3);
+    if here.g.abs() <= tolerance {
+        here.project_velocity(y);
+        return Ok(here.projected());
+    }
+    let scale = here.g * here.inverse_weight;
     if !scale.is_finite() {
-        return iterate(p, y, sc2, sc3);
+        return Err([sc2, sc3]);
     }
-    let (old2, old3) = (y[1], y[2]);
-    y[1] -= moves.0 * scale;
-    y[2] += moves.1 * scale;
-    // The differences of the stored angles are exact: what Taylor's formula needs.
-    let delta = (y[1] - old2, y[2] - old3);
-    let moved = Curvature::at(p, sc2, sc3).moved((g, b1, c1), delta);
-    if !(taylor_is_exact(p, b1, c1, delta) && moved.closure.abs() <= tolerance) {
-        let (sc2, sc3) = (rotate(sc2, delta.0, y[1]), rotate(sc3, delta.1, y[2]));
-        return iterate(p, y, sc2, sc3);
+    let delta = correct_positions(y, here.moves, scale);
+    let moved = Curvature::at(p, sc2, sc3).moved((here.g, here.b1, here.c1), delta);
+    if !(taylor_is_exact(p, here.b1, here.c1, delta) && moved.closure.abs() <= tolerance) {
+        return Err([rotate(sc2, delta.0, y[1]), rotate(sc3, delta.1, y[2])]);
     }
-    project_velocity(y, moves, velocity_scale);
+    here.project_velocity(y);
     // G moved by O(Δφ): project what it left, with the new gradient (the weight's change
     // enters this tiny correction only to second order).
-    let new_moves = (moved.b1 * inverse_j2, moved.c1 * inverse_j3);
-    project_velocity(
-        y,
-        new_moves,
-        (moved.b1 * y[5] - moved.c1 * y[6]) * inverse_weight,
-    );
+    let new_moves = (moved.b1 * inverse_j.0, moved.c1 * inverse_j.1);
+    let left = (moved.b1 * y[5] - moved.c1 * y[6]) * here.inverse_weight;
+    project_velocity(y, new_moves, left);
     Ok(moved)
+}
+
+/// Newton's iteration for what [`one_newton_step`] does not settle, from the angles in `y`
+/// with their sines and cosines: each iteration rotates them by the change of the stored
+/// angles ([`rotate`]); the velocity is projected at the final positions.
+#[inline(never)]
+fn iterate(
+    p: &Parameters,
+    y: &mut State,
+    mut sc2: (f64, f64),
+    mut sc3: (f64, f64),
+) -> Result<Projected, ModelError> {
+    let tolerance = closure_tolerance(p);
+    let inverse_j = inverse_inertias(p);
+    for iteration in 0..=MAX_POSITION_ITERATIONS {
+        let at = Linearised::at(p, inverse_j, sc2, sc3);
+        let converged = at.g.abs() <= tolerance
+            || iteration == MAX_POSITION_ITERATIONS && at.g.abs() <= 1e3 * tolerance;
+        if converged {
+            at.project_velocity(y);
+            return Ok(at.projected());
+        }
+        let scale = at.g * at.inverse_weight;
+        if !scale.is_finite() {
+            break;
+        }
+        let (delta2, delta3) = correct_positions(y, at.moves, scale);
+        sc2 = rotate(sc2, delta2, y[1]);
+        sc3 = rotate(sc3, delta3, y[2]);
+    }
+    let g = closure(p, y[1], y[2]);
+    Err(ModelError::new(format!(
+        "position projection failed at phi2 = {}, phi3 = {}: closure residual {g:e}",
+        y[1], y[2]
+    )))
+}
+
+/// How close to g = 0 the projection goes: a few roundings of g's evaluation.
+#[inline(always)]
+fn closure_tolerance(p: &Parameters) -> f64 {
+    4.0 * f64::EPSILON * p.L * p.L
+}
+
+/// (1/J2, 1/J3): two divisions per projection rather than per Newton iteration.
+#[inline(always)]
+fn inverse_inertias(p: &Parameters) -> (f64, f64) {
+    (1.0 / p.J2, 1.0 / p.J3)
+}
+
+/// g, B1 and C1 at one configuration, with what a Newton step and the velocity projection
+/// there need: `moves` = J⁻¹Gᵀ's two entries (B1/J2, C1/J3) and 1/(G·J⁻¹·Gᵀ).
+struct Linearised {
+    g: f64,
+    b1: f64,
+    c1: f64,
+    moves: (f64, f64),
+    inverse_weight: f64,
+}
+
+impl Linearised {
+    #[inline(always)]
+    fn at(p: &Parameters, inverse_j: (f64, f64), sc2: (f64, f64), sc3: (f64, f64)) -> Self {
+        let (g, b1, c1) = closure_with_gradient_from(p, sc2, sc3);
+        let moves = (b1 * inverse_j.0, c1 * inverse_j.1);
+        let inverse_weight = 1.0 / (b1 * moves.0 + c1 * moves.1);
+        Self {
+            g,
+            b1,
+            c1,
+            moves,
+            inverse_weight,
+        }
+    }
+
+    /// The velocity projected onto B1·ω2 − C1·ω3 = 0 with this gradient.
+    #[inline(always)]
+    fn project_velocity(&self, y: &mut State) {
+        let scale = (self.b1 * y[5] - self.c1 * y[6]) * self.inverse_weight;
+        project_velocity(y, self.moves, scale);
+    }
+
+    fn projected(&self) -> Projected {
+        Projected {
+            closure: self.g,
+            b1: self.b1,
+            c1: self.c1,
+        }
+    }
+}
+
+/// φ ← φ − J⁻¹Gᵀ·scale on φ2 and φ3; returns the changes of the stored angles, which are
+/// exact (what the rotation of the sines and Taylor's formula need).
+#[inline(always)]
+fn correct_positions(y: &mut State, (move2, move3): (f64, f64), scale: f64) -> (f64, f64) {
+    let (old2, old3) = (y[1], y[2]);
+    y[1] -= move2 * scale;
+    y[2] += move3 * scale;
+    (y[1] - old2, y[2] - old3)
+}
+
+/// ω ← ω − J⁻¹Gᵀ·scale, with `moves` = J⁻¹Gᵀ's two entries and `scale` = G·ω/(G·J⁻¹·Gᵀ);
+/// skipped when the scale is not finite (G vanishes: the caller's passage check reports it).
+#[inline(always)]
+fn project_velocity(y: &mut State, (move2, move3): (f64, f64), scale: f64) {
+    if scale.is_finite() {
+        y[5] -= move2 * scale;
+        y[6] += move3 * scale;
+    }
 }
 
 /// The second derivatives of g (docs/model.md §2) at one configuration: with B1 = ∂g/∂φ2 and
@@ -125,66 +236,6 @@ fn taylor_is_exact(p: &Parameters, b1: f64, c1: f64, (d2, d3): (f64, f64)) -> bo
     let bound = (p.l + 4.0 * reach) * reach;
     let size = d2.abs() + d3.abs();
     bound * size * size <= 4.0 * f64::EPSILON * (b1.abs() + c1.abs())
-}
-
-/// How close to g = 0 the projection gets: the rounding of g's evaluation (a few ε·L²), plus
-/// what the stored angles' own rounding leaves (|B1|·ε·|φ2| + |C1|·ε·|φ3|). The latter
-/// grows as the crank turns: at φ ≈ 600 rad (100 s at 6 rad/s) an angle's last bit moves g
-/// by ten times the former, and Newton cannot do better than the angles it stores.
-#[inline(always)]
-fn closure_tolerance(p: &Parameters, (b1, c1): (f64, f64), (phi2, phi3): (f64, f64)) -> f64 {
-    4.0 * f64::EPSILON * (p.L * p.L + b1.abs() * phi2.abs() + c1.abs() * phi3.abs())
-}
-
-/// ω ← ω − J⁻¹Gᵀ·scale, with `moves` = J⁻¹Gᵀ's two entries (B1/J2, C1/J3) and `scale` =
-/// G·ω/(G·J⁻¹·Gᵀ); skipped when the scale is not finite (G vanishes: the caller's passage
-/// check reports it).
-#[inline(always)]
-fn project_velocity(y: &mut State, (move2, move3): (f64, f64), scale: f64) {
-    if scale.is_finite() {
-        y[5] -= move2 * scale;
-        y[6] += move3 * scale;
-    }
-}
-
-/// Newton's iteration for what one step of [`project`] does not settle, from the angles in
-/// `y` with their sines and cosines: each iteration rotates them by the change of the
-/// stored angles ([`rotate`]); the velocity is projected at the final positions.
-#[inline(never)]
-fn iterate(
-    p: &Parameters,
-    y: &mut State,
-    mut sc2: (f64, f64),
-    mut sc3: (f64, f64),
-) -> Result<Projected, ModelError> {
-    let (inverse_j2, inverse_j3) = (1.0 / p.J2, 1.0 / p.J3);
-    for iteration in 0..=MAX_POSITION_ITERATIONS {
-        let (g, b1, c1) = closure_with_gradient_from(p, sc2, sc3);
-        let moves = (b1 * inverse_j2, c1 * inverse_j3);
-        let inverse_weight = 1.0 / (b1 * moves.0 + c1 * moves.1);
-        let tolerance = closure_tolerance(p, (b1, c1), (y[1], y[2]));
-        let converged = g.abs() <= tolerance
-            || iteration == MAX_POSITION_ITERATIONS && g.abs() <= 1e3 * tolerance;
-        if converged {
-            project_velocity(y, moves, (b1 * y[5] - c1 * y[6]) * inverse_weight);
-            return Ok(Projected { closure: g, b1, c1 });
-        }
-        let scale = g * inverse_weight;
-        if !scale.is_finite() {
-            break;
-        }
-        let (old2, old3) = (y[1], y[2]);
-        y[1] -= moves.0 * scale;
-        y[2] += moves.1 * scale;
-        // The differences of the stored angles are exact: the sines and cosines match them.
-        sc2 = rotate(sc2, y[1] - old2, y[1]);
-        sc3 = rotate(sc3, y[2] - old3, y[2]);
-    }
-    let g = closure(p, y[1], y[2]);
-    Err(ModelError::new(format!(
-        "position projection failed at phi2 = {}, phi3 = {}: closure residual {g:e}",
-        y[1], y[2]
-    )))
 }
 
 /// The step from `previous` to `y` (projected, with `at` its projection) stayed where the
@@ -395,8 +446,10 @@ mod tests {
     #[test]
     fn one_newton_step_gives_what_newtons_iteration_gives() {
         // Departures as a dense output leaves them (1e-12…1e-8), at small and large angles:
-        // the result of the one-step path agrees with Newton's iteration to rounding and
-        // keeps both constraints, and the g, B1, C1 it returns are those at the result.
+        // one step settles them (up to a few turns; at a hundred turns, where an ulp of φ2
+        // is 1e-13 rad, Newton's iteration may go on), the result agrees with Newton's
+        // iteration to rounding and keeps both constraints, and the g, B1, C1 returned are
+        // those at the result.
         let p = Parameters {
             omega2_0: 4.0,
             ..Parameters::default()
@@ -408,14 +461,20 @@ mod tests {
                 y[1] += turns * std::f64::consts::TAU + departure;
                 y[2] -= 0.3 * departure;
                 y[5] += 1e3 * departure;
+                let what = format!("{turns} turns, departure {departure:e}");
                 let mut by_iteration = y;
-                let at = project(&p, &mut y).unwrap();
-                let [sc2, sc3] = sin_cos_pair([by_iteration[1], by_iteration[2]]);
+                let [sc2, sc3] = sin_cos_pair([y[1], y[2]]);
+                let at = if turns < 10.0 {
+                    let settled = one_newton_step(&p, &mut y, sc2, sc3);
+                    assert!(settled.is_ok(), "{what}: one step did not settle it");
+                    settled.unwrap()
+                } else {
+                    project(&p, &mut y).unwrap()
+                };
                 iterate(&p, &mut by_iteration, sc2, sc3).unwrap();
                 let (g, b1, c1) = closure_with_gradient(&p, y[1], y[2]);
                 let gradient = b1.abs() + c1.abs();
-                let tolerance = closure_tolerance(&p, (b1, c1), (y[1], y[2]));
-                let what = format!("{turns} turns, departure {departure:e}");
+                let tolerance = closure_tolerance(&p);
                 assert!(g.abs() <= 2.0 * tolerance, "{what}: g = {g:e}");
                 assert!((at.closure - g).abs() <= tolerance, "{what}");
                 assert!((at.b1 - b1).abs() <= 1e-15 * gradient, "{what}");
