@@ -11,9 +11,9 @@
 use crate::simulation::Simulation;
 use crate::solver::SolverError;
 
-/// [`Simulation::advance`], through the AVX copy where the processor has AVX (and POPCNT,
-/// which every processor with AVX has: the stiffness test counts the bits of its window
-/// in one instruction rather than twenty). Inlined into its caller, so that a step enters
+/// [`Simulation::advance`], through the AVX copy where the processor has AVX and POPCNT
+/// (the stiffness test then counts the bits of its window in one instruction rather than
+/// about twenty; both are checked at run time). Inlined into its caller, so that a step enters
 /// only the copy it runs.
 #[inline]
 pub fn advance(sim: &mut Simulation, t_end: f64) -> Result<(), SolverError> {
