@@ -110,6 +110,8 @@ struct Driven<'a> {
     /// instructions on paper case 1 at H = 0.01, tol 1e-6).
     derivatives: Option<&'a InputDerivatives>,
     anchor: f64,
+    /// The relative accuracy the projection needs of the gradient ([`model::project`]).
+    projection_accuracy: f64,
 }
 
 impl<'a> Driven<'a> {
@@ -118,6 +120,7 @@ impl<'a> Driven<'a> {
         inputs: &'a Inputs,
         derivatives: &'a InputDerivatives,
         anchor: f64,
+        tolerance: f64,
     ) -> Self {
         let derivatives = (!derivatives.is_zero()).then_some(derivatives);
         Self {
@@ -125,6 +128,7 @@ impl<'a> Driven<'a> {
             inputs,
             derivatives,
             anchor,
+            projection_accuracy: projection_accuracy(tolerance),
         }
     }
 
@@ -145,7 +149,8 @@ impl OdeSystem<STATE_SIZE> for Driven<'_> {
 
     #[inline(always)]
     fn project(&self, previous: &State, y: &mut State) -> Result<(), String> {
-        let at = model::project(self.params, y).map_err(|e| e.to_string())?;
+        let at =
+            model::project(self.params, y, self.projection_accuracy).map_err(|e| e.to_string())?;
         model::check_passage(self.params, previous, y, &at).map_err(|e| e.to_string())
     }
 }
@@ -339,6 +344,7 @@ impl Simulation {
             &self.integrator_inputs,
             &self.input_derivatives,
             self.time,
+            self.tolerance,
         );
         let limit = self.limit.max(t_end);
         if self.integrator_time < t_end {
@@ -388,6 +394,7 @@ impl Simulation {
             &self.integrator_inputs,
             &self.input_derivatives,
             self.time,
+            self.tolerance,
         );
         let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
         let mut y = if self.integrator_time == t_end {
@@ -397,7 +404,7 @@ impl Simulation {
                 .dense_output(&system, t_end)
                 .ok_or_else(|| refused("no dense output covers this time".into()))?
         };
-        match model::project(&self.params, &mut y) {
+        match model::project(&self.params, &mut y, system.projection_accuracy) {
             Ok(at) if y.iter().all(|v| v.is_finite()) => Ok((y, at)),
             Ok(_) => Err(refused("the interpolated state is not finite".into())),
             Err(error) => Err(refused(error.to_string())),
@@ -430,6 +437,7 @@ impl Simulation {
             &self.inputs,
             &self.input_derivatives,
             self.time,
+            self.tolerance,
         )
     }
 
@@ -1119,6 +1127,17 @@ fn solver_kind(value: i32) -> Option<SolverKind> {
             2 => SolverKind::Dop853,
             _ => SolverKind::Implicit,
         })
+}
+
+/// The relative accuracy the projection needs of the gradient for the master's relative
+/// tolerance `rtol` ([`model::project`]): a millionth of the integrator's tolerance (at
+/// most 2e-12), below which an error of the velocity constraint cannot matter; rounding
+/// where that is larger. On paper case 1 at H = 0.01 and tol 1e-4, 22 of the 1114
+/// projections that move the angles then go on to Newton's iteration (310 with rounding
+/// asked of the gradient), and the run takes 0.95–0.98 × the time (0.96–0.97 at
+/// H = 0.001; two series of 9–11 alternating rounds through the C ABI).
+fn projection_accuracy(rtol: f64) -> f64 {
+    tolerances(rtol).rtol * 1e-6
 }
 
 /// The integrator's tolerances for the master's relative tolerance `rtol` (see
