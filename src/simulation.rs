@@ -405,7 +405,7 @@ impl Simulation {
                 .ok_or_else(|| refused("no dense output covers this time".into()))?
         };
         match model::project(&self.params, &mut y, system.projection_accuracy) {
-            Ok(at) if y.iter().all(|v| v.is_finite()) => Ok((y, at)),
+            Ok(at) if all_finite(&y) => Ok((y, at)),
             Ok(_) => Err(refused("the interpolated state is not finite".into())),
             Err(error) => Err(refused(error.to_string())),
         }
@@ -1129,6 +1129,16 @@ fn solver_kind(value: i32) -> Option<SolverKind> {
         })
 }
 
+/// Whether every component of `y` is finite: x·0 is ±0 for a finite x and NaN for an
+/// infinite or NaN one, and so is their sum. Vector multiplications and additions rather
+/// than a test and a branch per component: about 20 fewer instructions per communication
+/// point (valgrind).
+#[inline(always)]
+fn all_finite(y: &State) -> bool {
+    let z = y.map(|v| v * 0.0);
+    ((z[0] + z[4]) + (z[1] + z[5])) + ((z[2] + z[6]) + (z[3] + z[7])) == 0.0
+}
+
 /// The relative accuracy the projection needs of the gradient for the master's relative
 /// tolerance `rtol` ([`model::project`]): a millionth of the integrator's tolerance (at
 /// most 2e-12), below which an error of the velocity constraint cannot matter; rounding
@@ -1155,6 +1165,19 @@ fn tolerances(rtol: f64) -> Tolerances {
 mod tests {
     use super::*;
     use crate::variables::variables;
+
+    #[test]
+    fn all_finite_finds_every_non_finite_component() {
+        let finite = [0.0, -0.0, 1e308, -1e308, 5e-324, 1.0, -3.5, 2.0];
+        assert!(all_finite(&finite));
+        for bad in [f64::INFINITY, f64::NEG_INFINITY, f64::NAN] {
+            for i in 0..STATE_SIZE {
+                let mut y = finite;
+                y[i] = bad;
+                assert!(!all_finite(&y), "{bad} at {i}");
+            }
+        }
+    }
 
     /// fmi2GetReal's table lookup for φ and ω gives what the general path gives, and
     /// every other Real variable still reads through the general path.

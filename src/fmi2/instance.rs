@@ -615,6 +615,9 @@ impl Instance {
     }
 
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
+        // The larger of two numbers that are not NaN here: `f64::max` also handles NaN,
+        // seven instructions rather than two.
+        let larger = |a: f64, b: f64| if a > b { a } else { b };
         let now = self.sim.time();
         // Finiteness as a comparison with f64::MAX rather than `is_finite`: with the latter
         // the compiler tested these checks on the bits, 13 more instructions per call
@@ -627,7 +630,7 @@ impl Instance {
                 number(step)
             )));
         }
-        if !current_is_finite || (current - now).abs() > TIME_MATCH * now.abs().max(step) {
+        if !current_is_finite || (current - now).abs() > TIME_MATCH * larger(now.abs(), step) {
             return Err(Failure::error(format!(
                 "currentCommunicationPoint = {} does not match the FMU's time {}",
                 number(current),
@@ -636,7 +639,7 @@ impl Instance {
         }
         let target = current + step;
         if let Some(stop) = self.stop_time {
-            if target > stop + TIME_MATCH * stop.abs().max(step) {
+            if target > stop + TIME_MATCH * larger(stop.abs(), step) {
                 return Err(Failure::error(format!(
                     "a step to t = {target} would pass stopTime = {stop}"
                 )));
