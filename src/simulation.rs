@@ -368,7 +368,8 @@ impl Simulation {
                 }
             }
         }
-        let (y, at) = match self.at_communication_point(t_end) {
+        let integrator = (self.integrator_time, &self.integrator_state);
+        let (y, at) = match at_communication_point(&mut self.solver, &system, integrator, t_end) {
             Ok(found) => found,
             Err(error) => {
                 self.restart = true;
@@ -382,33 +383,6 @@ impl Simulation {
             self.chart = self.chart.other();
         }
         Ok(())
-    }
-
-    /// The state at communication point `t_end` from the integrator (its state, or its
-    /// dense output inside the last step), projected onto the constraint; with the
-    /// closure g and the gradient terms there.
-    #[inline(always)]
-    fn at_communication_point(&mut self, t_end: f64) -> Result<(State, Projected), SolverError> {
-        let system = Driven::new(
-            &self.params,
-            &self.integrator_inputs,
-            &self.input_derivatives,
-            self.time,
-            self.tolerance,
-        );
-        let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
-        let mut y = if self.integrator_time == t_end {
-            self.integrator_state
-        } else {
-            self.solver
-                .dense_output(&system, t_end)
-                .ok_or_else(|| refused("no dense output covers this time".into()))?
-        };
-        match model::project(&self.params, &mut y, system.projection_accuracy) {
-            Ok(at) if all_finite(&y) => Ok((y, at)),
-            Ok(_) => Err(refused("the interpolated state is not finite".into())),
-            Err(error) => Err(refused(error.to_string())),
-        }
     }
 
     /// The current value of variable `vr`.
@@ -1036,10 +1010,12 @@ impl Simulation {
         if self.restart || !self.input_derivatives.is_zero() {
             return Ok(());
         }
-        let (y, at) = self
-            .clone()
-            .at_communication_point(self.time)
-            .map_err(|e| e.to_string())?;
+        // On a copy of the integrator: its dense output may form its coefficients.
+        let integrator = (self.integrator_time, &self.integrator_state);
+        let system = self.integrator_system();
+        let (y, at) =
+            at_communication_point(&mut self.solver.clone(), &system, integrator, self.time)
+                .map_err(|e| e.to_string())?;
         let g = at.closure;
         if !same_bits(&y, &self.state)
             || model::length_residual_from_closure(&self.params, g).to_bits()
@@ -1127,6 +1103,32 @@ fn solver_kind(value: i32) -> Option<SolverKind> {
             2 => SolverKind::Dop853,
             _ => SolverKind::Implicit,
         })
+}
+
+/// The state at communication point `t_end` from the integrator (at `time` with `state`,
+/// or its dense output inside the last step), projected onto the constraint; with the
+/// closure g and the gradient terms there. `system` is the one the integrator's memory
+/// belongs to.
+#[inline(always)]
+fn at_communication_point(
+    solver: &mut Integrator<STATE_SIZE>,
+    system: &Driven,
+    (time, state): (f64, &State),
+    t_end: f64,
+) -> Result<(State, Projected), SolverError> {
+    let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
+    let mut y = if time == t_end {
+        *state
+    } else {
+        solver
+            .dense_output(system, t_end)
+            .ok_or_else(|| refused("no dense output covers this time".into()))?
+    };
+    match model::project(system.params, &mut y, system.projection_accuracy) {
+        Ok(at) if all_finite(&y) => Ok((y, at)),
+        Ok(_) => Err(refused("the interpolated state is not finite".into())),
+        Err(error) => Err(refused(error.to_string())),
+    }
 }
 
 /// Whether every component of `y` is finite: x·0 is ±0 for a finite x and NaN for an

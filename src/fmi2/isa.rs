@@ -1,20 +1,20 @@
 //! Run the co-simulation step with the widest vector instructions the processor has, in a
 //! binary built for the x86-64 baseline (SSE2) so that it loads on any x86-64 machine.
 //!
-//! [`advance`] calls a second copy of [`Simulation::advance`] compiled with AVX and POPCNT (it and what
-//! is marked `#[inline(always)]` beneath it: the integrator's stages, the right-hand side,
-//! the dense output and the projection) when the processor supports AVX. Only the
-//! instruction encoding and the vector width change: Rust never fuses a multiplication and
-//! an addition on its own, so both copies round alike and give the same bits
-//! (tests/isa.rs compares them).
+//! [`advance`] calls a second copy of [`Simulation::advance`] compiled with AVX and POPCNT
+//! (it and what is marked `#[inline(always)]` beneath it: the integrator's stages, the
+//! right-hand side, the dense output and the projection) when the processor supports both.
+//! Only the instruction encoding and the vector width change: Rust never fuses a
+//! multiplication and an addition on its own, so both copies round alike and give the same
+//! bits (tests/isa.rs compares them).
 
 use crate::simulation::Simulation;
 use crate::solver::SolverError;
 
 /// [`Simulation::advance`], through the AVX copy where the processor has AVX and POPCNT
 /// (the stiffness test then counts the bits of its window in one instruction rather than
-/// about twenty; both are checked at run time). Inlined into its caller, so that a step enters
-/// only the copy it runs.
+/// about twenty; both are checked at run time). Inlined into its caller, so that a step
+/// enters only the copy it runs.
 #[inline]
 pub fn advance(sim: &mut Simulation, t_end: f64) -> Result<(), SolverError> {
     #[cfg(target_arch = "x86_64")]
