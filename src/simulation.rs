@@ -37,17 +37,19 @@ const SECOND_DIFFERENCE_STEP: f64 = 1e-4;
 /// communication point, which the local error test does not see. Two effects escape it:
 /// outputs between integration steps come from DOP853's dense output, whose error is
 /// 10-100x that of the step points on this model, and over long undamped runs the phase
-/// error accumulates. Measured through FMPy against an independent reference at every
-/// communication point (error in units of each state's scale max(1, max|y|), paper case 1
-/// and the 100 s free run, H 1e-4…0.1, tol 1e-3…1e-10): with 0.05 the free run reached
-/// 15.3 x tol (tol 1e-10) and case 1 4.7 x; with 0.02 at most 6.3 x, for 10 % more
-/// evaluations.
-pub const TOLERANCE_SAFETY: f64 = 0.02;
+/// error accumulates. Measured by the benchmark harness at every communication point
+/// against an independent reference (error in units of each state's scale max(1, max|y|),
+/// paper case 1 and the 100 s free run, H 1e-4…0.1, tol 1e-3…1e-10): with DOP853's
+/// stabilised step-size control and a thirtieth, at most 6.8 x tol (the free run at
+/// tol 1e-10); with the unstabilised control, 0.05 gave 15.3 x and 0.02 at most 6.3 x,
+/// for 4-7 % more evaluations than the stabilised control at a thirtieth.
+pub const TOLERANCE_SAFETY: f64 = 1.0 / 30.0;
 /// Above this internal tolerance DOP853's steps on the paper's mechanism reach about
 /// 0.1 s, where its interpolant is no longer accurate: with 2e-5 (tol 1e-3) ω1 between
-/// steps was off by 10 x tol at case 1, with 2e-6 by at most 3.9 x tol (tol 1e-4). Looser
-/// tolerances therefore cost what 1e-4 costs (case 1: 2128 evaluations against 1799).
-pub const LOOSEST_INTERNAL_TOLERANCE: f64 = 2e-6;
+/// steps was off by 10 x tol at case 1; with the stabilised control, 2e-6 gave 7.4 x tol
+/// at tol 1e-4 (H = 1e-3) and 1.5e-6 at most 2.6 x. Looser tolerances therefore cost what
+/// 1e-4 costs (case 1 at H = 0.01: 2150 evaluations).
+pub const LOOSEST_INTERNAL_TOLERANCE: f64 = 1.5e-6;
 
 /// A value of one of the FMI types used here (Enumerations travel as Integer).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -1143,10 +1145,11 @@ fn all_finite(y: &State) -> bool {
 
 /// The relative accuracy the projection needs of the gradient for the master's relative
 /// tolerance `rtol` ([`model::project`]): a millionth of the integrator's tolerance (at
-/// most 2e-12), below which an error of the velocity constraint cannot matter; rounding
-/// where that is larger. On paper case 1 at H = 0.01 and tol 1e-4, 22 of the 1114
-/// projections that move the angles then go on to Newton's iteration (310 with rounding
-/// asked of the gradient), and the run takes 0.95–0.98 × the time (0.96–0.97 at
+/// most 1.5e-12), below which an error of the velocity constraint cannot matter; rounding
+/// where that is larger. On paper case 1 at H = 0.01 and tol 1e-4 (with the integrator's
+/// tolerance at 2e-6, before its step-size control was stabilised), 22 of the 1114
+/// projections that move the angles then went on to Newton's iteration (310 with rounding
+/// asked of the gradient), and the run took 0.95–0.98 × the time (0.96–0.97 at
 /// H = 0.001; two series of 9–11 alternating rounds through the C ABI).
 fn projection_accuracy(rtol: f64) -> f64 {
     tolerances(rtol).rtol * 1e-6
