@@ -246,6 +246,19 @@ pub(crate) mod test_problems {
         Tolerances { rtol, atol: rtol }
     }
 
+    /// Runs `original` and `copy` (an integrator and its restored copy) from the same
+    /// `start` to their ends and asserts they arrive at the same bits.
+    pub fn assert_continue_alike<const N: usize>(
+        start: (f64, [f64; N]),
+        mut original: impl FnMut(&mut f64, &mut [f64; N]),
+        mut copy: impl FnMut(&mut f64, &mut [f64; N]),
+    ) {
+        let ((mut t, mut y), (mut t2, mut y2)) = (start, start);
+        original(&mut t, &mut y);
+        copy(&mut t2, &mut y2);
+        assert_eq!((t, y), (t2, y2));
+    }
+
     /// For rtol 1e-4, 1e-7 and 1e-10: (rtol, error at t = 10) of the oscillator integrated
     /// from t = 0 by `integrate`, which must end exactly on 10.
     pub fn oscillator_errors(
