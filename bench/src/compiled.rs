@@ -10,8 +10,8 @@ use std::path::Path;
 
 use libloading::Library;
 
-use crate::peers::Recorder;
-use crate::{Outcome, Reference, Scenario};
+use crate::peers::Trajectory;
+use crate::{Run, Scenario};
 
 pub const METHODS: [&str; 5] = [
     "hairer_dop853",
@@ -159,17 +159,10 @@ impl Compiled {
         unsafe { (self.rhs_ns)(&mut m, y.as_ptr(), 20_000_000) }
     }
 
-    pub fn run(
-        &self,
-        method: &str,
-        scenario: &Scenario,
-        h: f64,
-        tol: f64,
-        reference: Option<&Reference>,
-    ) -> Option<Outcome> {
+    pub fn run(&self, method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
         let y0 = scenario.initial_state();
         let mut m = Mechanism::of(scenario);
-        let mut recorder = Recorder::new(scenario, h, &y0, reference);
+        let mut recorder = Trajectory::new(scenario, h, &y0);
         let n = (scenario.stop / h).round() as usize;
         let context = (&raw mut recorder).cast::<c_void>();
         // SAFETY: the drivers call `record_point` with `context` (the recorder, alive
@@ -212,7 +205,7 @@ impl Compiled {
                         .map(|k| k as f64 * h)
                         .chain([f64::INFINITY])
                         .collect();
-                    let mut states = vec![0.0; 8 * (n + 1)];
+                    let states = recorder.states_mut();
                     let mut success: c_int = 0;
                     wrapper(
                         self.rhs,
@@ -221,15 +214,12 @@ impl Compiled {
                         (&raw mut m).cast(),
                         (n + 1) as c_int,
                         times.as_ptr(),
-                        states.as_mut_ptr(),
+                        states.as_mut_ptr().cast(),
                         tol,
                         tol,
                         c_int::MAX,
                         &mut success,
                     );
-                    for (k, y) in states.chunks_exact(8).enumerate().skip(1) {
-                        record_point(context, k as c_long, y.as_ptr());
-                    }
                     success == 1
                 }
                 _ => false,
@@ -243,9 +233,9 @@ impl Compiled {
     }
 }
 
-/// The drivers' callback: the state at communication point `k`.
+/// The drivers' callback: the state at communication point `k`, kept.
 unsafe extern "C" fn record_point(context: *mut c_void, k: c_long, y: *const f64) {
-    // SAFETY: `context` is the recorder of `Compiled::run` and `y` holds 8 states.
-    let (recorder, y) = unsafe { (&mut *context.cast::<Recorder>(), &*y.cast::<[f64; 8]>()) };
+    // SAFETY: `context` is the trajectory of `Compiled::run` and `y` holds 8 states.
+    let (recorder, y) = unsafe { (&mut *context.cast::<Trajectory>(), &*y.cast::<[f64; 8]>()) };
     recorder.record(k as usize, y);
 }

@@ -84,23 +84,23 @@ fn stiff_study(fmu: &fmu::Fmu, out: &mut String) {
         solver,
     };
     // The reference: DOP853 at 1e-12 (the implicit method's error is then independent).
-    let Some(reference) = fmu.run(&scenario("reference", 2), 1e-2, 1e-12, None) else {
+    let Some(reference) = fmu.run(&scenario("reference", 2), 1e-2, 1e-12) else {
         eprintln!("stiff reference failed");
         return;
     };
-    let exact = reference.samples.last().copied().unwrap_or_default();
+    let exact = reference.states.last().copied().unwrap_or_default();
     out.push_str(", \"stiff\": [");
     for (i, (name, solver)) in [("auto", 1), ("dop853", 2), ("implicit", 3)]
         .iter()
         .enumerate()
     {
         let case = scenario(name, *solver);
-        let run = || fmu.run(&case, 1e-2, 1e-6, None);
+        let run = || fmu.run(&case, 1e-2, 1e-6);
         let Some((seconds, runs, o)) = timed(&TIMING, run) else {
             eprintln!("stiff {name}: failed");
             continue;
         };
-        let last = o.samples.last().copied().unwrap_or_default();
+        let last = o.states.last().copied().unwrap_or_default();
         let error = last
             .iter()
             .zip(&exact)
@@ -222,17 +222,74 @@ impl<'a> PointError<'a> {
     }
 }
 
+/// What one run of a method gives: the state at every communication point from t = 0, kept
+/// as a master keeps its results, and the evaluations the run took. This is all a timed
+/// run does besides the method's own work; [`Outcome::of`] analyses it afterwards.
+pub struct Run {
+    pub states: Vec<State>,
+    pub n_rhs: u64,
+}
+
+impl Run {
+    /// Room for every point of `scenario` at step `h`, zeroed: every method pays the same
+    /// for its storage (DOP853's and LSODA's wrappers write into it directly).
+    pub fn storage(scenario: &Scenario, h: f64) -> Vec<State> {
+        vec![[0.0; 8]; (scenario.stop / h).round() as usize + 1]
+    }
+}
+
 /// What one method did on one configuration.
 pub struct Outcome {
     pub seconds: f64,
     pub runs: usize,
     /// State at each sample point, in order.
     pub samples: Vec<State>,
+    /// |A2A3| − L, the largest over every point.
     pub max_residual: f64,
     pub max_energy_drift: f64,
     /// [`PointError`]'s value.
     pub max_point_error: f64,
     pub n_rhs: u64,
+}
+
+impl Outcome {
+    /// The analysis of `run`, after its timing: the same for every method, from the states
+    /// it gave (the FMU's `constraint_residual` and `energy` outputs are not read, so the
+    /// FMU is timed reading what the peers give, the eight states).
+    pub fn of(
+        scenario: &Scenario,
+        h: f64,
+        run: Run,
+        reference: Option<&Reference>,
+        (seconds, runs): (f64, usize),
+    ) -> Self {
+        let p = scenario.parameters();
+        let energy0 = model::energy(&p, &run.states[0]);
+        let every = ((run.states.len() - 1) / SAMPLES).max(1);
+        let mut errors = PointError::new(reference, h);
+        let (mut max_residual, mut max_drift) = (0.0f64, 0.0f64);
+        for (k, y) in run.states.iter().enumerate().skip(1) {
+            max_residual = max_residual.max(model::length_residual(&p, y[1], y[2]).abs());
+            let drift = (model::energy(&p, y) - energy0).abs() / energy0.abs().max(1e-300);
+            max_drift = max_drift.max(drift);
+            errors.record(k, y);
+        }
+        Self {
+            seconds,
+            runs,
+            samples: run
+                .states
+                .iter()
+                .skip(every)
+                .step_by(every)
+                .copied()
+                .collect(),
+            max_residual,
+            max_energy_drift: max_drift,
+            max_point_error: errors.value(),
+            n_rhs: run.n_rhs,
+        }
+    }
 }
 
 /// How long one configuration is timed, the same rule for the FMU and every peer.
@@ -464,16 +521,16 @@ fn main() {
                     if too_slow {
                         continue;
                     }
-                    let run = |reference| {
+                    let run = || {
                         if method == "fmu" {
-                            fmu.run(scenario, h, tol, reference)
+                            fmu.run(scenario, h, tol)
                         } else if compiled::METHODS.contains(&method.as_str()) {
-                            compiled.as_ref()?.run(&method, scenario, h, tol, reference)
+                            compiled.as_ref()?.run(&method, scenario, h, tol)
                         } else {
-                            peers::run(&method, scenario, h, tol, reference)
+                            peers::run(&method, scenario, h, tol)
                         }
                     };
-                    let Some((seconds, runs, outcome)) = timed(&TIMING, || run(None)) else {
+                    let Some((seconds, runs, timed_run)) = timed(&TIMING, run) else {
                         eprintln!("{method} {} H={h:e} tol={tol:e}: failed", scenario.name);
                         continue;
                     };
@@ -483,18 +540,7 @@ fn main() {
                         "{method:>10} {:>5} H={h:e} tol={tol:e}: {seconds:.4} s ({runs} runs)",
                         scenario.name
                     );
-                    // The error at every communication point from one more, untimed run (the
-                    // runs are deterministic): comparing every point with the reference
-                    // costs time the method itself does not spend.
-                    let max_point_error = reference
-                        .and_then(|r| run(Some(r)))
-                        .map_or(f64::NAN, |o| o.max_point_error);
-                    let o = Outcome {
-                        seconds,
-                        runs,
-                        max_point_error,
-                        ..outcome
-                    };
+                    let o = Outcome::of(scenario, h, timed_run, reference, (seconds, runs));
                     write!(
                         out,
                         "{}\n{{\"method\": \"{method}\", \"scenario\": \"{}\", \"H\": {h:e}, \"tol\": {tol:e}, \

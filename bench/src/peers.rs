@@ -9,7 +9,7 @@ use cyclic_mechanism::model::{state_derivative, Inputs, Parameters, State};
 use diffsol::{NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod, OdeSolverStopReason};
 use ode_solvers::{SVector, System};
 
-use crate::{Outcome, PointError, Reference, Scenario, SAMPLES};
+use crate::{Run, Scenario};
 
 pub const METHODS: [&str; 4] = [
     "ode_solvers_dop853",
@@ -18,72 +18,39 @@ pub const METHODS: [&str; 4] = [
     "diffsol_esdirk34",
 ];
 
-pub fn run(
-    method: &str,
-    scenario: &Scenario,
-    h: f64,
-    tol: f64,
-    reference: Option<&Reference>,
-) -> Option<Outcome> {
+pub fn run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
     match method {
-        "ode_solvers_dop853" => ode_solvers_dop853(scenario, h, tol, reference),
-        _ => diffsol_run(method, scenario, h, tol, reference),
+        "ode_solvers_dop853" => ode_solvers_dop853(scenario, h, tol),
+        _ => diffsol_run(method, scenario, h, tol),
     }
 }
 
-/// Samples, energy drift, constraint residual and the error at every communication point
-/// along a run.
-pub(crate) struct Recorder<'a> {
-    params: Parameters,
-    every: usize,
-    energy0: f64,
-    samples: Vec<State>,
-    max_residual: f64,
-    max_drift: f64,
-    errors: PointError<'a>,
+/// The states a run gives, kept at every communication point ([`Run::storage`]).
+pub(crate) struct Trajectory {
+    states: Vec<State>,
 }
 
-impl<'a> Recorder<'a> {
-    pub(crate) fn new(
-        scenario: &Scenario,
-        h: f64,
-        y0: &State,
-        reference: Option<&'a Reference>,
-    ) -> Self {
-        let params = scenario.parameters();
-        let steps = (scenario.stop / h).round() as usize;
-        Self {
-            energy0: cyclic_mechanism::model::energy(&params, y0),
-            params,
-            every: steps / SAMPLES,
-            samples: Vec::with_capacity(SAMPLES),
-            max_residual: 0.0,
-            max_drift: 0.0,
-            errors: PointError::new(reference, h),
-        }
+impl Trajectory {
+    pub(crate) fn new(scenario: &Scenario, h: f64, y0: &State) -> Self {
+        let mut states = Run::storage(scenario, h);
+        states[0] = *y0;
+        Self { states }
     }
 
+    /// The state at communication point `k` (k·h).
+    #[inline]
     pub(crate) fn record(&mut self, k: usize, y: &State) {
-        let residual = cyclic_mechanism::model::length_residual(&self.params, y[1], y[2]);
-        self.max_residual = self.max_residual.max(residual.abs());
-        let energy = cyclic_mechanism::model::energy(&self.params, y);
-        self.max_drift = self
-            .max_drift
-            .max((energy - self.energy0).abs() / self.energy0.abs());
-        self.errors.record(k, y);
-        if k.is_multiple_of(self.every) {
-            self.samples.push(*y);
-        }
+        self.states[k] = *y;
     }
 
-    pub(crate) fn finish(self, n_rhs: u64) -> Outcome {
-        Outcome {
-            seconds: 0.0,
-            runs: 0,
-            samples: self.samples,
-            max_residual: self.max_residual,
-            max_energy_drift: self.max_drift,
-            max_point_error: self.errors.value(),
+    /// Every point's state, t = 0 first: numbalsoda's wrappers write them all at once.
+    pub(crate) fn states_mut(&mut self) -> &mut [State] {
+        &mut self.states
+    }
+
+    pub(crate) fn finish(self, n_rhs: u64) -> Run {
+        Run {
+            states: self.states,
             n_rhs,
         }
     }
@@ -106,19 +73,14 @@ impl System<f64, SVector<f64, 8>> for Mechanism<'_> {
 }
 
 /// ode_solvers' Dop853 integrates one span per solver: a new one for every interval.
-fn ode_solvers_dop853(
-    scenario: &Scenario,
-    h: f64,
-    tol: f64,
-    reference: Option<&Reference>,
-) -> Option<Outcome> {
+fn ode_solvers_dop853(scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
     let counter = Cell::new(0);
     let system = Mechanism {
         params: scenario.parameters(),
         counter: &counter,
     };
     let mut y = scenario.initial_state();
-    let mut recorder = Recorder::new(scenario, h, &y, reference);
+    let mut recorder = Trajectory::new(scenario, h, &y);
     let n = (scenario.stop / h).round() as usize;
     for k in 1..=n {
         let t = (k - 1) as f64 * h;
@@ -136,9 +98,9 @@ fn ode_solvers_dop853(
 /// Stop a diffsol solver at every communication point and record the state there
 /// (a macro: the solvers' types involve the closures' unnameable types).
 macro_rules! step_through {
-    ($solver:expr, $scenario:expr, $h:expr, $y0:expr, $reference:expr) => {{
+    ($solver:expr, $scenario:expr, $h:expr, $y0:expr) => {{
         let mut solver = $solver;
-        let mut recorder = Recorder::new($scenario, $h, $y0, $reference);
+        let mut recorder = Trajectory::new($scenario, $h, $y0);
         let n = ($scenario.stop / $h).round() as usize;
         let mut ok = true;
         for k in 1..=n {
@@ -167,13 +129,7 @@ macro_rules! step_through {
 }
 
 /// diffsol's solvers are kept alive and stopped at each communication point.
-fn diffsol_run(
-    method: &str,
-    scenario: &Scenario,
-    h: f64,
-    tol: f64,
-    reference: Option<&Reference>,
-) -> Option<Outcome> {
+fn diffsol_run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
     let counter = Rc::new(Cell::new(0u64));
     let (params, y0) = (scenario.parameters(), scenario.initial_state());
     let rhs_counter = counter.clone();
@@ -211,20 +167,13 @@ fn diffsol_run(
         .build()
         .ok()?;
     let outcome = match method {
-        "diffsol_tsit45" => step_through!(problem.tsit45().ok()?, scenario, h, &y0, reference),
-        "diffsol_bdf" => step_through!(
-            problem.bdf::<NalgebraLU<f64>>().ok()?,
-            scenario,
-            h,
-            &y0,
-            reference
-        ),
+        "diffsol_tsit45" => step_through!(problem.tsit45().ok()?, scenario, h, &y0),
+        "diffsol_bdf" => step_through!(problem.bdf::<NalgebraLU<f64>>().ok()?, scenario, h, &y0),
         "diffsol_esdirk34" => step_through!(
             problem.esdirk34::<NalgebraLU<f64>>().ok()?,
             scenario,
             h,
-            &y0,
-            reference
+            &y0
         ),
         _ => None,
     }?;
