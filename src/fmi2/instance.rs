@@ -534,6 +534,11 @@ impl Instance {
         Ok(Exchange::indicators(&self.sim)[0] < 0.0)
     }
 
+    /// Inlined into fmi2GetReal, as `do_step` into fmi2DoStep: in the cdylib the compiler
+    /// kept both as calls of their own, about 65 more instructions per communication point
+    /// than in a static build, and 3 % more time on paper case 1 at H = 0.01, tol 1e-4
+    /// (5 % at H = 0.001; median of five alternating rounds through the loaded library).
+    #[inline(always)]
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
         self.assemble_if_needed()?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
@@ -614,6 +619,7 @@ impl Instance {
         Ok(())
     }
 
+    #[inline(always)]
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
         // The larger of two numbers that are not NaN here: `f64::max` also handles NaN, in
         // a sequence of seven instructions (12 more per step for the two uses, valgrind).
