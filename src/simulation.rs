@@ -572,9 +572,10 @@ impl Simulation {
         (f(&ya, ta) - f(&yb, tb)) / (2.0 * h)
     }
 
-    /// A Real variable's value: the hot path of fmi2GetReal. φ and ω take one lookup, and
-    /// need no check (`advance` keeps the state finite; inputs and parameters are checked
-    /// when set). The computed outputs are checked: none leaves the FMU non-finite.
+    /// A Real variable's value: the hot path of fmi2GetReal. φ and ω take one subtraction
+    /// and one comparison, and need no check (`advance` keeps the state finite; inputs and
+    /// parameters are checked when set). The computed outputs are checked: none leaves the
+    /// FMU non-finite.
     #[inline]
     pub fn read_real(&self, vr: u32) -> Result<f64, AccessError> {
         if let Some(y) = self.state.get(vr.wrapping_sub(FIRST_STATE_VR) as usize) {
@@ -1190,8 +1191,9 @@ mod tests {
         }
     }
 
-    /// fmi2GetReal's table lookup for φ and ω gives what the general path gives, and
-    /// every other Real variable still reads through the general path.
+    /// fmi2GetReal's fast path for φ and ω (by value reference range) gives what the
+    /// general path gives, and every other Real variable still reads through the general
+    /// path.
     #[test]
     fn real_reads_agree_with_the_variable_table() {
         let mut sim = Simulation::new();

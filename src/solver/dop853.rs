@@ -267,17 +267,17 @@ impl<const N: usize> Dop853<N> {
         }
         let (step, coefficients) = (self.last_step.as_ref()?, self.dense.as_ref()?);
         // The interpolant x·(d0 + u·d2 + u²·d4 + u³·d6) + u·(d1 + u·d3 + u²·d5), u = x·(1 − x):
-        // Hairer's nested form in x and 1 − x regrouped into two independent chains of
-        // three levels, a shorter chain of dependent operations than seven nested levels
-        // (about 2 % less time on paper case 1 at H = 0.01 and 0.001, where communication
-        // points dominate).
+        // Hairer's nested form in x and 1 − x regrouped into two independent sums, each
+        // split at u² (Estrin's scheme), a shorter chain of dependent operations than seven
+        // nested levels (about 2 % less time on paper case 1 at H = 0.01 and 0.001, where
+        // communication points dominate, than seven levels; 0.98–0.99 × again than the
+        // same sums nested in u, through the loaded library, at tol 1e-4).
         let [d0, d1, d2, d3, d4, d5, d6] = coefficients;
         let u = x * (1.0 - x);
-        let x_part: [f64; N] = std::array::from_fn(|n| d4[n] + u * d6[n]);
-        let x_part: [f64; N] = std::array::from_fn(|n| d2[n] + u * x_part[n]);
-        let x_part: [f64; N] = std::array::from_fn(|n| d0[n] + u * x_part[n]);
-        let u_part: [f64; N] = std::array::from_fn(|n| d3[n] + u * d5[n]);
-        let u_part: [f64; N] = std::array::from_fn(|n| d1[n] + u * u_part[n]);
+        let uu = u * u;
+        let x_part: [f64; N] =
+            std::array::from_fn(|n| (d0[n] + u * d2[n]) + uu * (d4[n] + u * d6[n]));
+        let u_part: [f64; N] = std::array::from_fn(|n| (d1[n] + u * d3[n]) + uu * d5[n]);
         let y: [f64; N] = std::array::from_fn(|n| step.y_old[n] + (x * x_part[n] + u * u_part[n]));
         Some(y)
     }
