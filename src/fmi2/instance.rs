@@ -534,10 +534,11 @@ impl Instance {
         Ok(Exchange::indicators(&self.sim)[0] < 0.0)
     }
 
-    /// Inlined into fmi2GetReal, as `do_step` into fmi2DoStep: in the cdylib the compiler
-    /// kept both as calls of their own, about 65 more instructions per communication point
-    /// than in a static build, and 3 % more time on paper case 1 at H = 0.01, tol 1e-4
-    /// (5 % at H = 0.001; median of five alternating rounds through the loaded library).
+    /// Inlined into fmi2GetReal, as `do_step` into fmi2DoStep: left to itself, the compiler
+    /// kept both as calls of their own in the cdylib, which cost about 65 more instructions
+    /// per communication point (valgrind) and 3 % more time on paper case 1 at H = 0.01,
+    /// tol 1e-4 (5 % at H = 0.001; medians of five alternating rounds through the loaded
+    /// library).
     #[inline(always)]
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
         self.assemble_if_needed()?;
