@@ -10,7 +10,6 @@ use std::path::Path;
 
 use libloading::Library;
 
-use crate::peers::Trajectory;
 use crate::{Run, Scenario};
 
 pub const METHODS: [&str; 5] = [
@@ -162,10 +161,10 @@ impl Compiled {
     pub fn run(&self, method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
         let y0 = scenario.initial_state();
         let mut m = Mechanism::of(scenario);
-        let mut recorder = Trajectory::new(scenario, h, &y0);
+        let mut run = Run::start(scenario, h, &y0);
         let n = (scenario.stop / h).round() as usize;
-        let context = (&raw mut recorder).cast::<c_void>();
-        // SAFETY: the drivers call `record_point` with `context` (the recorder, alive
+        let context = (&raw mut run).cast::<c_void>();
+        // SAFETY: the drivers call `record_point` with `context` (the run, alive
         // across the call) and 8 states; the buffers hold what the wrappers write.
         let ok = unsafe {
             match method {
@@ -205,7 +204,6 @@ impl Compiled {
                         .map(|k| k as f64 * h)
                         .chain([f64::INFINITY])
                         .collect();
-                    let states = recorder.states_mut();
                     let mut success: c_int = 0;
                     wrapper(
                         self.rhs,
@@ -214,7 +212,7 @@ impl Compiled {
                         (&raw mut m).cast(),
                         (n + 1) as c_int,
                         times.as_ptr(),
-                        states.as_mut_ptr().cast(),
+                        run.states.as_mut_ptr().cast(),
                         tol,
                         tol,
                         c_int::MAX,
@@ -229,13 +227,14 @@ impl Compiled {
             eprintln!("{method} failed");
             return None;
         }
-        Some(recorder.finish(m.n_rhs as u64))
+        run.n_rhs = m.n_rhs as u64;
+        Some(run)
     }
 }
 
 /// The drivers' callback: the state at communication point `k`, kept.
 unsafe extern "C" fn record_point(context: *mut c_void, k: c_long, y: *const f64) {
-    // SAFETY: `context` is the trajectory of `Compiled::run` and `y` holds 8 states.
-    let (recorder, y) = unsafe { (&mut *context.cast::<Trajectory>(), &*y.cast::<[f64; 8]>()) };
-    recorder.record(k as usize, y);
+    // SAFETY: `context` is the run of `Compiled::run` and `y` holds 8 states.
+    let (run, y) = unsafe { (&mut *context.cast::<Run>(), &*y.cast::<[f64; 8]>()) };
+    run.states[k as usize] = *y;
 }

@@ -136,7 +136,8 @@ impl Fmu {
         .iter()
         .map(|n| self.vr(n))
         .collect();
-        let mut states = Run::storage(scenario, h);
+        // t = 0 as the FMU reads it, below.
+        let mut run = Run::start(scenario, h, &[0.0; 8]);
         unsafe {
             check(
                 b.fmi2SetupExperiment(c, 1, tol, 0.0, 1, scenario.stop),
@@ -163,10 +164,10 @@ impl Fmu {
                 "fmi2ExitInitializationMode",
             )?;
             check(
-                b.fmi2GetReal(c, outputs.as_ptr(), 8, states[0].as_mut_ptr()),
+                b.fmi2GetReal(c, outputs.as_ptr(), 8, run.states[0].as_mut_ptr()),
                 "fmi2GetReal",
             )?;
-            for (k, y) in states.iter_mut().skip(1).enumerate() {
+            for (k, y) in run.states.iter_mut().skip(1).enumerate() {
                 check(b.fmi2DoStep(c, k as f64 * h, h, 1), "fmi2DoStep")?;
                 check(
                     b.fmi2GetReal(c, outputs.as_ptr(), 8, y.as_mut_ptr()),
@@ -181,9 +182,7 @@ impl Fmu {
                 "fmi2GetInteger",
             )?
         };
-        Some(Run {
-            states,
-            n_rhs: rhs as u64,
-        })
+        run.n_rhs = rhs as u64;
+        Some(run)
     }
 }

@@ -231,10 +231,13 @@ pub struct Run {
 }
 
 impl Run {
-    /// Room for every point of `scenario` at step `h`, zeroed: every method pays the same
-    /// for its storage (DOP853's and LSODA's wrappers write into it directly).
-    pub fn storage(scenario: &Scenario, h: f64) -> Vec<State> {
-        vec![[0.0; 8]; (scenario.stop / h).round() as usize + 1]
+    /// Room for every point of `scenario` at step `h`, zeroed but for `y0` at t = 0: every
+    /// method pays the same for its storage (DOP853's and LSODA's wrappers write into it
+    /// directly, the FMU's loop reads into it).
+    pub fn start(scenario: &Scenario, h: f64, y0: &State) -> Self {
+        let mut states = vec![[0.0; 8]; (scenario.stop / h).round() as usize + 1];
+        states[0] = *y0;
+        Self { states, n_rhs: 0 }
     }
 }
 

@@ -25,37 +25,6 @@ pub fn run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
     }
 }
 
-/// The states a run gives, kept at every communication point ([`Run::storage`]).
-pub(crate) struct Trajectory {
-    states: Vec<State>,
-}
-
-impl Trajectory {
-    pub(crate) fn new(scenario: &Scenario, h: f64, y0: &State) -> Self {
-        let mut states = Run::storage(scenario, h);
-        states[0] = *y0;
-        Self { states }
-    }
-
-    /// The state at communication point `k` (k·h).
-    #[inline]
-    pub(crate) fn record(&mut self, k: usize, y: &State) {
-        self.states[k] = *y;
-    }
-
-    /// Every point's state, t = 0 first: numbalsoda's wrappers write them all at once.
-    pub(crate) fn states_mut(&mut self) -> &mut [State] {
-        &mut self.states
-    }
-
-    pub(crate) fn finish(self, n_rhs: u64) -> Run {
-        Run {
-            states: self.states,
-            n_rhs,
-        }
-    }
-}
-
 #[derive(Clone, Copy)]
 struct Mechanism<'a> {
     params: Parameters,
@@ -80,7 +49,7 @@ fn ode_solvers_dop853(scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
         counter: &counter,
     };
     let mut y = scenario.initial_state();
-    let mut recorder = Trajectory::new(scenario, h, &y);
+    let mut run = Run::start(scenario, h, &y);
     let n = (scenario.stop / h).round() as usize;
     for k in 1..=n {
         let t = (k - 1) as f64 * h;
@@ -90,9 +59,10 @@ fn ode_solvers_dop853(scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
             return None;
         }
         y = (*solver.y_out().last()?).into();
-        recorder.record(k, &y);
+        run.states[k] = y;
     }
-    Some(recorder.finish(counter.get()))
+    run.n_rhs = counter.get();
+    Some(run)
 }
 
 /// Stop a diffsol solver at every communication point and record the state there
@@ -100,7 +70,7 @@ fn ode_solvers_dop853(scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
 macro_rules! step_through {
     ($solver:expr, $scenario:expr, $h:expr, $y0:expr) => {{
         let mut solver = $solver;
-        let mut recorder = Trajectory::new($scenario, $h, $y0);
+        let mut run = Run::start($scenario, $h, $y0);
         let n = ($scenario.stop / $h).round() as usize;
         let mut ok = true;
         for k in 1..=n {
@@ -122,9 +92,9 @@ macro_rules! step_through {
                 break;
             }
             let y: State = std::array::from_fn(|i| solver.state().y[i]);
-            recorder.record(k, &y);
+            run.states[k] = y;
         }
-        ok.then_some(recorder)
+        ok.then_some(run)
     }};
 }
 
@@ -166,7 +136,7 @@ fn diffsol_run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Ru
         .init(move |_p, _t, y: &mut [f64]| y.copy_from_slice(&y0), 8)
         .build()
         .ok()?;
-    let outcome = match method {
+    let mut run = match method {
         "diffsol_tsit45" => step_through!(problem.tsit45().ok()?, scenario, h, &y0),
         "diffsol_bdf" => step_through!(problem.bdf::<NalgebraLU<f64>>().ok()?, scenario, h, &y0),
         "diffsol_esdirk34" => step_through!(
@@ -177,5 +147,6 @@ fn diffsol_run(method: &str, scenario: &Scenario, h: f64, tol: f64) -> Option<Ru
         ),
         _ => None,
     }?;
-    Some(outcome.finish(counter.get()))
+    run.n_rhs = counter.get();
+    Some(run)
 }
