@@ -57,13 +57,15 @@ fn auto_is_accurate_and_about_ten_times_cheaper_than_dop853_on_stiff_springs() {
     for sim in [&auto, &implicit] {
         assert!(max_difference(sim, &reference) <= 1e-8);
     }
-    // DOP853 at its stability limit is accurate (1.1e-7 from the 1e-12 run when measured)
-    // but takes ten times the work; why `auto` switches.
+    // DOP853 at its stability limit takes ten times the work, which is why `auto` switches.
+    // Its error there is noise in the stiff modes that its error estimate does not see and
+    // depends on the last bits of the arithmetic (1.7e-10 and 1.1e-7 from the 1e-12 run,
+    // measured with two builds that differ only there), hence the loose bound.
     assert!(max_difference(&explicit, &reference) <= 1e-5);
     for sim in [&explicit, &auto, &implicit] {
         assert!(sim.state().iter().all(|v| v.is_finite()));
     }
-    // Measured: 20971 evaluations for DOP853, 1892 for auto, 2155 for the implicit method.
+    // Measured: 18 833 evaluations for DOP853, 1825 for auto, 1992 for the implicit method.
     assert!(10 * work(&auto) <= work(&explicit));
     assert!(9 * work(&implicit) <= work(&explicit));
     assert_eq!(integer(&auto, "active_solver"), IMPLICIT);

@@ -38,8 +38,10 @@ def test_auto_is_accurate_and_ten_times_cheaper_than_dop853(unzipped, model_desc
     report["stiff_case_n_rhs"] = {"auto": work[AUTO], "dop853": work[DOP853], "implicit": work[IMPLICIT]}
     report["stiff_case_error"] = {"auto": errors[AUTO], "dop853": errors[DOP853], "implicit": errors[IMPLICIT]}
     assert max(errors[AUTO], errors[IMPLICIT]) <= 1e-8, errors
-    # DOP853 at its stability limit: noise in the stiff modes that its error estimate does
-    # not see (2.5e-4 in omega2 at t = 1); the reason `auto` switches.
+    # DOP853 at its stability limit takes ten times the work (the reason `auto` switches);
+    # its error there is noise in the stiff modes that its error estimate does not see, which
+    # depends on the last bits of the arithmetic (1.7e-10 and 1.1e-7, measured with two
+    # builds that differ only there): hence the loose bound.
     assert errors[DOP853] <= 1e-3, errors
     assert 10 * work[AUTO] <= work[DOP853], work
     assert [active for _, _, active, _ in results.values()] == [IMPLICIT, DOP853, IMPLICIT]
