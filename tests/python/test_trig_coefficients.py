@@ -103,7 +103,9 @@ def remez(f, w, lo, hi, iterations=10, grid=1000):
             # Drop the smaller end until n alternating extrema remain.
             extrema.pop(0 if abs(values[extrema[0]]) < abs(values[extrema[-1]]) else -1)
         # The ends stay; an interior extremum is sought between its grid neighbours.
-        error = lambda z: weighted_error(coefficients, f, w, z)  # noqa: E731
+        def error(z, fit=coefficients):
+            return weighted_error(fit, f, w, z)
+
         points = [
             zs[j] if j in (0, grid) else refined(error, zs[j - 1], zs[j + 1]) for j in extrema
         ]
