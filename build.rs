@@ -1,4 +1,6 @@
-//! Restrict the shared library's exported symbols to the FMI functions.
+//! Restrict the shared library's exported symbols to the FMI functions (on Linux; the
+//! cross builds' checks in xtask/src/platforms.rs say what the other linkers add), and give
+//! the macOS library its packed name.
 fn main() {
     let os = std::env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
     if os == "linux" {
@@ -8,5 +10,8 @@ fn main() {
             map.display()
         );
         println!("cargo:rerun-if-changed=src/fmi2/exports.map");
+    } else if os == "macos" {
+        // The name the library is known by once packed, rather than the build folder's.
+        println!("cargo:rustc-cdylib-link-arg=-Wl,-install_name,@rpath/CyclicMechanism.dylib");
     }
 }

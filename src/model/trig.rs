@@ -185,6 +185,10 @@ mod tests {
     }
 
     #[test]
+    // The reference is the C library's, which on Windows (msvcrt, and Wine's in the tests
+    // run there) is not correctly rounded: the FMU's own polynomials are compared across
+    // platforms bit for bit by tests/platforms instead.
+    #[cfg_attr(windows, ignore = "the C library's sines are the reference")]
     fn within_two_ulp_of_the_c_library() {
         let mut seed = 7;
         for range in [0.8, 10.0, 1e3, 1e6] {
@@ -194,6 +198,10 @@ mod tests {
     }
 
     #[test]
+    // The reference is the C library's, which on Windows (msvcrt, and Wine's in the tests
+    // run there) is not correctly rounded: the FMU's own polynomials are compared across
+    // platforms bit for bit by tests/platforms instead.
+    #[cfg_attr(windows, ignore = "the C library's sines are the reference")]
     fn within_two_ulp_next_to_multiples_of_a_quarter_turn() {
         // Where r is tiny and the reduction's cancellation is worst.
         let mut seed = 11;
@@ -232,6 +240,10 @@ mod tests {
     }
 
     #[test]
+    // The reference is the C library's, which on Windows (msvcrt, and Wine's in the tests
+    // run there) is not correctly rounded: the FMU's own polynomials are compared across
+    // platforms bit for bit by tests/platforms instead.
+    #[cfg_attr(windows, ignore = "the C library's sines are the reference")]
     fn the_c_library_beyond_the_reduced_range() {
         for x in [LIMIT, -2e7, 1e300, f64::INFINITY, f64::NAN, 0.0, -0.0] {
             let (s, c) = sin_cos(x);

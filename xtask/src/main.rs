@@ -5,6 +5,9 @@
 //! `tests/python/requirements.txt`. This crate deliberately does not depend on the FMU
 //! crate: building that needs libclang, which this program installs first.
 
+mod abi_tests;
+mod platforms;
+
 use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -18,9 +21,10 @@ fn main() {
     let task = std::env::args().nth(1).unwrap_or_default();
     let rest: Vec<String> = std::env::args().skip(2).collect();
     let result = match task.as_str() {
-        "fmu" => build_fmu().map(|fmu| println!("FMU: {}", fmu.display())),
+        "fmu" => fmu_task(&rest),
         "demo" => demo(),
         "test" => test(),
+        "test-platforms" => test_platforms().map(drop),
         "bench" => bench(std::env::args().any(|a| a == "--quick")),
         "sweep" => sweep(&rest),
         "wheel" => build_wheel().map(|wheel| println!("wheel: {}", wheel.display())),
@@ -34,9 +38,11 @@ fn main() {
 }
 
 const USAGE: &str = "usage: cargo xtask <task>
-  fmu          build and pack target/fmu/CyclicMechanism.fmu
+  fmu          build and pack target/fmu/CyclicMechanism.fmu (linux64)
+               --all-platforms: win64 and darwin64 too, cross-built here (Debian's packages)
   demo         run the paper's two cases through FMPy: CSV, plots and an animation in target/demo
   test         run every test: cargo test, then the FMPy and sweep tests in tests/python
+  test-platforms  the win64, darwin64 and aarch64 builds and their tests alone (part of test)
   bench        the work-precision benchmark into target/bench (--quick: a small subset)
   sweep SPEC   run a sweep: SPEC.toml [--workers N] [--scheduler ADDRESS] [--out DIR] [--resume]
                (the packed FMU unless the spec names another)
@@ -234,7 +240,15 @@ fn build_portable(selection: &[&str], artifact: &str) -> Result<PathBuf> {
 
 /// `-isystem` for clang's own headers and the system's C headers.
 fn c_header_args() -> Result<String> {
-    let clang = fs::read_dir("/usr/lib")
+    Ok(format!(
+        "-isystem {} -isystem /usr/include/x86_64-linux-gnu -isystem /usr/include",
+        clang_include_dir()?.display()
+    ))
+}
+
+/// Clang's own headers (stddef.h, mm_malloc.h, …), of libclang-dev.
+fn clang_include_dir() -> Result<PathBuf> {
+    fs::read_dir("/usr/lib")
         .into_iter()
         .flat_map(|entries| entries.flatten())
         .filter(|e| e.file_name().to_string_lossy().starts_with("llvm-"))
@@ -245,11 +259,9 @@ fn c_header_args() -> Result<String> {
         })
         .map(|version| version.path().join("include"))
         .find(|include| include.join("stddef.h").exists())
-        .ok_or("clang's stddef.h not found under /usr/lib/llvm-*/lib/clang (libclang-dev)")?;
-    Ok(format!(
-        "-isystem {} -isystem /usr/include/x86_64-linux-gnu -isystem /usr/include",
-        clang.display()
-    ))
+        .ok_or_else(|| {
+            "clang's stddef.h not found under /usr/lib/llvm-*/lib/clang (libclang-dev)".into()
+        })
 }
 
 /// The highest `GLIBC_x.y` symbol version the library needs, from `objdump -T`, must not
@@ -295,60 +307,36 @@ fn check_glibc(library: &Path) -> Result {
     Ok(())
 }
 
-/// Binaries for other platforms, built elsewhere (this machine has no Windows or macOS
-/// toolchain): every `binaries/<platform>/<file>` found under this directory of the
-/// checkout, or under `$FMU_EXTRA_BINARIES`, is packed beside linux64.
-const EXTRA_BINARIES: &str = "target/fmu/extra-binaries";
+/// Where the cross-built binaries are put, checked, under their platform folders.
+const PLATFORM_BINARIES: &str = "target/fmu/platforms";
 
-/// The extra binaries to pack, as (path in the FMU, file).
-fn extra_binaries() -> Result<Vec<(String, PathBuf)>> {
-    let base = std::env::var_os("FMU_EXTRA_BINARIES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join(EXTRA_BINARIES));
-    extra_binaries_in(&base)
-}
-
-/// The last component of `path`, as text.
-fn file_name(path: &Path) -> String {
-    path.file_name()
-        .unwrap_or_default()
-        .to_string_lossy()
-        .into_owned()
-}
-
-fn extra_binaries_in(base: &Path) -> Result<Vec<(String, PathBuf)>> {
-    let mut found = Vec::new();
-    let Ok(platforms) = fs::read_dir(base.join("binaries")) else {
-        return Ok(found);
+/// `cargo xtask fmu [--all-platforms]`.
+fn fmu_task(args: &[String]) -> Result {
+    let all = match args {
+        [] => false,
+        [flag] if flag == "--all-platforms" => true,
+        _ => return Err(format!("unknown arguments {args:?}\n{USAGE}")),
     };
-    for platform in platforms {
-        let platform = platform.map_err(|e| e.to_string())?.path();
-        let name = file_name(&platform);
-        if name == "linux64" {
-            return Err(format!(
-                "{}: linux64 is built here; remove it from the extra binaries",
-                platform.display()
-            ));
-        }
-        for file in fs::read_dir(&platform).map_err(|e| e.to_string())? {
-            let file = file.map_err(|e| e.to_string())?.path();
-            let file_name = file_name(&file);
-            if !file_name.starts_with(MODEL_IDENTIFIER) {
-                return Err(format!(
-                    "{}: an FMU binary must be named {MODEL_IDENTIFIER}.<dll|dylib|so>",
-                    file.display()
-                ));
-            }
-            println!("xtask: packing {} built elsewhere", file.display());
-            found.push((format!("binaries/{name}/{file_name}"), file));
-        }
+    let packed = build_fmu(all)?;
+    for line in &packed.report {
+        println!("xtask: {line}");
     }
-    Ok(found)
+    println!("FMU: {}", packed.fmu.display());
+    Ok(())
+}
+
+/// A packed FMU: the archive, the linux64 library in it, and the cross builds' checks.
+struct Packed {
+    fmu: PathBuf,
+    linux64: PathBuf,
+    report: Vec<String>,
 }
 
 /// Build the library (against the glibc baseline), generate the model description and
-/// documentation from the variable table, and pack `target/fmu/CyclicMechanism.fmu`.
-fn build_fmu() -> Result<PathBuf> {
+/// documentation from the variable table, and pack `target/fmu/CyclicMechanism.fmu`; with
+/// `all_platforms`, the win64 and darwin64 binaries too (and aarch64 Linux's, for the
+/// tests). Every binary is checked first: a failed check writes no archive.
+fn build_fmu(all_platforms: bool) -> Result<Packed> {
     ensure_libclang()?;
     let root = root();
     let library = build_portable_library()?;
@@ -365,18 +353,52 @@ fn build_fmu() -> Result<PathBuf> {
             "modelDescription.xml".to_string(),
             assets.join("modelDescription.xml"),
         ),
-        (format!("binaries/linux64/{MODEL_IDENTIFIER}.so"), library),
+        (
+            format!("binaries/linux64/{MODEL_IDENTIFIER}.so"),
+            library.clone(),
+        ),
         (
             "documentation/index.html".to_string(),
             assets.join("index.html"),
         ),
     ];
-    files.extend(extra_binaries()?);
+    let mut report = vec![format!(
+        "linux64 {}: {} bytes",
+        library.display(),
+        platforms::size(&library)?
+    )];
+    if all_platforms {
+        let zig = platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
+        let (binaries, checks) = platforms::build_all(&zig, &root.join(PLATFORM_BINARIES))?;
+        files.extend(binaries);
+        report.extend(checks);
+    }
     pack(&fmu, &files)?;
-    Ok(fmu)
+    report.push(format!(
+        "{}: {} bytes",
+        fmu.display(),
+        platforms::size(&fmu)?
+    ));
+    Ok(Packed {
+        fmu,
+        linux64: library,
+        report,
+    })
 }
 
+/// Write the archive beside its place and move it there when complete, so that a failure
+/// never leaves a partial FMU.
 fn pack(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
+    let partial = fmu.with_extension("fmu.partial");
+    let _ = fs::remove_file(fmu);
+    if let Err(error) = write_zip(&partial, files) {
+        let _ = fs::remove_file(&partial);
+        return Err(error);
+    }
+    fs::rename(&partial, fmu).map_err(|e| format!("{}: {e}", fmu.display()))
+}
+
+fn write_zip(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
     let file = fs::File::create(fmu).map_err(|e| format!("{}: {e}", fmu.display()))?;
     let mut zip = zip::ZipWriter::new(file);
     let options = zip::write::SimpleFileOptions::default()
@@ -445,7 +467,7 @@ fn sweep(args: &[String]) -> Result {
     if args.is_empty() {
         return Err(USAGE.to_string());
     }
-    let fmu = build_fmu()?;
+    let fmu = build_fmu(false)?.fmu;
     let python = ensure_sweep_package()?;
     // Run where the user is: spec paths are theirs.
     run(Command::new(python)
@@ -455,7 +477,7 @@ fn sweep(args: &[String]) -> Result {
 }
 
 fn bench_sweep(args: &[String]) -> Result {
-    let fmu = build_fmu()?;
+    let fmu = build_fmu(false)?.fmu;
     let python = ensure_sweep_package()?;
     let out = root().join("target/bench-sweep");
     fs::create_dir_all(&out).map_err(|e| e.to_string())?;
@@ -467,7 +489,7 @@ fn bench_sweep(args: &[String]) -> Result {
 }
 
 fn demo() -> Result {
-    let fmu = build_fmu()?;
+    let fmu = build_fmu(false)?.fmu;
     let python = ensure_venv(Packages::Demo)?;
     let out = root().join("target/demo");
     run(Command::new(python)
@@ -492,7 +514,8 @@ fn test() -> Result {
     ensure_libclang()?;
     run(cargo().args(["test", "--release"]))?;
     fuzz_under_valgrind()?;
-    let fmu = build_fmu()?;
+    // The archive with every platform: the FMPy tests check it as a master would.
+    let fmu = test_platforms()?;
     // The benchmark harness builds and drives the packed FMU (a smoke run, no timings
     // judged), so that `cargo xtask bench` keeps working from a fresh clone.
     let harness = build_bench_harness()?;
@@ -520,6 +543,22 @@ fn test() -> Result {
     unless_passed_before("valgrind memcheck of the FMPy suite", &inputs, || {
         fmpy_under_valgrind(&python, &fmu)
     })
+}
+
+/// Build the FMU for every platform and run the other platforms' binaries on their ABIs
+/// (tests/platforms, xtask/src/abi_tests.rs). Returns the archive.
+fn test_platforms() -> Result<PathBuf> {
+    ensure_libclang()?;
+    let packed = build_fmu(true)?;
+    let zig = platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
+    abi_tests::test(
+        &root().join("target/fmu/assets/modelDescription.xml"),
+        &packed.linux64,
+        &root().join(PLATFORM_BINARIES),
+        &packed.report,
+        &zig,
+    )?;
+    Ok(packed.fmu)
 }
 
 /// Run `check` unless it passed before on inputs of exactly these bytes (a fingerprint of
@@ -720,7 +759,7 @@ fn build_compiled_peers(python: &Path) -> Result<(PathBuf, PathBuf)> {
 /// The work-precision study: the Rust harness (FMU through its C ABI, Rust crates, ns per
 /// right-hand side), then the Python driver (reference, scipy, FMPy, table and plot).
 fn bench(quick: bool) -> Result {
-    let fmu = build_fmu()?;
+    let fmu = build_fmu(false)?.fmu;
     let python = ensure_venv(Packages::Tests)?;
     let program = build_bench_harness()?;
     let out = root().join("target/bench");
@@ -762,49 +801,33 @@ fn bench(quick: bool) -> Result {
 mod tests {
     use super::*;
 
-    /// Binaries built elsewhere land in the FMU beside linux64, under their platform.
+    /// The archive holds what was given under its names; a source that cannot be read
+    /// leaves no archive, neither a partial one nor the one before.
     #[test]
-    fn extra_platform_binaries_are_packed() {
-        let dir = std::env::temp_dir().join(format!("xtask-extra-{}", std::process::id()));
+    fn packing_is_all_or_nothing() {
+        let dir = std::env::temp_dir().join(format!("xtask-pack-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
-        for (platform, file) in [
-            ("win64", "CyclicMechanism.dll"),
-            ("darwin64", "CyclicMechanism.dylib"),
-        ] {
-            fs::create_dir_all(dir.join("binaries").join(platform)).unwrap();
-            fs::write(dir.join("binaries").join(platform).join(file), platform).unwrap();
-        }
+        fs::create_dir_all(&dir).unwrap();
         let linux = dir.join("linux.so");
         fs::write(&linux, "linux").unwrap();
-        let mut files = vec![("binaries/linux64/CyclicMechanism.so".to_string(), linux)];
-        files.extend(extra_binaries_in(&dir).unwrap());
         let fmu = dir.join("test.fmu");
+        let files = vec![("binaries/linux64/CyclicMechanism.so".to_string(), linux)];
         pack(&fmu, &files).unwrap();
         let mut archive = zip::ZipArchive::new(fs::File::open(&fmu).unwrap()).unwrap();
-        let mut names: Vec<String> = archive.file_names().map(str::to_string).collect();
-        names.sort();
-        assert_eq!(
-            names,
-            [
-                "binaries/darwin64/CyclicMechanism.dylib",
-                "binaries/linux64/CyclicMechanism.so",
-                "binaries/win64/CyclicMechanism.dll"
-            ]
-        );
+        let names: Vec<String> = archive.file_names().map(str::to_string).collect();
+        assert_eq!(names, ["binaries/linux64/CyclicMechanism.so"]);
         let mut content = String::new();
-        std::io::Read::read_to_string(
-            &mut archive
-                .by_name("binaries/win64/CyclicMechanism.dll")
-                .unwrap(),
-            &mut content,
-        )
-        .unwrap();
-        assert_eq!(content, "win64");
-        // A misnamed binary is refused with the rule.
-        fs::write(dir.join("binaries/win64/other.dll"), "x").unwrap();
-        assert!(extra_binaries_in(&dir)
-            .unwrap_err()
-            .contains("must be named"));
+        std::io::Read::read_to_string(&mut archive.by_index(0).unwrap(), &mut content).unwrap();
+        assert_eq!(content, "linux");
+        let mut broken = files.clone();
+        broken.push((
+            "binaries/win64/CyclicMechanism.dll".into(),
+            dir.join("missing"),
+        ));
+        let error = pack(&fmu, &broken).unwrap_err();
+        assert!(error.contains("missing"), "{error}");
+        assert!(!fmu.exists(), "a failed pack leaves no archive");
+        assert!(!fmu.with_extension("fmu.partial").exists());
         fs::remove_dir_all(&dir).unwrap();
     }
 }

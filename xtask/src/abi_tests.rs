@@ -1,0 +1,472 @@
+//! The FMU's binaries tested on the other platforms' ABIs, on this Linux machine: the
+//! crate's Rust tests built for Windows and run under Wine, and one C master
+//! (tests/platforms/master.c) built for linux64, win64 (MinGW, run under Wine) and aarch64
+//! Linux (zig cc, run under QEMU) that drives each binary through the same scenarios and
+//! records every output at every communication point. The runs must agree with linux64's
+//! bit for bit, or the test names the first value that differs and by how much.
+
+use std::collections::BTreeMap;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::platforms::{self, Target, Zig, MINGW_GCC};
+use crate::{root, run, Result};
+
+const WINE: &str = "/usr/lib/wine/wine64";
+const QEMU: &str = "/usr/bin/qemu-aarch64-static";
+/// Where libc6-arm64-cross puts aarch64's glibc and its loader.
+const AARCH64_SYSROOT: &str = "/usr/aarch64-linux-gnu";
+
+/// The crate's tests that need nothing but the library (no Python, no files of the
+/// checkout), run as Windows programs.
+const RUST_TESTS_ON_WINDOWS: &[&str] = &[
+    "paper_cases",
+    "fuzz_api",
+    "state_validation",
+    "parallel_instances",
+    "tiny_steps",
+    "stiff",
+    "isa",
+    "no_allocation",
+];
+
+/// How a scenario's runs must agree with linux64's.
+#[derive(Clone, Copy, PartialEq)]
+enum Agreement {
+    /// Bit for bit: the integrator and model use only IEEE-exact operations and their own
+    /// sines and cosines.
+    Bits,
+    /// Within the tolerance: Radau IIA's step-size control takes powers from the C
+    /// library, whose last bits differ between platforms, so its steps may too.
+    Tolerance,
+}
+
+struct Scenario {
+    name: &'static str,
+    tolerance: f64,
+    step: f64,
+    stop: f64,
+    /// (variable, value) set in initialisation mode.
+    settings: &'static [(&'static str, f64)],
+    agreement: Agreement,
+}
+
+const SCENARIOS: &[Scenario] = &[
+    Scenario {
+        name: "paper case 1",
+        tolerance: 1e-10,
+        step: 0.01,
+        stop: 10.0,
+        settings: &[],
+        agreement: Agreement::Bits,
+    },
+    Scenario {
+        name: "free run",
+        tolerance: 1e-8,
+        step: 0.1,
+        stop: 100.0,
+        settings: &[
+            ("builtin_laws", 0.0),
+            ("omega2_0", 6.0),
+            ("twist12_0", 0.2),
+            ("twist34_0", -0.1),
+            ("omega4_0", -1.0),
+        ],
+        agreement: Agreement::Bits,
+    },
+    Scenario {
+        name: "paper case 2, implicit solver",
+        tolerance: 1e-6,
+        step: 0.01,
+        stop: 10.0,
+        settings: &[("k34", 40.0), ("solver", 3.0)],
+        agreement: Agreement::Tolerance,
+    },
+];
+
+/// A variable of the model description: value reference and type element.
+#[derive(Clone)]
+struct Variable {
+    vr: u32,
+    kind: char,
+}
+
+struct Description {
+    guid: String,
+    variables: BTreeMap<String, Variable>,
+    /// The outputs, in the description's order.
+    outputs: Vec<String>,
+}
+
+fn read_description(xml: &Path) -> Result<Description> {
+    use quick_xml::events::Event;
+    let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
+    let mut reader = quick_xml::Reader::from_str(&text);
+    let mut description = Description {
+        guid: String::new(),
+        variables: BTreeMap::new(),
+        outputs: Vec::new(),
+    };
+    let mut current: Option<(String, u32, bool)> = None;
+    loop {
+        let event = reader
+            .read_event()
+            .map_err(|e| format!("{}: {e}", xml.display()))?;
+        let element = match &event {
+            Event::Start(e) | Event::Empty(e) => e,
+            Event::Eof => break,
+            _ => continue,
+        };
+        let attribute = |name: &str| -> Option<String> {
+            element
+                .try_get_attribute(name)
+                .ok()
+                .flatten()
+                .and_then(|a| a.unescape_value().ok().map(|v| v.into_owned()))
+        };
+        match element.name().as_ref() {
+            b"fmiModelDescription" => description.guid = attribute("guid").unwrap_or_default(),
+            b"ScalarVariable" => {
+                let name = attribute("name").ok_or("a ScalarVariable without a name")?;
+                let vr = attribute("valueReference")
+                    .and_then(|v| v.parse().ok())
+                    .ok_or_else(|| format!("{name}: no valid valueReference"))?;
+                let output = attribute("causality").as_deref() == Some("output");
+                current = Some((name, vr, output));
+            }
+            tag @ (b"Real" | b"Integer" | b"Enumeration" | b"Boolean") => {
+                if let Some((name, vr, output)) = current.take() {
+                    let kind = match tag {
+                        b"Real" => 'R',
+                        b"Boolean" => 'B',
+                        _ => 'I',
+                    };
+                    if output {
+                        description.outputs.push(name.clone());
+                    }
+                    description.variables.insert(name, Variable { vr, kind });
+                }
+            }
+            _ => {}
+        }
+    }
+    if description.guid.is_empty() || description.outputs.is_empty() {
+        return Err(format!("{}: no guid or no outputs", xml.display()));
+    }
+    Ok(description)
+}
+
+/// Where the tests' builds and runs go.
+fn work_dir() -> PathBuf {
+    root().join("target/platforms")
+}
+
+/// The C master for each platform: (native, win64, aarch64).
+fn build_masters(zig: &Zig) -> Result<(PathBuf, PathBuf, PathBuf)> {
+    let dir = work_dir();
+    fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let source = root().join("tests/platforms/master.c");
+    let headers = fmi2_headers()?;
+    let flags = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror"];
+    let native = dir.join("master");
+    run(Command::new("cc")
+        .args(flags)
+        .arg("-I")
+        .arg(&headers)
+        .arg("-o")
+        .arg(&native)
+        .arg(&source)
+        .arg("-ldl"))?;
+    let windows = dir.join("master.exe");
+    run(Command::new(MINGW_GCC)
+        .args(flags)
+        .arg("-static")
+        .arg("-I")
+        .arg(&headers)
+        .arg("-o")
+        .arg(&windows)
+        .arg(&source))?;
+    let aarch64 = dir.join("master-aarch64");
+    run(Command::new(zig.venv_bin.join("python"))
+        .args(["-m", "ziglang", "cc", "-target", "aarch64-linux-gnu.2.17"])
+        .args(flags)
+        .arg("-I")
+        .arg(&headers)
+        .arg("-o")
+        .arg(&aarch64)
+        .arg(&source)
+        .arg("-ldl"))?;
+    Ok((native, windows, aarch64))
+}
+
+/// The FMI 2.0 headers that fmi-sys ships (fetched into cargo's registry by the build).
+fn fmi2_headers() -> Result<PathBuf> {
+    let home = std::env::var_os("CARGO_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")))
+        .ok_or("neither CARGO_HOME nor HOME is set")?;
+    fs::read_dir(home.join("registry/src"))
+        .into_iter()
+        .flat_map(|d| d.flatten())
+        .map(|index| index.path().join("fmi-sys-0.6.0/fmi-standard2/headers"))
+        .find(|headers| headers.join("fmi2Functions.h").exists())
+        .ok_or_else(|| "fmi-sys 0.6.0's FMI 2.0 headers not found in cargo's registry".into())
+}
+
+/// Wine's settings: a prefix kept with the cross builds (its creation takes a while), no
+/// debug output, and the folder of the `bcryptprimitives.dll` stand-in on its DLL path.
+fn wine_env(command: &mut Command) -> Result<&mut Command> {
+    let dlls = work_dir().join("wine-dlls");
+    let standin = dlls.join("bcryptprimitives.dll");
+    if !standin.exists() {
+        fs::create_dir_all(&dlls).map_err(|e| e.to_string())?;
+        run(Command::new(MINGW_GCC)
+            .args(["-O2", "-shared", "-o"])
+            .arg(&standin)
+            .arg(root().join("tests/platforms/bcryptprimitives.c"))
+            .arg("-ladvapi32"))?;
+    }
+    Ok(command
+        .env(
+            "WINEPREFIX",
+            platforms::cross_target_dir().join("wineprefix"),
+        )
+        .env("WINEDEBUG", "-all")
+        .env("WINEPATH", windows_path(&dlls)))
+}
+
+/// A Linux path as Wine's Z: drive sees it.
+fn windows_path(path: &Path) -> String {
+    format!("Z:{}", path.display()).replace('/', "\\")
+}
+
+/// One run of a master: the recorded points, as text lines, and the loop's time.
+fn run_master(
+    how: &mut Command,
+    library: &Path,
+    output: &Path,
+    scenario: &Scenario,
+    description: &Description,
+    windows: bool,
+) -> Result<(Vec<String>, f64)> {
+    let path = |p: &Path| {
+        if windows {
+            windows_path(p)
+        } else {
+            p.display().to_string()
+        }
+    };
+    how.arg(path(library))
+        .arg(&description.guid)
+        .arg(format!("{:e}", scenario.tolerance))
+        .arg(format!("{}", scenario.step))
+        .arg(format!("{}", scenario.stop))
+        .arg(path(output));
+    for (name, value) in scenario.settings {
+        let v = &description.variables[*name];
+        let value = if v.kind == 'R' {
+            format!("{value:e}")
+        } else {
+            format!("{}", *value as i64)
+        };
+        how.arg(format!("{}:{}={value}", v.kind, v.vr));
+    }
+    how.arg("--");
+    for name in &description.outputs {
+        let v = &description.variables[name];
+        how.arg(format!("{}:{}", v.kind, v.vr));
+    }
+    let shown = format!("{how:?}");
+    let result = how
+        .output()
+        .map_err(|e| format!("cannot run {shown}: {e}"))?;
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    if !result.status.success() {
+        return Err(format!("{shown} failed ({}): {stderr}", result.status));
+    }
+    let seconds = stderr
+        .lines()
+        .find_map(|l| l.strip_prefix("loop_seconds="))
+        .and_then(|s| s.trim().parse().ok())
+        .ok_or_else(|| format!("{shown}: no loop time in {stderr}"))?;
+    let text = fs::read_to_string(output).map_err(|e| format!("{}: {e}", output.display()))?;
+    Ok((text.lines().map(str::to_string).collect(), seconds))
+}
+
+/// The differences between two recordings, as (values compared, values that differ, the
+/// largest difference relative to max(1, |linux64's value|), the first difference named).
+fn compare(
+    reference: &[String],
+    other: &[String],
+    description: &Description,
+) -> Result<(usize, usize, f64, Option<String>)> {
+    if reference.len() != other.len() {
+        return Err(format!(
+            "{} communication points against linux64's {}",
+            other.len(),
+            reference.len()
+        ));
+    }
+    let (mut compared, mut differing, mut largest, mut first) = (0, 0, 0.0f64, None);
+    for (a, b) in reference.iter().zip(other) {
+        let (a, b): (Vec<&str>, Vec<&str>) = (a.split(' ').collect(), b.split(' ').collect());
+        let time = f64::from_bits(u64::from_str_radix(a[0], 16).unwrap_or(0));
+        for (k, name) in description.outputs.iter().enumerate() {
+            let (x, y) = (a.get(k + 1).copied(), b.get(k + 1).copied());
+            compared += 1;
+            if x == y {
+                continue;
+            }
+            differing += 1;
+            let value = |s: Option<&str>| -> f64 {
+                let s = s.unwrap_or("");
+                if description.variables[name].kind == 'R' {
+                    f64::from_bits(u64::from_str_radix(s, 16).unwrap_or(0))
+                } else {
+                    s.parse().unwrap_or(f64::NAN)
+                }
+            };
+            let (x, y) = (value(x), value(y));
+            let relative = (x - y).abs() / x.abs().max(1.0);
+            largest = largest.max(relative);
+            first.get_or_insert_with(|| {
+                format!(
+                    "{name} at t = {time}: linux64 {x:e}, here {y:e} (difference {:e})",
+                    y - x
+                )
+            });
+        }
+    }
+    Ok((compared, differing, largest, first))
+}
+
+/// Run every scenario through the linux64, win64 and aarch64 binaries and compare them
+/// with linux64's. Returns the report's lines.
+fn compare_platforms(
+    description: &Description,
+    linux64: &Path,
+    win64: &Path,
+    aarch64: &Path,
+    zig: &Zig,
+) -> Result<Vec<String>> {
+    let (native, windows, arm) = build_masters(zig)?;
+    let dir = work_dir();
+    let mut report = Vec::new();
+    let mut failures = Vec::new();
+    for (index, scenario) in SCENARIOS.iter().enumerate() {
+        let out = |platform: &str| dir.join(format!("scenario{index}-{platform}.txt"));
+        let (reference, linux_seconds) = run_master(
+            &mut Command::new(&native),
+            linux64,
+            &out("linux64"),
+            scenario,
+            description,
+            false,
+        )?;
+        let mut wine = Command::new(WINE);
+        wine_env(&mut wine)?.arg(windows_path(&windows));
+        let mut qemu = Command::new(QEMU);
+        qemu.args(["-L", AARCH64_SYSROOT]).arg(&arm);
+        let runs = [
+            ("win64 under Wine", wine, win64, true),
+            ("aarch64 under QEMU", qemu, aarch64, false),
+        ];
+        for (platform, mut command, library, is_windows) in runs {
+            let file = out(&platform.replace(' ', "-"));
+            let (recorded, seconds) = run_master(
+                &mut command,
+                library,
+                &file,
+                scenario,
+                description,
+                is_windows,
+            )?;
+            let (compared, differing, largest, first) = compare(&reference, &recorded, description)
+                .map_err(|e| format!("{} on {platform}: {e}", scenario.name))?;
+            report.push(format!(
+                "{}, {platform}: {compared} values at {} points compared with linux64's, \
+                 {differing} differ (largest relative difference {largest:e}); stepping \
+                 loop {:.3} ms against linux64's {:.3} ms",
+                scenario.name,
+                reference.len(),
+                seconds * 1e3,
+                linux_seconds * 1e3
+            ));
+            let bound = 100.0 * scenario.tolerance;
+            let failed = match scenario.agreement {
+                Agreement::Bits => differing > 0,
+                Agreement::Tolerance => largest > bound,
+            };
+            if failed {
+                failures.push(format!(
+                    "{} on {platform}: {differing} of {compared} values differ from linux64's \
+                     (allowed: {}); first: {}",
+                    scenario.name,
+                    if scenario.agreement == Agreement::Bits {
+                        "none".to_string()
+                    } else {
+                        format!("relative differences up to {bound:e}")
+                    },
+                    first.unwrap_or_default()
+                ));
+            }
+        }
+    }
+    if !failures.is_empty() {
+        return Err(failures.join("\n"));
+    }
+    Ok(report)
+}
+
+/// The crate's Rust tests built for Windows and run under Wine as cargo's runner.
+fn rust_tests_under_wine(zig: &Zig) -> Result {
+    let mut command = platforms::cross_cargo(Target::Win64, "test", zig)?;
+    command.args(["--package", "cyclic-mechanism", "--lib"]);
+    for test in RUST_TESTS_ON_WINDOWS {
+        command.args(["--test", test]);
+    }
+    // Fewer sequences than natively: every call goes through Wine's emulated system calls
+    // only where it allocates, but the fuzzer's default is sized for a native run.
+    command
+        .env("CARGO_TARGET_X86_64_PC_WINDOWS_GNU_RUNNER", WINE)
+        .env("FUZZ_SEQUENCES", "1000");
+    wine_env(&mut command)?;
+    println!("xtask: the Rust tests built for Windows, run under Wine");
+    run(&mut command)
+}
+
+/// Everything above: the report goes to `target/test-reports/platforms.md` with the build
+/// lines of `builds`.
+pub fn test(
+    description_xml: &Path,
+    linux64: &Path,
+    binaries: &Path,
+    builds: &[String],
+    zig: &Zig,
+) -> Result {
+    platforms::ensure_packages(platforms::RUN_PACKAGES)?;
+    let description = read_description(description_xml)?;
+    let win64 = binaries.join(format!("win64/{}.dll", crate::MODEL_IDENTIFIER));
+    let aarch64 = binaries.join(format!("aarch64-linux/{}.so", crate::MODEL_IDENTIFIER));
+    rust_tests_under_wine(zig)?;
+    let comparisons = compare_platforms(&description, linux64, &win64, &aarch64, zig)?;
+    let reports = root().join("target/test-reports");
+    fs::create_dir_all(&reports).map_err(|e| e.to_string())?;
+    let mut text = String::from(
+        "# Platforms: the binaries' checks and the runs compared with linux64\n\n\
+         Written by `cargo xtask test`.\n\n## Binaries\n\n",
+    );
+    for line in builds {
+        text += &format!("- {line}\n");
+    }
+    text += "\n## The C master's runs\n\n";
+    for line in &comparisons {
+        println!("xtask: {line}");
+        text += &format!("- {line}\n");
+    }
+    let file = reports.join("platforms.md");
+    fs::write(&file, text).map_err(|e| format!("{}: {e}", file.display()))?;
+    println!("xtask: platform report in {}", file.display());
+    Ok(())
+}
