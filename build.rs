@@ -10,6 +10,9 @@ fn main() {
             map.display()
         );
         println!("cargo:rerun-if-changed=src/fmi2/exports.map");
+    } else if os == "windows" {
+        // No time of day in the DLL's header: the same sources give the same bytes.
+        println!("cargo:rustc-cdylib-link-arg=-Wl,--no-insert-timestamp");
     } else if os == "macos" {
         // The name the library is known by once packed, rather than the build folder's.
         println!("cargo:rustc-cdylib-link-arg=-Wl,-install_name,@rpath/CyclicMechanism.dylib");

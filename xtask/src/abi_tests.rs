@@ -24,6 +24,7 @@ const RUST_TESTS_ON_WINDOWS: &[&str] = &[
     "paper_cases",
     "fuzz_api",
     "state_validation",
+    "state_round_trip",
     "parallel_instances",
     "tiny_steps",
     "stiff",
@@ -426,11 +427,7 @@ fn rust_tests_under_wine(zig: &Zig) -> Result {
     for test in RUST_TESTS_ON_WINDOWS {
         command.args(["--test", test]);
     }
-    // Fewer sequences than natively: every call goes through Wine's emulated system calls
-    // only where it allocates, but the fuzzer's default is sized for a native run.
-    command
-        .env("CARGO_TARGET_X86_64_PC_WINDOWS_GNU_RUNNER", WINE)
-        .env("FUZZ_SEQUENCES", "1000");
+    command.env("CARGO_TARGET_X86_64_PC_WINDOWS_GNU_RUNNER", WINE);
     wine_env(&mut command)?;
     println!("xtask: the Rust tests built for Windows, run under Wine");
     run(&mut command)

@@ -300,7 +300,16 @@ pub fn cross_cargo(target: Target, subcommand: &str, zig: &Zig) -> Result<Comman
         .env("RUSTC", DEBIAN_RUSTC)
         .env("RUSTDOC", "/usr/bin/rustdoc")
         .env("RUSTC_BOOTSTRAP", "1")
-        .env("CARGO_TARGET_DIR", cross_target_dir().join(target.triple()))
+        // The tests' build of the library unifies features with the dev-dependencies: in
+        // a folder of its own, so that the two builds do not relink each other by turns.
+        .env(
+            "CARGO_TARGET_DIR",
+            cross_target_dir().join(if subcommand == "test" {
+                format!("{}-tests", target.triple())
+            } else {
+                target.triple().to_string()
+            }),
+        )
         .env("PATH", zig.path()?)
         // Set by the cargo that runs xtask; they would point Debian's cargo at rustup's.
         .env_remove("CARGO")
@@ -319,6 +328,10 @@ pub fn cross_cargo(target: Target, subcommand: &str, zig: &Zig) -> Result<Comman
         Target::Win64 => {
             command
                 .env("CARGO_TARGET_X86_64_PC_WINDOWS_GNU_LINKER", MINGW_GCC)
+                // The linker drops the symbol table (a DLL exports by its export table);
+                // MinGW's strip would also write the time of day into the header, and the
+                // same sources would no longer give the same bytes.
+                .env("CARGO_PROFILE_RELEASE_STRIP", "symbols")
                 // MinGW's malloc.h includes mm_malloc.h, one of clang's own headers.
                 .env(bindgen, format!("-isystem {}", clang.display()));
         }
@@ -383,8 +396,8 @@ pub fn build(target: Target, zig: &Zig) -> Result<Built> {
     })
 }
 
-/// The binaries for win64 and darwin64 (universal), built, stripped where the linker did
-/// not, checked, and copied to `dir` under their FMI 2.0 platform folders; with the
+/// The binaries for win64 and darwin64 (universal), built (stripped by their linkers),
+/// checked, and copied to `dir` under their FMI 2.0 platform folders; with the
 /// aarch64 Linux library (checked, kept for the tests: FMI 2.0 has no folder for it).
 /// Returns the files to pack as (path in the FMU, file) and a line per binary for the report.
 pub fn build_all(zig: &Zig, dir: &Path) -> Result<(Files, Vec<String>)> {
@@ -401,11 +414,7 @@ pub fn build_all(zig: &Zig, dir: &Path) -> Result<(Files, Vec<String>)> {
     for file in [&win64, &darwin64, &aarch64] {
         fs::create_dir_all(file.parent().unwrap()).map_err(|e| e.to_string())?;
     }
-    run(Command::new("x86_64-w64-mingw32-strip")
-        .arg("--strip-unneeded")
-        .arg(&by(Target::Win64).library)
-        .arg("-o")
-        .arg(&win64))?;
+    fs::copy(&by(Target::Win64).library, &win64).map_err(|e| e.to_string())?;
     run(Command::new(Path::new(LLVM_BIN).join("llvm-lipo"))
         .arg("-create")
         .arg(&by(Target::DarwinX86_64).library)
@@ -420,7 +429,7 @@ pub fn build_all(zig: &Zig, dir: &Path) -> Result<(Files, Vec<String>)> {
     ];
     for b in &built {
         report.push(format!(
-            "{}: built in {:.0} s, {} bytes before stripping or joining",
+            "{}: built in {:.0} s, {} bytes before joining",
             b.target.triple(),
             b.seconds,
             size(&b.library)?
