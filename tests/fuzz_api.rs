@@ -4,14 +4,16 @@
 //! only documented statuses, and finite values whenever a read succeeds. Deterministic
 //! (a fixed seed), and run under valgrind memcheck by `cargo xtask test`.
 
+use std::collections::BTreeMap;
 use std::ffi::c_char;
 use std::ptr::{null, null_mut};
 
 mod common;
 
+use cyclic_mechanism::fmi2::instance::FmuState;
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::snapshot::fnv1a_64;
-use cyclic_mechanism::variables::count;
+use cyclic_mechanism::variables::{count, variable, VarType};
 use fmi_sys::fmi2::*;
 
 /// xorshift64*: a small deterministic generator, enough for fuzzing.
@@ -63,10 +65,17 @@ impl Rng {
 struct Fuzz {
     rng: Rng,
     c: fmi2Component,
+    /// A Model Exchange instance (else Co-Simulation).
+    exchange: bool,
     time: f64,
     states: Vec<fmi2FMUstate>,
     calls: u64,
+    /// Exact round trips checked, by the code of the FMI state they were taken in.
+    round_trips: BTreeMap<u8, u64>,
 }
+
+/// The serialized state's header: its FMI state code follows the interface's byte.
+const HEADER: usize = 28;
 
 fn documented(status: fmi2Status) -> bool {
     [
@@ -101,15 +110,19 @@ impl Fuzz {
         unsafe {
             match choice {
                 0 => {
+                    // Start times other than 0 too, up to the extremes of the doubles.
+                    let start = if r.chance(60) { 0.0 } else { r.real() };
                     let s = fmi2SetupExperiment(
                         c,
                         r.below(2) as i32,
                         r.real().abs() * 1e-9,
-                        0.0,
+                        start,
                         r.below(2) as i32,
-                        r.real(),
+                        if r.chance(30) { start } else { r.real() },
                     );
-                    self.check(s, "fmi2SetupExperiment");
+                    if self.check(s, "fmi2SetupExperiment") == fmi2Status_fmi2OK {
+                        self.time = start;
+                    }
                 }
                 1 => {
                     let s = fmi2EnterInitializationMode(c);
@@ -202,6 +215,7 @@ impl Fuzz {
                     }
                 }
                 14 => self.round_trip_serialized(),
+                19 => self.round_trip_exact(),
                 15 => {
                     let names = [
                         c"logCalls".as_ptr(),
@@ -362,7 +376,6 @@ impl Fuzz {
     /// Write a wrong number over the payload and recompute the checksum, as an attacker
     /// (or a buggy tool) would: only a check of the values themselves can refuse it.
     fn forge(&mut self, bytes: &mut [c_char]) {
-        const HEADER: usize = 28;
         if bytes.len() < HEADER + 16 {
             return;
         }
@@ -382,6 +395,127 @@ impl Fuzz {
             .collect();
         for (k, b) in fnv1a_64(&payload).to_le_bytes().iter().enumerate() {
             bytes[payload_end + k] = *b as c_char;
+        }
+    }
+
+    /// The instance's serialized state (which must be obtainable wherever a state is).
+    unsafe fn serialized(&mut self, state: fmi2FMUstate) -> Vec<c_char> {
+        let c = self.c;
+        let mut size = 0usize;
+        unsafe {
+            let s = fmi2SerializedFMUstateSize(c, state, &mut size);
+            assert_eq!(s, fmi2Status_fmi2OK, "fmi2SerializedFMUstateSize");
+            let mut bytes = vec![0 as c_char; size];
+            let s = fmi2SerializeFMUstate(c, state, bytes.as_mut_ptr(), size);
+            assert_eq!(s, fmi2Status_fmi2OK, "fmi2SerializeFMUstate");
+            self.calls += 2;
+            bytes
+        }
+    }
+
+    /// Every variable's value, read one at a time by its type, with the call's status: what
+    /// a master can observe of the instance.
+    unsafe fn observe(&mut self) -> Vec<(fmi2Status, u64)> {
+        let c = self.c;
+        (0..count() as u32)
+            .map(|vr| unsafe {
+                let (status, bits) = match variable(vr).map(|v| v.var_type()) {
+                    Some(VarType::Real) => {
+                        let mut x = 0.0;
+                        (fmi2GetReal(c, &vr, 1, &mut x), x.to_bits())
+                    }
+                    Some(VarType::Boolean) => {
+                        let mut x = 0;
+                        (fmi2GetBoolean(c, &vr, 1, &mut x), x as u64)
+                    }
+                    _ => {
+                        let mut x = 0;
+                        (fmi2GetInteger(c, &vr, 1, &mut x), x as u64)
+                    }
+                };
+                self.calls += 1;
+                // A refused read leaves the output as it was: only the status counts.
+                (status, if status == fmi2Status_fmi2OK { bits } else { 0 })
+            })
+            .collect()
+    }
+
+    /// The next call a master would make, with everything it returns: a step of 0.01 for
+    /// Co-Simulation (then every variable), the derivatives, event indicators and states
+    /// for Model Exchange.
+    unsafe fn continuation(&mut self) -> Vec<(fmi2Status, u64)> {
+        let c = self.c;
+        let mut seen = Vec::new();
+        unsafe {
+            if self.exchange {
+                let mut x = [0.0; 6];
+                let mut z = [0.0; 1];
+                let statuses = [
+                    fmi2GetDerivatives(c, x.as_mut_ptr(), 6),
+                    fmi2GetEventIndicators(c, z.as_mut_ptr(), 1),
+                ];
+                seen.extend(statuses.iter().map(|s| (*s, 0)));
+                seen.extend(x.iter().chain(&z).map(|v| (0, v.to_bits())));
+                let s = fmi2GetContinuousStates(c, x.as_mut_ptr(), 6);
+                seen.push((s, 0));
+                seen.extend(x.iter().map(|v| (0, v.to_bits())));
+            } else {
+                seen.push((fmi2DoStep(c, self.time, 0.01, 1), 0));
+            }
+        }
+        self.calls += seen.len() as u64;
+        seen.extend(unsafe { self.observe() });
+        seen
+    }
+
+    /// Get the state, serialize it, deserialize the bytes and set the result: a buffer the
+    /// FMU wrote always deserializes, and the instance is then exactly what it was: the
+    /// same bytes when serialized again, the same value of every variable, and the same
+    /// results of the next call. Counted by the FMI state the round trip was taken in.
+    unsafe fn round_trip_exact(&mut self) {
+        let c = self.c;
+        let mut taken: fmi2FMUstate = null_mut();
+        unsafe {
+            if self.check(fmi2GetFMUstate(c, &mut taken), "fmi2GetFMUstate") != fmi2Status_fmi2OK {
+                return;
+            }
+            let bytes = self.serialized(taken);
+            let before = self.observe();
+            let next = self.continuation();
+            let mut restored: fmi2FMUstate = null_mut();
+            let s = fmi2DeSerializeFMUstate(c, bytes.as_ptr(), bytes.len(), &mut restored);
+            if s != fmi2Status_fmi2OK {
+                let raw: Vec<u8> = bytes.iter().map(|b| *b as u8).collect();
+                let why = FmuState::deserialize(&raw).err().map(|f| f.message);
+                panic!(
+                    "a buffer the FMU wrote was refused (interface {}, state {}): {why:?}",
+                    raw[HEADER],
+                    raw[HEADER + 1]
+                );
+            }
+            assert_eq!(
+                fmi2SetFMUstate(c, restored),
+                fmi2Status_fmi2OK,
+                "fmi2SetFMUstate"
+            );
+            let mut again: fmi2FMUstate = null_mut();
+            assert_eq!(fmi2GetFMUstate(c, &mut again), fmi2Status_fmi2OK);
+            assert!(
+                self.serialized(again) == bytes,
+                "the restored state serializes differently"
+            );
+            assert!(
+                self.observe() == before,
+                "a variable differs after the restore"
+            );
+            assert!(
+                self.continuation() == next,
+                "the next call differs after the restore"
+            );
+            for mut state in [taken, restored, again] {
+                self.check(fmi2FreeFMUstate(c, &mut state), "fmi2FreeFMUstate");
+            }
+            *self.round_trips.entry(bytes[HEADER + 1] as u8).or_default() += 1;
         }
     }
 
@@ -407,7 +541,8 @@ impl Fuzz {
             {
                 return;
             }
-            match self.rng.below(5) {
+            let damage = self.rng.below(5);
+            match damage {
                 0 => bytes.truncate(self.rng.below(size as u64 + 1) as usize),
                 1 => {
                     let i = self.rng.below(size as u64) as usize;
@@ -418,7 +553,17 @@ impl Fuzz {
             }
             let mut restored: fmi2FMUstate = null_mut();
             let s = fmi2DeSerializeFMUstate(c, bytes.as_ptr(), bytes.len(), &mut restored);
-            if self.check(s, "fmi2DeSerializeFMUstate") == fmi2Status_fmi2OK {
+            let status = self.check(s, "fmi2DeSerializeFMUstate");
+            if damage > 2 && status != fmi2Status_fmi2OK {
+                let raw: Vec<u8> = bytes.iter().map(|b| *b as u8).collect();
+                let why = FmuState::deserialize(&raw).err().map(|f| f.message);
+                panic!(
+                    "an unmodified buffer was refused (interface {}, state {}): {why:?}",
+                    raw[HEADER],
+                    raw[HEADER + 1]
+                );
+            }
+            if status == fmi2Status_fmi2OK {
                 self.states.push(restored);
             }
         }
@@ -433,6 +578,7 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
         .unwrap_or(5000u64);
     let mut rng = Rng(0x9E3779B97F4A7C15);
     let mut total_calls = 0;
+    let mut round_trips = BTreeMap::new();
     for sequence in 0..sequences {
         let kind = if sequence % 2 == 0 {
             fmi2Type_fmi2CoSimulation
@@ -443,9 +589,11 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
         let mut fuzz = Fuzz {
             rng: Rng(rng.next() | 1),
             c,
+            exchange: kind == fmi2Type_fmi2ModelExchange,
             time: 0.0,
             states: Vec::new(),
             calls: 0,
+            round_trips: BTreeMap::new(),
         };
         let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             for _ in 0..40 {
@@ -465,8 +613,13 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
             unsafe { fmi2FreeFMUstate(c, &mut state) };
         }
         total_calls += fuzz.calls;
+        for (state, n) in &fuzz.round_trips {
+            *round_trips.entry(*state).or_insert(0u64) += n;
+        }
         unsafe { fmi2FreeInstance(c) };
     }
     eprintln!("fuzzed {sequences} sequences, {total_calls} calls");
+    eprintln!("exact round trips by FMI state code: {round_trips:?}");
     assert!(total_calls > sequences * 30);
+    assert!(!round_trips.is_empty(), "no round trip was checked");
 }

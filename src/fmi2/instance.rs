@@ -162,6 +162,11 @@ impl FmuState {
                 "invalid serialized state: an instance before initialisation has not moved",
             ));
         }
+        if exchange.is_some() && !(assembled || initialised) {
+            return Err(Failure::error(
+                "invalid serialized state: continuous states without an assembly",
+            ));
+        }
         if assembled || initialised {
             sim.check_initialised()
                 .map_err(|e| Failure::error(format!("invalid serialized state: {e}")))?;
@@ -325,6 +330,7 @@ impl Instance {
                 .map_err(|e| Failure::error(e.to_string()))?;
         }
         self.start_time = start;
+        self.sim.set_start_time(start);
         self.stop_time = stop;
         self.sim.set_stop_time(stop);
         Ok(())
@@ -583,6 +589,11 @@ impl Instance {
             self.sim.set(*vr, value, writable)?;
         }
         self.assembled = false;
+        if self.state == State::InitializationMode {
+            // Model Exchange's states were made from the assembly these values make stale;
+            // the next assembly makes them again.
+            self.exchange = None;
+        }
         Ok(())
     }
 
