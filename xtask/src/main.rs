@@ -512,7 +512,11 @@ fn build_bench_harness() -> Result<PathBuf> {
 
 fn test() -> Result {
     ensure_libclang()?;
-    run(cargo().args(["test", "--release"]))?;
+    let reports = root().join("target/test-reports");
+    fs::create_dir_all(&reports).map_err(|e| e.to_string())?;
+    run(cargo()
+        .args(["test", "--release"])
+        .env("FUZZ_REPORT", reports.join("fuzz_api.json")))?;
     fuzz_under_valgrind()?;
     // The archive with every platform: the FMPy tests check it as a master would.
     let fmu = test_platforms()?;
