@@ -186,6 +186,85 @@ def memory_growth(fmu, total):
             "runner_growth": (r2 - r1) / r1, "python_growth": (p2 - p1) / p1}
 
 
+def descendants(pid):
+    """The processes below `pid` (LocalCluster workers, and their runners), by /proc."""
+    children = {}
+    for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
+    found, stack = [], list(children.get(pid, []))
+    while stack:
+        child = stack.pop()
+        found.append(child)
+        stack.extend(children.get(child, []))
+    return found
+
+
+def children_of(pid):
+    return set(descendants(pid)) - {q for c in descendants(pid) for q in descendants(c)}
+
+
+def process_kind(pid):
+    try:
+        command = pathlib.Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ")
+    except OSError:
+        return None
+    if b"fmu-runner" in command:
+        return "runner"
+    if b"spawn_main" in command:
+        return "worker"
+    return None
+
+
+def sweep_memory(fmu, per_axis, series):
+    """Resident memory of the client (with its own runner), of each Dask worker and of each
+    worker's runner at
+    10 %, 50 % and 100 % of a per_axis² sweep of 1 s runs on a LocalCluster of 2 workers
+    (metrics only, or with series decimated to 0.1 s)."""
+    marks, taken = (0.1, 0.5, 1.0), {}
+
+    def sample(done, total):
+        for mark in marks:
+            if mark not in taken and done >= mark * total:
+                procs = {p: process_kind(p) for p in descendants(os.getpid())}
+                workers = sorted(p for p, k in procs.items() if k == "worker")
+                runners = [p for p, k in procs.items() if k == "runner"]
+                # The client's own runner (the calibration batch) is its direct child.
+                own = [p for p in runners if p in children_of(os.getpid())]
+                taken[mark] = {
+                    "client": rss_kib(os.getpid()) + sum(rss_kib(p) for p in own),
+                    "workers": [rss_kib(p) for p in workers],
+                    "runners": [sum(rss_kib(r) for r in runners if r in children_of(w))
+                                for w in workers],
+                }
+
+    s = {"scenario": {"stop": 1.0, "step": 0.01, "tolerance": 1e-8, "parameters": PAPER_LAWS},
+         "design": {"kind": "grid", "parameters": {
+             "k34": {"linspace": [50.0, 400.0, per_axis]}, "L": {"linspace": [0.6, 0.7, per_axis]}}},
+         "outputs": {"metrics": {"peak_rod_force": {"variable": "rod_force", "kind": "peak_abs"}}}}
+    if series:
+        s["outputs"]["series"] = {"variables": ["rod_force"], "interval": 0.1}
+    with tempfile.TemporaryDirectory() as tmp:
+        t0 = time.perf_counter()
+        results = run_sweep(s, fmu=fmu, out=pathlib.Path(tmp) / "out", workers=2,
+                            progress=False, plots=False, on_batch=sample)
+        wall = time.perf_counter() - t0
+    first, last = taken[0.1], taken[1.0]
+
+    def growth(key):
+        return max((b - a) / a for a, b in zip(first[key], last[key])) if first[key] else None
+
+    return {"points": per_axis ** 2, "series": series, "wall_s": wall,
+            "batch_size": results.report.batch_size, "batches": results.report.batches,
+            "held_results": results.report.held_results,
+            "rss_kib": {str(m): taken[m] for m in marks},
+            "growth": {"client": (last["client"] - first["client"]) / first["client"],
+                       "workers": growth("workers"), "runners": growth("runners")}}
+
+
 def machine():
     cpu = "unknown"
     for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
@@ -238,6 +317,21 @@ def report(r) -> str:
                      f"{m['runner_rss_kib'][0]} → {m['runner_rss_kib'][1]} KiB "
                      f"({m['runner_growth']:+.1%}), worker RSS {m['python_rss_kib'][0]} → "
                      f"{m['python_rss_kib'][1]} KiB ({m['python_growth']:+.1%}).")
+    for m in r.get("sweep_memory", []):
+        kind = "series every 0.1 s" if m["series"] else "metrics only"
+        lines += ["", f"A {m['points']:,}-point sweep ({kind}; 1 s runs, 2 workers, batches of "
+                  f"{m['batch_size']:,}, {m['wall_s']:.0f} s; {m['held_results']} results held at "
+                  "the end), resident memory in MiB at 10 % / 50 % / 100 %:", "",
+                  "| process | 10 % | 50 % | 100 % | growth 10 → 100 % |", "| --- | --- | --- | --- | --- |"]
+        at = m["rss_kib"]
+        rows_ = [("client (with its runner)", lambda x: x["client"], m["growth"]["client"])]
+        for i in range(len(at["0.1"]["workers"])):
+            rows_.append((f"worker {i + 1}", lambda x, i=i: x["workers"][i], None))
+        for i in range(len(at["0.1"]["runners"])):
+            rows_.append((f"runner of worker {i + 1}", lambda x, i=i: x["runners"][i], None))
+        for label, get, _ in rows_:
+            a, b, c = (get(at[k]) / 1024 for k in ("0.1", "0.5", "1.0"))
+            lines.append(f"| {label} | {a:.0f} | {b:.0f} | {c:.0f} | {(c - a) / a:+.1%} |")
     return "\n".join(lines) + "\n"
 
 
@@ -265,6 +359,9 @@ def main():
     if not quick:
         print("bench-sweep: memory over 100 000 points", flush=True)
         r["memory"] = memory_growth(fmu, 100_000)
+    per_axis = 100 if quick else 1000
+    print(f"bench-sweep: memory of a {per_axis ** 2:,}-point sweep on 2 workers", flush=True)
+    r["sweep_memory"] = [sweep_memory(fmu, per_axis, series) for series in (False, True)]
     (out / "results.json").write_text(json.dumps(r, indent=2))
     text = report(r)
     (out / "results.md").write_text(text)

@@ -33,6 +33,9 @@ BATCH_SECONDS = 0.5
 # last ones do not leave workers idle.
 BATCHES_PER_WORKER = 4
 CALIBRATION_POINTS = 4
+# Batches in flight per worker on Dask: one running and the next ones queued, so that no
+# worker waits; the rest stay here as indices until a slot frees.
+IN_FLIGHT_PER_WORKER = 3
 
 
 @dataclass
@@ -51,6 +54,10 @@ class SweepReport:
     startup_s: float = 0.0  # connecting to (or starting) the cluster, shipping the FMU
     dispatch_s: float = 0.0  # from the first task submitted to the last batch saved
     statuses: dict = field(default_factory=dict)
+    # Finished batches whose results the Dask scheduler still held in memory when the last
+    # batch was saved (its own accounting; 0: nothing of them stays on the workers). None
+    # when the sweep ran without Dask.
+    held_results: int | None = None
 
 
 def _versions() -> dict:
@@ -141,7 +148,8 @@ class _Progress:
 
 def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
               scheduler: str | None = None, serial: bool = False, resume: bool = False,
-              batch_size: int | None = None, progress: bool = True, plots: bool = True):
+              batch_size: int | None = None, progress: bool = True, plots: bool = True,
+              on_batch=None):
     """Run a sweep and return its ``Results`` (see ``fmusweep.results``).
 
     spec: a TOML path, a dict, or a Spec. fmu: the FMU's path, over the spec's own
@@ -150,6 +158,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     size (default: every core). scheduler: the address of an existing Dask scheduler
     (``tcp://host:8786``) instead of a LocalCluster. serial: no Dask, this process only.
     resume: finish a sweep that ``out`` already holds, redoing only missing points.
+    on_batch: called with (points saved so far, points in the sweep) after each batch.
     """
     started = time.perf_counter()
     spec = Spec.load(spec)
@@ -188,6 +197,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     todo = np.setdiff1d(np.arange(len(rows)), done)
     bar = _Progress(len(rows), len(rows) - len(todo), progress)
     point_seconds, statuses = 0.0, {}
+    saved = [len(rows) - len(todo)]
 
     def keep(batch):
         nonlocal point_seconds
@@ -197,9 +207,12 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
             statuses[r["status"]] = statuses.get(r["status"], 0) + 1
             point_seconds += r["wall_s"] or 0.0
         bar.update(batch["results"])
+        if on_batch is not None:
+            saved[0] += len(batch["results"])
+            on_batch(saved[0], len(rows))
 
     n_workers = 1 if serial else (workers or os.cpu_count() or 1)
-    size, batches, startup_s, dispatch_s = 0, 0, 0.0, 0.0
+    size, batches, startup_s, dispatch_s, held = 0, 0, 0.0, 0.0, None
     try:
         if len(todo):
             # Calibrate the batch size on the first points, here; they are kept.
@@ -217,7 +230,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
                     keep(batch_function(target, plan, names, rows[chunk], chunk))
                 dispatch_s = time.perf_counter() - t0
             else:
-                n_workers, startup_s, dispatch_s = _run_on_dask(
+                n_workers, startup_s, dispatch_s, held = _run_on_dask(
                     target, (batch_function, prepare_function), plan, names, rows, chunks, keep,
                     workers, scheduler, digest)
     finally:
@@ -228,7 +241,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         resumed=len(done), batch_size=size, batches=batches, workers=n_workers,
         engine="serial" if serial else (scheduler or "LocalCluster"),
         wall_s=time.perf_counter() - started, point_seconds=point_seconds, startup_s=startup_s,
-        dispatch_s=dispatch_s, statuses=statuses)
+        dispatch_s=dispatch_s, statuses=statuses, held_results=held)
     from .results import Results
     results = Results(store.out, table.to_pandas(), store.meta, report)
     if plots:
@@ -237,7 +250,13 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
 
 
 def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, scheduler, digest):
-    """Run the chunks on Dask; returns the workers used, the start-up and dispatch times."""
+    """Run the chunks on Dask; returns the workers used, the start-up and dispatch times,
+    and how many finished batches the scheduler still held at the end.
+
+    Memory stays flat whatever the number of points: at most IN_FLIGHT_PER_WORKER batches
+    per worker are submitted at a time, and each batch's future is released as soon as
+    its rows are written, so that neither the workers nor the scheduler keep its result.
+    """
     import logging
     from distributed import Client, LocalCluster, as_completed
     from distributed.scheduler import KilledWorker
@@ -251,7 +270,8 @@ def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, sc
                                processes=True, dashboard_address=":0",
                                silence_logs=logging.ERROR)
         client = Client(cluster)
-    futures = []
+    pending = {}
+    prefix = f"fmusweep-{digest[:8]}-"
     try:
         n_workers = len(client.scheduler_info()["workers"])
         if n_workers == 0:
@@ -262,29 +282,57 @@ def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, sc
         [fmu_future] = client.scatter([target], broadcast=True, hash=False)
         # Each worker unpacks the FMU and starts its runner now, as part of start-up.
         warm = [client.submit(prepare_function, fmu_future, plan, workers=[address], pure=False,
-                              key=f"fmusweep-{digest[:8]}-warm-{i}")
+                              key=f"{prefix}warm-{i}")
                 for i, address in enumerate(client.scheduler_info()["workers"])]
         client.gather(warm)
+        for future in warm:
+            future.release()
         t1 = time.perf_counter()
-        futures = [
-            client.submit(batch_function, fmu_future, plan, names, rows[chunk], chunk,
-                          key=f"fmusweep-{digest[:8]}-{int(chunk[0])}", pure=False)
-            for chunk in chunks
-        ]
-        for future in as_completed(futures):
+        waiting = iter(range(len(chunks)))
+        finished = as_completed()
+
+        def submit_next():
+            index = next(waiting, None)
+            if index is not None:
+                chunk = chunks[index]
+                future = client.submit(batch_function, fmu_future, plan, names, rows[chunk],
+                                       chunk, key=f"{prefix}{int(chunk[0])}", pure=False)
+                pending[future] = index
+                finished.add(future)
+
+        for _ in range(IN_FLIGHT_PER_WORKER * max(n_workers, 1)):
+            submit_next()
+        for future in finished:
+            chunk = chunks[pending.pop(future)]
             try:
                 batch = future.result()
             except KilledWorker as e:  # a worker process lost again and again
-                chunk = chunks[futures.index(future)]
                 batch = {"points": chunk, "worker": "", "results": [
                     {"status": "crashed", "message": f"the batch failed on the cluster: {e!r}",
                      "metrics": [None] * len(plan["metrics"]), "t_end": None, "steps": None,
                      "wall_s": None} for _ in chunk]}
+            future.release()
+            del future
+            submit_next()
             keep(batch)
-        return n_workers, t1 - t0, time.perf_counter() - t1
+        def held_by_scheduler(dask_scheduler=None):
+            # Defined here to travel by value: the scheduler need not have this package.
+            return sum(1 for key, task in dask_scheduler.tasks.items()
+                       if str(key).startswith(prefix) and task.state == "memory")
+
+        # The releases travel on the client's batched stream and the question on another
+        # connection: a second to let them arrive. A result held for good stays counted.
+        held = client.run_on_scheduler(held_by_scheduler)
+        for _ in range(50):
+            if held == 0:
+                break
+            time.sleep(0.02)
+            held = client.run_on_scheduler(held_by_scheduler)
+        return n_workers, t1 - t0, time.perf_counter() - t1, held
     finally:
-        for f in futures:
-            f.cancel()
+        for future in pending:
+            future.cancel()
         client.close()
         if cluster is not None:
             cluster.close()
+

@@ -152,3 +152,99 @@ n_rhs = { variable = "n_rhs", kind = "final" }
     serial = run_sweep(spec_path, fmu=fmu_path, out=tmp_path / "serial", serial=True,
                        progress=False, plots=False)
     assert same_results(full, serial.points, METRICS)
+
+
+def small_grid(points_per_axis):
+    """A grid of short runs (1.5 s each): thousands of points in seconds."""
+    return grid_spec(stop=1.5, k34={"linspace": [50.0, 400.0, points_per_axis]},
+                     L={"linspace": [0.6, 0.7, points_per_axis]})
+
+
+def test_no_finished_batch_is_held_on_the_cluster(fmu_path, tmp_path, dask_cluster):
+    """3600 points in batches of 12 on a real scheduler: when the last batch is saved, the
+    scheduler holds no result of any batch (its own task states, not memory readings), so
+    nothing of a written batch stays on the workers; every point is there once."""
+    results = run_sweep(small_grid(60), fmu=fmu_path, out=tmp_path / "out",
+                        scheduler=dask_cluster, batch_size=12, progress=False, plots=False)
+    assert results.report.batches == 301
+    assert results.report.held_results == 0
+    points = results.points["point"]
+    assert len(points) == 3600 and points.is_unique
+    assert (results.points["status"] == "ok").all()
+    # And the client keeps no future of the sweep either once it is done.
+    from distributed import Client
+    with Client(dask_cluster) as client:
+        def sweep_tasks(dask_scheduler=None):
+            return [str(k) for k in dask_scheduler.tasks if str(k).startswith("fmusweep-")]
+        assert client.run_on_scheduler(sweep_tasks) == []
+
+
+@pytest.fixture
+def workers_without_nanny(tmp_path):
+    """A `dask scheduler` and two `dask worker --no-nanny` processes: killing a worker
+    kills the process that runs the batches, with nothing to restart it."""
+    scheduler_file = tmp_path / "scheduler.json"
+    common = dict(env=dict(environment_for_workers(), FMUSWEEP_TRACE=str(tmp_path / "trace")),
+                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    processes = [subprocess.Popen(
+        [str(VENV_BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0",
+         "--no-dashboard", "--scheduler-file", str(scheduler_file)], **common)]
+    deadline = time.monotonic() + 60
+    while not scheduler_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    address = json.loads(scheduler_file.read_text())["address"]
+    for i in range(2):
+        work = tmp_path / f"worker{i}"
+        work.mkdir()
+        processes.append(subprocess.Popen(
+            [str(VENV_BIN / "dask"), "worker", address, "--nthreads", "1", "--no-nanny",
+             "--no-dashboard", "--name", f"w{i}", "--local-directory", str(work)],
+            cwd=work, **common))
+    from distributed import Client
+    with Client(address) as client:
+        client.wait_for_workers(2, timeout=60)
+    yield address, processes[1:], tmp_path / "trace"
+    # Workers first, while their scheduler is there to release them; then the scheduler.
+    for p in processes[1:] + processes[:1]:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGTERM)
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait(timeout=15)
+
+
+def test_a_worker_killed_mid_sweep_costs_nothing(fmu_path, tmp_path, workers_without_nanny):
+    """`kill -9` of one worker (and its runner) once a third of the batches have started:
+    the other worker runs the rest, and every point is written exactly once, all ok."""
+    address, (victim, _), trace = workers_without_nanny
+    import threading
+    outcome = {}
+
+    def sweep():
+        outcome["results"] = run_sweep(small_grid(50), fmu=fmu_path, out=tmp_path / "out",
+                                       scheduler=address, batch_size=25, progress=False,
+                                       plots=False)
+
+    thread = threading.Thread(target=sweep)
+    thread.start()
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(_started(trace)) < 35:
+        assert thread.is_alive(), "the sweep ended before a worker could be killed"
+        time.sleep(0.002)
+    os.killpg(victim.pid, signal.SIGKILL)
+    victim.wait()
+    thread.join(timeout=300)
+    assert not thread.is_alive()
+    results = outcome["results"]
+    points = results.points
+    assert len(points) == 2500 and points["point"].is_unique
+    assert (points["status"] == "ok").all()
+    assert set(points["worker"]) - {"w0", "w1"} == {f"local-{os.getpid()}"}
+
+
+def _started(trace):
+    if not trace.exists():
+        return []
+    return [line for line in trace.read_text().splitlines() if line.startswith("start")]
