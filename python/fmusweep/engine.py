@@ -257,6 +257,18 @@ def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, sc
     per worker are submitted at a time, and each batch's future is released as soon as
     its rows are written, so that neither the workers nor the scheduler keep its result.
     """
+    import dask
+
+    # Dask keeps the last messages of every connection for debugging (1000 by default),
+    # and a task's message carries its batch's rows: our client's connection and, in a
+    # LocalCluster, the scheduler's and workers' would grow by each batch up to that many.
+    with dask.config.set({"distributed.admin.low-level-log-length": 0}):
+        return _run_on_dask_unlogged(target, functions, plan, names, rows, chunks, keep,
+                                     workers, scheduler, digest)
+
+
+def _run_on_dask_unlogged(target, functions, plan, names, rows, chunks, keep, workers,
+                          scheduler, digest):
     import logging
     from distributed import Client, LocalCluster, as_completed
     from distributed.scheduler import KilledWorker
