@@ -258,6 +258,7 @@ def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, sc
     its rows are written, so that neither the workers nor the scheduler keep its result.
     """
     import dask
+    import distributed  # noqa: F401  (its defaults must be in dask's config before the set)
 
     # Dask keeps the last messages of every connection for debugging (1000 by default),
     # and a task's message carries its batch's rows: our client's connection and, in a
