@@ -78,6 +78,17 @@ struct Fuzz {
 /// The serialized state's header: its FMI state code follows the interface's byte.
 const HEADER: usize = 28;
 
+/// Why the FMU refuses `bytes`, with the interface and FMI state they describe.
+fn refusal(bytes: &[c_char]) -> String {
+    let raw: Vec<u8> = bytes.iter().map(|b| *b as u8).collect();
+    let why = FmuState::deserialize(&raw).err().map(|f| f.message);
+    format!(
+        "interface {}, state {}: {why:?}",
+        raw[HEADER],
+        raw[HEADER + 1]
+    )
+}
+
 fn documented(status: fmi2Status) -> bool {
     [
         fmi2Status_fmi2OK,
@@ -486,13 +497,7 @@ impl Fuzz {
             let mut restored: fmi2FMUstate = null_mut();
             let s = fmi2DeSerializeFMUstate(c, bytes.as_ptr(), bytes.len(), &mut restored);
             if s != fmi2Status_fmi2OK {
-                let raw: Vec<u8> = bytes.iter().map(|b| *b as u8).collect();
-                let why = FmuState::deserialize(&raw).err().map(|f| f.message);
-                panic!(
-                    "a buffer the FMU wrote was refused (interface {}, state {}): {why:?}",
-                    raw[HEADER],
-                    raw[HEADER + 1]
-                );
+                panic!("a buffer the FMU wrote was refused: {}", refusal(&bytes));
             }
             assert_eq!(
                 fmi2SetFMUstate(c, restored),
@@ -556,13 +561,7 @@ impl Fuzz {
             let s = fmi2DeSerializeFMUstate(c, bytes.as_ptr(), bytes.len(), &mut restored);
             let status = self.check(s, "fmi2DeSerializeFMUstate");
             if damage > 2 && status != fmi2Status_fmi2OK {
-                let raw: Vec<u8> = bytes.iter().map(|b| *b as u8).collect();
-                let why = FmuState::deserialize(&raw).err().map(|f| f.message);
-                panic!(
-                    "an unmodified buffer was refused (interface {}, state {}): {why:?}",
-                    raw[HEADER],
-                    raw[HEADER + 1]
-                );
+                panic!("an unmodified buffer was refused: {}", refusal(&bytes));
             }
             if status == fmi2Status_fmi2OK {
                 self.states.push(restored);

@@ -35,11 +35,10 @@ def test_local_cluster_gives_the_serial_results(fmu_path, tmp_path, serial_grid)
     assert results.points["worker"].nunique() == 3
 
 
-@pytest.fixture
-def dask_cluster(tmp_path):
-    """`dask scheduler` and two single-threaded `dask worker` processes on 127.0.0.1."""
+def start_cluster(tmp_path, env, worker_options):
+    """`dask scheduler` and two single-threaded `dask worker` processes (w0, w1) on
+    127.0.0.1; returns the address and the processes, the scheduler first."""
     scheduler_file = tmp_path / "scheduler.json"
-    env = environment_for_workers()
     common = dict(env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                   start_new_session=True)
     processes = [subprocess.Popen(
@@ -53,17 +52,32 @@ def dask_cluster(tmp_path):
         work = tmp_path / f"worker{i}"
         work.mkdir()
         processes.append(subprocess.Popen(
-            [str(VENV_BIN / "dask"), "worker", address, "--nthreads", "1", "--nworkers", "1",
+            [str(VENV_BIN / "dask"), "worker", address, "--nthreads", "1", *worker_options,
              "--no-dashboard", "--name", f"w{i}", "--local-directory", str(work)],
             cwd=work, **common))
     from distributed import Client
     with Client(address) as client:
         client.wait_for_workers(2, timeout=60)
+    return address, processes
+
+
+def stop_cluster(processes):
+    """Workers first, while their scheduler is there to release them; then the scheduler."""
+    for p in processes[1:] + processes[:1]:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGTERM)
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait(timeout=15)
+
+
+@pytest.fixture
+def dask_cluster(tmp_path):
+    address, processes = start_cluster(tmp_path, environment_for_workers(), ["--nworkers", "1"])
     yield address
-    for p in processes:
-        os.killpg(p.pid, signal.SIGTERM)
-    for p in processes:
-        p.wait(timeout=30)
+    stop_cluster(processes)
 
 
 def test_a_real_scheduler_and_workers_give_the_serial_results(fmu_path, tmp_path, serial_grid,
@@ -181,38 +195,12 @@ def test_no_finished_batch_is_held_on_the_cluster(fmu_path, tmp_path, dask_clust
 
 @pytest.fixture
 def workers_without_nanny(tmp_path):
-    """A `dask scheduler` and two `dask worker --no-nanny` processes: killing a worker
-    kills the process that runs the batches, with nothing to restart it."""
-    scheduler_file = tmp_path / "scheduler.json"
-    common = dict(env=dict(environment_for_workers(), FMUSWEEP_TRACE=str(tmp_path / "trace")),
-                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    processes = [subprocess.Popen(
-        [str(VENV_BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0",
-         "--no-dashboard", "--scheduler-file", str(scheduler_file)], **common)]
-    deadline = time.monotonic() + 60
-    while not scheduler_file.exists() and time.monotonic() < deadline:
-        time.sleep(0.1)
-    address = json.loads(scheduler_file.read_text())["address"]
-    for i in range(2):
-        work = tmp_path / f"worker{i}"
-        work.mkdir()
-        processes.append(subprocess.Popen(
-            [str(VENV_BIN / "dask"), "worker", address, "--nthreads", "1", "--no-nanny",
-             "--no-dashboard", "--name", f"w{i}", "--local-directory", str(work)],
-            cwd=work, **common))
-    from distributed import Client
-    with Client(address) as client:
-        client.wait_for_workers(2, timeout=60)
+    """Workers with no nanny: killing one kills the process that runs the batches, with
+    nothing to restart it. Their trace file lists the batches they started."""
+    env = dict(environment_for_workers(), FMUSWEEP_TRACE=str(tmp_path / "trace"))
+    address, processes = start_cluster(tmp_path, env, ["--no-nanny"])
     yield address, processes[1:], tmp_path / "trace"
-    # Workers first, while their scheduler is there to release them; then the scheduler.
-    for p in processes[1:] + processes[:1]:
-        if p.poll() is None:
-            os.killpg(p.pid, signal.SIGTERM)
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait(timeout=15)
+    stop_cluster(processes)
 
 
 def test_a_worker_killed_mid_sweep_costs_nothing(fmu_path, tmp_path, workers_without_nanny):
