@@ -254,14 +254,9 @@ impl Simulation {
         self.chart
     }
 
-    /// Before initialisation: the experiment's start time, where [`Simulation::initialize`]
-    /// will place the mechanism. Until then the simulation's time is the start time, which
-    /// is what a saved state taken before initialisation is checked against on restore.
-    pub fn set_start_time(&mut self, start_time: f64) {
-        self.time = start_time;
-    }
-
-    /// Model Exchange: the master moves time (fmi2SetTime).
+    /// The master moves time: Model Exchange's fmi2SetTime, and before initialisation the
+    /// experiment's start time, where [`Simulation::initialize`] will place the mechanism
+    /// (a state saved before initialisation is checked against it on restore).
     pub fn set_time(&mut self, time: f64) {
         self.time = time;
         self.restart = true;

@@ -330,7 +330,7 @@ impl Instance {
                 .map_err(|e| Failure::error(e.to_string()))?;
         }
         self.start_time = start;
-        self.sim.set_start_time(start);
+        self.sim.set_time(start);
         self.stop_time = stop;
         self.sim.set_stop_time(stop);
         Ok(())
@@ -588,10 +588,10 @@ impl Instance {
         for (vr, value) in vrs.iter().zip(values) {
             self.sim.set(*vr, value, writable)?;
         }
-        self.assembled = false;
         if self.state == State::InitializationMode {
-            // Model Exchange's states were made from the assembly these values make stale;
-            // the next assembly makes them again.
+            // The assembly, and Model Exchange's states made from it, are stale: the next
+            // read makes them again.
+            self.assembled = false;
             self.exchange = None;
         }
         Ok(())

@@ -157,6 +157,10 @@ fn kernel(r: f64, lo: f64) -> (f64, f64) {
 mod tests {
     use super::*;
 
+    // The tests against the C library's sines are ignored on Windows, whose C library
+    // (msvcrt, and Wine's where the tests run) is not correctly rounded; the FMU's own
+    // polynomials are compared across platforms bit for bit by tests/platforms instead.
+
     /// Distance in units in the last place of `b`.
     fn ulps(a: f64, b: f64) -> f64 {
         let ulp = f64::from_bits(b.abs().to_bits() + 1) - b.abs();
@@ -185,9 +189,6 @@ mod tests {
     }
 
     #[test]
-    // The reference is the C library's, which on Windows (msvcrt, and Wine's in the tests
-    // run there) is not correctly rounded: the FMU's own polynomials are compared across
-    // platforms bit for bit by tests/platforms instead.
     #[cfg_attr(windows, ignore = "the C library's sines are the reference")]
     fn within_two_ulp_of_the_c_library() {
         let mut seed = 7;
@@ -198,9 +199,6 @@ mod tests {
     }
 
     #[test]
-    // The reference is the C library's, which on Windows (msvcrt, and Wine's in the tests
-    // run there) is not correctly rounded: the FMU's own polynomials are compared across
-    // platforms bit for bit by tests/platforms instead.
     #[cfg_attr(windows, ignore = "the C library's sines are the reference")]
     fn within_two_ulp_next_to_multiples_of_a_quarter_turn() {
         // Where r is tiny and the reduction's cancellation is worst.
@@ -240,9 +238,6 @@ mod tests {
     }
 
     #[test]
-    // The reference is the C library's, which on Windows (msvcrt, and Wine's in the tests
-    // run there) is not correctly rounded: the FMU's own polynomials are compared across
-    // platforms bit for bit by tests/platforms instead.
     #[cfg_attr(windows, ignore = "the C library's sines are the reference")]
     fn the_c_library_beyond_the_reduced_range() {
         for x in [LIMIT, -2e7, 1e300, f64::INFINITY, f64::NAN, 0.0, -0.0] {
