@@ -79,29 +79,28 @@ static void check(fmi2Status status, const char *call) {
     }
 }
 
-/* One variable to record: its kind ('R' or 'I'), value reference and place in a point. */
+/* One variable to record: its kind ('R' or 'I') and value reference. */
 typedef struct {
     char kind;
     fmi2ValueReference vr;
 } Recorded;
 
-static void write_hex(FILE *out, double x) {
+static void write_hex(FILE *out, const char *before, double x) {
     uint64_t bits;
     memcpy(&bits, &x, sizeof bits);
-    fprintf(out, " %016" PRIx64, bits);
+    fprintf(out, "%s%016" PRIx64, before, bits);
 }
 
-static void write_point(FILE *out, double t, const fmi2Real *reals, size_t n_reals,
+static void write_point(FILE *out, double t, const fmi2Real *reals,
                         const fmi2Integer *integers, const Recorded *recorded, size_t n) {
     size_t i, r = 0, k = 0;
-    write_hex(out, t);
+    write_hex(out, "", t);
     for (i = 0; i < n; i++) {
         if (recorded[i].kind == 'R')
-            write_hex(out, reals[r++]);
+            write_hex(out, " ", reals[r++]);
         else
             fprintf(out, " %d", (int)integers[k++]);
     }
-    (void)n_reals;
     fputc('\n', out);
 }
 
@@ -218,7 +217,7 @@ int main(int argc, char **argv) {
     out = fopen(argv[6], "wb"); /* binary: the same bytes on Windows */
     if (!out) fail("cannot write the output file");
     for (k = 0; k <= points; k++)
-        write_point(out, (double)k * step, reals + (size_t)k * n_reals, n_reals,
+        write_point(out, (double)k * step, reals + (size_t)k * n_reals,
                     integers + (size_t)k * n_integers, recorded, n);
     if (fclose(out) != 0) fail("cannot write the output file");
     free(reals);

@@ -68,6 +68,28 @@ fn run(command: &mut Command) -> Result {
     }
 }
 
+/// What `command` prints on standard output; its standard error in the message when it
+/// fails.
+fn output_of(command: &mut Command) -> Result<String> {
+    let shown = format!("{command:?}");
+    let output = command
+        .output()
+        .map_err(|e| format!("cannot run {shown}: {e}"))?;
+    if !output.status.success() {
+        return Err(format!(
+            "{shown} failed: {}",
+            String::from_utf8_lossy(&output.stderr)
+        ));
+    }
+    Ok(String::from_utf8_lossy(&output.stdout).into_owned())
+}
+
+/// A path that a line of Python run by the venv's `python` prints.
+fn python_path(python: &Path, code: &str) -> Result<PathBuf> {
+    let printed = output_of(Command::new(python).args(["-c", code]))?;
+    Ok(PathBuf::from(printed.trim()))
+}
+
 fn cargo() -> Command {
     let mut command = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
     command.current_dir(root());
@@ -267,12 +289,7 @@ fn clang_include_dir() -> Result<PathBuf> {
 /// The highest `GLIBC_x.y` symbol version the library needs, from `objdump -T`, must not
 /// pass the baseline.
 fn check_glibc(library: &Path) -> Result {
-    let output = Command::new("objdump")
-        .arg("-T")
-        .arg(library)
-        .output()
-        .map_err(|e| format!("cannot run objdump (binutils): {e}"))?;
-    let text = String::from_utf8_lossy(&output.stdout);
+    let text = output_of(Command::new("objdump").arg("-T").arg(library))?;
     let newest = text
         .split("GLIBC_")
         .skip(1)
@@ -424,25 +441,17 @@ fn build_wheel() -> Result<PathBuf> {
         "fmu-runner",
     )?;
     check_glibc(&runner)?;
-    let output = Command::new(&python)
-        .arg(root().join("python/build_wheel.py"))
-        .arg(&runner)
-        .arg(root().join("target/wheels"))
-        .arg(format!(
-            "manylinux_{}_{}_x86_64",
-            GLIBC_BASELINE.0, GLIBC_BASELINE.1
-        ))
-        .output()
-        .map_err(|e| format!("cannot run build_wheel.py: {e}"))?;
-    if !output.status.success() {
-        return Err(format!(
-            "build_wheel.py failed: {}",
-            String::from_utf8_lossy(&output.stderr)
-        ));
-    }
-    Ok(PathBuf::from(
-        String::from_utf8_lossy(&output.stdout).trim(),
-    ))
+    let wheel = output_of(
+        Command::new(&python)
+            .arg(root().join("python/build_wheel.py"))
+            .arg(&runner)
+            .arg(root().join("target/wheels"))
+            .arg(format!(
+                "manylinux_{}_{}_x86_64",
+                GLIBC_BASELINE.0, GLIBC_BASELINE.1
+            )),
+    )?;
+    Ok(PathBuf::from(wheel.trim()))
 }
 
 /// Build the wheel and install it in the venv, unless that very wheel is installed.
@@ -724,14 +733,11 @@ fn build_compiled_peers(python: &Path) -> Result<(PathBuf, PathBuf)> {
         println!("xtask: installing gfortran, libgsl-dev and libsundials-dev (the compiled peers)");
         apt_install(&["gfortran", "libgsl-dev", "libsundials-dev"])?;
     }
-    let platlib = Command::new(python)
-        .args([
-            "-c",
-            "import sysconfig; print(sysconfig.get_paths()['platlib'])",
-        ])
-        .output()
-        .map_err(|e| format!("{}: {e}", python.display()))?;
-    let site = PathBuf::from(String::from_utf8_lossy(&platlib.stdout).trim()).join("numbalsoda");
+    let site = python_path(
+        python,
+        "import sysconfig; print(sysconfig.get_paths()['platlib'])",
+    )?
+    .join("numbalsoda");
     let pins = root().join("bench/requirements.txt");
     let stamp = site.join("requirements.installed");
     let wanted = fs::read_to_string(&pins).map_err(|e| format!("{}: {e}", pins.display()))?;

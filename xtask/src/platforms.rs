@@ -10,7 +10,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use crate::{apt_install, clang_include_dir, root, run, Result, MODEL_IDENTIFIER};
+use crate::{
+    apt_install, clang_include_dir, output_of, python_path, root, run, Result, MODEL_IDENTIFIER,
+};
 
 /// The Debian packages of the cross builds, pinned: the Rust toolchain that builds the
 /// standard library from source, MinGW's linker and binutils, LLVM's Mach-O tools.
@@ -227,19 +229,13 @@ pub struct Zig {
 
 impl Zig {
     pub fn find(python: &Path) -> Result<Zig> {
-        let output = Command::new(python)
-            .args([
-                "-c",
-                "import os, ziglang; print(os.path.dirname(ziglang.__file__))",
-            ])
-            .output()
-            .map_err(|e| format!("{}: {e}", python.display()))?;
-        if !output.status.success() {
-            return Err(
-                "the venv has no ziglang package (tests/python/requirements-demo.txt)".into(),
-            );
-        }
-        let package = PathBuf::from(String::from_utf8_lossy(&output.stdout).trim());
+        let package = python_path(
+            python,
+            "import os, ziglang; print(os.path.dirname(ziglang.__file__))",
+        )
+        .map_err(|e| {
+            format!("{e}\nthe venv needs the ziglang of tests/python/requirements-demo.txt")
+        })?;
         let zig_bin = root().join("target/platforms/zig-bin");
         let link = zig_bin.join("zig");
         if fs::read_link(&link).ok().as_deref() != Some(package.join("zig").as_path()) {
@@ -343,8 +339,9 @@ pub fn cross_cargo(target: Target, subcommand: &str, zig: &Zig) -> Result<Comman
             };
             command
                 .env("MACOSX_DEPLOYMENT_TARGET", minimum)
-                // rustc strips Apple binaries with rust-objcopy, which Debian's Rust lacks;
-                // zig strips at link time instead (`-s`), before it signs the arm64 slice.
+                // rustc strips Apple binaries with rust-objcopy, which Debian's Rust lacks
+                // (and which would invalidate the arm64 slice's signature); zig's `-s`
+                // drops the debug symbols at link time instead, before it signs.
                 .env("CARGO_PROFILE_RELEASE_STRIP", "false")
                 // zig's Mach-O linker takes no export list: hidden visibility keeps the
                 // standard library's symbols out of the export table.
@@ -449,20 +446,6 @@ pub fn size(path: &Path) -> Result<u64> {
     fs::metadata(path)
         .map(|m| m.len())
         .map_err(|e| format!("{}: {e}", path.display()))
-}
-
-fn output_of(command: &mut Command) -> Result<String> {
-    let shown = format!("{command:?}");
-    let output = command
-        .output()
-        .map_err(|e| format!("cannot run {shown}: {e}"))?;
-    if !output.status.success() {
-        return Err(format!(
-            "{shown} failed: {}",
-            String::from_utf8_lossy(&output.stderr)
-        ));
-    }
-    Ok(String::from_utf8_lossy(&output.stdout).into_owned())
 }
 
 fn llvm(tool: &str) -> Command {
