@@ -196,20 +196,19 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     done = store.done_points()
     todo = np.setdiff1d(np.arange(len(rows)), done)
     bar = _Progress(len(rows), len(rows) - len(todo), progress)
-    point_seconds, statuses = 0.0, {}
-    saved = [len(rows) - len(todo)]
+    point_seconds, statuses, saved = 0.0, {}, len(rows) - len(todo)
 
     def keep(batch):
-        nonlocal point_seconds
+        nonlocal point_seconds, saved
         points_table, series_table = _tables(spec, names, rows, ids, batch)
         store.write_batch(points_table, series_table)
         for r in batch["results"]:
             statuses[r["status"]] = statuses.get(r["status"], 0) + 1
             point_seconds += r["wall_s"] or 0.0
         bar.update(batch["results"])
+        saved += len(batch["results"])
         if on_batch is not None:
-            saved[0] += len(batch["results"])
-            on_batch(saved[0], len(rows))
+            on_batch(saved, len(rows))
 
     n_workers = 1 if serial else (workers or os.cpu_count() or 1)
     size, batches, startup_s, dispatch_s, held = 0, 0, 0.0, 0.0, None
@@ -230,9 +229,10 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
                     keep(batch_function(target, plan, names, rows[chunk], chunk))
                 dispatch_s = time.perf_counter() - t0
             else:
-                n_workers, startup_s, dispatch_s, held = _run_on_dask(
-                    target, (batch_function, prepare_function), plan, names, rows, chunks, keep,
-                    workers, scheduler, digest)
+                with _without_message_log():
+                    n_workers, startup_s, dispatch_s, held = _run_on_dask(
+                        target, (batch_function, prepare_function), plan, names, rows, chunks,
+                        keep, workers, scheduler, digest)
     finally:
         bar.close()
     table = store.consolidate()
@@ -249,6 +249,15 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     return results
 
 
+def _without_message_log():
+    """Dask keeps the last messages of every connection for debugging (1000 by default),
+    and a task's message carries its batch's rows: the sweep's client and, in a
+    LocalCluster, the scheduler and workers would grow by each batch up to that many."""
+    import dask
+    import distributed  # noqa: F401  (its defaults must be in dask's config before the set)
+    return dask.config.set({"distributed.admin.low-level-log-length": 0})
+
+
 def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, scheduler, digest):
     """Run the chunks on Dask; returns the workers used, the start-up and dispatch times,
     and how many finished batches the scheduler still held at the end.
@@ -257,19 +266,6 @@ def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, sc
     per worker are submitted at a time, and each batch's future is released as soon as
     its rows are written, so that neither the workers nor the scheduler keep its result.
     """
-    import dask
-    import distributed  # noqa: F401  (its defaults must be in dask's config before the set)
-
-    # Dask keeps the last messages of every connection for debugging (1000 by default),
-    # and a task's message carries its batch's rows: our client's connection and, in a
-    # LocalCluster, the scheduler's and workers' would grow by each batch up to that many.
-    with dask.config.set({"distributed.admin.low-level-log-length": 0}):
-        return _run_on_dask_unlogged(target, functions, plan, names, rows, chunks, keep,
-                                     workers, scheduler, digest)
-
-
-def _run_on_dask_unlogged(target, functions, plan, names, rows, chunks, keep, workers,
-                          scheduler, digest):
     import logging
     from distributed import Client, LocalCluster, as_completed
     from distributed.scheduler import KilledWorker
@@ -301,22 +297,21 @@ def _run_on_dask_unlogged(target, functions, plan, names, rows, chunks, keep, wo
         for future in warm:
             future.release()
         t1 = time.perf_counter()
-        waiting = iter(range(len(chunks)))
+        waiting = iter(chunks)
         finished = as_completed()
 
         def submit_next():
-            index = next(waiting, None)
-            if index is not None:
-                chunk = chunks[index]
+            chunk = next(waiting, None)
+            if chunk is not None:
                 future = client.submit(batch_function, fmu_future, plan, names, rows[chunk],
                                        chunk, key=f"{prefix}{int(chunk[0])}", pure=False)
-                pending[future] = index
+                pending[future] = chunk
                 finished.add(future)
 
         for _ in range(IN_FLIGHT_PER_WORKER * max(n_workers, 1)):
             submit_next()
         for future in finished:
-            chunk = chunks[pending.pop(future)]
+            chunk = pending.pop(future)
             try:
                 batch = future.result()
             except KilledWorker as e:  # a worker process lost again and again
@@ -328,6 +323,7 @@ def _run_on_dask_unlogged(target, functions, plan, names, rows, chunks, keep, wo
             del future
             submit_next()
             keep(batch)
+
         def held_by_scheduler(dask_scheduler=None):
             # Defined here to travel by value: the scheduler need not have this package.
             return sum(1 for key, task in dask_scheduler.tasks.items()
@@ -335,12 +331,9 @@ def _run_on_dask_unlogged(target, functions, plan, names, rows, chunks, keep, wo
 
         # The releases travel on the client's batched stream and the question on another
         # connection: a second to let them arrive. A result held for good stays counted.
-        held = client.run_on_scheduler(held_by_scheduler)
-        for _ in range(50):
-            if held == 0:
-                break
+        deadline = time.monotonic() + 1.0
+        while (held := client.run_on_scheduler(held_by_scheduler)) and time.monotonic() < deadline:
             time.sleep(0.02)
-            held = client.run_on_scheduler(held_by_scheduler)
         return n_workers, t1 - t0, time.perf_counter() - t1, held
     finally:
         for future in pending:
