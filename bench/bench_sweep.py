@@ -1,6 +1,7 @@
 """The sweep benchmark: points per second per worker against a bare C-ABI master loop and
 FMPy's simulate_fmu, Dask's share of the wall time, scaling from 1 to 2 workers, the
-per-task cost behind the cluster sizing advice, and worker memory over 100 000 points.
+per-task cost behind the cluster sizing advice, worker memory over 100 000 points, and
+every process's memory over a 10⁶-point sweep (10⁴ with --quick).
 
     python bench/bench_sweep.py <CyclicMechanism.fmu> <output directory> [--quick]
 
@@ -186,25 +187,15 @@ def memory_growth(fmu, total):
             "runner_growth": (r2 - r1) / r1, "python_growth": (p2 - p1) / p1}
 
 
-def descendants(pid):
-    """The processes below `pid` (LocalCluster workers, and their runners), by /proc."""
-    children = {}
+def parents():
+    """Each process's parent, from /proc."""
+    found = {}
     for stat in pathlib.Path("/proc").glob("[0-9]*/stat"):
         try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
+            found[int(stat.parent.name)] = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
             continue
-        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
-    found, stack = [], list(children.get(pid, []))
-    while stack:
-        child = stack.pop()
-        found.append(child)
-        stack.extend(children.get(child, []))
     return found
-
-
-def children_of(pid):
-    return set(descendants(pid)) - {q for c in descendants(pid) for q in descendants(c)}
 
 
 def process_kind(pid):
@@ -221,25 +212,26 @@ def process_kind(pid):
 
 def sweep_memory(fmu, per_axis, series):
     """Resident memory of the client (with its own runner), of each Dask worker and of each
-    worker's runner at
-    10 %, 50 % and 100 % of a per_axis² sweep of 1 s runs on a LocalCluster of 2 workers
-    (metrics only, or with series decimated to 0.1 s)."""
+    worker's runner at 10 %, 50 % and 100 % of a per_axis² sweep of 1 s runs on a
+    LocalCluster of 2 workers (metrics only, or with series decimated to 0.1 s)."""
     marks, taken = (0.1, 0.5, 1.0), {}
 
     def sample(done, total):
         for mark in marks:
             if mark not in taken and done >= mark * total:
-                procs = {p: process_kind(p) for p in descendants(os.getpid())}
-                workers = sorted(p for p, k in procs.items() if k == "worker")
-                runners = [p for p, k in procs.items() if k == "runner"]
-                # The client's own runner (the calibration batch) is its direct child.
-                own = [p for p in runners if p in children_of(os.getpid())]
-                taken[mark] = {
-                    "client": rss_kib(os.getpid()) + sum(rss_kib(p) for p in own),
-                    "workers": [rss_kib(p) for p in workers],
-                    "runners": [sum(rss_kib(r) for r in runners if r in children_of(w))
-                                for w in workers],
-                }
+                parent = parents()
+
+                def below(pid, kind):
+                    return sorted(p for p, q in parent.items() if q == pid and process_kind(p) == kind)
+
+                me = os.getpid()
+                # The client's own runner (the calibration batch) is its child.
+                rss = {"client (with its runner)":
+                       rss_kib(me) + sum(rss_kib(p) for p in below(me, "runner"))}
+                for i, worker in enumerate(below(me, "worker")):
+                    rss[f"worker {i + 1}"] = rss_kib(worker)
+                    rss[f"runner of worker {i + 1}"] = sum(rss_kib(p) for p in below(worker, "runner"))
+                taken[mark] = rss
 
     s = {"scenario": {"stop": 1.0, "step": 0.01, "tolerance": 1e-8, "parameters": PAPER_LAWS},
          "design": {"kind": "grid", "parameters": {
@@ -252,17 +244,11 @@ def sweep_memory(fmu, per_axis, series):
         results = run_sweep(s, fmu=fmu, out=pathlib.Path(tmp) / "out", workers=2,
                             progress=False, plots=False, on_batch=sample)
         wall = time.perf_counter() - t0
-    first, last = taken[0.1], taken[1.0]
-
-    def growth(key):
-        return max((b - a) / a for a, b in zip(first[key], last[key])) if first[key] else None
-
     return {"points": per_axis ** 2, "series": series, "wall_s": wall,
             "batch_size": results.report.batch_size, "batches": results.report.batches,
             "held_results": results.report.held_results,
             "rss_kib": {str(m): taken[m] for m in marks},
-            "growth": {"client": (last["client"] - first["client"]) / first["client"],
-                       "workers": growth("workers"), "runners": growth("runners")}}
+            "growth": {name: (taken[1.0][name] - kib) / kib for name, kib in taken[0.1].items()}}
 
 
 def machine():
@@ -324,14 +310,9 @@ def report(r) -> str:
                   "the end), resident memory in MiB at 10 % / 50 % / 100 %:", "",
                   "| process | 10 % | 50 % | 100 % | growth 10 → 100 % |", "| --- | --- | --- | --- | --- |"]
         at = m["rss_kib"]
-        rows_ = [("client (with its runner)", lambda x: x["client"], m["growth"]["client"])]
-        for i in range(len(at["0.1"]["workers"])):
-            rows_.append((f"worker {i + 1}", lambda x, i=i: x["workers"][i], None))
-        for i in range(len(at["0.1"]["runners"])):
-            rows_.append((f"runner of worker {i + 1}", lambda x, i=i: x["runners"][i], None))
-        for label, get, _ in rows_:
-            a, b, c = (get(at[k]) / 1024 for k in ("0.1", "0.5", "1.0"))
-            lines.append(f"| {label} | {a:.0f} | {b:.0f} | {c:.0f} | {(c - a) / a:+.1%} |")
+        for name, growth in m["growth"].items():
+            a, b, c = (at[k][name] / 1024 for k in ("0.1", "0.5", "1.0"))
+            lines.append(f"| {name} | {a:.0f} | {b:.0f} | {c:.0f} | {growth:+.1%} |")
     return "\n".join(lines) + "\n"
 
 
