@@ -204,7 +204,7 @@ fn build_masters(zig: &Zig) -> Result<(PathBuf, PathBuf, PathBuf)> {
 }
 
 /// The FMI 2.0 headers that fmi-sys ships (fetched into cargo's registry by the build).
-fn fmi2_headers() -> Result<PathBuf> {
+pub fn fmi2_headers() -> Result<PathBuf> {
     let home = std::env::var_os("CARGO_HOME")
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")))

@@ -6,6 +6,7 @@
 //! crate: building that needs libclang, which this program installs first.
 
 mod abi_tests;
+mod instructions;
 mod platforms;
 
 use std::fs;
@@ -29,6 +30,7 @@ fn main() {
         "sweep" => sweep(&rest),
         "wheel" => build_wheel().map(|wheel| println!("wheel: {}", wheel.display())),
         "bench-sweep" => bench_sweep(&rest),
+        "instructions" => instructions::measure(),
         _ => Err(USAGE.to_string()),
     };
     if let Err(message) = result {
@@ -47,7 +49,8 @@ const USAGE: &str = "usage: cargo xtask <task>
   sweep SPEC   run a sweep: SPEC.toml [--workers N] [--scheduler ADDRESS] [--out DIR] [--resume]
                (the packed FMU unless the spec names another)
   wheel        build the fmusweep wheel (the sweep package with its native runner) in target/wheels
-  bench-sweep  the sweep benchmark into target/bench-sweep (--quick: a small subset)";
+  bench-sweep  the sweep benchmark into target/bench-sweep (--quick: a small subset)
+  instructions instructions per communication point (callgrind) into docs/bench/instructions.md";
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
