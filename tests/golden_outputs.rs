@@ -257,9 +257,8 @@ fn values_of(line: &str) -> BTreeMap<&str, f64> {
     line.split(' ')
         .skip(2)
         .filter_map(|field| field.split_once('='))
-        .filter_map(|(name, hex)| {
-            (hex.len() == 16).then(|| (name, f64::from_bits(u64::from_str_radix(hex, 16).unwrap())))
-        })
+        .filter(|(_, hex)| hex.len() == 16)
+        .map(|(name, hex)| (name, f64::from_bits(u64::from_str_radix(hex, 16).unwrap())))
         .collect()
 }
 

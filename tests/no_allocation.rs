@@ -71,7 +71,8 @@ fn run_counting(parameters: &[(&str, f64)], h: f64) -> [bool; 4] {
         .collect();
     let mut read = vec![0.0; outputs.len()];
     common::initialise(c, 1e-8, None, parameters);
-    assert_eq!(fmi2DoStep(c, 0.0, h, 1), fmi2Status_fmi2OK);
+    // SAFETY: `c` is a live instance.
+    assert_eq!(unsafe { fmi2DoStep(c, 0.0, h, 1) }, fmi2Status_fmi2OK);
     let torque = vr("M_m");
     let active_vr = vr("active_solver");
     let mut used = [false; 4];

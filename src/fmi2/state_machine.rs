@@ -1,8 +1,8 @@
 //! The FMI 2.0 state machines of Co-Simulation (FMI 2.0.4, section 4.2.4) and Model
 //! Exchange (section 3.2.3), in one place.
 //!
-//! Every exported function names its [`Call`]; [`Call::allowed_in`] is the standard's table
-//! of which calls each state admits. An argument error leaves the state unchanged (the
+//! Every exported function that takes an instance is a [`Function`], and
+//! [`Function::allowed`] is the standard's table of the states it may be called in. An argument error leaves the state unchanged (the
 //! instance keeps working, nothing having been applied); only a panic (a bug) moves the
 //! instance to `Fatal`, where nothing but fmi2FreeInstance is allowed.
 
@@ -41,103 +41,132 @@ impl Interface {
     }
 }
 
-/// Calls that take an instance, grouped where the standard treats them alike.
+/// A set of [`State`]s, one bit per state code.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Call {
-    SetDebugLogging,
-    FreeInstance,
-    SetupExperiment,
-    EnterInitializationMode,
-    ExitInitializationMode,
-    Terminate,
-    Reset,
-    /// fmi2GetReal, fmi2GetInteger, fmi2GetBoolean, fmi2GetString.
-    Get,
-    /// fmi2SetReal, fmi2SetInteger, fmi2SetBoolean, fmi2SetString.
-    Set,
-    /// fmi2SetRealInputDerivatives (Co-Simulation).
-    SetInputDerivatives,
-    /// fmi2GetRealOutputDerivatives (Co-Simulation).
-    GetOutputDerivatives,
-    DoStep,
-    CancelStep,
-    /// fmi2GetStatus and its typed variants.
-    GetStatus,
-    /// Getting, setting, freeing and (de)serializing FMU states.
-    FmuState,
-    DirectionalDerivative,
-    EnterEventMode,
-    NewDiscreteStates,
-    EnterContinuousTimeMode,
-    CompletedIntegratorStep,
-    SetTime,
-    SetContinuousStates,
-    /// fmi2GetDerivatives, fmi2GetEventIndicators, fmi2GetContinuousStates,
-    /// fmi2GetNominalsOfContinuousStates.
-    GetContinuous,
+pub struct Mask(u16);
+
+impl Mask {
+    pub const fn of(states: &[State]) -> Mask {
+        let mut bits = 0;
+        let mut i = 0;
+        while i < states.len() {
+            bits |= 1 << states[i] as u16;
+            i += 1;
+        }
+        Mask(bits)
+    }
+
+    pub const fn contains(self, state: State) -> bool {
+        self.0 & (1 << state as u16) != 0
+    }
 }
 
-impl Call {
-    /// The interface a call belongs to, if only one.
-    pub fn interface(self) -> Option<Interface> {
-        match self {
-            Call::SetInputDerivatives
-            | Call::GetOutputDerivatives
-            | Call::DoStep
-            | Call::CancelStep
-            | Call::GetStatus => Some(Interface::CoSimulation),
-            Call::EnterEventMode
-            | Call::NewDiscreteStates
-            | Call::EnterContinuousTimeMode
-            | Call::CompletedIntegratorStep
-            | Call::SetTime
-            | Call::SetContinuousStates
-            | Call::GetContinuous => Some(Interface::ModelExchange),
-            _ => None,
-        }
-    }
+/// Which interfaces a function belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Belongs {
+    Both,
+    Only(Interface),
+}
 
-    /// Whether the standard allows this call in `state` (the states of the two interfaces
-    /// after initialisation are distinct, so one table serves both).
-    pub fn allowed_in(self, state: State) -> bool {
-        use State::*;
-        let initialised = matches!(
-            state,
-            StepComplete | StepFailed | EventMode | ContinuousTimeMode
-        );
-        match self {
-            Call::FreeInstance => true,
-            _ if state == Fatal => false,
-            Call::SetDebugLogging | Call::Reset => true,
-            Call::SetupExperiment | Call::EnterInitializationMode => state == Instantiated,
-            Call::ExitInitializationMode => state == InitializationMode,
-            Call::Terminate => initialised,
-            Call::Get | Call::DirectionalDerivative | Call::GetOutputDerivatives => {
-                initialised || matches!(state, InitializationMode | Terminated)
-            }
-            Call::Set => matches!(
-                state,
-                Instantiated | InitializationMode | StepComplete | EventMode | ContinuousTimeMode
-            ),
-            Call::SetInputDerivatives => {
-                matches!(state, Instantiated | InitializationMode | StepComplete)
-            }
-            Call::DoStep => state == StepComplete,
-            Call::CancelStep => false,
-            Call::GetStatus => matches!(state, StepComplete | StepFailed | Terminated),
-            Call::FmuState => true,
-            Call::EnterEventMode => matches!(state, EventMode | ContinuousTimeMode),
-            Call::NewDiscreteStates | Call::EnterContinuousTimeMode => state == EventMode,
-            Call::CompletedIntegratorStep | Call::SetContinuousStates => {
-                state == ContinuousTimeMode
-            }
-            Call::SetTime => matches!(state, EventMode | ContinuousTimeMode),
-            Call::GetContinuous => matches!(
-                state,
-                InitializationMode | EventMode | ContinuousTimeMode | Terminated
-            ),
+/// The functions that take an instance, each with the states the FMI 2.0.4 tables allow it
+/// in (Model Exchange section 3.2.3, Co-Simulation section 4.2.4), written once here. The
+/// standard's StepInProgress and StepCanceled never occur (this FMU never returns
+/// fmi2Pending), and neither does its Error state: a refused argument leaves the instance
+/// where it was, nothing having been applied. A cell that holds only such states is empty.
+macro_rules! functions {
+    ($($name:ident: $belongs:expr => [$($state:ident),*],)*) => {
+        /// One exported function that takes an instance; the variant is its C name.
+        #[allow(non_camel_case_types)]
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum Function {
+            $($name,)*
         }
-    }
+
+        impl Function {
+            pub const ALL: &'static [Function] = &[$(Function::$name,)*];
+
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $(Function::$name => stringify!($name),)*
+                }
+            }
+
+            pub const fn belongs(self) -> Belongs {
+                match self {
+                    $(Function::$name => $belongs,)*
+                }
+            }
+
+            pub const fn allowed(self) -> Mask {
+                match self {
+                    $(Function::$name => Mask::of(&[$(State::$state),*]),)*
+                }
+            }
+        }
+    };
+}
+
+const BOTH: Belongs = Belongs::Both;
+const CS: Belongs = Belongs::Only(Interface::CoSimulation);
+const ME: Belongs = Belongs::Only(Interface::ModelExchange);
+
+functions! {
+    fmi2SetDebugLogging: BOTH => [Instantiated, InitializationMode, EventMode, ContinuousTimeMode,
+        StepComplete, StepFailed, Terminated],
+    fmi2SetupExperiment: BOTH => [Instantiated],
+    fmi2EnterInitializationMode: BOTH => [Instantiated],
+    fmi2ExitInitializationMode: BOTH => [InitializationMode],
+    fmi2Terminate: BOTH => [EventMode, ContinuousTimeMode, StepComplete, StepFailed],
+    fmi2Reset: BOTH => [Instantiated, InitializationMode, EventMode, ContinuousTimeMode,
+        StepComplete, StepFailed, Terminated],
+    fmi2GetReal: BOTH => [InitializationMode, EventMode, ContinuousTimeMode, StepComplete,
+        StepFailed, Terminated],
+    fmi2GetInteger: BOTH => [InitializationMode, EventMode, ContinuousTimeMode, StepComplete,
+        StepFailed, Terminated],
+    fmi2GetBoolean: BOTH => [InitializationMode, EventMode, ContinuousTimeMode, StepComplete,
+        StepFailed, Terminated],
+    fmi2GetString: BOTH => [InitializationMode, EventMode, ContinuousTimeMode, StepComplete,
+        StepFailed, Terminated],
+    fmi2SetReal: BOTH => [Instantiated, InitializationMode, EventMode, ContinuousTimeMode,
+        StepComplete],
+    fmi2SetInteger: BOTH => [Instantiated, InitializationMode, EventMode, StepComplete],
+    fmi2SetBoolean: BOTH => [Instantiated, InitializationMode, EventMode, StepComplete],
+    fmi2SetString: BOTH => [Instantiated, InitializationMode, EventMode, StepComplete],
+    fmi2GetFMUstate: BOTH => [Instantiated, InitializationMode, EventMode, ContinuousTimeMode,
+        StepComplete, StepFailed, Terminated],
+    fmi2SetFMUstate: BOTH => [Instantiated, InitializationMode, EventMode, ContinuousTimeMode,
+        StepComplete, StepFailed, Terminated],
+    fmi2FreeFMUstate: BOTH => [Instantiated, InitializationMode, EventMode, ContinuousTimeMode,
+        StepComplete, StepFailed, Terminated],
+    fmi2SerializedFMUstateSize: BOTH => [Instantiated, InitializationMode, EventMode,
+        ContinuousTimeMode, StepComplete, StepFailed, Terminated],
+    fmi2SerializeFMUstate: BOTH => [Instantiated, InitializationMode, EventMode,
+        ContinuousTimeMode, StepComplete, StepFailed, Terminated],
+    fmi2DeSerializeFMUstate: BOTH => [Instantiated, InitializationMode, EventMode,
+        ContinuousTimeMode, StepComplete, StepFailed, Terminated],
+    fmi2GetDirectionalDerivative: BOTH => [InitializationMode, EventMode, ContinuousTimeMode,
+        StepComplete, StepFailed, Terminated],
+    fmi2EnterEventMode: ME => [EventMode, ContinuousTimeMode],
+    fmi2NewDiscreteStates: ME => [EventMode],
+    fmi2EnterContinuousTimeMode: ME => [EventMode],
+    fmi2CompletedIntegratorStep: ME => [ContinuousTimeMode],
+    fmi2SetTime: ME => [EventMode, ContinuousTimeMode],
+    fmi2SetContinuousStates: ME => [ContinuousTimeMode],
+    fmi2GetEventIndicators: ME => [InitializationMode, EventMode, ContinuousTimeMode, Terminated],
+    fmi2GetContinuousStates: ME => [InitializationMode, EventMode, ContinuousTimeMode,
+        Terminated],
+    fmi2GetDerivatives: ME => [EventMode, ContinuousTimeMode, Terminated],
+    fmi2GetNominalsOfContinuousStates: ME => [Instantiated, EventMode, ContinuousTimeMode,
+        Terminated],
+    fmi2SetRealInputDerivatives: CS => [Instantiated, InitializationMode, StepComplete],
+    fmi2GetRealOutputDerivatives: CS => [StepComplete, StepFailed, Terminated],
+    fmi2DoStep: CS => [StepComplete],
+    fmi2CancelStep: CS => [],
+    fmi2GetStatus: CS => [StepComplete, StepFailed, Terminated],
+    fmi2GetRealStatus: CS => [StepComplete, StepFailed, Terminated],
+    fmi2GetIntegerStatus: CS => [StepComplete, StepFailed, Terminated],
+    fmi2GetBooleanStatus: CS => [StepComplete, StepFailed, Terminated],
+    fmi2GetStringStatus: CS => [StepComplete, StepFailed, Terminated],
 }
 
 impl State {
@@ -187,31 +216,27 @@ mod tests {
 
     #[test]
     fn step_only_after_initialisation() {
-        assert!(!Call::DoStep.allowed_in(State::Instantiated));
-        assert!(!Call::DoStep.allowed_in(State::InitializationMode));
-        assert!(Call::DoStep.allowed_in(State::StepComplete));
-        assert!(!Call::DoStep.allowed_in(State::StepFailed));
-        assert!(!Call::DoStep.allowed_in(State::Terminated));
+        let allowed = Function::fmi2DoStep.allowed();
+        assert!(!allowed.contains(State::Instantiated));
+        assert!(!allowed.contains(State::InitializationMode));
+        assert!(allowed.contains(State::StepComplete));
+        assert!(!allowed.contains(State::StepFailed));
+        assert!(!allowed.contains(State::Terminated));
     }
 
     #[test]
-    fn fatal_admits_only_free() {
-        assert!(Call::FreeInstance.allowed_in(State::Fatal));
-        for call in [
-            Call::Get,
-            Call::Set,
-            Call::Reset,
-            Call::DoStep,
-            Call::SetDebugLogging,
-        ] {
-            assert!(!call.allowed_in(State::Fatal), "{call:?}");
+    fn fatal_admits_nothing_that_takes_an_instance() {
+        for function in Function::ALL {
+            assert!(!function.allowed().contains(State::Fatal), "{function:?}");
         }
     }
 
     #[test]
     fn inputs_settable_while_stepping_not_after_termination() {
-        assert!(Call::Set.allowed_in(State::StepComplete));
-        assert!(!Call::Set.allowed_in(State::Terminated));
+        assert!(Function::fmi2SetReal
+            .allowed()
+            .contains(State::StepComplete));
+        assert!(!Function::fmi2SetReal.allowed().contains(State::Terminated));
         assert!(!State::StepComplete.parameters_writable());
         assert!(State::InitializationMode.parameters_writable());
     }
