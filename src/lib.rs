@@ -1,17 +1,19 @@
 //! An FMI 2.0 unit (Co-Simulation and Model Exchange) for the cyclic mechanism of `docs/model.md`.
+//! ARCHITECTURE.md at the repository's root tells how the parts fit; from the top down:
 //!
-//! - [`model`]: the mechanism alone (physics, constraint, projection, energy);
-//! - [`solver`]: integrators that know nothing of the mechanism;
+//! - [`fmi2`]: the C ABI, the only `unsafe` code in the crate (with the runner's loader);
+//! - [`drivers`]: the co-simulation driver (the FMU's own integrator) and the Model Exchange
+//!   adapter (the master's integrator), each over the plant;
+//! - [`plant`]: the mechanism as a master sees it: variables, checks, outputs, derivatives;
 //! - [`variables`]: the one table of FMI variables, from which both the value-reference
 //!   dispatch and `modelDescription.xml` are derived;
-//! - [`simulation`]: a model instance with its solver, independent of the FMI interface;
-//! - [`exchange`]: the same instance in independent coordinates, for a master's integrator;
-//! - [`fmi2`]: the C ABI, the only `unsafe` code in the crate.
+//! - [`model`]: the mechanism alone (physics, constraint, projection, energy);
+//! - [`solver`]: integrators that know nothing of the mechanism.
 
-pub mod exchange;
+pub mod drivers;
 pub mod fmi2;
 pub mod model;
-pub mod simulation;
+pub mod plant;
 pub mod snapshot;
 pub mod solver;
 pub mod text;

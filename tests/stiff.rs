@@ -3,7 +3,8 @@
 //! and `auto` against DOP853. Evaluation counts are deterministic, so the work ratio is a
 //! test here, not a benchmark.
 
-use cyclic_mechanism::simulation::{Simulation, Value};
+use common::Run as Simulation;
+use cyclic_mechanism::plant::Value;
 use cyclic_mechanism::variables::value_reference;
 
 mod common;

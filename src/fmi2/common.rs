@@ -11,7 +11,7 @@ use super::instance::{send_log, Failure, FmuState, Instance, Outcome};
 use super::model_description::guid;
 use super::state_machine::Interface;
 use super::{export, null_argument, slice, slice_mut};
-use crate::simulation::Value;
+use crate::plant::Value;
 
 #[no_mangle]
 pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {

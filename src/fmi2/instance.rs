@@ -1,6 +1,6 @@
-//! One FMU instance: the simulation, the FMI state, the master's callbacks and the
-//! logging settings. Everything here is safe Rust on slices; `mod.rs` turns C pointers
-//! into these calls.
+//! One FMU instance: its restorable state ([`FmuState`]: the FMI state, the experiment, the
+//! plant and its driver), the master's callbacks and the logging settings. Everything here
+//! is safe Rust on slices; the function files turn C pointers into these calls.
 
 use std::ffi::CString;
 
@@ -11,9 +11,11 @@ use fmi_sys::fmi2::{
 
 use super::model_description::{guid, DEFAULT_EXPERIMENT, LOG_CATEGORIES};
 use super::state_machine::{Interface, State};
-use crate::exchange::{Exchange, STATES};
-use crate::simulation::{AccessError, Simulation, Value};
-use crate::snapshot::{fnv1a_64, Reader, Writer};
+use crate::drivers::model_exchange::STATES;
+use crate::drivers::{CoSimulation, Exchange, Experiment};
+use crate::plant::{AccessError, Activity, Plant, Value};
+use crate::snapshot::{fnv1a_64, FormatError, Reader, Writer};
+use crate::solver::Method;
 use crate::text::number;
 use crate::variables::{variable, Input, Slot, VarType, STATE_REFERENCES};
 
@@ -70,121 +72,207 @@ pub struct Instance {
     /// fmi2SetDebugLogging's switch, and the debug categories it enabled.
     debug_logging: bool,
     enabled: [bool; LOG_CATEGORIES.len()],
-    pub state: State,
-    pub sim: Simulation,
-    /// Model Exchange's continuous states, once the simulation is assembled.
-    exchange: Option<Exchange>,
-    start_time: f64,
-    stop_time: Option<f64>,
-    /// Whether `sim` holds the assembly for the current parameters (initialization mode).
-    assembled: bool,
+    /// Everything fmi2SetFMUstate restores.
+    pub current: FmuState,
     /// Addresses of the FMU states this instance has handed out and not yet freed.
     issued_states: Vec<usize>,
     /// Whether this run has warned that `solver = dop853` is limited by stability.
     warned_stability: bool,
 }
 
-/// A saved FMU state: everything fmi2SetFMUstate restores (the simulation with its solver
-/// memory, the FMI state and the experiment's times); not the logging settings, which
-/// belong to the instance.
+/// The driver of an instance, by interface; each exists once initialisation (or, in
+/// initialization mode, a read) has assembled the plant.
+// One per instance and saved state, never moved on the step's path: boxing the larger
+// variant would add an indirection to every step for no saving that matters.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum Driver {
+    CoSimulation(Option<CoSimulation>),
+    ModelExchange(Option<Exchange>),
+}
+
+impl Driver {
+    fn new(interface: Interface) -> Self {
+        match interface {
+            Interface::CoSimulation => Driver::CoSimulation(None),
+            Interface::ModelExchange => Driver::ModelExchange(None),
+        }
+    }
+
+    fn interface(&self) -> Interface {
+        match self {
+            Driver::CoSimulation(_) => Interface::CoSimulation,
+            Driver::ModelExchange(_) => Interface::ModelExchange,
+        }
+    }
+
+    fn is_started(&self) -> bool {
+        match self {
+            Driver::CoSimulation(driver) => driver.is_some(),
+            Driver::ModelExchange(exchange) => exchange.is_some(),
+        }
+    }
+
+    /// Back to not started: the plant's assembly it was made from is stale.
+    fn stop(&mut self) {
+        *self = Driver::new(self.interface());
+    }
+}
+
+/// The restorable state of an instance, in one place: what fmi2GetFMUstate saves,
+/// fmi2SetFMUstate restores, fmi2SerializeFMUstate writes and fmi2Reset starts again from.
+/// The logging settings belong to the instance, not here.
 #[derive(Clone, Debug)]
 pub struct FmuState {
-    interface: Interface,
-    sim: Simulation,
-    exchange: Option<Exchange>,
-    state: State,
-    start_time: f64,
-    stop_time: Option<f64>,
+    pub state: State,
+    experiment: Experiment,
+    plant: Plant,
+    driver: Driver,
+    /// Whether the plant holds the assembly for the current parameters (initialization
+    /// mode).
     assembled: bool,
 }
 
 impl FmuState {
+    /// Just after fmi2Instantiate: every variable at its start value.
+    fn new(interface: Interface) -> Self {
+        let mut plant = Plant::new();
+        plant.set_time(DEFAULT_EXPERIMENT.0);
+        Self {
+            state: State::Instantiated,
+            experiment: Experiment::new(DEFAULT_EXPERIMENT.0),
+            plant,
+            driver: Driver::new(interface),
+            assembled: false,
+        }
+    }
+
+    fn interface(&self) -> Interface {
+        self.driver.interface()
+    }
+
+    /// What the statistics outputs show: the co-simulation integrator's work, or none in
+    /// Model Exchange (where the method shown is the one `solver` names first).
+    fn activity(&self) -> Activity {
+        match &self.driver {
+            Driver::CoSimulation(Some(driver)) => driver.activity(),
+            _ => Activity {
+                method: match self.plant.solver_kind().choice() {
+                    crate::solver::Choice::Fixed(Method::Radau5) => Method::Radau5,
+                    _ => Method::Dop853,
+                },
+                ..Activity::idle()
+            },
+        }
+    }
+
     /// The versioned, position-independent byte form (see [`crate::snapshot`]).
     pub fn serialize(&self) -> Vec<u8> {
         let mut w = Writer::default();
-        w.u8(self.interface as u8);
+        w.u8(self.interface() as u8);
         w.u8(self.state.code());
-        w.f64(self.start_time);
-        w.bool(self.stop_time.is_some());
-        w.f64(self.stop_time.unwrap_or(self.start_time));
+        let e = &self.experiment;
+        w.f64s(&[e.tolerance, e.start]);
+        w.bool(e.stop.is_some());
+        w.f64(e.stop.unwrap_or(e.start));
         w.bool(self.assembled);
-        self.sim.serialize_into(&mut w);
-        w.bool(self.exchange.is_some());
-        if let Some(exchange) = &self.exchange {
-            exchange.serialize_into(&mut w);
+        self.plant.serialize_into(&mut w);
+        w.bool(self.driver.is_started());
+        match &self.driver {
+            Driver::CoSimulation(Some(driver)) => driver.serialize_into(&mut w),
+            Driver::ModelExchange(Some(exchange)) => exchange.serialize_into(&mut w),
+            _ => {}
         }
         w.finish(interface_hash())
     }
 
     pub fn deserialize(bytes: &[u8]) -> Result<Self, Failure> {
-        let fail = |e: crate::snapshot::FormatError| Failure::error(e.to_string());
-        let mut r = Reader::open(bytes, interface_hash()).map_err(fail)?;
-        let interface = match r.u8().map_err(fail)? {
+        Self::read(bytes).map_err(|e| Failure::error(e.to_string()))
+    }
+
+    fn read(bytes: &[u8]) -> Result<Self, FormatError> {
+        let invalid = |what: String| FormatError(format!("invalid serialized state: {what}"));
+        let mut r = Reader::open(bytes, interface_hash())?;
+        let interface = match r.u8()? {
             0 => Interface::ModelExchange,
             1 => Interface::CoSimulation,
-            other => {
-                return Err(Failure::error(format!(
-                    "invalid serialized state: interface {other}"
-                )))
+            other => return Err(invalid(format!("interface {other}"))),
+        };
+        let code = r.u8()?;
+        let state =
+            State::from_code(code).ok_or_else(|| invalid(format!("FMI state code {code}")))?;
+        let [tolerance, start] = r.f64s()?;
+        Experiment::check_tolerance(tolerance).map_err(|e| invalid(e.to_string()))?;
+        let has_stop = r.bool()?;
+        let stop = r.f64()?;
+        let experiment = Experiment {
+            tolerance,
+            start,
+            stop: has_stop.then_some(stop),
+        };
+        let assembled = r.bool()?;
+        let plant = Plant::deserialize_from(&mut r)?;
+        let started = r.bool()?;
+        let driver = match (interface, started) {
+            (_, false) => Driver::new(interface),
+            (Interface::CoSimulation, true) => Driver::CoSimulation(Some(
+                CoSimulation::deserialize_from(&mut r, &plant, &experiment)?,
+            )),
+            (Interface::ModelExchange, true) => {
+                Driver::ModelExchange(Some(Exchange::deserialize_from(&mut r, &plant)?))
             }
         };
-        let code = r.u8().map_err(fail)?;
-        let state = State::from_code(code).ok_or_else(|| {
-            Failure::error(format!("invalid serialized state: FMI state code {code}"))
-        })?;
-        let start_time = r.f64().map_err(fail)?;
-        let has_stop = r.bool().map_err(fail)?;
-        let stop = r.f64().map_err(fail)?;
-        let assembled = r.bool().map_err(fail)?;
-        let sim = Simulation::deserialize_from(&mut r).map_err(fail)?;
-        let exchange = if r.bool().map_err(fail)? {
-            Some(Exchange::deserialize_from(&mut r, &sim).map_err(fail)?)
-        } else {
-            None
+        r.finish()?;
+        let restored = Self {
+            state,
+            experiment,
+            plant,
+            driver,
+            assembled,
         };
-        r.finish().map_err(fail)?;
+        restored.check().map_err(invalid)?;
+        Ok(restored)
+    }
+
+    /// The parts of a restored state agree with each other and with its FMI state.
+    fn check(&self) -> Result<(), String> {
+        let state = self.state;
         let exchange_states = matches!(state, State::EventMode | State::ContinuousTimeMode);
         let cs_states = matches!(state, State::StepComplete | State::StepFailed);
-        let consistent = match interface {
-            Interface::ModelExchange => !cs_states && (exchange.is_some() || !exchange_states),
-            Interface::CoSimulation => !exchange_states && exchange.is_none(),
+        let initialised = !matches!(state, State::Instantiated | State::InitializationMode);
+        let started = self.driver.is_started();
+        let consistent = match self.interface() {
+            Interface::ModelExchange => !cs_states && (started || !exchange_states),
+            Interface::CoSimulation => !exchange_states && (started || !cs_states),
         };
         if !consistent {
-            return Err(Failure::error(format!(
-                "invalid serialized state: {} in a {} instance",
+            return Err(format!(
+                "{} in a {} instance",
                 state.describe(),
-                interface.name()
-            )));
-        }
-        let initialised = !matches!(state, State::Instantiated | State::InitializationMode);
-        if !initialised && (sim.time() != start_time || sim.statistics().n_steps != 0) {
-            return Err(Failure::error(
-                "invalid serialized state: an instance before initialisation has not moved",
+                self.interface().name()
             ));
         }
-        if exchange.is_some() && !(assembled || initialised) {
-            return Err(Failure::error(
-                "invalid serialized state: continuous states without an assembly",
-            ));
+        let steps = self.activity().statistics.n_steps;
+        if !initialised && (self.plant.time() != self.experiment.start || steps != 0) {
+            return Err("an instance before initialisation has not moved".into());
         }
-        if assembled || initialised {
-            sim.check_initialised()
-                .map_err(|e| Failure::error(format!("invalid serialized state: {e}")))?;
+        if started && !(self.assembled || initialised) {
+            return Err("a started driver without an assembly".into());
         }
-        if has_stop && stop < start_time {
-            return Err(Failure::error(
-                "invalid serialized state: the stop time is before the start time",
-            ));
+        if self.assembled || initialised {
+            self.plant.check_consistent()?;
+            if let Driver::CoSimulation(Some(driver)) = &self.driver {
+                driver.check_initialised(&self.plant, &self.experiment)?;
+            }
         }
-        Ok(Self {
-            interface,
-            sim,
-            exchange,
-            state,
-            start_time,
-            stop_time: has_stop.then_some(stop),
-            assembled,
-        })
+        if self
+            .experiment
+            .stop
+            .is_some_and(|stop| stop < self.experiment.start)
+        {
+            return Err("the stop time is before the start time".into());
+        }
+        Ok(())
     }
 }
 
@@ -218,12 +306,7 @@ impl Instance {
             environment,
             debug_logging,
             enabled: [true; LOG_CATEGORIES.len()],
-            state: State::Instantiated,
-            sim: Simulation::new(),
-            exchange: None,
-            start_time: DEFAULT_EXPERIMENT.0,
-            stop_time: None,
-            assembled: false,
+            current: FmuState::new(interface),
             issued_states: Vec::new(),
             warned_stability: false,
         }
@@ -325,26 +408,27 @@ impl Instance {
             }
         }
         if let Some(tolerance) = tolerance {
-            self.sim
-                .set_tolerance(tolerance)
-                .map_err(|e| Failure::error(e.to_string()))?;
+            Experiment::check_tolerance(tolerance).map_err(|e| Failure::error(e.to_string()))?;
         }
-        self.start_time = start;
-        self.sim.set_time(start);
-        self.stop_time = stop;
-        self.sim.set_stop_time(stop);
+        let current = &mut self.current;
+        current.experiment = Experiment {
+            tolerance: tolerance.unwrap_or(current.experiment.tolerance),
+            start,
+            stop,
+        };
+        current.plant.set_time(start);
         Ok(())
     }
 
     pub fn enter_initialization_mode(&mut self) -> Outcome {
-        self.state = State::InitializationMode;
-        self.assembled = false;
+        self.current.state = State::InitializationMode;
+        self.current.assembled = false;
         Ok(())
     }
 
     pub fn exit_initialization_mode(&mut self) -> Outcome {
-        self.initialise_simulation()?;
-        self.state = match self.interface {
+        self.initialise_plant()?;
+        self.current.state = match self.interface {
             Interface::CoSimulation => State::StepComplete,
             Interface::ModelExchange => State::EventMode,
         };
@@ -356,7 +440,7 @@ impl Instance {
     /// The linkage's class and the motions it allows; a warning for a change-point
     /// geometry, whose run stops where crank, rod and rocker fall collinear.
     fn log_linkage_class(&self) {
-        let class = crate::model::classify(self.sim.params());
+        let class = crate::model::classify(self.current.plant.params());
         let (status, category) = if class == crate::model::LinkageClass::ChangePoint {
             (fmi2Status_fmi2Warning, Category::Warning)
         } else {
@@ -368,72 +452,82 @@ impl Instance {
         }
     }
 
-    /// The consistent start for the current parameters; in Model Exchange with the
-    /// independent coordinates.
-    fn initialise_simulation(&mut self) -> Outcome {
+    /// The consistent start for the current parameters, and the driver started on it.
+    fn initialise_plant(&mut self) -> Outcome {
         let failed =
             |e: crate::model::ModelError| Failure::error(format!("initialisation failed: {e}"));
-        self.sim.initialize(self.start_time).map_err(failed)?;
-        if self.interface == Interface::ModelExchange {
-            self.exchange = Some(Exchange::start(&mut self.sim).map_err(failed)?);
-        }
+        let current = &mut self.current;
+        current
+            .plant
+            .initialize(current.experiment.start)
+            .map_err(failed)?;
+        current.driver = match self.interface {
+            Interface::CoSimulation => {
+                Driver::CoSimulation(Some(CoSimulation::new(&current.plant, &current.experiment)))
+            }
+            Interface::ModelExchange => {
+                Driver::ModelExchange(Some(Exchange::start(&mut current.plant).map_err(failed)?))
+            }
+        };
         Ok(())
     }
 
     /// Outputs in initialization mode reflect the parameters set so far.
     fn assemble_if_needed(&mut self) -> Outcome {
-        if self.state == State::InitializationMode && !self.assembled {
-            self.initialise_simulation()?;
-            self.assembled = true;
+        if self.current.state == State::InitializationMode && !self.current.assembled {
+            self.initialise_plant()?;
+            self.current.assembled = true;
         }
         Ok(())
     }
 
-    /// Model Exchange's states (assembled first in initialization mode).
-    fn exchange(&mut self) -> Result<&mut Exchange, Failure> {
-        self.exchange_and_simulation().map(|(exchange, _)| exchange)
-    }
-
-    /// Model Exchange's states with the simulation they describe, borrowed together.
-    fn exchange_and_simulation(&mut self) -> Result<(&mut Exchange, &mut Simulation), Failure> {
+    /// Model Exchange's states with the plant they describe, borrowed together (assembled
+    /// first in initialization mode).
+    fn exchange_and_plant(&mut self) -> Result<(&mut Exchange, &mut Plant), Failure> {
         self.assemble_if_needed()?;
-        match self.exchange.as_mut() {
-            Some(exchange) => Ok((exchange, &mut self.sim)),
-            None => Err(Failure::error(
+        let current = &mut self.current;
+        match &mut current.driver {
+            Driver::ModelExchange(Some(exchange)) => Ok((exchange, &mut current.plant)),
+            _ => Err(Failure::error(
                 "the continuous states exist from initialisation on",
             )),
         }
+    }
+
+    /// The plant, once Model Exchange's states exist.
+    fn exchange_plant(&mut self) -> Result<&Plant, Failure> {
+        self.exchange_and_plant().map(|(_, plant)| &*plant)
     }
 
     pub fn set_time(&mut self, time: f64) -> Outcome {
         if !time.is_finite() {
             return Err(Failure::error(format!("time = {time} must be finite")));
         }
-        self.sim.set_time(time);
+        self.current.plant.set_time(time);
         Ok(())
     }
 
     pub fn set_continuous_states(&mut self, x: &[f64]) -> Outcome {
         check_state_count("nx", x.len())?;
-        let (exchange, sim) = self.exchange_and_simulation()?;
+        let (exchange, plant) = self.exchange_and_plant()?;
         exchange
-            .set_states(sim, x)
+            .set_states(plant, x)
             .map_err(|e| Failure::error(e.to_string()))
     }
 
     pub fn get_continuous_states(&mut self, x: &mut [f64]) -> Outcome {
         check_state_count("nx", x.len())?;
-        x.copy_from_slice(self.exchange()?.states());
+        x.copy_from_slice(self.exchange_and_plant()?.0.states());
         Ok(())
     }
 
     pub fn get_derivatives(&mut self, dx: &mut [f64]) -> Outcome {
         check_state_count("nx", dx.len())?;
-        self.exchange()?;
-        dx.copy_from_slice(&Exchange::derivatives(&self.sim));
+        let plant = self.exchange_plant()?;
+        dx.copy_from_slice(&Exchange::derivatives(plant));
         if let Some(i) = dx.iter().position(|v| !v.is_finite()) {
             let name = crate::variables::STATES[i];
-            return Err(self.sim.not_finite(&format!("der({name})"), dx[i]).into());
+            return Err(plant.not_finite(&format!("der({name})"), dx[i]).into());
         }
         Ok(())
     }
@@ -446,8 +540,7 @@ impl Instance {
                 z.len()
             )));
         }
-        self.exchange()?;
-        z.copy_from_slice(&Exchange::indicators(&self.sim));
+        z.copy_from_slice(&Exchange::indicators(self.exchange_plant()?));
         Ok(())
     }
 
@@ -459,27 +552,28 @@ impl Instance {
     }
 
     pub fn enter_event_mode(&mut self) -> Outcome {
-        self.state = State::EventMode;
+        self.current.state = State::EventMode;
         Ok(())
     }
 
     pub fn enter_continuous_time_mode(&mut self) -> Outcome {
-        self.state = State::ContinuousTimeMode;
+        self.current.state = State::ContinuousTimeMode;
         Ok(())
     }
 
     /// fmi2NewDiscreteStates: the chart's handover, if its indicator has crossed. Returns
     /// whether the continuous states changed.
     pub fn new_discrete_states(&mut self) -> Result<bool, Failure> {
-        let (exchange, sim) = self.exchange_and_simulation()?;
+        let (exchange, plant) = self.exchange_and_plant()?;
         let changed = exchange
-            .update(sim)
+            .update(plant)
             .map_err(|e| Failure::error(e.to_string()))?;
         if changed && self.log_enabled(Category::Solver) {
+            let plant = &self.current.plant;
             let message = format!(
                 "t = {}: the loop's leading angle is now phi{}",
-                self.sim.time(),
-                self.sim.chart() as i32
+                plant.time(),
+                plant.chart() as i32
             );
             self.log(fmi2Status_fmi2OK, Category::Solver, &message);
         }
@@ -524,11 +618,12 @@ impl Instance {
                 }
             }
         }
-        let states = match &self.exchange {
-            Some(e) if exchange => Some((e.coordinates(), e.states(), &state_seed)),
+        let states = match &self.current.driver {
+            Driver::ModelExchange(Some(e)) => Some((e.coordinates(), e.states(), &state_seed)),
             _ => None,
         };
-        self.sim
+        self.current
+            .plant
             .directional_derivatives(states, input_seed, unknowns, sensitivity)
             .map_err(Failure::from)
     }
@@ -536,8 +631,7 @@ impl Instance {
     /// fmi2CompletedIntegratorStep: asks for an event where the indicator has crossed (for
     /// masters that do not locate state events themselves).
     pub fn completed_integrator_step(&mut self) -> Result<bool, Failure> {
-        self.exchange()?;
-        Ok(Exchange::indicators(&self.sim)[0] < 0.0)
+        Ok(Exchange::indicators(self.exchange_plant()?)[0] < 0.0)
     }
 
     /// Inlined into fmi2GetReal, as `do_step` into fmi2DoStep: left to itself, the compiler
@@ -549,7 +643,7 @@ impl Instance {
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
         self.assemble_if_needed()?;
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            *value = self.sim.read_real(*vr)?;
+            *value = self.current.plant.read_real(*vr)?;
         }
         Ok(())
     }
@@ -565,8 +659,9 @@ impl Instance {
     /// Integer (and Enumeration) or Boolean values, which C passes alike (1 for true).
     fn get_whole(&mut self, vrs: &[u32], values: &mut [i32], accessor: VarType) -> Outcome {
         self.assemble_if_needed()?;
+        let activity = self.current.activity();
         for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            *value = match self.sim.read(*vr, accessor)? {
+            *value = match self.current.plant.read(*vr, accessor, &activity)? {
                 Value::Integer(v) => v,
                 Value::Boolean(v) => i32::from(v),
                 Value::Real(_) => unreachable!("read checks the accessor's type"),
@@ -581,18 +676,19 @@ impl Instance {
         vrs: &[u32],
         values: impl Iterator<Item = Value> + Clone,
     ) -> Outcome {
-        let writable = self.state.parameters_writable();
+        let current = &mut self.current;
+        let writable = current.state.parameters_writable();
         for (vr, value) in vrs.iter().zip(values.clone()) {
-            self.sim.check_set(*vr, value, writable)?;
+            current.plant.check_set(*vr, value, writable)?;
         }
         for (vr, value) in vrs.iter().zip(values) {
-            self.sim.set(*vr, value, writable)?;
+            current.plant.set(*vr, value, writable)?;
         }
-        if self.state == State::InitializationMode {
-            // The assembly, and Model Exchange's states made from it, are stale: the next
-            // read makes them again.
-            self.assembled = false;
-            self.exchange = None;
+        if current.state == State::InitializationMode {
+            // The assembly, and the driver started on it, are stale: the next read makes
+            // them again.
+            current.assembled = false;
+            current.driver.stop();
         }
         Ok(())
     }
@@ -604,11 +700,12 @@ impl Instance {
         orders: &[i32],
         values: &[f64],
     ) -> Outcome {
+        let plant = &mut self.current.plant;
         for ((vr, order), value) in vrs.iter().zip(orders).zip(values) {
-            self.sim.check_input_derivative(*vr, *order, *value)?;
+            plant.check_input_derivative(*vr, *order, *value)?;
         }
         for ((vr, order), value) in vrs.iter().zip(orders).zip(values) {
-            self.sim.set_input_derivative(*vr, *order, *value)?;
+            plant.set_input_derivative(*vr, *order, *value)?;
         }
         Ok(())
     }
@@ -620,12 +717,13 @@ impl Instance {
         values: &mut [f64],
     ) -> Outcome {
         self.assemble_if_needed()?;
+        let plant = &self.current.plant;
         for ((vr, order), value) in vrs.iter().zip(orders).zip(values.iter_mut()) {
-            *value = self.sim.output_derivative(*vr, *order)?;
+            *value = plant.output_derivative(*vr, *order)?;
             if !value.is_finite() {
                 let name = variable(*vr).map_or("?", |v| v.name);
                 let what = format!("the output derivative of order {order} of {name}");
-                return Err(self.sim.not_finite(&what, *value).into());
+                return Err(plant.not_finite(&what, *value).into());
             }
         }
         Ok(())
@@ -636,7 +734,7 @@ impl Instance {
         // The larger of two numbers that are not NaN here: `f64::max` also handles NaN, in
         // a sequence of seven instructions (12 more per step for the two uses, valgrind).
         let larger = |a: f64, b: f64| if a > b { a } else { b };
-        let now = self.sim.time();
+        let now = self.current.plant.time();
         // Finiteness as a comparison with f64::MAX rather than `is_finite`: with the latter
         // the compiler tested these checks on the bits, 13 more instructions per call
         // (valgrind). NaN fails every comparison.
@@ -656,23 +754,32 @@ impl Instance {
             )));
         }
         let target = current + step;
-        if let Some(stop) = self.stop_time {
+        if let Some(stop) = self.current.experiment.stop {
             if target > stop + TIME_MATCH * larger(stop.abs(), step) {
                 return Err(Failure::error(format!(
                     "a step to t = {target} would pass stopTime = {stop}"
                 )));
             }
         }
-        if let Err(error) = super::isa::advance(&mut self.sim, target) {
-            self.state = State::StepFailed;
-            let y = self.sim.state();
+        let FmuState {
+            plant,
+            driver: Driver::CoSimulation(Some(driver)),
+            experiment,
+            ..
+        } = &mut self.current
+        else {
+            return Err(Failure::error("the integrator starts at initialisation"));
+        };
+        if let Err(error) = super::isa::advance(driver, plant, target, experiment) {
+            self.current.state = State::StepFailed;
+            let y = self.current.plant.state();
             return Err(Failure::discard(format!(
                 "step from t = {now} to {target} failed: {error}; state kept at t = {now} \
                  (phi2 = {}, phi3 = {}, omega2 = {}, omega3 = {})",
                 y[1], y[2], y[5], y[6]
             )));
         }
-        if !self.warned_stability && self.sim.dop853_is_stability_limited() {
+        if !self.warned_stability && driver.dop853_is_stability_limited() {
             self.warned_stability = true;
             if self.log_enabled(Category::Warning) {
                 let message = format!(
@@ -685,7 +792,7 @@ impl Instance {
             }
         }
         if self.log_enabled(Category::Solver) {
-            let s = self.sim.statistics();
+            let s = self.current.activity().statistics;
             let message = format!(
                 "t = {target}: {} steps, {} rejected, {} right-hand sides so far",
                 s.n_steps, s.n_rejected, s.n_rhs
@@ -696,51 +803,33 @@ impl Instance {
     }
 
     pub fn terminate(&mut self) -> Outcome {
-        self.state = State::Terminated;
+        self.current.state = State::Terminated;
         Ok(())
     }
 
     /// Back to the state just after fmi2Instantiate, every variable at its start value.
     pub fn reset(&mut self) -> Outcome {
-        self.sim = Simulation::new();
-        self.exchange = None;
-        self.state = State::Instantiated;
-        self.start_time = DEFAULT_EXPERIMENT.0;
-        self.stop_time = None;
-        self.assembled = false;
+        self.current = FmuState::new(self.interface);
         Ok(())
     }
 
     pub fn last_successful_time(&self) -> f64 {
-        self.sim.time()
+        self.current.plant.time()
     }
 
     pub fn save(&self) -> FmuState {
-        FmuState {
-            interface: self.interface,
-            sim: self.sim.clone(),
-            exchange: self.exchange.clone(),
-            state: self.state,
-            start_time: self.start_time,
-            stop_time: self.stop_time,
-            assembled: self.assembled,
-        }
+        self.current.clone()
     }
 
     pub fn restore(&mut self, saved: &FmuState) -> Outcome {
-        if saved.interface != self.interface {
+        if saved.interface() != self.interface {
             return Err(Failure::error(format!(
                 "the FMU state was saved by a {} instance; this one is {}",
-                saved.interface.name(),
+                saved.interface().name(),
                 self.interface.name()
             )));
         }
-        self.sim = saved.sim.clone();
-        self.exchange = saved.exchange.clone();
-        self.state = saved.state;
-        self.start_time = saved.start_time;
-        self.stop_time = saved.stop_time;
-        self.assembled = saved.assembled;
+        self.current = saved.clone();
         Ok(())
     }
 

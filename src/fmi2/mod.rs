@@ -80,7 +80,7 @@ pub(crate) fn guarded(
             failure.status
         }
         Err(panic) => {
-            instance.state = State::Fatal;
+            instance.current.state = State::Fatal;
             let what = panic
                 .downcast_ref::<&str>()
                 .map(|s| s.to_string())
@@ -107,10 +107,10 @@ fn admitted(instance: &Instance, function: Function) -> Outcome {
             )));
         }
     }
-    if !function.allowed().contains(instance.state) {
+    if !function.allowed().contains(instance.current.state) {
         return Err(Failure::error(format!(
             "not allowed in state {}",
-            instance.state.describe()
+            instance.current.state.describe()
         )));
     }
     Ok(())

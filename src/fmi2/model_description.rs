@@ -7,8 +7,8 @@ use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
 use std::io;
 
+use crate::drivers::DEFAULT_TOLERANCE;
 use crate::model::LINKAGE_CLASSES;
-use crate::simulation::DEFAULT_TOLERANCE;
 use crate::variables::{
     dependencies, is_unknown, value_reference, variables, Causality, Unknowns, VarType, Variable,
     LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE, STATE_REFERENCES, UNITS,

@@ -1,4 +1,4 @@
-//! The integrator the simulation holds: DOP853, Radau IIA, or `auto`, which starts with
+//! The integrator the co-simulation driver holds: DOP853, Radau IIA, or `auto`, which starts with
 //! DOP853 and changes method between communication steps when the problem's stiffness
 //! changes.
 //!

@@ -75,34 +75,100 @@ pub fn paper_laws() -> [(&'static str, f64); 5] {
     ]
 }
 
-/// A simulation without the FMI layer: `parameters` set by name, `solver` (1 auto,
-/// 2 dop853, 3 implicit) and `tolerance`, initialised at t = 0.
-pub fn simulation(
-    parameters: &[(&str, f64)],
-    solver: i32,
-    tolerance: f64,
-) -> cyclic_mechanism::simulation::Simulation {
-    use cyclic_mechanism::simulation::{Simulation, Value};
+/// The plant under the co-simulation driver without the FMI layer, as the tests that look
+/// inside use it.
+pub struct Run {
+    pub plant: cyclic_mechanism::plant::Plant,
+    pub driver: Option<cyclic_mechanism::drivers::CoSimulation>,
+    pub experiment: cyclic_mechanism::drivers::Experiment,
+}
+
+impl Run {
+    pub fn new() -> Self {
+        Self {
+            plant: cyclic_mechanism::plant::Plant::new(),
+            driver: None,
+            experiment: cyclic_mechanism::drivers::Experiment::new(0.0),
+        }
+    }
+
+    pub fn set(
+        &mut self,
+        vr: u32,
+        value: cyclic_mechanism::plant::Value,
+        parameters_writable: bool,
+    ) -> Result<(), cyclic_mechanism::plant::AccessError> {
+        self.plant.set(vr, value, parameters_writable)
+    }
+
+    pub fn set_tolerance(&mut self, tolerance: f64) {
+        self.experiment.tolerance = tolerance;
+    }
+
+    pub fn initialize(&mut self, start: f64) {
+        self.experiment.start = start;
+        self.plant.initialize(start).unwrap();
+        self.driver = Some(cyclic_mechanism::drivers::CoSimulation::new(
+            &self.plant,
+            &self.experiment,
+        ));
+    }
+
+    pub fn advance(&mut self, t: f64) -> Result<(), cyclic_mechanism::solver::SolverError> {
+        let driver = self.driver.as_mut().expect("initialised");
+        driver.advance(&mut self.plant, t, &self.experiment)
+    }
+
+    pub fn state(&self) -> &[f64; 8] {
+        self.plant.state()
+    }
+
+    pub fn time(&self) -> f64 {
+        self.plant.time()
+    }
+
+    pub fn params(&self) -> &cyclic_mechanism::model::Parameters {
+        self.plant.params()
+    }
+
+    /// A variable's value, the statistics from the driver.
+    pub fn get(
+        &self,
+        vr: u32,
+    ) -> Result<cyclic_mechanism::plant::Value, cyclic_mechanism::plant::AccessError> {
+        let activity = self.driver.as_ref().expect("initialised").activity();
+        self.plant.get(vr, &activity)
+    }
+
+    pub fn statistics(&self) -> cyclic_mechanism::solver::Statistics {
+        self.driver.as_ref().expect("initialised").statistics()
+    }
+}
+
+/// A run without the FMI layer: `parameters` set by name, `solver` (1 auto, 2 dop853,
+/// 3 implicit) and `tolerance`, initialised at t = 0.
+pub fn simulation(parameters: &[(&str, f64)], solver: i32, tolerance: f64) -> Run {
+    use cyclic_mechanism::plant::Value;
     use cyclic_mechanism::variables::value_reference;
-    let mut sim = Simulation::new();
+    let mut run = Run::new();
     for (name, value) in parameters {
-        sim.set(value_reference(name).unwrap(), Value::Real(*value), true)
+        run.set(value_reference(name).unwrap(), Value::Real(*value), true)
             .unwrap();
     }
-    sim.set(
+    run.set(
         value_reference("solver").unwrap(),
         Value::Integer(solver),
         true,
     )
     .unwrap();
-    sim.set_tolerance(tolerance).unwrap();
-    sim.initialize(0.0).unwrap();
-    sim
+    run.set_tolerance(tolerance);
+    run.initialize(0.0);
+    run
 }
 
-/// Advance `sim` from t = 0 to `t_end` in communication steps of `h`.
-pub fn advance(sim: &mut cyclic_mechanism::simulation::Simulation, t_end: f64, h: f64) {
+/// Advance `run` from t = 0 to `t_end` in communication steps of `h`.
+pub fn advance(run: &mut Run, t_end: f64, h: f64) {
     for k in 1..=(t_end / h).round() as usize {
-        sim.advance(k as f64 * h).unwrap();
+        run.advance(k as f64 * h).unwrap();
     }
 }

@@ -266,7 +266,7 @@ def test_fmu_state_restores_model_exchange_exactly(model):
     after = (model.states(), model.derivatives(), model.real(["rod_force", "phi3"]))
     for a, b in zip(before, after):
         assert np.array_equal(a, b)
-    # A forged state (checksum recomputed) whose x no longer gives the simulation's state
+    # A forged state (checksum recomputed) whose x no longer gives the plant's state
     # is refused by value.
     forged = bytearray(serialized)
     forged[-16:-8] = np.float64(99.0).tobytes()  # the last state, omega4
@@ -274,7 +274,7 @@ def test_fmu_state_restores_model_exchange_exactly(model):
     before = len(model.messages)
     with pytest.raises(FMICallException):
         model.fmu.deSerializeFMUstate(bytes(forged))
-    assert "continuous states do not give the simulation's state" in model.messages[before]
+    assert "continuous states do not give the plant's state" in model.messages[before]
     model.fmu.freeFMUstate(saved)
 
 

@@ -6,13 +6,13 @@
 //! leading angle should change (a dead point ahead); at that event the states change
 //! meaning, and the master is told so.
 //!
-//! The [`Simulation`] holds parameters, inputs, time and the full state, so every variable
-//! reads as in Co-Simulation; this module keeps what Model Exchange adds: the chart with
+//! The [`Plant`] holds parameters, inputs, time and the full state, so every variable
+//! reads as in Co-Plant; this module keeps what Model Exchange adds: the chart with
 //! its branch and turns, and the master's x.
 
 use crate::model::chart::{coordinates_for, full_state, handover_indicator, independent};
 use crate::model::{Chart, Coordinates, Independent, ModelError, State};
-use crate::simulation::Simulation;
+use crate::plant::Plant;
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 use crate::variables::{Local, STATES as STATE_NAMES};
 
@@ -36,31 +36,31 @@ pub struct Exchange {
 }
 
 impl Exchange {
-    /// Model Exchange from the simulation's (initialised) state, in its chart.
-    pub fn start(sim: &mut Simulation) -> Result<Self, ModelError> {
-        let exchange = Self::enter(sim, sim.chart())?;
-        exchange.place(sim, exchange.full_state(sim)?);
+    /// Model Exchange from the plant's (initialised) state, in its chart.
+    pub fn start(plant: &mut Plant) -> Result<Self, ModelError> {
+        let exchange = Self::enter(plant, plant.chart())?;
+        exchange.place(plant, exchange.full_state(plant)?);
         Ok(exchange)
     }
 
-    /// The chart `chart` entered at the simulation's current configuration.
-    fn enter(sim: &Simulation, chart: Chart) -> Result<Self, ModelError> {
-        let y = sim.state();
+    /// The chart `chart` entered at the plant's current configuration.
+    fn enter(plant: &Plant, chart: Chart) -> Result<Self, ModelError> {
+        let y = plant.state();
         Ok(Self {
-            at: coordinates_for(sim.params(), y, chart)?,
+            at: coordinates_for(plant.params(), y, chart)?,
             x: independent(y, chart),
         })
     }
 
     /// The full state of x.
-    fn full_state(&self, sim: &Simulation) -> Result<State, ModelError> {
-        full_state(sim.params(), &self.at, &self.x)
+    fn full_state(&self, plant: &Plant) -> Result<State, ModelError> {
+        full_state(plant.params(), &self.at, &self.x)
     }
 
-    /// Put `y`, the full state of x, into the simulation. Callers compute `y` (and check
-    /// what they need) first, so that a refusal leaves the simulation as it was.
-    fn place(&self, sim: &mut Simulation, y: State) {
-        sim.place(sim.time(), y, self.at.chart);
+    /// Put `y`, the full state of x, into the plant. Callers compute `y` (and check
+    /// what they need) first, so that a refusal leaves the plant as it was.
+    fn place(&self, plant: &mut Plant, y: State) {
+        plant.place(plant.time(), y, self.at.chart);
     }
 
     pub fn states(&self) -> &Independent {
@@ -72,7 +72,7 @@ impl Exchange {
     }
 
     /// fmi2SetContinuousStates: a rejected x changes nothing.
-    pub fn set_states(&mut self, sim: &mut Simulation, x: &[f64]) -> Result<(), ModelError> {
+    pub fn set_states(&mut self, plant: &mut Plant, x: &[f64]) -> Result<(), ModelError> {
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
             return Err(ModelError::new(format!(
                 "continuous state {} ({}) = {}: must be finite",
@@ -83,41 +83,41 @@ impl Exchange {
             at: self.at,
             x: std::array::from_fn(|i| x[i]),
         };
-        let y = next.full_state(sim)?;
-        next.place(sim, y);
+        let y = next.full_state(plant)?;
+        next.place(plant, y);
         *self = next;
         Ok(())
     }
 
     /// ẋ at the current time, state and inputs.
-    pub fn derivatives(sim: &Simulation) -> [f64; STATES] {
-        std::array::from_fn(|i| sim.local(Local::Derivative(i)))
+    pub fn derivatives(plant: &Plant) -> [f64; STATES] {
+        std::array::from_fn(|i| plant.local(Local::Derivative(i)))
     }
 
     /// The event indicator: the current chart's handover function.
-    pub fn indicators(sim: &Simulation) -> [f64; 1] {
-        [indicator(sim.params(), sim.chart(), sim.state())]
+    pub fn indicators(plant: &Plant) -> [f64; 1] {
+        [indicator(plant.params(), plant.chart(), plant.state())]
     }
 
     /// fmi2NewDiscreteStates: hand over to the other chart if the indicator has crossed.
     /// Returns whether the continuous states changed (their meaning did). A refusal (a
     /// change point, where neither chart holds) changes nothing.
-    pub fn update(&mut self, sim: &mut Simulation) -> Result<bool, ModelError> {
-        if Self::indicators(sim)[0] >= CROSSED {
+    pub fn update(&mut self, plant: &mut Plant) -> Result<bool, ModelError> {
+        if Self::indicators(plant)[0] >= CROSSED {
             return Ok(false);
         }
-        let next = Self::enter(sim, sim.chart().other())?;
-        let y = next.full_state(sim)?;
-        if indicator(sim.params(), next.at.chart, &y) < CROSSED {
+        let next = Self::enter(plant, plant.chart().other())?;
+        let y = next.full_state(plant)?;
+        if indicator(plant.params(), next.at.chart, &y) < CROSSED {
             return Err(ModelError::new(format!(
                 "neither loop angle determines the motion at phi2 = {}, phi3 = {}: crank, rod \
                  and rocker are collinear, a change point; {}",
                 y[1],
                 y[2],
-                crate::model::projection::equal_sums(sim.params())
+                crate::model::projection::equal_sums(plant.params())
             )));
         }
-        next.place(sim, y);
+        next.place(plant, y);
         *self = next;
         Ok(true)
     }
@@ -128,9 +128,9 @@ impl Exchange {
         w.f64s(&self.x);
     }
 
-    /// The exchange written by [`Exchange::serialize_into`], checked against the simulation
+    /// The exchange written by [`Exchange::serialize_into`], checked against the plant
     /// restored with it: x must give exactly its state.
-    pub fn deserialize_from(r: &mut Reader, sim: &Simulation) -> Result<Self, FormatError> {
+    pub fn deserialize_from(r: &mut Reader, plant: &Plant) -> Result<Self, FormatError> {
         let invalid = |what: String| FormatError(format!("invalid serialized state: {what}"));
         let code = r.u8()?;
         let chart =
@@ -150,10 +150,10 @@ impl Exchange {
             },
             x,
         };
-        let y = full_state(sim.params(), &exchange.at, &x).map_err(|e| invalid(e.to_string()))?;
-        if chart != sim.chart() || !same_bits(&y, sim.state()) {
+        let y = full_state(plant.params(), &exchange.at, &x).map_err(|e| invalid(e.to_string()))?;
+        if chart != plant.chart() || !same_bits(&y, plant.state()) {
             return Err(invalid(
-                "the continuous states do not give the simulation's state".into(),
+                "the continuous states do not give the plant's state".into(),
             ));
         }
         Ok(exchange)
@@ -163,29 +163,31 @@ impl Exchange {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::simulation::Value;
+    use crate::plant::Value;
     use crate::variables::value_reference;
 
-    fn simulation(values: &[(&str, f64)]) -> Simulation {
-        let mut sim = Simulation::new();
+    fn plant_with(values: &[(&str, f64)]) -> Plant {
+        let mut plant = Plant::new();
         for (name, value) in values {
-            sim.set(value_reference(name).unwrap(), Value::Real(*value), true)
+            plant
+                .set(value_reference(name).unwrap(), Value::Real(*value), true)
                 .unwrap();
         }
-        sim.initialize(0.0).unwrap();
-        sim
+        plant.initialize(0.0).unwrap();
+        plant
     }
 
     #[test]
     fn derivatives_are_the_constrained_dynamics() {
-        let mut sim = simulation(&[("omega2_0", 3.0), ("twist12_0", 0.1), ("Mm_a0", 10.0)]);
-        let y0 = *sim.state();
-        let exchange = Exchange::start(&mut sim).unwrap();
-        for (a, b) in sim.state().iter().zip(&y0) {
+        let mut plant = plant_with(&[("omega2_0", 3.0), ("twist12_0", 0.1), ("Mm_a0", 10.0)]);
+        let y0 = *plant.state();
+        let exchange = Exchange::start(&mut plant).unwrap();
+        for (a, b) in plant.state().iter().zip(&y0) {
             assert!((a - b).abs() < 1e-14, "{a} {b}");
         }
-        let dx = Exchange::derivatives(&sim);
-        let a = crate::model::accelerations(sim.params(), sim.inputs(), sim.state()).omega_dot;
+        let dx = Exchange::derivatives(&plant);
+        let a =
+            crate::model::accelerations(plant.params(), plant.inputs(), plant.state()).omega_dot;
         assert_eq!(dx, [y0[4], y0[5], y0[7], a[0], a[1], a[3]]);
         assert_eq!(exchange.states()[1], y0[1]);
     }
@@ -193,7 +195,7 @@ mod tests {
     #[test]
     fn a_crossed_indicator_hands_over_and_keeps_the_configuration() {
         // A non-Grashof linkage swinging into a dead point of the crank.
-        let mut sim = simulation(&[
+        let mut plant = plant_with(&[
             ("l", 0.5),
             ("l2", 0.4),
             ("l3", 0.45),
@@ -201,28 +203,28 @@ mod tests {
             ("phi2_0", 1.0),
             ("omega2_0", 1.0),
         ]);
-        let mut exchange = Exchange::start(&mut sim).unwrap();
-        assert!(!exchange.update(&mut sim).unwrap());
+        let mut exchange = Exchange::start(&mut plant).unwrap();
+        assert!(!exchange.update(&mut plant).unwrap());
         // Walk q until the indicator crosses, as a master's integrator would.
         let mut x = *exchange.states();
         let mut crossed = false;
         for _ in 0..2000 {
             x[1] += 1e-3 * x[4].signum();
-            if exchange.set_states(&mut sim, &x).is_err() {
+            if exchange.set_states(&mut plant, &x).is_err() {
                 break;
             }
-            if Exchange::indicators(&sim)[0] < 0.0 {
+            if Exchange::indicators(&plant)[0] < 0.0 {
                 crossed = true;
                 break;
             }
         }
         assert!(crossed, "no handover on the way to the dead point");
-        let (before, chart) = (*sim.state(), sim.chart());
-        assert!(exchange.update(&mut sim).unwrap());
-        assert_ne!(sim.chart(), chart);
-        for (a, b) in sim.state().iter().zip(&before) {
+        let (before, chart) = (*plant.state(), plant.chart());
+        assert!(exchange.update(&mut plant).unwrap());
+        assert_ne!(plant.chart(), chart);
+        for (a, b) in plant.state().iter().zip(&before) {
             assert!((a - b).abs() < 1e-12, "{a} {b}");
         }
-        assert!(Exchange::indicators(&sim)[0] > 0.0);
+        assert!(Exchange::indicators(&plant)[0] > 0.0);
     }
 }

@@ -1,14 +1,13 @@
-//! A simulation of the mechanism: parameters, inputs, time, state and the integrator.
-//! It knows the variable table but nothing of FMI's C interface or state machine, so a
-//! Model Exchange or FMI 3.0 front end can drive the same object.
+//! The plant: the mechanism as a master sees it, whichever interface or integrator drives
+//! it. Parameters, inputs (with their time derivatives), time, the full state on the
+//! constraint with the leading loop angle, and from these every output, derivative and
+//! event indicator, with every check on the values a master writes. It holds no integrator:
+//! the drivers ([`crate::drivers`]) move its time and state, the co-simulation driver by
+//! integrating, the Model Exchange adapter from the master's continuous states.
 //!
-//! Two points in time are kept apart: the communication point (`time`, `state`: what the
-//! outputs show) and the integrator's own point, which may lie ahead of it. While the
-//! master changes nothing, the integrator steps at its own pace past communication points
-//! and the state at each point comes from the dense output (then projected onto the
-//! constraint). When the master changes a parameter or the state, or an input by enough to
-//! matter at the tolerance ([`Simulation::input_change_is_negligible`]), the integrator
-//! restarts from the communication point.
+//! A write that changes the right-hand side or moves the state (a parameter, the time, an
+//! input derivative, a new state) marks the plant as changed; a driver that remembers the
+//! trajectory (the co-simulation integrator) takes that mark and starts over.
 
 use crate::model::chart::{handover_indicator, preferred_chart};
 use crate::model::params::check_rule;
@@ -16,40 +15,17 @@ use crate::model::{
     self, Chart, Coordinates, Dual, Independent, Inputs, ModelError, Parameters, Projected, Scalar,
     State, STATE_SIZE,
 };
-use crate::snapshot::{same_bits, FormatError, Reader, Writer};
-use crate::solver::{Choice, Integrator, Method, OdeSystem, SolverError, Statistics, Tolerances};
+use crate::snapshot::{FormatError, Reader, Writer};
+use crate::solver::{Choice, Method, Statistics};
 use crate::variables::{
     build_table, variable, Input, Local, Output, Slot, Statistic, VarType, Variable, SOLVER_ITEMS,
 };
 
-/// Relative tolerance when the master gives none (the DefaultExperiment's).
-pub const DEFAULT_TOLERANCE: f64 = 1e-8;
-/// Admissible relative tolerances.
-pub const TOLERANCE_RANGE: (f64, f64) = (1e-13, 1e-1);
 /// Time steps (s) of the central differences along the flow used for output derivatives
 /// that have no closed form: about 1e-8 relative accuracy for one difference at the paper's
 /// speeds, 1e-6 for the rod force's second derivative (a difference of a difference).
 const DIFFERENCE_STEP: f64 = 1e-6;
 const SECOND_DIFFERENCE_STEP: f64 = 1e-4;
-/// The step-size control holds local errors to this fraction of the master's tolerance,
-/// and never above [`LOOSEST_INTERNAL_TOLERANCE`]: the promise is the tolerance at every
-/// communication point, which the local error test does not see. Two effects escape it:
-/// outputs between integration steps come from DOP853's dense output, whose error is
-/// 10-100x that of the step points on this model, and over long undamped runs the phase
-/// error accumulates. Measured by the benchmark harness at every communication point
-/// against an independent reference (error in units of each state's scale max(1, max|y|),
-/// paper case 1 and the 100 s free run, H 1e-4…0.1, tol 1e-3…1e-10): with DOP853's
-/// stabilised step-size control and a thirtieth, at most 6.8 x tol (the free run at
-/// tol 1e-10); with the unstabilised control, 0.05 gave 15.3 x and 0.02 at most 6.3 x,
-/// for 4-7 % more evaluations than the stabilised control at a thirtieth.
-pub const TOLERANCE_SAFETY: f64 = 1.0 / 30.0;
-/// Above this internal tolerance DOP853's steps on the paper's mechanism reach about
-/// 0.1 s, where its interpolant is no longer accurate: with 2e-5 (tol 1e-3) ω1 between
-/// steps was off by 10 x tol at case 1; with the stabilised control, 2e-6 gave 7.4 x tol
-/// at tol 1e-4 (H = 1e-3) and 1.5e-6 at most 2.6 x. Looser tolerances therefore cost what
-/// 1e-4 costs (case 1 at H = 0.01: 2150 evaluations).
-pub const LOOSEST_INTERNAL_TOLERANCE: f64 = 1.5e-6;
-
 /// A value of one of the FMI types used here (Enumerations travel as Integer).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Value {
@@ -67,7 +43,8 @@ pub enum SolverKind {
 }
 
 impl SolverKind {
-    fn choice(self) -> Choice {
+    /// The integrator's method choice.
+    pub fn choice(self) -> Choice {
         match self {
             SolverKind::Auto => Choice::Auto,
             SolverKind::Dop853 => Choice::Fixed(Method::Dop853),
@@ -86,73 +63,19 @@ pub struct InputDerivatives {
 }
 
 impl InputDerivatives {
-    fn is_zero(&self) -> bool {
+    pub fn is_zero(&self) -> bool {
         *self == Self::default()
     }
 
     /// The inputs at time `t` of a step that started at `anchor` with values `base`.
     #[inline]
-    fn at(&self, base: &Inputs, anchor: f64, t: f64) -> Inputs {
+    pub fn at(&self, base: &Inputs, anchor: f64, t: f64) -> Inputs {
         let dt = t - anchor;
         let poly = |u: f64, [d1, d2]: [f64; 2]| u + dt * (d1 + 0.5 * dt * d2);
         Inputs {
             motor_torque: poly(base.motor_torque, self.motor_torque),
             load_torque: poly(base.load_torque, self.load_torque),
         }
-    }
-}
-
-/// The mechanism as the integrator sees it: parameters, and inputs as polynomials in time.
-struct Driven<'a> {
-    params: &'a Parameters,
-    inputs: &'a Inputs,
-    /// `None` while the inputs are held (no derivatives set): the right-hand side then
-    /// skips the two polynomials (about 12 instructions per evaluation; 1.6 % fewer
-    /// instructions on paper case 1 at H = 0.01, tol 1e-6).
-    derivatives: Option<&'a InputDerivatives>,
-    anchor: f64,
-    /// The relative accuracy the projection needs of the gradient ([`model::project`]).
-    projection_accuracy: f64,
-}
-
-impl<'a> Driven<'a> {
-    fn new(
-        params: &'a Parameters,
-        inputs: &'a Inputs,
-        derivatives: &'a InputDerivatives,
-        anchor: f64,
-        tolerance: f64,
-    ) -> Self {
-        let derivatives = (!derivatives.is_zero()).then_some(derivatives);
-        Self {
-            params,
-            inputs,
-            derivatives,
-            anchor,
-            projection_accuracy: projection_accuracy(tolerance),
-        }
-    }
-
-    #[inline]
-    fn inputs_at(&self, t: f64) -> Inputs {
-        match self.derivatives {
-            None => *self.inputs,
-            Some(derivatives) => derivatives.at(self.inputs, self.anchor, t),
-        }
-    }
-}
-
-impl OdeSystem<STATE_SIZE> for Driven<'_> {
-    #[inline(always)]
-    fn rhs(&self, t: f64, y: &State, dy: &mut State) {
-        model::state_derivative(self.params, &self.inputs_at(t), y, dy);
-    }
-
-    #[inline(always)]
-    fn project(&self, previous: &State, y: &mut State) -> Result<(), String> {
-        let at =
-            model::project(self.params, y, self.projection_accuracy).map_err(|e| e.to_string())?;
-        model::check_passage(self.params, previous, y, &at).map_err(|e| e.to_string())
     }
 }
 
@@ -175,62 +98,63 @@ impl std::fmt::Display for AccessError {
     }
 }
 
+/// What the integrator driving the plant reports through the statistics outputs
+/// (`n_steps`, `n_rejected`, `n_rhs`, `active_solver`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Activity {
+    pub statistics: Statistics,
+    pub method: Method,
+}
+
+impl Activity {
+    /// No integrator has run: no work counted, and the explicit method shown.
+    pub fn idle() -> Self {
+        Self {
+            statistics: Statistics::default(),
+            method: Method::Dop853,
+        }
+    }
+}
+
 #[derive(Clone, Debug)]
-pub struct Simulation {
+pub struct Plant {
     params: Parameters,
     inputs: Inputs,
     input_derivatives: InputDerivatives,
+    /// The `solver` parameter: which integrator the co-simulation driver runs.
     solver_kind: SolverKind,
-    tolerance: f64,
-    /// The last communication point and the state there (projected).
     time: f64,
+    /// The full state, on the constraint.
     state: State,
     /// |A2A3| − L at `state`, from the projection's last closure evaluation: the
     /// `constraint_residual` output without another pair of sin_cos per step.
     residual: f64,
-    /// The integrator's own point, at or ahead of `time`.
-    integrator_time: f64,
-    integrator_state: State,
-    /// The inputs the integrator's memory (its last step, its stored first stage) was
-    /// computed with; they differ from `inputs` only by a change too small to matter, until
-    /// the integrator steps again.
-    integrator_inputs: Inputs,
-    /// The master changed something since the integrator last moved: restart it from the
-    /// communication point before the next step.
-    restart: bool,
-    /// The integrator never steps past this (the experiment's stop time, if defined).
-    limit: f64,
-    /// Which loop angle leads (the `loop_*` variables; docs/model.md §6), switched with
-    /// the same hysteresis as Model Exchange's charts.
+    /// Which loop angle leads (the `loop_*` variables; docs/model.md §6).
     chart: Chart,
-    solver: Integrator<STATE_SIZE>,
+    /// The master changed the right-hand side or moved the state since a driver last took
+    /// this mark ([`Plant::take_changed`]).
+    changed: bool,
 }
 
-impl Default for Simulation {
+impl Default for Plant {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl Simulation {
-    /// A simulation with every variable at its start value, not yet initialised.
+impl Plant {
+    /// A plant with every variable at its start value, not yet initialised.
     pub fn new() -> Self {
         Self {
             params: Parameters::default(),
             inputs: Inputs::default(),
             input_derivatives: InputDerivatives::default(),
             solver_kind: SolverKind::Auto,
-            tolerance: DEFAULT_TOLERANCE,
             time: 0.0,
             state: [0.0; STATE_SIZE],
             residual: 0.0,
-            integrator_time: 0.0,
-            integrator_state: [0.0; STATE_SIZE],
-            integrator_inputs: Inputs::default(),
-            restart: true,
-            limit: f64::INFINITY,
             chart: Chart::Crank,
-            solver: Integrator::new(Choice::Auto, tolerances(DEFAULT_TOLERANCE)),
+            changed: true,
         }
     }
 
@@ -254,53 +178,73 @@ impl Simulation {
         self.chart
     }
 
+    pub fn input_derivatives(&self) -> &InputDerivatives {
+        &self.input_derivatives
+    }
+
+    pub fn solver_kind(&self) -> SolverKind {
+        self.solver_kind
+    }
+
+    /// Whether the master changed the right-hand side or moved the state since the last
+    /// call; clears the mark.
+    #[inline(always)]
+    pub fn take_changed(&mut self) -> bool {
+        std::mem::replace(&mut self.changed, false)
+    }
+
+    /// The mark [`Plant::take_changed`] clears, without clearing it.
+    pub fn is_changed(&self) -> bool {
+        self.changed
+    }
+
+    /// The inputs at time `t`: the values the master set, moved along their derivatives
+    /// from the current time.
+    #[inline(always)]
+    pub fn inputs_at(&self, t: f64) -> Inputs {
+        if self.input_derivatives.is_zero() {
+            self.inputs
+        } else {
+            self.input_derivatives.at(&self.inputs, self.time, t)
+        }
+    }
+
+    /// The state's time derivative at (t, y), the inputs moved to t.
+    pub fn rhs(&self, t: f64, y: &State, dy: &mut State) {
+        model::state_derivative(&self.params, &self.inputs_at(t), y, dy);
+    }
+
+    /// A driver's new point: the state `y` at time `t`, projected, `at` the projection's
+    /// closure terms. The leading loop angle hands over where its indicator has crossed.
+    #[inline(always)]
+    pub fn accept_point(&mut self, t: f64, y: State, at: &Projected) {
+        self.time = t;
+        self.state = y;
+        self.residual = model::length_residual_from_closure(&self.params, at.closure);
+        if handover_indicator(&self.params, self.chart, at.b1, at.c1) < 0.0 {
+            self.chart = self.chart.other();
+        }
+    }
+
     /// The master moves time: Model Exchange's fmi2SetTime, and before initialisation the
-    /// experiment's start time, where [`Simulation::initialize`] will place the mechanism
+    /// experiment's start time, where [`Plant::initialize`] will place the mechanism
     /// (a state saved before initialisation is checked against it on restore).
     pub fn set_time(&mut self, time: f64) {
         self.time = time;
-        self.restart = true;
+        self.changed = true;
     }
 
     /// Model Exchange: the master moves time and state (`state` on the constraint, with
-    /// `chart` leading). The integrator is not used; it restarts if Co-Simulation resumes.
+    /// `chart` leading).
     pub fn place(&mut self, time: f64, state: State, chart: Chart) {
         self.time = time;
         self.state = state;
         self.chart = chart;
         self.residual = model::length_residual(&self.params, state[1], state[2]);
-        self.restart = true;
+        self.changed = true;
     }
 
-    pub fn statistics(&self) -> Statistics {
-        self.solver.statistics()
-    }
-
-    /// `solver = dop853` on a problem where DOP853 is limited by stability (see
-    /// [`Integrator::fixed_dop853_is_stiff`]): worth a warning to the user.
-    pub fn dop853_is_stability_limited(&self) -> bool {
-        self.solver.fixed_dop853_is_stiff()
-    }
-
-    /// Set the relative tolerance (before initialisation).
-    pub fn set_tolerance(&mut self, tolerance: f64) -> Result<(), ModelError> {
-        let (low, high) = TOLERANCE_RANGE;
-        if !(low..=high).contains(&tolerance) {
-            return Err(ModelError::new(format!(
-                "tolerance = {} must lie in [{low:e}, {high:e}]",
-                model::number(tolerance)
-            )));
-        }
-        self.tolerance = tolerance;
-        Ok(())
-    }
-
-    /// The integrator will not step past `stop_time` (e.g. the experiment's stop time).
-    pub fn set_stop_time(&mut self, stop_time: Option<f64>) {
-        self.limit = stop_time.unwrap_or(f64::INFINITY);
-    }
-
-    /// The consistent initial state at `start_time` (docs/model.md §3); resets the solver.
+    /// The consistent initial state at `start_time` (docs/model.md §3).
     pub fn initialize(&mut self, start_time: f64) -> Result<(), ModelError> {
         self.state = model::initial_state(&self.params)?;
         self.residual = model::length_residual(&self.params, self.state[1], self.state[2]);
@@ -308,95 +252,24 @@ impl Simulation {
             model::kinematics::closure_with_gradient(&self.params, self.state[1], self.state[2]);
         self.chart = preferred_chart(&self.params, b1, c1);
         self.time = start_time;
-        self.restart = true;
-        self.solver = Integrator::new(self.solver_kind.choice(), tolerances(self.tolerance));
+        self.changed = true;
         Ok(())
     }
 
-    /// Advance the communication point to `t_end`. On error the time and state stay as
-    /// they were.
-    #[inline(always)]
-    pub fn advance(&mut self, t_end: f64) -> Result<(), SolverError> {
-        if self.solver.reconsider(t_end - self.time) {
-            // `auto` changed method: the new one starts from the communication point.
-            self.restart = true;
-        }
-        if !self.input_derivatives.is_zero() {
-            // The input polynomials are anchored at this step's start: a new right-hand side.
-            self.restart = true;
-        }
-        let inputs_changed = self.inputs != self.integrator_inputs;
-        if inputs_changed && !self.input_change_is_negligible() {
-            self.restart = true;
-        }
-        if self.restart {
-            self.integrator_time = self.time;
-            self.integrator_state = self.state;
-            self.integrator_inputs = self.inputs;
-            self.solver.invalidate();
-            self.restart = false;
-        } else if inputs_changed && self.integrator_time < t_end {
-            // A negligible change: the next step takes the new inputs, from the integrator's
-            // own point and with its step size.
-            self.integrator_inputs = self.inputs;
-            self.solver.invalidate();
-        }
-        // Disjoint borrows of the fields (self.integrator_system() would borrow all of self).
-        let system = Driven::new(
-            &self.params,
-            &self.integrator_inputs,
-            &self.input_derivatives,
-            self.time,
-            self.tolerance,
-        );
-        let limit = self.limit.max(t_end);
-        if self.integrator_time < t_end {
-            let gap = t_end - self.integrator_time;
-            if gap <= UNRESOLVED_STEP * self.integrator_time.abs().max(1.0) {
-                // Shorter than any step the integrator takes: one Taylor step, y + h·f(t, y),
-                // whose error h²·|ÿ|/2 lies far below the rounding of y. The integrator
-                // continues from there (with its step size).
-                let mut f = [0.0; STATE_SIZE];
-                system.rhs(self.integrator_time, &self.integrator_state, &mut f);
-                for (y, dy) in self.integrator_state.iter_mut().zip(f) {
-                    *y += gap * dy;
-                }
-                self.integrator_time = t_end;
-                self.solver.invalidate();
-            } else {
-                let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
-                if let Err(error) = self.solver.integrate(&system, t, y, t_end, limit) {
-                    self.restart = true;
-                    return Err(error);
-                }
-            }
-        }
-        let integrator = (self.integrator_time, &self.integrator_state);
-        let (y, at) = match at_communication_point(&mut self.solver, &system, integrator, t_end) {
-            Ok(found) => found,
-            Err(error) => {
-                self.restart = true;
-                return Err(error);
-            }
-        };
-        self.time = t_end;
-        self.state = y;
-        self.residual = model::length_residual_from_closure(&self.params, at.closure);
-        if handover_indicator(&self.params, self.chart, at.b1, at.c1) < 0.0 {
-            self.chart = self.chart.other();
-        }
-        Ok(())
-    }
-
-    /// The current value of variable `vr`.
-    pub fn get(&self, vr: u32) -> Result<Value, AccessError> {
+    /// The current value of variable `vr`, the statistics as `activity` reports them.
+    pub fn get(&self, vr: u32, activity: &Activity) -> Result<Value, AccessError> {
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
-        Ok(self.value_of(var.slot))
+        Ok(self.value_of(var.slot, activity))
     }
 
     /// The current value of `vr` read through an accessor of type `accessor` (Real;
     /// Integer, for Integer and Enumeration variables; Boolean): one lookup, type checked.
-    pub fn read(&self, vr: u32, accessor: VarType) -> Result<Value, AccessError> {
+    pub fn read(
+        &self,
+        vr: u32,
+        accessor: VarType,
+        activity: &Activity,
+    ) -> Result<Value, AccessError> {
         let var = variable(vr).ok_or(AccessError::UnknownReference(vr))?;
         let probe = match accessor {
             VarType::Real => Value::Real(0.0),
@@ -404,53 +277,7 @@ impl Simulation {
             VarType::Boolean => Value::Boolean(false),
         };
         check_type(var, probe)?;
-        Ok(self.value_of(var.slot))
-    }
-
-    /// The system the integrator solves, anchored at the current communication point.
-    fn system(&self) -> Driven<'_> {
-        Driven::new(
-            &self.params,
-            &self.inputs,
-            &self.input_derivatives,
-            self.time,
-            self.tolerance,
-        )
-    }
-
-    /// The system the integrator's memory belongs to: as [`Simulation::system`], with the
-    /// inputs the integrator last stepped with.
-    fn integrator_system(&self) -> Driven<'_> {
-        Driven {
-            inputs: &self.integrator_inputs,
-            ..self.system()
-        }
-    }
-
-    /// Whether the integrator may go on past the master's new inputs without a restart.
-    ///
-    /// The integrator's last step, computed with the old inputs, may reach past the
-    /// communication point by `lag`; the dense output there, and its stored first stage,
-    /// carry the old inputs, and its next step takes the new ones. Over the lag the state
-    /// then drifts from the true one by about Δf·lag, Δf being the change of the right-hand
-    /// side at the communication point. The change is negligible when that drift is within
-    /// a tenth of the integrator's error scale (atol + rtol·|y_i|) in every component: a
-    /// tenth of what one step may add, at most once per step. An input moved by a few ulps
-    /// (a master interpolating a constant input) is negligible at every tolerance above
-    /// about 1e-12; a change that matters restarts the integrator as before.
-    fn input_change_is_negligible(&self) -> bool {
-        let lag = self.integrator_time - self.time;
-        if lag <= 0.0 {
-            return true;
-        }
-        let (mut new, mut old) = ([0.0; STATE_SIZE], [0.0; STATE_SIZE]);
-        self.system().rhs(self.time, &self.state, &mut new);
-        self.integrator_system()
-            .rhs(self.time, &self.state, &mut old);
-        let Tolerances { rtol, atol } = self.solver.tolerances();
-        (0..STATE_SIZE).all(|i| {
-            (new[i] - old[i]).abs() * lag <= NEGLIGIBLE_DRIFT * (atol + rtol * self.state[i].abs())
-        })
+        Ok(self.value_of(var.slot, activity))
     }
 
     /// Set the `order`-th time derivative (1 or 2) of input `vr` for the steps to come.
@@ -467,7 +294,7 @@ impl Simulation {
         };
         if derivatives[order as usize - 1] != value {
             derivatives[order as usize - 1] = value;
-            self.restart = true;
+            self.changed = true;
         }
         Ok(())
     }
@@ -540,7 +367,7 @@ impl Simulation {
 
     /// The first time derivative of `output` at (y, t) along the flow.
     fn rate(&self, output: Output, y: &State, t: f64) -> f64 {
-        let inputs = self.system().inputs_at(t);
+        let inputs = self.inputs_at(t);
         match output {
             Output::Angle(i) => y[4 + i],
             Output::Speed(i) => model::accelerations(&self.params, &inputs, y).omega_dot[i],
@@ -552,7 +379,7 @@ impl Simulation {
                 (b1 * y[5] - c1 * y[6]) / length
             }
             Output::RodForce => self.central_difference(
-                |ys, ts| model::rod_force(&self.params, &self.system().inputs_at(ts), ys),
+                |ys, ts| model::rod_force(&self.params, &self.inputs_at(ts), ys),
                 y,
                 t,
                 DIFFERENCE_STEP,
@@ -563,7 +390,7 @@ impl Simulation {
     /// (y + s·ẏ, t + s): a point along the flow, s small.
     fn along_flow(&self, y: &State, t: f64, s: f64) -> (State, f64) {
         let mut dy = [0.0; STATE_SIZE];
-        self.system().rhs(t, y, &mut dy);
+        self.rhs(t, y, &mut dy);
         (std::array::from_fn(|i| y[i] + s * dy[i]), t + s)
     }
 
@@ -620,21 +447,19 @@ impl Simulation {
         }
     }
 
-    fn value_of(&self, slot: Slot) -> Value {
+    fn value_of(&self, slot: Slot, activity: &Activity) -> Value {
         if let Some(value) = self.real_of(slot) {
             return Value::Real(value);
         }
         let statistic = |count: u64| Value::Integer(count.min(i32::MAX as u64) as i32);
         match slot {
-            Slot::Statistic(Statistic::Steps) => statistic(self.solver.statistics().n_steps),
-            Slot::Statistic(Statistic::Rejected) => statistic(self.solver.statistics().n_rejected),
-            Slot::Statistic(Statistic::RightHandSides) => statistic(self.solver.statistics().n_rhs),
-            Slot::Statistic(Statistic::ActiveSolver) => {
-                Value::Integer(match self.solver.method() {
-                    Method::Dop853 => SolverKind::Dop853 as i32,
-                    Method::Radau5 => SolverKind::Implicit as i32,
-                })
-            }
+            Slot::Statistic(Statistic::Steps) => statistic(activity.statistics.n_steps),
+            Slot::Statistic(Statistic::Rejected) => statistic(activity.statistics.n_rejected),
+            Slot::Statistic(Statistic::RightHandSides) => statistic(activity.statistics.n_rhs),
+            Slot::Statistic(Statistic::ActiveSolver) => Value::Integer(match activity.method {
+                Method::Dop853 => SolverKind::Dop853 as i32,
+                Method::Radau5 => SolverKind::Implicit as i32,
+            }),
             Slot::SolverChoice => Value::Integer(self.solver_kind as i32),
             Slot::LinkageClass => Value::Integer(model::classify(&self.params) as i32),
             Slot::LoopChart => Value::Integer(self.chart as i32),
@@ -654,7 +479,7 @@ impl Simulation {
         parameters_writable: bool,
     ) -> Result<(), AccessError> {
         let slot = self.check_set(vr, value, parameters_writable)?;
-        if self.get(vr)? == value {
+        if self.get(vr, &Activity::idle())? == value {
             return Ok(());
         }
         match (slot, value) {
@@ -669,10 +494,10 @@ impl Simulation {
             (Slot::BuiltinLaws, Value::Boolean(on)) => self.params.builtin_laws = on,
             _ => unreachable!("check_set admits only writable slots of the right type"),
         }
-        // The right-hand side changed: restart the integrator from the communication point
-        // (for an input, only if the change matters; see `advance`).
+        // The right-hand side changed. (An input is left to the driver: whether a change
+        // matters depends on how far its integrator has gone.)
         if !matches!(slot, Slot::Input(_)) {
-            self.restart = true;
+            self.changed = true;
         }
         Ok(())
     }
@@ -840,7 +665,7 @@ fn real_value<T: Scalar>(
 }
 
 /// The state component a variable reads: φ_i is y[i], ω_i is y[4 + i] (docs/model.md §2's order),
-/// as in [`Simulation::output`]; `real_reads_agree_with_the_variable_table` checks the two agree.
+/// as in [`Plant::output`]; `real_reads_agree_with_the_variable_table` checks the two agree.
 const fn state_component(slot: Slot) -> Option<usize> {
     match slot {
         Slot::Output(Output::Angle(i)) => Some(i),
@@ -872,8 +697,8 @@ const FIRST_STATE_VR: u32 = {
     first as u32
 };
 
-impl Simulation {
-    /// Everything that determines the simulation's future, for a serialized FMU state.
+impl Plant {
+    /// Everything that determines the plant's future, for a serialized FMU state.
     pub fn serialize_into(&self, w: &mut Writer) {
         for i in 0..model::PARAMETERS.len() {
             w.f64(self.params.get(i).unwrap_or(f64::NAN));
@@ -883,31 +708,22 @@ impl Simulation {
         w.f64s(&self.input_derivatives.load_torque);
         w.bool(self.params.builtin_laws);
         w.u8(self.solver_kind as u8);
-        w.f64s(&[self.tolerance, self.time]);
+        w.f64(self.time);
         w.f64s(&self.state);
-        w.f64s(&[self.residual, self.integrator_time]);
-        w.f64s(&self.integrator_state);
-        w.f64s(&[
-            self.integrator_inputs.motor_torque,
-            self.integrator_inputs.load_torque,
-        ]);
-        w.bool(self.restart);
-        w.bool(self.limit.is_finite());
-        w.f64(if self.limit.is_finite() {
-            self.limit
-        } else {
-            0.0
-        });
+        w.f64(self.residual);
         w.u8(self.chart as u8);
-        self.solver.serialize_into(w);
+        w.bool(self.changed);
     }
 
-    /// The simulation written by [`Simulation::serialize_into`]; parameters are checked again.
+    /// The plant written by [`Plant::serialize_into`]; every value is checked again by the
+    /// rule that admitted it.
     pub fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
-        let invalid = |e: ModelError| FormatError(format!("invalid serialized state: {e}"));
+        let invalid = |e: String| FormatError(format!("invalid serialized state: {e}"));
         let mut params = Parameters::default();
         for i in 0..model::PARAMETERS.len() {
-            params.set(i, r.f64()?).map_err(invalid)?;
+            params
+                .set(i, r.f64()?)
+                .map_err(|e| invalid(e.to_string()))?;
         }
         let [motor_torque, load_torque] = r.f64s()?;
         let input_derivatives = InputDerivatives {
@@ -916,26 +732,16 @@ impl Simulation {
         };
         params.builtin_laws = r.bool()?;
         let kind = r.u8()?;
-        let solver_kind = solver_kind(kind as i32)
-            .ok_or_else(|| FormatError(format!("invalid serialized state: solver = {kind}")))?;
-        let [tolerance, time] = r.f64s()?;
+        let solver_kind =
+            solver_kind(kind as i32).ok_or_else(|| invalid(format!("solver = {kind}")))?;
+        let time = r.f64()?;
         let state = r.f64s()?;
-        let [residual, integrator_time] = r.f64s()?;
-        let integrator_state = r.f64s()?;
-        let [integrator_motor_torque, integrator_load_torque] = r.f64s()?;
-        let restart = r.bool()?;
-        let has_limit = r.bool()?;
-        let stored_limit = r.f64()?;
-        let limit = if has_limit {
-            stored_limit
-        } else {
-            f64::INFINITY
-        };
+        let residual = r.f64()?;
         let code = r.u8()?;
-        let chart = Chart::from_code(code as i32)
-            .ok_or_else(|| FormatError(format!("invalid serialized state: loop chart {code}")))?;
-        let solver = Integrator::deserialize_from(r)?;
-        let simulation = Self {
+        let chart =
+            Chart::from_code(code as i32).ok_or_else(|| invalid(format!("loop chart {code}")))?;
+        let changed = r.bool()?;
+        let plant = Self {
             params,
             inputs: Inputs {
                 motor_torque,
@@ -943,41 +749,20 @@ impl Simulation {
             },
             input_derivatives,
             solver_kind,
-            tolerance,
             time,
             state,
             residual,
-            integrator_time,
-            integrator_state,
-            integrator_inputs: Inputs {
-                motor_torque: integrator_motor_torque,
-                load_torque: integrator_load_torque,
-            },
-            restart,
-            limit,
             chart,
-            solver,
+            changed,
         };
-        simulation
-            .check_restored()
-            .map_err(|e| FormatError(format!("invalid serialized state: {e}")))?;
-        Ok(simulation)
+        plant.check_restored().map_err(invalid)?;
+        Ok(plant)
     }
 
-    /// The values of a restored simulation, checked one by one (a checksum protects only
-    /// against accidents): inputs within their rules, the tolerance in its range and the
-    /// integrator's consistent with it, the integrator not behind the communication point.
+    /// The inputs and their derivatives of a restored plant, each within its rule (a
+    /// checksum protects only against accidents).
     fn check_restored(&self) -> Result<(), String> {
-        for (name, u) in [
-            ("M_m", self.inputs.motor_torque),
-            ("M_r", self.inputs.load_torque),
-            ("M_m (integrator's)", self.integrator_inputs.motor_torque),
-            ("M_r (integrator's)", self.integrator_inputs.load_torque),
-        ] {
-            model::params::INPUT_RULE
-                .check(u)
-                .map_err(|rule| format!("input {name} = {} {rule}", model::number(u)))?;
-        }
+        check_inputs(&self.inputs, "")?;
         let derivatives = self
             .input_derivatives
             .motor_torque
@@ -989,63 +774,12 @@ impl Simulation {
         {
             return Err("an input derivative is out of range".into());
         }
-        let (low, high) = TOLERANCE_RANGE;
-        if !(low..=high).contains(&self.tolerance) {
-            return Err(format!(
-                "tolerance = {} is out of range",
-                model::number(self.tolerance)
-            ));
-        }
-        if !self.restart && self.integrator_time < self.time {
-            return Err("the integrator is behind the communication point".into());
-        }
-        // The time may lie past the stop time: Model Exchange's master sets it (its
-        // integrator may step beyond the end and interpolate back), and Co-Simulation's last
-        // step may end past it by a rounding margin. A further step is refused there, not
-        // the state.
-        // The integrator's memory is used only while nothing restarts it; then it must be
-        // what its own steps on this system give.
-        if !self.restart && self.input_derivatives.is_zero() {
-            self.solver.check_memory(
-                &self.integrator_system(),
-                self.integrator_time,
-                &self.integrator_state,
-            )?;
-        }
         Ok(())
     }
 
-    /// After initialisation, without a pending restart, the state at the communication
-    /// point is what the integrator gives there, projected: recomputed, it must agree bit
-    /// for bit (it did when the state was written).
-    fn check_communication_point(&self) -> Result<(), String> {
-        if self.restart || !self.input_derivatives.is_zero() {
-            return Ok(());
-        }
-        // On a copy of the integrator: its dense output may form its coefficients.
-        let integrator = (self.integrator_time, &self.integrator_state);
-        let system = self.integrator_system();
-        let (y, at) =
-            at_communication_point(&mut self.solver.clone(), &system, integrator, self.time)
-                .map_err(|e| e.to_string())?;
-        let g = at.closure;
-        if !same_bits(&y, &self.state)
-            || model::length_residual_from_closure(&self.params, g).to_bits()
-                != self.residual.to_bits()
-        {
-            return Err("the state at the communication point is not the integrator's".into());
-        }
-        Ok(())
-    }
-
-    /// For a state restored after initialisation: the integrator works to the tolerance,
-    /// the positions close the loop and the velocities satisfy B1·ω2 = C1·ω3, to well
-    /// within what the projection leaves.
-    pub fn check_initialised(&self) -> Result<(), String> {
-        if self.solver.tolerances() != tolerances(self.tolerance) {
-            return Err("the integrator's tolerances do not match the tolerance".into());
-        }
-        self.check_communication_point()?;
+    /// For a state restored after initialisation: the positions close the loop and the
+    /// velocities satisfy B1·ω2 = C1·ω3, to well within what the projection leaves.
+    pub fn check_consistent(&self) -> Result<(), String> {
         let (p, y) = (&self.params, &self.state);
         let residual = model::length_residual(p, y[1], y[2]);
         let size = p.l + p.l2 + p.l3 + p.L;
@@ -1069,15 +803,22 @@ impl Simulation {
         }
         Ok(())
     }
+
+    /// The stored residual, bit for bit (a restored driver's recomputation is compared).
+    pub fn residual(&self) -> f64 {
+        self.residual
+    }
 }
 
-/// The drift an input change may cause before the integrator takes the new input, as a
-/// fraction of its error scale ([`Simulation::input_change_is_negligible`]).
-const NEGLIGIBLE_DRIFT: f64 = 0.1;
-
-/// A gap to the next communication point that the integrator does not resolve (it takes
-/// no step below 16·ε·|t|; see `solver::check_step_size`), with a margin.
-const UNRESOLVED_STEP: f64 = 64.0 * f64::EPSILON;
+/// Inputs within the rule the setters apply; `whose` names them in the message.
+pub fn check_inputs(inputs: &Inputs, whose: &str) -> Result<(), String> {
+    for (name, u) in [("M_m", inputs.motor_torque), ("M_r", inputs.load_torque)] {
+        model::params::INPUT_RULE
+            .check(u)
+            .map_err(|rule| format!("input {name}{whose} = {} {rule}", model::number(u)))?;
+    }
+    Ok(())
+}
 
 /// Input derivatives beyond this (N·m/s, N·m/s²) would carry the inputs past any torque
 /// the model admits within a second.
@@ -1117,155 +858,47 @@ fn solver_kind(value: i32) -> Option<SolverKind> {
         })
 }
 
-/// The state at communication point `t_end` from the integrator (at `time` with `state`,
-/// or its dense output inside the last step), projected onto the constraint; with the
-/// closure g and the gradient terms there. `system` is the one the integrator's memory
-/// belongs to.
-#[inline(always)]
-fn at_communication_point(
-    solver: &mut Integrator<STATE_SIZE>,
-    system: &Driven,
-    (time, state): (f64, &State),
-    t_end: f64,
-) -> Result<(State, Projected), SolverError> {
-    let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
-    let mut y = if time == t_end {
-        *state
-    } else {
-        solver
-            .dense_output(system, t_end)
-            .ok_or_else(|| refused("no dense output covers this time".into()))?
-    };
-    match model::project(system.params, &mut y, system.projection_accuracy) {
-        Ok(at) if all_finite(&y) => Ok((y, at)),
-        Ok(_) => Err(refused("the interpolated state is not finite".into())),
-        Err(error) => Err(refused(error.to_string())),
-    }
-}
-
-/// Whether every component of `y` is finite: x·0 is ±0 for a finite x and NaN for an
-/// infinite or NaN one, and so is their sum. Vector multiplications and additions rather
-/// than a test and a branch per component: about 20 fewer instructions per communication
-/// point (valgrind).
-#[inline(always)]
-fn all_finite(y: &State) -> bool {
-    let z = y.map(|v| v * 0.0);
-    ((z[0] + z[4]) + (z[1] + z[5])) + ((z[2] + z[6]) + (z[3] + z[7])) == 0.0
-}
-
-/// The relative accuracy the projection needs of the gradient for the master's relative
-/// tolerance `rtol` ([`model::project`]): a millionth of the integrator's tolerance (at
-/// most 1.5e-12), below which an error of the velocity constraint cannot matter; rounding
-/// where that is larger. On paper case 1 at H = 0.01 and tol 1e-4 (with the integrator's
-/// tolerance at 2e-6, before its step-size control was stabilised), 22 of the 1114
-/// projections that move the angles then went on to Newton's iteration (310 with rounding
-/// asked of the gradient), and the run took 0.95–0.98 × the time (0.96–0.97 at
-/// H = 0.001; two series of 9–11 alternating rounds through the C ABI).
-fn projection_accuracy(rtol: f64) -> f64 {
-    tolerances(rtol).rtol * 1e-6
-}
-
-/// The integrator's tolerances for the master's relative tolerance `rtol` (see
-/// [`TOLERANCE_SAFETY`]); the absolute tolerance equals the relative one, as the angles
-/// and speeds have unit scale.
-fn tolerances(rtol: f64) -> Tolerances {
-    let internal = (rtol * TOLERANCE_SAFETY).min(LOOSEST_INTERNAL_TOLERANCE);
-    Tolerances {
-        rtol: internal,
-        atol: internal,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::variables::{variables, COUNT};
-
-    #[test]
-    fn all_finite_finds_every_non_finite_component() {
-        let finite = [0.0, -0.0, 1e308, -1e308, 5e-324, 1.0, -3.5, 2.0];
-        assert!(all_finite(&finite));
-        for bad in [f64::INFINITY, f64::NEG_INFINITY, f64::NAN] {
-            for i in 0..STATE_SIZE {
-                let mut y = finite;
-                y[i] = bad;
-                assert!(!all_finite(&y), "{bad} at {i}");
-            }
-        }
-    }
 
     /// fmi2GetReal's fast path for φ and ω (by value reference range) gives what the
     /// general path gives, and every other Real variable still reads through the general
     /// path.
     #[test]
     fn real_reads_agree_with_the_variable_table() {
-        let mut sim = Simulation::new();
-        sim.set(
-            crate::variables::value_reference("omega2_0").unwrap(),
-            Value::Real(3.0),
-            true,
-        )
-        .unwrap();
-        sim.initialize(0.0).unwrap();
-        sim.advance(0.05).unwrap();
+        let mut plant = Plant::new();
+        plant
+            .set(
+                crate::variables::value_reference("omega2_0").unwrap(),
+                Value::Real(3.0),
+                true,
+            )
+            .unwrap();
+        plant.initialize(0.0).unwrap();
         let mut state_reads = 0;
         for (vr, var) in variables() {
-            match sim.real_of(var.slot) {
+            match plant.real_of(var.slot) {
                 Some(expected) => {
                     assert_eq!(
-                        sim.read_real(vr).unwrap().to_bits(),
+                        plant.read_real(vr).unwrap().to_bits(),
                         expected.to_bits(),
                         "{}",
                         var.name
                     );
                     state_reads += usize::from(state_component(var.slot).is_some());
                 }
-                None => assert!(sim.read_real(vr).is_err(), "{}", var.name),
+                None => assert!(plant.read_real(vr).is_err(), "{}", var.name),
             }
         }
         assert_eq!(state_reads, STATE_SIZE);
         for i in 0..4 {
             let phi = crate::variables::value_reference(&format!("phi{}", i + 1)).unwrap();
             let omega = crate::variables::value_reference(&format!("omega{}", i + 1)).unwrap();
-            assert_eq!(sim.read_real(phi).unwrap(), sim.state()[i]);
-            assert_eq!(sim.read_real(omega).unwrap(), sim.state()[4 + i]);
+            assert_eq!(plant.read_real(phi).unwrap(), plant.state()[i]);
+            assert_eq!(plant.read_real(omega).unwrap(), plant.state()[4 + i]);
         }
-        assert!(sim.read_real(COUNT as u32).is_err());
-    }
-
-    /// An input moved by an ulp while the integrator is ahead of the communication point:
-    /// no restart, and a state saved then restores (its memory checked against the inputs
-    /// it was computed with) and runs on exactly as the original.
-    #[test]
-    fn a_deferred_input_change_survives_a_saved_state() {
-        let motor = crate::variables::value_reference("M_m").unwrap();
-        let mut sim = Simulation::new();
-        sim.initialize(0.0).unwrap();
-        sim.advance(0.5).unwrap();
-        let steps = sim.statistics().n_steps;
-        let nudged = f64::from_bits(1f64.to_bits() + 1);
-        sim.set(motor, Value::Real(1.0), false).unwrap();
-        sim.advance(0.501).unwrap();
-        sim.set(motor, Value::Real(nudged), false).unwrap();
-        sim.advance(0.502).unwrap();
-        assert!(
-            sim.integrator_time > sim.time,
-            "the integrator is not ahead"
-        );
-        assert_ne!(
-            sim.inputs, sim.integrator_inputs,
-            "the change was not deferred"
-        );
-        let mut w = Writer::default();
-        sim.serialize_into(&mut w);
-        let bytes = w.finish(7);
-        let mut restored = Simulation::deserialize_from(&mut Reader::open(&bytes, 7).unwrap())
-            .expect("a deferred input change restores");
-        restored.check_initialised().unwrap();
-        for sim in [&mut sim, &mut restored] {
-            sim.advance(1.0).unwrap();
-        }
-        assert!(same_bits(sim.state(), restored.state()));
-        assert!(sim.statistics().n_steps - steps < 40);
+        assert!(plant.read_real(COUNT as u32).is_err());
     }
 }

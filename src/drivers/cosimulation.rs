@@ -1,0 +1,449 @@
+//! The co-simulation driver: the FMU integrates the plant between the master's
+//! communication points.
+//!
+//! Two points in time are kept apart: the communication point (the plant's time and state:
+//! what the outputs show) and the integrator's own point, which may lie ahead of it. While
+//! the master changes nothing, the integrator steps at its own pace past communication
+//! points and the state at each point comes from the dense output (then projected onto
+//! the constraint). When the master changes a parameter or the state, or an input by
+//! enough to matter at the tolerance ([`CoSimulation::input_change_is_negligible`]), the
+//! integrator restarts from the communication point.
+
+use crate::model::{self, Inputs, Parameters, Projected, State, STATE_SIZE};
+use crate::plant::{check_inputs, Activity, InputDerivatives, Plant};
+use crate::snapshot::{same_bits, FormatError, Reader, Writer};
+use crate::solver::{Integrator, OdeSystem, SolverError, Statistics, Tolerances};
+
+use super::Experiment;
+
+/// The step-size control holds local errors to this fraction of the master's tolerance,
+/// and never above [`LOOSEST_INTERNAL_TOLERANCE`]: the promise is the tolerance at every
+/// communication point, which the local error test does not see. Two effects escape it:
+/// outputs between integration steps come from DOP853's dense output, whose error is
+/// larger than that of the step points on this model, and over long undamped runs the
+/// phase error accumulates. The fraction was chosen by the benchmark harness, which
+/// measures the error at every communication point against an independent reference
+/// (docs/benchmark.md).
+pub const TOLERANCE_SAFETY: f64 = 1.0 / 30.0;
+/// Above this internal tolerance DOP853's steps on the paper's mechanism grow so long that
+/// its interpolant is no longer accurate to the master's tolerance between steps; looser
+/// tolerances therefore cost what this one costs.
+pub const LOOSEST_INTERNAL_TOLERANCE: f64 = 1.5e-6;
+
+/// The drift an input change may cause before the integrator takes the new input, as a
+/// fraction of its error scale ([`CoSimulation::input_change_is_negligible`]).
+const NEGLIGIBLE_DRIFT: f64 = 0.1;
+
+/// A gap to the next communication point that the integrator does not resolve (it takes
+/// no step below 16·ε·|t|; see `solver::check_step_size`), with a margin.
+const UNRESOLVED_STEP: f64 = 64.0 * f64::EPSILON;
+
+/// The mechanism as the integrator sees it: parameters, and inputs as polynomials in time.
+struct Driven<'a> {
+    params: &'a Parameters,
+    inputs: &'a Inputs,
+    /// `None` while the inputs are held (no derivatives set): the right-hand side then
+    /// skips the two polynomials.
+    derivatives: Option<&'a InputDerivatives>,
+    anchor: f64,
+    /// The relative accuracy the projection needs of the gradient ([`model::project`]).
+    projection_accuracy: f64,
+}
+
+impl<'a> Driven<'a> {
+    /// The plant's system with `inputs` (the plant's own, or those the integrator last
+    /// stepped with), anchored at the communication point.
+    fn new(plant: &'a Plant, inputs: &'a Inputs, tolerance: f64) -> Self {
+        let derivatives = plant.input_derivatives();
+        Self {
+            params: plant.params(),
+            inputs,
+            derivatives: (!derivatives.is_zero()).then_some(derivatives),
+            anchor: plant.time(),
+            projection_accuracy: projection_accuracy(tolerance),
+        }
+    }
+
+    #[inline]
+    fn inputs_at(&self, t: f64) -> Inputs {
+        match self.derivatives {
+            None => *self.inputs,
+            Some(derivatives) => derivatives.at(self.inputs, self.anchor, t),
+        }
+    }
+}
+
+impl OdeSystem<STATE_SIZE> for Driven<'_> {
+    #[inline(always)]
+    fn rhs(&self, t: f64, y: &State, dy: &mut State) {
+        model::state_derivative(self.params, &self.inputs_at(t), y, dy);
+    }
+
+    #[inline(always)]
+    fn project(&self, previous: &State, y: &mut State) -> Result<(), String> {
+        let at =
+            model::project(self.params, y, self.projection_accuracy).map_err(|e| e.to_string())?;
+        model::check_passage(self.params, previous, y, &at).map_err(|e| e.to_string())
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct CoSimulation {
+    /// The integrator's own point, at or ahead of the plant's communication point.
+    integrator_time: f64,
+    integrator_state: State,
+    /// The inputs the integrator's memory (its last step, its stored first stage) was
+    /// computed with; they differ from the plant's only by a change too small to matter,
+    /// until the integrator steps again.
+    integrator_inputs: Inputs,
+    /// The integrator must start over from the communication point before its next step
+    /// (it failed, or changed method).
+    restart: bool,
+    solver: Integrator<STATE_SIZE>,
+}
+
+impl CoSimulation {
+    /// A driver for `plant` under `experiment`, starting at the plant's point with the
+    /// method its `solver` parameter names.
+    pub fn new(plant: &Plant, experiment: &Experiment) -> Self {
+        Self {
+            integrator_time: 0.0,
+            integrator_state: [0.0; STATE_SIZE],
+            integrator_inputs: Inputs::default(),
+            restart: true,
+            solver: Integrator::new(
+                plant.solver_kind().choice(),
+                tolerances(experiment.tolerance),
+            ),
+        }
+    }
+
+    pub fn statistics(&self) -> Statistics {
+        self.solver.statistics()
+    }
+
+    /// What the statistics outputs show.
+    pub fn activity(&self) -> Activity {
+        Activity {
+            statistics: self.solver.statistics(),
+            method: self.solver.method(),
+        }
+    }
+
+    /// `solver = dop853` on a problem where DOP853 is limited by stability (see
+    /// [`Integrator::fixed_dop853_is_stiff`]): worth a warning to the user.
+    pub fn dop853_is_stability_limited(&self) -> bool {
+        self.solver.fixed_dop853_is_stiff()
+    }
+
+    /// Advance the plant's communication point to `t_end`. On error the plant's time and
+    /// state stay as they were.
+    #[inline(always)]
+    pub fn advance(
+        &mut self,
+        plant: &mut Plant,
+        t_end: f64,
+        experiment: &Experiment,
+    ) -> Result<(), SolverError> {
+        if plant.take_changed() {
+            self.restart = true;
+        }
+        if self.solver.reconsider(t_end - plant.time()) {
+            // `auto` changed method: the new one starts from the communication point.
+            self.restart = true;
+        }
+        if !plant.input_derivatives().is_zero() {
+            // The input polynomials are anchored at this step's start: a new right-hand side.
+            self.restart = true;
+        }
+        let inputs_changed = *plant.inputs() != self.integrator_inputs;
+        if inputs_changed && !self.input_change_is_negligible(plant, experiment) {
+            self.restart = true;
+        }
+        if self.restart {
+            self.integrator_time = plant.time();
+            self.integrator_state = *plant.state();
+            self.integrator_inputs = *plant.inputs();
+            self.solver.invalidate();
+            self.restart = false;
+        } else if inputs_changed && self.integrator_time < t_end {
+            // A negligible change: the next step takes the new inputs, from the integrator's
+            // own point and with its step size.
+            self.integrator_inputs = *plant.inputs();
+            self.solver.invalidate();
+        }
+        let (y, at) = self.integrate_to(plant, t_end, experiment)?;
+        plant.accept_point(t_end, y, &at);
+        Ok(())
+    }
+
+    /// The integrator taken to (or past) `t_end`, and the state there, projected.
+    #[inline(always)]
+    fn integrate_to(
+        &mut self,
+        plant: &Plant,
+        t_end: f64,
+        experiment: &Experiment,
+    ) -> Result<(State, Projected), SolverError> {
+        let system = Driven::new(plant, &self.integrator_inputs, experiment.tolerance);
+        let limit = experiment.limit().max(t_end);
+        if self.integrator_time < t_end {
+            let gap = t_end - self.integrator_time;
+            if gap <= UNRESOLVED_STEP * self.integrator_time.abs().max(1.0) {
+                // Shorter than any step the integrator takes: one Taylor step, y + h·f(t, y),
+                // whose error h²·|ÿ|/2 lies far below the rounding of y. The integrator
+                // continues from there (with its step size).
+                let mut f = [0.0; STATE_SIZE];
+                system.rhs(self.integrator_time, &self.integrator_state, &mut f);
+                for (y, dy) in self.integrator_state.iter_mut().zip(f) {
+                    *y += gap * dy;
+                }
+                self.integrator_time = t_end;
+                self.solver.invalidate();
+            } else {
+                let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
+                if let Err(error) = self.solver.integrate(&system, t, y, t_end, limit) {
+                    self.restart = true;
+                    return Err(error);
+                }
+            }
+        }
+        let integrator = (self.integrator_time, &self.integrator_state);
+        at_communication_point(&mut self.solver, &system, integrator, t_end).inspect_err(|_| {
+            self.restart = true;
+        })
+    }
+
+    /// Whether the integrator may go on past the master's new inputs without a restart.
+    ///
+    /// The integrator's last step, computed with the old inputs, may reach past the
+    /// communication point by `lag`; the dense output there, and its stored first stage,
+    /// carry the old inputs, and its next step takes the new ones. Over the lag the state
+    /// then drifts from the true one by about Δf·lag, Δf being the change of the right-hand
+    /// side at the communication point. The change is negligible when that drift is within
+    /// a tenth of the integrator's error scale (atol + rtol·|y_i|) in every component: a
+    /// tenth of what one step may add, at most once per step. An input moved by a few ulps
+    /// (a master interpolating a constant input) is negligible at every tolerance above
+    /// about 1e-12; a change that matters restarts the integrator as before.
+    fn input_change_is_negligible(&self, plant: &Plant, experiment: &Experiment) -> bool {
+        let lag = self.integrator_time - plant.time();
+        if lag <= 0.0 {
+            return true;
+        }
+        let (mut new, mut old) = ([0.0; STATE_SIZE], [0.0; STATE_SIZE]);
+        let (time, state) = (plant.time(), plant.state());
+        Driven::new(plant, plant.inputs(), experiment.tolerance).rhs(time, state, &mut new);
+        Driven::new(plant, &self.integrator_inputs, experiment.tolerance)
+            .rhs(time, state, &mut old);
+        let Tolerances { rtol, atol } = self.solver.tolerances();
+        (0..STATE_SIZE).all(|i| {
+            (new[i] - old[i]).abs() * lag <= NEGLIGIBLE_DRIFT * (atol + rtol * state[i].abs())
+        })
+    }
+
+    /// Everything that determines the integrator's future, for a serialized FMU state.
+    pub fn serialize_into(&self, w: &mut Writer) {
+        w.f64(self.integrator_time);
+        w.f64s(&self.integrator_state);
+        w.f64s(&[
+            self.integrator_inputs.motor_torque,
+            self.integrator_inputs.load_torque,
+        ]);
+        w.bool(self.restart);
+        self.solver.serialize_into(w);
+    }
+
+    /// The driver written by [`CoSimulation::serialize_into`], checked against the plant
+    /// restored with it.
+    pub fn deserialize_from(
+        r: &mut Reader,
+        plant: &Plant,
+        experiment: &Experiment,
+    ) -> Result<Self, FormatError> {
+        let integrator_time = r.f64()?;
+        let integrator_state = r.f64s()?;
+        let [motor_torque, load_torque] = r.f64s()?;
+        let restart = r.bool()?;
+        let solver = Integrator::deserialize_from(r)?;
+        let driver = Self {
+            integrator_time,
+            integrator_state,
+            integrator_inputs: Inputs {
+                motor_torque,
+                load_torque,
+            },
+            restart,
+            solver,
+        };
+        driver
+            .check_restored(plant, experiment)
+            .map_err(|e| FormatError(format!("invalid serialized state: {e}")))?;
+        Ok(driver)
+    }
+
+    /// Whether the integrator starts over before its next step, for whatever reason.
+    fn restarts(&self, plant: &Plant) -> bool {
+        self.restart || plant.is_changed()
+    }
+
+    /// The values of a restored driver: its inputs within their rules, its point not
+    /// behind the communication point, and its memory what its own steps on this system
+    /// give (that memory is used only while nothing restarts it).
+    fn check_restored(&self, plant: &Plant, experiment: &Experiment) -> Result<(), String> {
+        check_inputs(&self.integrator_inputs, " (integrator's)")?;
+        if self.restarts(plant) {
+            return Ok(());
+        }
+        if self.integrator_time < plant.time() {
+            return Err("the integrator is behind the communication point".into());
+        }
+        // The time may lie past the stop time: Co-Simulation's last step may end past it
+        // by a rounding margin. A further step is refused there, not the state.
+        if plant.input_derivatives().is_zero() {
+            let system = Driven::new(plant, &self.integrator_inputs, experiment.tolerance);
+            self.solver
+                .check_memory(&system, self.integrator_time, &self.integrator_state)?;
+        }
+        Ok(())
+    }
+
+    /// For a state restored after initialisation: the integrator works to the experiment's
+    /// tolerance, and without a pending restart the plant's state is what the integrator
+    /// gives at the communication point, projected: recomputed, it must agree bit for bit
+    /// (it did when the state was written).
+    pub fn check_initialised(&self, plant: &Plant, experiment: &Experiment) -> Result<(), String> {
+        if self.solver.tolerances() != tolerances(experiment.tolerance) {
+            return Err("the integrator's tolerances do not match the tolerance".into());
+        }
+        if self.restarts(plant) || !plant.input_derivatives().is_zero() {
+            return Ok(());
+        }
+        // On a copy of the integrator: its dense output may form its coefficients.
+        let integrator = (self.integrator_time, &self.integrator_state);
+        let system = Driven::new(plant, &self.integrator_inputs, experiment.tolerance);
+        let (y, at) =
+            at_communication_point(&mut self.solver.clone(), &system, integrator, plant.time())
+                .map_err(|e| e.to_string())?;
+        let residual = model::length_residual_from_closure(plant.params(), at.closure);
+        if !same_bits(&y, plant.state()) || residual.to_bits() != plant.residual().to_bits() {
+            return Err("the state at the communication point is not the integrator's".into());
+        }
+        Ok(())
+    }
+}
+
+/// The state at communication point `t_end` from the integrator (at `time` with `state`,
+/// or its dense output inside the last step), projected onto the constraint; with the
+/// closure g and the gradient terms there. `system` is the one the integrator's memory
+/// belongs to.
+#[inline(always)]
+fn at_communication_point(
+    solver: &mut Integrator<STATE_SIZE>,
+    system: &Driven,
+    (time, state): (f64, &State),
+    t_end: f64,
+) -> Result<(State, Projected), SolverError> {
+    let refused = |reason: String| SolverError::ProjectionFailed { t: t_end, reason };
+    let mut y = if time == t_end {
+        *state
+    } else {
+        solver
+            .dense_output(system, t_end)
+            .ok_or_else(|| refused("no dense output covers this time".into()))?
+    };
+    match model::project(system.params, &mut y, system.projection_accuracy) {
+        Ok(at) if all_finite(&y) => Ok((y, at)),
+        Ok(_) => Err(refused("the interpolated state is not finite".into())),
+        Err(error) => Err(refused(error.to_string())),
+    }
+}
+
+/// Whether every component of `y` is finite: x·0 is ±0 for a finite x and NaN for an
+/// infinite or NaN one, and so is their sum. Vector multiplications and additions rather
+/// than a test and a branch per component, on the path of every communication point.
+#[inline(always)]
+fn all_finite(y: &State) -> bool {
+    let z = y.map(|v| v * 0.0);
+    ((z[0] + z[4]) + (z[1] + z[5])) + ((z[2] + z[6]) + (z[3] + z[7])) == 0.0
+}
+
+/// The relative accuracy the projection needs of the gradient for the master's relative
+/// tolerance `rtol` ([`model::project`]): a millionth of the integrator's tolerance (at
+/// most 1.5e-12), below which an error of the velocity constraint cannot matter; rounding
+/// where that is larger. Asking rounding of the gradient sent many more projections on to
+/// Newton's iteration for no gain in accuracy.
+fn projection_accuracy(rtol: f64) -> f64 {
+    tolerances(rtol).rtol * 1e-6
+}
+
+/// The integrator's tolerances for the master's relative tolerance `rtol` (see
+/// [`TOLERANCE_SAFETY`]); the absolute tolerance equals the relative one, as the angles
+/// and speeds have unit scale.
+fn tolerances(rtol: f64) -> Tolerances {
+    let internal = (rtol * TOLERANCE_SAFETY).min(LOOSEST_INTERNAL_TOLERANCE);
+    Tolerances {
+        rtol: internal,
+        atol: internal,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::Value;
+    use crate::variables::value_reference;
+
+    #[test]
+    fn all_finite_finds_every_non_finite_component() {
+        let finite = [0.0, -0.0, 1e308, -1e308, 5e-324, 1.0, -3.5, 2.0];
+        assert!(all_finite(&finite));
+        for bad in [f64::INFINITY, f64::NEG_INFINITY, f64::NAN] {
+            for i in 0..STATE_SIZE {
+                let mut y = finite;
+                y[i] = bad;
+                assert!(!all_finite(&y), "{bad} at {i}");
+            }
+        }
+    }
+
+    /// An input moved by an ulp while the integrator is ahead of the communication point:
+    /// no restart, and a state saved then restores (its memory checked against the inputs
+    /// it was computed with) and runs on exactly as the original.
+    #[test]
+    fn a_deferred_input_change_survives_a_saved_state() {
+        let motor = value_reference("M_m").unwrap();
+        let experiment = Experiment::new(0.0);
+        let mut plant = Plant::new();
+        plant.initialize(0.0).unwrap();
+        let mut driver = CoSimulation::new(&plant, &experiment);
+        driver.advance(&mut plant, 0.5, &experiment).unwrap();
+        let steps = driver.statistics().n_steps;
+        let nudged = f64::from_bits(1f64.to_bits() + 1);
+        plant.set(motor, Value::Real(1.0), false).unwrap();
+        driver.advance(&mut plant, 0.501, &experiment).unwrap();
+        plant.set(motor, Value::Real(nudged), false).unwrap();
+        driver.advance(&mut plant, 0.502, &experiment).unwrap();
+        assert!(
+            driver.integrator_time > plant.time(),
+            "the integrator is not ahead"
+        );
+        assert_ne!(
+            *plant.inputs(),
+            driver.integrator_inputs,
+            "the change was not deferred"
+        );
+        let mut w = Writer::default();
+        plant.serialize_into(&mut w);
+        driver.serialize_into(&mut w);
+        let bytes = w.finish(7);
+        let mut r = Reader::open(&bytes, 7).unwrap();
+        let mut plant_2 = Plant::deserialize_from(&mut r).unwrap();
+        let mut driver_2 = CoSimulation::deserialize_from(&mut r, &plant_2, &experiment)
+            .expect("a deferred input change restores");
+        driver_2.check_initialised(&plant_2, &experiment).unwrap();
+        driver.advance(&mut plant, 1.0, &experiment).unwrap();
+        driver_2.advance(&mut plant_2, 1.0, &experiment).unwrap();
+        assert!(same_bits(plant.state(), plant_2.state()));
+        assert!(driver.statistics().n_steps - steps < 40);
+    }
+}
