@@ -27,6 +27,57 @@ pub trait OdeSystem<const N: usize> {
     }
 }
 
+/// One integration method, as the co-simulation driver uses it: DOP853 and Radau IIA
+/// implement it, [`Integrator`] switches between them through it, and one conformance
+/// suite (`tests/integrators.rs`) runs for each.
+pub trait Stepper<const N: usize>: Clone + Sized {
+    /// A method with no memory, working to `tolerances`.
+    fn new(tolerances: Tolerances) -> Self;
+
+    fn statistics(&self) -> Statistics;
+
+    /// What this method hands on when `auto` changes method.
+    fn progress(&self) -> Progress;
+
+    /// Continue where another method stopped: its counters go on, and its proposed step
+    /// size is this one's first guess.
+    fn resume(progress: Progress) -> Self;
+
+    /// The state or the right-hand side changed outside the integrator (new inputs, a
+    /// restored state): what the method remembers of the last step no longer applies. The
+    /// step size stays.
+    fn invalidate(&mut self);
+
+    /// Integrate from (`*t`, `*y`) until `*t >= target`, never stepping past `limit` (a
+    /// step that would, lands on it exactly); `target == limit` lands exactly on the
+    /// target. The solution in between comes from [`Stepper::dense_output`]. On error,
+    /// `*t` and `*y` hold the last accepted (projected) step.
+    fn integrate<S: OdeSystem<N>>(
+        &mut self,
+        system: &S,
+        t: &mut f64,
+        y: &mut [f64; N],
+        target: f64,
+        limit: f64,
+    ) -> Result<(), SolverError>;
+
+    /// The solution at `t` within the last accepted step; `None` when no step is available
+    /// (none taken since the last [`Stepper::invalidate`]) or `t` lies outside it.
+    fn dense_output<S: OdeSystem<N>>(&mut self, system: &S, t: f64) -> Option<[f64; N]>;
+
+    /// Check restored memory against `system` at the integrator's point (t, y): memory
+    /// that its own steps would not give was altered after it was written.
+    fn check_memory<S: OdeSystem<N>>(&self, system: &S, t: f64, y: &[f64; N])
+        -> Result<(), String>;
+
+    /// Everything the method remembers, for a serialized FMU state: restoring it
+    /// continues bit for bit.
+    fn serialize_into(&self, w: &mut Writer);
+
+    /// The method written by [`Stepper::serialize_into`].
+    fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError>;
+}
+
 /// A runaway guard per `integrate` call: a legitimate long call needs far fewer steps (a
 /// 100 s step of a k = 1e7 spring takes about 2.5e5 explicit ones), while a runaway (a
 /// blow-up, a model made stiff beyond the explicit method) is stopped after about half a
@@ -244,34 +295,5 @@ pub(crate) mod test_problems {
 
     pub fn tol(rtol: f64) -> Tolerances {
         Tolerances { rtol, atol: rtol }
-    }
-
-    /// Runs `original` and `copy` (an integrator and its restored copy) from the same
-    /// `start` to their ends and asserts they arrive at the same bits.
-    pub fn assert_continue_alike<const N: usize>(
-        start: (f64, [f64; N]),
-        mut original: impl FnMut(&mut f64, &mut [f64; N]),
-        mut copy: impl FnMut(&mut f64, &mut [f64; N]),
-    ) {
-        let ((mut t, mut y), (mut t2, mut y2)) = (start, start);
-        original(&mut t, &mut y);
-        copy(&mut t2, &mut y2);
-        assert_eq!((t, y), (t2, y2));
-    }
-
-    /// For rtol 1e-4, 1e-7 and 1e-10: (rtol, error at t = 10) of the oscillator integrated
-    /// from t = 0 by `integrate`, which must end exactly on 10.
-    pub fn oscillator_errors(
-        mut integrate: impl FnMut(Tolerances, &mut f64, &mut [f64; 2]),
-    ) -> [(f64, f64); 3] {
-        [1e-4, 1e-7, 1e-10].map(|rtol| {
-            let (mut t, mut y) = (0.0, [1.0, 0.0]);
-            integrate(tol(rtol), &mut t, &mut y);
-            assert_eq!(t, 10.0);
-            (
-                rtol,
-                (y[0] - 10f64.cos()).abs().max((y[1] + 10f64.sin()).abs()),
-            )
-        })
     }
 }

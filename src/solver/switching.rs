@@ -17,7 +17,7 @@
 //!   new method restarts from the communication point with the old method's step size;
 //!   the statistics continue.
 
-use super::{Dop853, OdeSystem, Radau5, SolverError, Statistics, Tolerances};
+use super::{Dop853, OdeSystem, Radau5, SolverError, Statistics, Stepper, Tolerances};
 use crate::snapshot::{FormatError, Reader, Writer};
 
 /// Radau IIA ends a step on every communication point, so it can only beat a
@@ -54,6 +54,17 @@ enum Active<const N: usize> {
     Implicit(Radau5<N>),
 }
 
+/// `$body` on the active method, bound to `$s`: the one place that tells the methods apart
+/// (each arm calls the same [`Stepper`] method).
+macro_rules! on_active {
+    ($active:expr, $s:ident => $body:expr) => {
+        match $active {
+            Active::Explicit($s) => $body,
+            Active::Implicit($s) => $body,
+        }
+    };
+}
+
 /// One integrator with a method choice; the same calls whichever method is active.
 #[derive(Clone, Debug)]
 pub struct Integrator<const N: usize> {
@@ -78,42 +89,30 @@ impl<const N: usize> Integrator<N> {
         }
     }
 
-    /// See [`Dop853::check_memory`] and [`Radau5::check_memory`].
+    /// See [`Stepper::check_memory`].
     pub fn check_memory<S: OdeSystem<N>>(
         &self,
         system: &S,
         t: f64,
         y: &[f64; N],
     ) -> Result<(), String> {
-        match &self.active {
-            Active::Explicit(s) => s.check_memory(system, t, y),
-            Active::Implicit(s) => s.check_memory(system, t, y),
-        }
+        on_active!(&self.active, s => s.check_memory(system, t, y))
     }
 
     /// The tolerances the active method controls its steps to.
     pub fn tolerances(&self) -> Tolerances {
-        match &self.active {
-            Active::Explicit(s) => s.progress().tolerances,
-            Active::Implicit(s) => s.progress().tolerances,
-        }
+        on_active!(&self.active, s => s.progress().tolerances)
     }
 
     pub fn statistics(&self) -> Statistics {
-        match &self.active {
-            Active::Explicit(s) => s.statistics(),
-            Active::Implicit(s) => s.statistics(),
-        }
+        on_active!(&self.active, s => s.statistics())
     }
 
     pub fn invalidate(&mut self) {
-        match &mut self.active {
-            Active::Explicit(s) => s.invalidate(),
-            Active::Implicit(s) => s.invalidate(),
-        }
+        on_active!(&mut self.active, s => s.invalidate())
     }
 
-    /// See [`Dop853::integrate`] and [`Radau5::integrate`] (which ends on `target`).
+    /// See [`Stepper::integrate`] (Radau IIA ends on `target`).
     #[inline(always)]
     pub fn integrate<S: OdeSystem<N>>(
         &mut self,
@@ -123,19 +122,13 @@ impl<const N: usize> Integrator<N> {
         target: f64,
         limit: f64,
     ) -> Result<(), SolverError> {
-        match &mut self.active {
-            Active::Explicit(s) => s.integrate(system, t, y, target, limit),
-            Active::Implicit(s) => s.integrate(system, t, y, target, limit),
-        }
+        on_active!(&mut self.active, s => s.integrate(system, t, y, target, limit))
     }
 
     /// The solution at `t` within the last accepted step, if any.
     #[inline(always)]
     pub fn dense_output<S: OdeSystem<N>>(&mut self, system: &S, t: f64) -> Option<[f64; N]> {
-        match &mut self.active {
-            Active::Explicit(s) => s.dense_output(system, t),
-            Active::Implicit(s) => s.dense_output(system, t),
-        }
+        on_active!(&mut self.active, s => s.dense_output(system, t))
     }
 
     /// Whether the user fixed DOP853 and its stiffness test finds the step size limited by
@@ -174,16 +167,11 @@ impl<const N: usize> Integrator<N> {
             Choice::Fixed(Method::Dop853) => 1,
             Choice::Fixed(Method::Radau5) => 2,
         });
-        match &self.active {
-            Active::Explicit(s) => {
-                w.u8(1);
-                s.serialize_into(w);
-            }
-            Active::Implicit(s) => {
-                w.u8(2);
-                s.serialize_into(w);
-            }
-        }
+        w.u8(match self.method() {
+            Method::Dop853 => 1,
+            Method::Radau5 => 2,
+        });
+        on_active!(&self.active, s => s.serialize_into(w));
     }
 
     /// The integrator written by [`Integrator::serialize_into`].
