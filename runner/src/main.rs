@@ -3,17 +3,10 @@
 //! FMU and keep it for their whole life, so the per-point work never passes through
 //! Python; a crash of the FMU ends only this process.
 
-mod description;
-mod fmi;
-mod messages;
-mod metrics;
-mod plan;
-mod point;
-mod protocol;
-mod stdio;
-
 use std::io::BufWriter;
 use std::path::Path;
+
+use fmu_runner::{fmi, messages, protocol, stdio};
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

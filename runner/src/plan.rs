@@ -64,6 +64,10 @@ impl ByType {
         self.real.len() + self.integer.len() + self.boolean.len()
     }
 
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
     fn push(&mut self, variable: &Variable) -> Result<(), String> {
         let list = match type_group(variable)? {
             0 => &mut self.real,

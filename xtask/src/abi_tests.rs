@@ -90,19 +90,19 @@ const SCENARIOS: &[Scenario] = &[
 
 /// A variable of the model description: value reference and type element.
 #[derive(Clone)]
-struct Variable {
-    vr: u32,
+pub struct Variable {
+    pub vr: u32,
     kind: char,
 }
 
-struct Description {
-    guid: String,
-    variables: BTreeMap<String, Variable>,
+pub struct Description {
+    pub guid: String,
+    pub variables: BTreeMap<String, Variable>,
     /// The outputs, in the description's order.
     outputs: Vec<String>,
 }
 
-fn read_description(xml: &Path) -> Result<Description> {
+pub fn read_description(xml: &Path) -> Result<Description> {
     use quick_xml::events::Event;
     let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
     let mut reader = quick_xml::Reader::from_str(&text);

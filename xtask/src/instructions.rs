@@ -29,26 +29,18 @@ const TOLERANCE: f64 = 1e-8;
 
 /// The description's GUID and the value references of [`OUTPUTS`].
 fn references(xml: &Path) -> Result<(String, Vec<u32>)> {
-    let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
-    let guid = attribute(&text, "guid=\"").ok_or("no guid in the model description")?;
+    let description = crate::abi_tests::read_description(xml)?;
     let refs = OUTPUTS
         .iter()
         .map(|name| {
-            let at = text
-                .find(&format!("name=\"{name}\""))
-                .ok_or_else(|| format!("no variable {name}"))?;
-            attribute(&text[at..], "valueReference=\"")
-                .and_then(|v| v.parse().ok())
-                .ok_or_else(|| format!("{name}: no value reference"))
+            description
+                .variables
+                .get(*name)
+                .map(|v| v.vr)
+                .ok_or_else(|| format!("no variable {name} in {}", xml.display()))
         })
         .collect::<Result<Vec<u32>>>()?;
-    Ok((guid, refs))
-}
-
-fn attribute(text: &str, key: &str) -> Option<String> {
-    let start = text.find(key)? + key.len();
-    let end = start + text[start..].find('"')?;
-    Some(text[start..end].to_string())
+    Ok((description.guid, refs))
 }
 
 fn build_master(dir: &Path) -> Result<PathBuf> {

@@ -1,0 +1,15 @@
+//! The one place in the project that loads an FMI 2.0 co-simulation FMU: unpack the
+//! archive ([`archive`]), read its description with quick-xml ([`description`]), load its
+//! binary and own its instances, freed on drop ([`fmi`]). The `fmu-runner` binary serves
+//! sweep points over it ([`protocol`], [`plan`], [`point`], [`metrics`]); the benchmark
+//! harness drives the packed FMU through the same types.
+
+pub mod archive;
+pub mod description;
+pub mod fmi;
+pub mod messages;
+pub mod metrics;
+pub mod plan;
+pub mod point;
+pub mod protocol;
+pub mod stdio;
