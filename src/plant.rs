@@ -676,10 +676,8 @@ const fn state_component(slot: Slot) -> Option<usize> {
 
 /// The value reference of φ1, which φ2…ω4 follow in state order (the table is built that
 /// way, and this checks it when compiling): fmi2GetReal serves a state with one
-/// subtraction and one comparison. A table lookup per value (itself in place of two nested
-/// matches, which perf had put at a tenth of a doStep-and-read cycle at H = 1 ms) took 18
-/// instructions more per communication point with the eight states read (valgrind, paper
-/// case 1 at H = 0.001).
+/// subtraction and one comparison, cheaper than a table lookup per value on the path of
+/// every read.
 const FIRST_STATE_VR: u32 = {
     let table = build_table();
     let mut first = 0;

@@ -635,10 +635,8 @@ impl Instance {
     }
 
     /// Inlined into fmi2GetReal, as `do_step` into fmi2DoStep: left to itself, the compiler
-    /// kept both as calls of their own in the cdylib, which cost about 65 more instructions
-    /// per communication point (valgrind) and 3 % more time on paper case 1 at H = 0.01,
-    /// tol 1e-4 (5 % at H = 0.001; medians of five alternating rounds through the loaded
-    /// library).
+    /// kept both as calls of their own in the cdylib, a cost paid at every communication
+    /// point.
     #[inline(always)]
     pub fn get_real(&mut self, vrs: &[u32], values: &mut [f64]) -> Outcome {
         self.assemble_if_needed()?;
@@ -731,13 +729,13 @@ impl Instance {
 
     #[inline(always)]
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
-        // The larger of two numbers that are not NaN here: `f64::max` also handles NaN, in
-        // a sequence of seven instructions (12 more per step for the two uses, valgrind).
+        // The larger of two numbers that are not NaN here: `f64::max` also handles NaN, in a
+        // longer sequence of instructions on every step.
         let larger = |a: f64, b: f64| if a > b { a } else { b };
         let now = self.current.plant.time();
         // Finiteness as a comparison with f64::MAX rather than `is_finite`: with the latter
-        // the compiler tested these checks on the bits, 13 more instructions per call
-        // (valgrind). NaN fails every comparison.
+        // the compiler tested these checks on the bits, a longer sequence. NaN fails every
+        // comparison.
         let step_is_valid = step > 0.0 && step <= f64::MAX;
         let current_is_finite = current.abs() <= f64::MAX;
         if !step_is_valid {

@@ -74,7 +74,7 @@ pub const LOG_CATEGORIES: &[(&str, &str)] = &[
 
 /// The GUID: a 128-bit FNV-1a hash of the interface, formatted as a UUID. Formed once per
 /// process: every fmi2Instantiate and every serialized state checks it, and formatting the
-/// whole variable table costs about 15 µs, as much as a short simulation.
+/// whole variable table costs as much as a short simulation.
 pub fn guid() -> &'static str {
     static GUID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
     GUID.get_or_init(interface_guid)

@@ -120,7 +120,7 @@ fn base_angle<T: Scalar>(a: f64, l: f64, sign: f64, q: T) -> (T, T) {
         // The pin stays on the side x > 0 of the pivot.
         y.atan2(x)
     } else {
-        // ... or on the side x < 0: measured from the negative x axis.
+        // ... or on the side x < 0: the angle from the negative x axis, turned by π.
         (-y).atan2(-x) + PI
     };
     (theta, r)

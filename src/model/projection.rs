@@ -51,15 +51,13 @@ pub fn project(p: &Parameters, y: &mut State, accuracy: f64) -> Result<Projected
 /// and C1) to within rounding or `accuracy`, which [`taylor_is_accurate`] checks before
 /// they are used, and the velocity projected here gets a small correction for the moved
 /// gradient. No second closure or division waits on the first, and this chain of
-/// dependent operations sets much of the cost of a communication point: paper case 1 at
-/// H = 0.01 took 3–4.5 % less time at tol 1e-6 and 1e-8 than with a second closure.
+/// dependent operations sets much of the cost of a communication point, which is why a
+/// second closure is avoided.
 ///
 /// Where one step does not settle it, `Err` gives the sines and cosines of the angles `y`
-/// now holds, for Newton's iteration to go on from. On paper case 1 at H = 0.01, tol 1e-4
-/// (measured with an earlier step-size control, the integrator at 2e-6), that was 22 of
-/// the 1114 projections that move the angles with the accuracy the simulation asked for
-/// there (2e-12), 310 with rounding (468 with a remainder bound five times
-/// [`taylor_is_accurate`]'s).
+/// now holds, for Newton's iteration to go on from: a small share of the projections at
+/// the accuracy the driver asks for, a larger one when rounding is asked of the gradient
+/// or the remainder bound of [`taylor_is_accurate`] is looser.
 #[inline(always)]
 fn one_newton_step(
     p: &Parameters,

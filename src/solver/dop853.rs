@@ -31,13 +31,9 @@ const FACTOR_MAX: f64 = 6.0;
 const SAFETY: f64 = 0.9;
 /// Lund stabilisation of the step-size control (HNW II, IV.2; dop853.f's `beta`, which
 /// Hairer allows up to 0.04): the new step size also depends on the last accepted step's
-/// error, h_new = h·SAFETY·err^(−1/8)·(err^0.2·err_old)^β. On paper case 1 (H = 0.01,
-/// tol 1e-6, the integrator at a fiftieth of it) 11 of 218 steps are rejected, against
-/// 36 of 232 with β = 0 (at the thirtieth used now, 11 of 206); over paper case 1 and the
-/// 100 s free run (H = 0.01 and 0.1, tol 1e-5…1e-10) it takes 0.92–1.00 × the
-/// evaluations of β = 0 at equal worst error over all communication points (interpolated
-/// between tolerances; measured with the powers from the C library, which
-/// [`step_factor`] approximates to 3e-4).
+/// error, h_new = h·SAFETY·err^(−1/8)·(err^0.2·err_old)^β. On the paper's cases it
+/// rejects far fewer steps than β = 0 and takes no more evaluations at equal worst error
+/// over all communication points ([`step_factor`] approximates the powers).
 const BETA: f64 = 0.04;
 /// Hairer's floor on the remembered error (his `facold`), and its starting value; its
 /// log₂ is what the control stores.
@@ -50,9 +46,8 @@ const LOG2_SMALLEST_REMEMBERED_ERROR: f64 = rough_log2(SMALLEST_REMEMBERED_ERROR
 struct LastStep<const N: usize> {
     t_old: f64,
     h: f64,
-    /// 1/h: the dense output's x = (t − t_old)/h by a multiplication, at the start of each
-    /// communication point's chain of dependent operations (with a division there, paper
-    /// case 1 at H = 0.001 took 1.8 % more time: median of eleven alternating rounds).
+    /// 1/h: the dense output's x = (t − t_old)/h by a multiplication rather than a
+    /// division, at the start of each communication point's chain of dependent operations.
     inverse_h: f64,
     y_old: [f64; N],
     y_new: [f64; N],
@@ -83,12 +78,10 @@ pub struct Dop853<const N: usize> {
 /// t + h). Above the stability boundary the step size is limited by stability, not accuracy.
 ///
 /// The estimate sees λ only along one direction, so in a stability-limited run (steps
-/// hovering at the boundary) only a part of the steps show it: 665 of 1265 (53 %) on the
-/// stiff coupling case (k = 1e7, d = 1e3, 1 s, H = 1e-3, tol 1e-6), while the paper's
-/// cases 1 and 2 (10 s, H = 0.01, tol 1e-4…1e-10) exceed it in 19 of 2229 steps, 17 of
-/// them at tol 1e-4 and none at 1e-8 or tighter. Hence a window rather than Hairer's run
-/// of 15: the problem counts as stiff when `STIFF_STEPS` of the last 32 accepted steps
-/// exceeded the boundary.
+/// hovering at the boundary) only about half of the steps show it on a stiff coupling,
+/// while the paper's non-stiff cases exceed it in a few steps at loose tolerances only.
+/// Hence a window rather than Hairer's run of 15: the problem counts as stiff when
+/// `STIFF_STEPS` of the last 32 accepted steps exceeded the boundary.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct StiffnessTest {
     /// One bit per accepted step, newest lowest: whether |hλ| exceeded the boundary.
@@ -124,8 +117,7 @@ impl<const N: usize> Dop853<N> {
 
     /// Evaluate the extra stages and form the interpolant's seven coefficient vectors in
     /// `self.dense`, and return them. Formed in place: returned by value, the 448 bytes
-    /// were copied twice on their way into the field (two calls of memcpy, 1.6 % of paper
-    /// case 1's instructions at H = 0.01).
+    /// were copied twice on their way into the field.
     #[inline(always)]
     fn dense_coefficients<S: OdeSystem<N>>(
         &mut self,
@@ -224,10 +216,9 @@ impl<const N: usize> Dop853<N> {
     }
 }
 
-/// error^(−1/8) by three square roots (a few instructions each) instead of `powf`, whose
-/// C library call took 1.4 % of paper case 1's instructions at H = 0.01; the two differ
-/// by at most 2 ulp over 1e-14…1e3 (tested below), far below what the step-size control
-/// can resolve.
+/// error^(−1/8) by three square roots (a few instructions each) instead of a C library
+/// call of `powf` on every step; the two differ by at most 2 ulp over 1e-14…1e3 (tested
+/// below), far below what the step-size control can resolve.
 #[inline(always)]
 fn inverse_eighth_root(error: f64) -> f64 {
     1.0 / error.sqrt().sqrt().sqrt()
@@ -236,8 +227,8 @@ fn inverse_eighth_root(error: f64) -> f64 {
 /// log₂ x to within 0.009 for a positive x (below the smallest normal number, as for
 /// it): the exponent, and log₂ m of the significand m ∈ [1, 2) as t·(1.3465 − 0.3465·t),
 /// t = m − 1. Enough for the stabilisation's small powers (an error of 0.009 moves the
-/// step-size factor by less than 0.03 %), without a division or a library call, and in
-/// parallel with [`inverse_eighth_root`]'s square roots.
+/// step-size factor by less than 3e-4 of itself), without a division or a library call,
+/// and in parallel with [`inverse_eighth_root`]'s square roots.
 #[inline(always)]
 const fn rough_log2(x: f64) -> f64 {
     let bits = x.max(f64::MIN_POSITIVE).to_bits();
@@ -288,8 +279,7 @@ macro_rules! with_known_index {
 /// same bits), but with every slot a literal: where `weights` is a row known to the
 /// compiler, each zero entry is dropped at compile time and the sum is straight-line code.
 /// [`combine`] over such a row stayed a loop that tested each weight for zero at run time
-/// (rows of 11 to 16 entries were not unrolled): valgrind counted those tests at ~4 % of
-/// all instructions on paper case 1.
+/// (rows of 11 to 16 entries were not unrolled).
 macro_rules! tableau_sum {
     ($weights:expr, $stages:expr, $($j:literal)*) => {{
         let (weights, stages) = (&$weights, $stages);
@@ -503,11 +493,8 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
         let (step, coefficients) = (self.last_step.as_ref()?, self.dense.as_ref()?);
         // The interpolant x·(d0 + u·d2 + u²·d4 + u³·d6) + u·(d1 + u·d3 + u²·d5), u = x·(1 − x):
         // Hairer's seven nested levels in x and 1 − x regrouped into two independent sums,
-        // each split at u² (Estrin's scheme), for a short chain of dependent operations.
-        // Paper case 1, where communication points dominate: the two sums nested in u took
-        // about 2 % less time than seven levels (H = 0.01 and 0.001), and splitting them at
-        // u² 0.98–0.99 × that again at tol 1e-4 (1.01 at 1e-10, within the noise; medians of
-        // seven alternating rounds through the loaded library).
+        // each split at u² (Estrin's scheme), for a short chain of dependent operations on
+        // the path of every communication point.
         let [d0, d1, d2, d3, d4, d5, d6] = coefficients;
         let u = x * (1.0 - x);
         let uu = u * u;

@@ -86,7 +86,7 @@ const MAX_STEPS_PER_CALL: u64 = 1_000_000;
 
 /// The next step to try from `t` with proposed size `h`, the `taken`-th of this call: its
 /// size and whether it lands on `limit` (a step that would pass the limit, or leave less
-/// than 1 % of a step before it, is cut or stretched to end exactly there).
+/// than a hundredth of a step before it, is cut or stretched to end exactly there).
 fn plan_step(t: f64, h: f64, limit: f64, taken: u64) -> Result<(f64, bool), SolverError> {
     if taken >= MAX_STEPS_PER_CALL {
         return Err(SolverError::TooManySteps {

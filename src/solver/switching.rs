@@ -21,11 +21,10 @@ use super::{Dop853, OdeSystem, Radau5, SolverError, Statistics, Stepper, Toleran
 use crate::snapshot::{FormatError, Reader, Writer};
 
 /// Radau IIA ends a step on every communication point, so it can only beat a
-/// stability-limited DOP853 when the communication step is several DOP853 steps long. (Paper
-/// case 1 at tolerance 1e-2 is stability-limited for DOP853 in places. At H = 1e-4 over
-/// 10 s, without this condition `auto` switched and took 204 229 evaluations against
-/// DOP853's 1722, and 5.8× the time in one run; with it, 1722. tests/stiff.rs fails
-/// without it.)
+/// stability-limited DOP853 when the communication step is several DOP853 steps long.
+/// (Paper case 1 at a loose tolerance is stability-limited for DOP853 in places; with
+/// short communication steps, switching there costs far more evaluations than DOP853
+/// takes. tests/stiff.rs fails without this condition.)
 const MIN_STEPS_PER_COMMUNICATION: f64 = 4.0;
 
 fn worth_landing<const N: usize>(explicit: &Dop853<N>, communication_step: f64) -> bool {
@@ -132,8 +131,8 @@ impl<const N: usize> Integrator<N> {
     }
 
     /// Whether the user fixed DOP853 and its stiffness test finds the step size limited by
-    /// stability: the fast modes may carry noise above the tolerance (measured: 2.5e-4 in
-    /// ω2 at tolerance 1e-6 on stiff damped couplings), where Radau IIA would not.
+    /// stability: the fast modes may carry noise above the tolerance on stiff damped
+    /// couplings, which the error estimate does not see and Radau IIA would not leave.
     pub fn fixed_dop853_is_stiff(&self) -> bool {
         self.choice == Choice::Fixed(Method::Dop853)
             && matches!(&self.active, Active::Explicit(s) if s.is_stiff())
@@ -195,8 +194,8 @@ impl<const N: usize> Integrator<N> {
 mod tests {
     use super::*;
 
-    /// Prothero–Robinson with a stiffness that ends: λ = 1e5 before t = 1, λ = 1 after.
-    /// (Measured: auto switches to Radau IIA after the first step and back at step 153.)
+    /// Prothero–Robinson with a stiffness that ends: λ = 1e5 before t = 1, λ = 1 after:
+    /// `auto` switches to Radau IIA within the first steps and back some time after t = 1.
     struct StiffThenNot;
     impl OdeSystem<1> for StiffThenNot {
         fn rhs(&self, t: f64, y: &[f64; 1], dy: &mut [f64; 1]) {

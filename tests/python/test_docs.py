@@ -40,6 +40,33 @@ def test_every_relative_link_resolves():
     assert (ROOT / "docs/model.md").exists()
 
 
+NUMBER = re.compile(r"\d+(?:[.,\u2009\u202f ]\d+)*(?:e[-+]?\d+)?")
+
+
+def numbers(text):
+    """The numbers of `text`, digit groups joined (1 234.5 is 1234.5)."""
+    return {re.sub(r"[,\u2009\u202f ]", "", n) for n in NUMBER.findall(text)}
+
+
+def test_quoted_figures_match_their_reports():
+    """A document quotes a measured figure as a link to the report a command wrote, the
+    figure as the link's text: every number in that text must be in the report."""
+    quote = re.compile(r"\[([^\]]*\d[^\]]*)\]\(([^)#\s]+)\)")
+    reports = (ROOT / "docs/bench").resolve()
+    checked, wrong = 0, []
+    for doc in (p for p in tracked() if p.suffix == ".md"):
+        for text, target in quote.findall(doc.read_text()):
+            report = (doc.parent / target).resolve()
+            if report.parent != reports:
+                continue
+            checked += 1
+            missing = numbers(text) - numbers(report.read_text())
+            if missing:
+                wrong.append(f"{doc.relative_to(ROOT)}: [{text}] not in {target}: {sorted(missing)}")
+    assert checked > 0, "no figure is quoted from a report"
+    assert not wrong, "\n".join(wrong)
+
+
 def test_the_readme_fmpy_example_prints_what_it_says(fmu_path):
     """The README's FMPy snippet, run as written (on the FMU under test): every default is
     the paper's case 1, so the run moves and prints the published values."""

@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::platforms::{self, Target, Zig, MINGW_GCC};
-use crate::{root, run, Result};
+use crate::setup::{root, run};
+use crate::Result;
 
 const WINE: &str = "/usr/lib/wine/wine64";
 const QEMU: &str = "/usr/bin/qemu-aarch64-static";

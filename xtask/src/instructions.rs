@@ -9,7 +9,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::{output_of, root, run, Result};
+use crate::setup::{apt_install, output_of, root, run};
+use crate::Result;
 
 const OUTPUTS: [&str; 10] = [
     "phi1",
@@ -84,9 +85,9 @@ fn count(master: &Path, library: &Path, guid: &str, refs: &[u32], dir: &Path) ->
         .ok_or_else(|| format!("{}: no totals line", out.display()))
 }
 
-pub fn measure() -> Result {
-    crate::apt_install(&["valgrind"])?;
-    let packed = crate::build_fmu(false)?;
+pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
+    apt_install(&["valgrind"])?;
+    let packed = crate::fmu::build_fmu(false)?;
     let dir = root().join("target/instructions");
     fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
     let (guid, refs) = references(&root().join("target/fmu/assets/modelDescription.xml"))?;
@@ -100,19 +101,56 @@ pub fn measure() -> Result {
             .args(["describe", "--always", "--dirty"]),
     )
     .unwrap_or_default();
-    let report = format!(
-        "# Instructions per communication point\n\n\
-         Written by `cargo xtask instructions` (valgrind's callgrind; a count, the same on every \
-         run of the same build). Paper case 1, tolerance {TOLERANCE:e}, H = {STEP} s for {STOP} s \
-         ({points} points), ten Real outputs read at each ({}); counted inside fmi2DoStep and \
-         fmi2GetReal only.\n\n\
-         | build | instructions | per point |\n| --- | --- | --- |\n| {} | {total} | {:.1} |\n",
-        OUTPUTS.join(", "),
+    let path = root().join("docs/bench/instructions.md");
+    let row = format!(
+        "| {} | {total} | {:.1} |",
         commit.trim(),
         total as f64 / points as f64
     );
-    let path = root().join("docs/bench/instructions.md");
+    let report = with_row(&fs::read_to_string(&path).unwrap_or_default(), &row);
     fs::write(&path, &report).map_err(|e| format!("{}: {e}", path.display()))?;
     print!("{report}");
     Ok(())
+}
+
+/// The report with `row` as its last row: the rows of other builds kept in their order, an
+/// earlier row of the same build replaced.
+fn with_row(previous: &str, row: &str) -> String {
+    let build = |line: &str| line.split('|').nth(1).map(str::trim).map(str::to_string);
+    let mut rows: Vec<&str> = data_rows(previous)
+        .filter(|l| build(l) != build(row))
+        .collect();
+    rows.push(row);
+    format!(
+        "# Instructions per communication point\n\n\
+         Written by `cargo xtask instructions` (valgrind's callgrind; a count, the same on every \
+         run of the same build), one row per build measured, the latest last. Paper case 1, \
+         tolerance {TOLERANCE:e}, H = {STEP} s for {STOP} s ({} points), ten Real outputs read \
+         at each ({}); counted inside fmi2DoStep and fmi2GetReal only.\n\n\
+         | build | instructions | per point |\n| --- | --- | --- |\n{}\n",
+        (STOP / STEP).round(),
+        OUTPUTS.join(", "),
+        rows.join("\n")
+    )
+}
+
+/// The table's rows of measurements (not its header or separator).
+fn data_rows(report: &str) -> impl Iterator<Item = &str> {
+    report
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| build") && !l.starts_with("| ---"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_new_build_adds_a_row_and_the_same_build_replaces_its_own() {
+        let first = with_row("", "| abc | 100 | 0.0 |");
+        let second = with_row(&first, "| def | 200 | 0.0 |");
+        let again = with_row(&second, "| abc | 150 | 0.0 |");
+        let rows: Vec<&str> = data_rows(&again).collect();
+        assert_eq!(rows, ["| def | 200 | 0.0 |", "| abc | 150 | 0.0 |"]);
+    }
 }

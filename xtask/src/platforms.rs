@@ -10,9 +10,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-use crate::{
-    apt_install, clang_include_dir, output_of, python_path, root, run, Result, MODEL_IDENTIFIER,
-};
+use crate::setup::{apt_install, clang_include_dir, output_of, python_path, root, run};
+use crate::{Result, MODEL_IDENTIFIER};
 
 /// The Debian packages of the cross builds, pinned: the Rust toolchain that builds the
 /// standard library from source, MinGW's linker and binutils, LLVM's Mach-O tools.
@@ -621,7 +620,7 @@ fn minimum_macos(headers: &str) -> String {
 
 /// The aarch64 Linux library: glibc 2.17 at most, glibc's libraries alone, the FMI exports.
 fn check_aarch64_elf(library: &Path) -> Result<String> {
-    crate::check_glibc(library)?;
+    crate::setup::check_glibc(library)?;
     let dynamic = output_of(llvm("llvm-readelf").args(["--dynamic", "-h"]).arg(library))?;
     if !dynamic.contains("AArch64") {
         return Err(format!("{}: not an AArch64 ELF", library.display()));

@@ -1,0 +1,157 @@
+//! `cargo xtask fmu [--all-platforms]`: build the library, generate the model description
+//! and documentation from the variable table, check every binary and pack the archive.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::cli::Parsed;
+use crate::setup::*;
+use crate::{platforms, Result, MODEL_IDENTIFIER};
+
+/// Where the cross-built binaries are put, checked, under their platform folders.
+pub(crate) const PLATFORM_BINARIES: &str = "target/fmu/platforms";
+
+/// `cargo xtask fmu [--all-platforms]`.
+pub(crate) fn job(parsed: &Parsed) -> Result {
+    let packed = build_fmu(parsed.has("all-platforms"))?;
+    for line in &packed.report {
+        println!("xtask: {line}");
+    }
+    println!("FMU: {}", packed.fmu.display());
+    Ok(())
+}
+
+/// A packed FMU: the archive, the linux64 library in it, and the cross builds' checks.
+pub(crate) struct Packed {
+    pub(crate) fmu: PathBuf,
+    pub(crate) linux64: PathBuf,
+    pub(crate) report: Vec<String>,
+}
+
+/// Build the library (against the glibc baseline), generate the model description and
+/// documentation from the variable table, and pack `target/fmu/CyclicMechanism.fmu`; with
+/// `all_platforms`, the win64 and darwin64 binaries too (and aarch64 Linux's, for the
+/// tests). Every binary is checked first: a failed check writes no archive.
+pub(crate) fn build_fmu(all_platforms: bool) -> Result<Packed> {
+    ensure_libclang()?;
+    let root = root();
+    let library = build_portable_library()?;
+    let assets = root.join("target/fmu/assets");
+    // Without `--package`: features are then unified over the default members, as for
+    // `cargo test`. With it they differ, and the library's cdylib (whose file name carries
+    // no hash) would be rebuilt by each in turn, changed or not.
+    run(cargo()
+        .args(["run", "--release", "--quiet", "--bin", "fmu-assets", "--"])
+        .arg(&assets))?;
+    let fmu = root.join(format!("target/fmu/{MODEL_IDENTIFIER}.fmu"));
+    let mut files = vec![
+        (
+            "modelDescription.xml".to_string(),
+            assets.join("modelDescription.xml"),
+        ),
+        (
+            format!("binaries/linux64/{MODEL_IDENTIFIER}.so"),
+            library.clone(),
+        ),
+        (
+            "documentation/index.html".to_string(),
+            assets.join("index.html"),
+        ),
+    ];
+    let mut report = vec![format!(
+        "linux64 {}: {} bytes",
+        library.display(),
+        platforms::size(&library)?
+    )];
+    if all_platforms {
+        let zig = platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
+        let (binaries, checks) = platforms::build_all(&zig, &root.join(PLATFORM_BINARIES))?;
+        files.extend(binaries);
+        report.extend(checks);
+    }
+    pack(&fmu, &files)?;
+    report.push(format!(
+        "{}: {} bytes",
+        fmu.display(),
+        platforms::size(&fmu)?
+    ));
+    Ok(Packed {
+        fmu,
+        linux64: library,
+        report,
+    })
+}
+
+/// The library for `binaries/linux64`, built against glibc 2.17 so that it loads on older
+/// Linux (RHEL 7–9, Ubuntu 18.04+), where many industrial FMI tools run.
+pub(crate) fn build_portable_library() -> Result<PathBuf> {
+    let library = build_portable(
+        &["--package", "cyclic-mechanism", "--lib"],
+        "libcyclic_mechanism.so",
+    )?;
+    check_glibc(&library)?;
+    Ok(library)
+}
+
+/// Write the archive beside its place and move it there when complete, so that a failure
+/// never leaves a partial FMU.
+pub(crate) fn pack(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
+    let partial = fmu.with_extension("fmu.partial");
+    let _ = fs::remove_file(fmu);
+    if let Err(error) = write_zip(&partial, files) {
+        let _ = fs::remove_file(&partial);
+        return Err(error);
+    }
+    fs::rename(&partial, fmu).map_err(|e| format!("{}: {e}", fmu.display()))
+}
+
+pub(crate) fn write_zip(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
+    let file = fs::File::create(fmu).map_err(|e| format!("{}: {e}", fmu.display()))?;
+    let mut zip = zip::ZipWriter::new(file);
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated);
+    for (name, source) in files {
+        let bytes = fs::read(source).map_err(|e| format!("{}: {e}", source.display()))?;
+        zip.start_file(name.as_str(), options)
+            .map_err(|e| e.to_string())?;
+        zip.write_all(&bytes).map_err(|e| e.to_string())?;
+    }
+    zip.finish().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The archive holds what was given under its names; a source that cannot be read
+    /// leaves no archive, neither a partial one nor the one before.
+    #[test]
+    fn packing_is_all_or_nothing() {
+        let dir = std::env::temp_dir().join(format!("xtask-pack-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        fs::create_dir_all(&dir).unwrap();
+        let linux = dir.join("linux.so");
+        fs::write(&linux, "linux").unwrap();
+        let fmu = dir.join("test.fmu");
+        let files = vec![("binaries/linux64/CyclicMechanism.so".to_string(), linux)];
+        pack(&fmu, &files).unwrap();
+        let mut archive = zip::ZipArchive::new(fs::File::open(&fmu).unwrap()).unwrap();
+        let names: Vec<String> = archive.file_names().map(str::to_string).collect();
+        assert_eq!(names, ["binaries/linux64/CyclicMechanism.so"]);
+        let mut content = String::new();
+        std::io::Read::read_to_string(&mut archive.by_index(0).unwrap(), &mut content).unwrap();
+        assert_eq!(content, "linux");
+        let mut broken = files.clone();
+        broken.push((
+            "binaries/win64/CyclicMechanism.dll".into(),
+            dir.join("missing"),
+        ));
+        let error = pack(&fmu, &broken).unwrap_err();
+        assert!(error.contains("missing"), "{error}");
+        assert!(!fmu.exists(), "a failed pack leaves no archive");
+        assert!(!fmu.with_extension("fmu.partial").exists());
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

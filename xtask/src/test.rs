@@ -1,0 +1,177 @@
+//! `cargo xtask test`: every test, as CI runs it: the Rust tests, the fuzzer under
+//! valgrind, the cross builds and their tests on other ABIs, the benchmark harness's smoke
+//! run, the FMPy, libcosim and sweep tests, and memcheck of the FMPy suite.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::cli::Parsed;
+use crate::setup::*;
+use crate::{abi_tests, fmu, platforms, Result, MODEL_IDENTIFIER};
+
+pub(crate) fn job(_: &Parsed) -> Result {
+    crate::tidy::check()?;
+    ensure_libclang()?;
+    let reports = root().join("target/test-reports");
+    fs::create_dir_all(&reports).map_err(|e| e.to_string())?;
+    run(cargo()
+        .args(["test", "--release"])
+        .env("FUZZ_REPORT", reports.join("fuzz_api.json")))?;
+    fuzz_under_valgrind()?;
+    // The archive with every platform: the FMPy tests check it as a master would.
+    let fmu = test_platforms()?;
+    // The benchmark harness builds and drives the packed FMU (a smoke run, no timings
+    // judged), so that `cargo xtask bench` keeps working from a fresh clone.
+    let harness = crate::bench::build_bench_harness()?;
+    let smoke = root().join("target/bench/smoke.json");
+    fs::create_dir_all(root().join("target/bench")).map_err(|e| e.to_string())?;
+    run(Command::new(&harness)
+        .arg(&fmu)
+        .arg(&smoke)
+        .args(["--quick", "--fmu-only"]))?;
+    let python = crate::sweep::ensure_sweep_package()?;
+    run(Command::new(&python)
+        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
+        .arg(root().join("tests/python"))
+        .env("CYCLIC_MECHANISM_FMU", &fmu)
+        .current_dir(root()))?;
+    // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
+    // by the packed FMU, the test files, the installed packages and the selection and
+    // options below (in this file) alone.
+    let mut inputs = vec![
+        fmu.clone(),
+        root().join("target/venv/requirements.installed"),
+        root().join("xtask/src/test.rs"),
+    ];
+    inputs.extend(files_with_extension(&root().join("tests/python"), "py")?);
+    unless_passed_before("valgrind memcheck of the FMPy suite", &inputs, || {
+        fmpy_under_valgrind(&python, &fmu)
+    })
+}
+
+/// Build the FMU for every platform and run the other platforms' binaries on their ABIs
+/// (tests/platforms, xtask/src/abi_tests.rs). Returns the archive.
+/// `cargo xtask test-platforms`.
+pub(crate) fn job_platforms(_: &Parsed) -> Result {
+    test_platforms().map(drop)
+}
+
+pub(crate) fn test_platforms() -> Result<PathBuf> {
+    ensure_libclang()?;
+    let packed = fmu::build_fmu(true)?;
+    let zig = platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
+    abi_tests::test(
+        &root().join("target/fmu/assets/modelDescription.xml"),
+        &packed.linux64,
+        &root().join(fmu::PLATFORM_BINARIES),
+        &packed.report,
+        &zig,
+    )?;
+    Ok(packed.fmu)
+}
+
+/// The FMPy tests of the C API (argument checks, state machine, FMU state, discards) under
+/// valgrind memcheck. Python and numpy have valgrind reports of their own, so
+/// only errors with a frame in the FMU's library count, including definite leaks allocated
+/// there. A positive control first shows that an overrun inside the library is caught and
+/// attributed (tests/python/valgrind_probe.py).
+pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path) -> Result {
+    let out = root().join("target/valgrind");
+    fs::create_dir_all(&out).map_err(|e| e.to_string())?;
+    let memcheck = |xml: &Path| {
+        let mut command = Command::new("valgrind");
+        command
+            .args([
+                "--leak-check=full",
+                "--show-leak-kinds=definite",
+                "--error-limit=no",
+            ])
+            .args(["--xml=yes", &format!("--xml-file={}", xml.display())])
+            .arg(python)
+            .env("PYTHONMALLOC", "malloc")
+            .env("CYCLIC_MECHANISM_FMU", fmu)
+            .env("MEASUREMENTS", out.join("measurements.json"))
+            .current_dir(root());
+        command
+    };
+    let probe = out.join("probe.xml");
+    run(memcheck(&probe)
+        .arg(root().join("tests/python/valgrind_probe.py"))
+        .arg(fmu))?;
+    if errors_in_fmu(&probe)?.is_empty() {
+        return Err(
+            "valgrind check: the deliberate overrun in valgrind_probe.py was not \
+                    attributed to the FMU; the check below would prove nothing"
+                .into(),
+        );
+    }
+    let suite = out.join("fmpy_suite.xml");
+    let files = [
+        "test_fmi_api.py",
+        "test_fmu_state.py",
+        "test_discard.py",
+        // Model Exchange: the state machine, FMU states, Jacobians, and CVODE through the
+        // handovers at dead points (the tests against the Python reference are left out:
+        // its scipy integration under valgrind takes minutes and exercises no FMU code).
+        "test_model_exchange.py::test_bad_states_and_wrong_calls_are_refused_and_change_nothing",
+        "test_model_exchange.py::test_fmu_state_restores_model_exchange_exactly",
+        "test_model_exchange.py::test_derivatives_match_the_variables_and_states_round_trip",
+        "test_model_exchange.py::test_directional_derivatives_are_exact",
+        "test_model_exchange.py::test_cvode_hands_over_at_every_dead_point",
+    ];
+    run(memcheck(&suite)
+        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
+        .args(files.map(|f| root().join("tests/python").join(f))))?;
+    let errors = errors_in_fmu(&suite)?;
+    if !errors.is_empty() {
+        return Err(format!(
+            "valgrind: {} error(s) in the FMU under the FMPy suite (see {}):\n{}",
+            errors.len(),
+            suite.display(),
+            errors.join("\n")
+        ));
+    }
+    println!(
+        "xtask: valgrind memcheck of the FMPy suite ({}): no error in the FMU",
+        files.join(", ")
+    );
+    Ok(())
+}
+
+/// The kinds and first functions of the errors in valgrind's XML report that have a frame
+/// in the FMU's library.
+pub(crate) fn errors_in_fmu(xml: &Path) -> Result<Vec<String>> {
+    let report = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
+    let tag = |block: &str, name: &str| -> Vec<String> {
+        let (open, close) = (format!("<{name}>"), format!("</{name}>"));
+        block
+            .split(&open)
+            .skip(1)
+            .filter_map(|rest| rest.split(&close).next().map(str::to_string))
+            .collect()
+    };
+    Ok(report
+        .split("<error>")
+        .skip(1)
+        .filter_map(|rest| rest.split("</error>").next())
+        .filter(|block| block.contains(&format!("{MODEL_IDENTIFIER}.so")))
+        .map(|block| format!("{:?} in {:?}", tag(block, "kind"), tag(block, "fn").first()))
+        .collect())
+}
+
+/// The fuzzed FMI call sequences again, under valgrind memcheck: no invalid access, no
+/// use of uninitialised memory, no definite leak.
+pub(crate) fn fuzz_under_valgrind() -> Result {
+    if Command::new("valgrind").arg("--version").output().is_err() {
+        println!("xtask: installing valgrind");
+        apt_install(&["valgrind"])?;
+    }
+    let runner = "valgrind --error-exitcode=9 --leak-check=full --errors-for-leak-kinds=definite \
+                  --show-leak-kinds=definite --quiet";
+    run(cargo()
+        .args(["test", "--release", "--quiet", "--test", "fuzz_api"])
+        .env("CARGO_TARGET_X86_64_UNKNOWN_LINUX_GNU_RUNNER", runner)
+        .env("CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER", runner)
+        .env("FUZZ_SEQUENCES", "300"))
+}
