@@ -94,13 +94,7 @@ pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
     let master = build_master(&dir)?;
     let total = count(&master, &packed.linux64, &guid, &refs, &dir)?;
     let points = (STOP / STEP).round() as u64;
-    let commit = output_of(
-        Command::new("git")
-            .args(["-C"])
-            .arg(root())
-            .args(["describe", "--always", "--dirty"]),
-    )
-    .unwrap_or_default();
+    let commit = build_label();
     let path = root().join("docs/bench/instructions.md");
     let row = format!(
         "| {} | {total} | {:.1} |",
@@ -111,6 +105,30 @@ pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
     fs::write(&path, &report).map_err(|e| format!("{}: {e}", path.display()))?;
     print!("{report}");
     Ok(())
+}
+
+/// The commit the FMU was built from, marked `-modified` when the library's sources differ
+/// from it (the report itself, or other files, do not count).
+fn build_label() -> String {
+    let git = |args: &[&str]| {
+        output_of(Command::new("git").arg("-C").arg(root()).args(args)).unwrap_or_default()
+    };
+    let commit = git(&["rev-parse", "--short", "HEAD"]);
+    let changed = git(&[
+        "status",
+        "--porcelain",
+        "--",
+        "src",
+        "build.rs",
+        "Cargo.toml",
+        "Cargo.lock",
+    ]);
+    let modified = if changed.trim().is_empty() {
+        ""
+    } else {
+        "-modified"
+    };
+    format!("{}{modified}", commit.trim())
 }
 
 /// The report with `row` as its last row: the rows of other builds kept in their order, an
