@@ -1,144 +1,65 @@
-//! Dense LU factorisation with partial pivoting for small fixed-size systems, in real and
-//! complex arithmetic: what an implicit method needs for its Newton iterations, with all
-//! storage inline (no heap).
+//! The small dense systems of an implicit method's Newton iterations, real and complex, on
+//! nalgebra's fixed-size matrices, whose storage is inline (no heap): LU factorisation with
+//! partial pivoting by nalgebra's pivot search and Gaussian elimination steps, and its
+//! permutation and triangular solves. (nalgebra's `LU` type itself needs its dimension as a
+//! typenum, which a size generic over `const N` cannot name; the steps it is made of do
+//! not, and are the same.)
 
-use std::ops::{Add, Mul, Sub};
+use nalgebra::linalg::{gauss_step, gauss_step_swap, PermutationSequence};
+use nalgebra::{ComplexField, Const, SMatrix, SVector};
 
-/// A complex number, just enough arithmetic for Gaussian elimination.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Complex {
-    pub re: f64,
-    pub im: f64,
-}
+/// A complex number (nalgebra's, from num-complex).
+pub type Complex = nalgebra::Complex<f64>;
 
-impl Complex {
-    pub const fn new(re: f64, im: f64) -> Self {
-        Self { re, im }
-    }
-
-    fn norm_sqr(self) -> f64 {
-        self.re * self.re + self.im * self.im
-    }
-
-    fn recip(self) -> Self {
-        let d = self.norm_sqr();
-        Self::new(self.re / d, -self.im / d)
-    }
-
-    pub fn scale(self, s: f64) -> Self {
-        Self::new(self.re * s, self.im * s)
-    }
-}
-
-impl Add for Complex {
-    type Output = Self;
-    fn add(self, o: Self) -> Self {
-        Self::new(self.re + o.re, self.im + o.im)
-    }
-}
-
-impl Sub for Complex {
-    type Output = Self;
-    fn sub(self, o: Self) -> Self {
-        Self::new(self.re - o.re, self.im - o.im)
-    }
-}
-
-impl Mul for Complex {
-    type Output = Self;
-    fn mul(self, o: Self) -> Self {
-        Self::new(
-            self.re * o.re - self.im * o.im,
-            self.re * o.im + self.im * o.re,
-        )
-    }
-}
-
-/// What Gaussian elimination needs of a scalar.
-pub trait Scalar: Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> {
-    fn magnitude(self) -> f64;
-    fn recip(self) -> Self;
-}
-
-impl Scalar for f64 {
-    fn magnitude(self) -> f64 {
-        self.abs()
-    }
-    fn recip(self) -> Self {
-        1.0 / self
-    }
-}
-
-impl Scalar for Complex {
-    fn magnitude(self) -> f64 {
-        self.re.abs() + self.im.abs()
-    }
-    fn recip(self) -> Self {
-        Complex::recip(self)
-    }
-}
-
-/// The factors L·U = P·M of a square matrix M, stored in place (L below the diagonal with
-/// unit diagonal implied, U on and above it; the diagonal holds U's reciprocals).
+/// The factors L·U = P·M of a square matrix M, in nalgebra's packed form (L below the
+/// diagonal with its unit diagonal implied, U on and above it).
 #[derive(Clone, Copy, Debug)]
-pub struct Lu<T: Scalar, const N: usize> {
-    factors: [[T; N]; N],
-    pivots: [usize; N],
+pub struct Lu<T: ComplexField + Copy, const N: usize> {
+    factors: SMatrix<T, N, N>,
+    permutation: PermutationSequence<Const<N>>,
 }
 
 /// The matrix is singular (or not finite) to working precision.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Singular;
 
-impl<T: Scalar, const N: usize> Lu<T, N> {
-    /// Factor `matrix` (row-major). Fails on a zero or non-finite pivot.
+impl<T: ComplexField + Copy, const N: usize> Lu<T, N> {
+    /// Factor `matrix` (row by row). Fails on a non-finite entry or a zero pivot.
     pub fn factor(matrix: [[T; N]; N]) -> Result<Self, Singular> {
-        let mut a = matrix;
-        let mut pivots = [0; N];
-        for k in 0..N {
-            let p = (k..N)
-                .max_by(|&i, &j| a[i][k].magnitude().total_cmp(&a[j][k].magnitude()))
-                .unwrap_or(k);
-            let size = a[p][k].magnitude();
-            if size == 0.0 || !size.is_finite() {
+        if !matrix.iter().flatten().all(|x| x.is_finite()) {
+            return Err(Singular);
+        }
+        let mut factors = SMatrix::<T, N, N>::from_fn(|i, j| matrix[i][j]);
+        let mut permutation = PermutationSequence::identity_generic(Const::<N>);
+        for i in 0..N {
+            let pivot = factors.view_range(i.., i).icamax() + i;
+            let diagonal = factors[(pivot, i)];
+            if diagonal.is_zero() {
                 return Err(Singular);
             }
-            a.swap(k, p);
-            pivots[k] = p;
-            let inverse = a[k][k].recip();
-            a[k][k] = inverse;
-            let pivot_row = a[k];
-            for row in a.iter_mut().skip(k + 1) {
-                let m = row[k] * inverse;
-                row[k] = m;
-                for (x, p) in row.iter_mut().zip(&pivot_row).skip(k + 1) {
-                    *x = *x - m * *p;
-                }
+            if pivot == i {
+                gauss_step(&mut factors, diagonal, i);
+            } else {
+                permutation.append_permutation(i, pivot);
+                factors.columns_range_mut(..i).swap_rows(i, pivot);
+                gauss_step_swap(&mut factors, diagonal, i, pivot);
             }
         }
-        Ok(Self { factors: a, pivots })
+        Ok(Self {
+            factors,
+            permutation,
+        })
     }
 
     /// Solve M·x = b in place.
+    #[inline]
     pub fn solve(&self, b: &mut [T; N]) {
-        let a = &self.factors;
-        for k in 0..N {
-            b.swap(k, self.pivots[k]);
-        }
-        for i in 1..N {
-            let mut sum = b[i];
-            for j in 0..i {
-                sum = sum - a[i][j] * b[j];
-            }
-            b[i] = sum;
-        }
-        for i in (0..N).rev() {
-            let mut sum = b[i];
-            for j in i + 1..N {
-                sum = sum - a[i][j] * b[j];
-            }
-            b[i] = sum * a[i][i];
-        }
+        let mut x = SVector::<T, N>::from(*b);
+        self.permutation.permute_rows(&mut x);
+        self.factors
+            .solve_lower_triangular_with_diag_mut(&mut x, T::one());
+        self.factors.solve_upper_triangular_mut(&mut x);
+        *b = x.into();
     }
 }
 
@@ -168,7 +89,7 @@ mod tests {
         ];
         Lu::factor(m).unwrap().solve(&mut b);
         for (bi, xi) in b.iter().zip(x) {
-            assert!((*bi - xi).magnitude() < 1e-14, "{b:?}");
+            assert!((*bi - xi).norm() < 1e-14, "{b:?}");
         }
     }
 
@@ -177,6 +98,10 @@ mod tests {
         assert_eq!(Lu::factor([[1.0, 2.0], [2.0, 4.0]]).err(), Some(Singular));
         assert_eq!(
             Lu::factor([[f64::NAN, 0.0], [0.0, 1.0]]).err(),
+            Some(Singular)
+        );
+        assert_eq!(
+            Lu::factor([[f64::INFINITY, 0.0], [0.0, 1.0]]).err(),
             Some(Singular)
         );
     }
