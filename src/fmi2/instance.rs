@@ -15,7 +15,7 @@ use crate::drivers::model_exchange::STATES;
 use crate::drivers::{CoSimulation, Exchange, Experiment};
 use crate::plant::{AccessError, Activity, Plant, Value};
 use crate::snapshot::{fnv1a_64, FormatError, Reader, Writer};
-use crate::solver::Method;
+use crate::solver::{Method, SolverError};
 use crate::text::number;
 use crate::variables::{variable, Input, Slot, VarType, STATE_REFERENCES};
 
@@ -729,10 +729,32 @@ impl Instance {
 
     #[inline(always)]
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
+        let now = self.current.plant.time();
+        let target = self.step_target(now, current, step)?;
+        let FmuState {
+            plant,
+            driver: Driver::CoSimulation(Some(driver)),
+            experiment,
+            ..
+        } = &mut self.current
+        else {
+            return Err(Failure::error("the integrator starts at initialisation"));
+        };
+        if let Err(error) = super::isa::advance(driver, plant, target, experiment) {
+            return Err(self.step_failed(now, target, error));
+        }
+        let stability_limited = !self.warned_stability && driver.dop853_is_stability_limited();
+        self.report_step(target, stability_limited);
+        Ok(())
+    }
+
+    /// The step's end, once its arguments are checked against the FMU's time `now` and the
+    /// experiment's stop time.
+    #[inline(always)]
+    fn step_target(&self, now: f64, current: f64, step: f64) -> Result<f64, Failure> {
         // The larger of two numbers that are not NaN here: `f64::max` also handles NaN, in a
         // longer sequence of instructions on every step.
         let larger = |a: f64, b: f64| if a > b { a } else { b };
-        let now = self.current.plant.time();
         // Finiteness as a comparison with f64::MAX rather than `is_finite`: with the latter
         // the compiler tested these checks on the bits, a longer sequence. NaN fails every
         // comparison.
@@ -759,25 +781,27 @@ impl Instance {
                 )));
             }
         }
-        let FmuState {
-            plant,
-            driver: Driver::CoSimulation(Some(driver)),
-            experiment,
-            ..
-        } = &mut self.current
-        else {
-            return Err(Failure::error("the integrator starts at initialisation"));
-        };
-        if let Err(error) = super::isa::advance(driver, plant, target, experiment) {
-            self.current.state = State::StepFailed;
-            let y = self.current.plant.state();
-            return Err(Failure::discard(format!(
-                "step from t = {now} to {target} failed: {error}; state kept at t = {now} \
-                 (phi2 = {}, phi3 = {}, omega2 = {}, omega3 = {})",
-                y[1], y[2], y[5], y[6]
-            )));
-        }
-        if !self.warned_stability && driver.dop853_is_stability_limited() {
+        Ok(target)
+    }
+
+    /// A step the driver could not complete: the instance is in StepFailed, its outputs at
+    /// the last good communication point, which the message gives.
+    #[cold]
+    fn step_failed(&mut self, now: f64, target: f64, error: SolverError) -> Failure {
+        self.current.state = State::StepFailed;
+        let y = self.current.plant.state();
+        Failure::discard(format!(
+            "step from t = {now} to {target} failed: {error}; state kept at t = {now} \
+             (phi2 = {}, phi3 = {}, omega2 = {}, omega3 = {})",
+            y[1], y[2], y[5], y[6]
+        ))
+    }
+
+    /// After a step: warn once when a fixed DOP853 is limited by stability, and log the
+    /// integrator's work when asked.
+    #[inline(always)]
+    fn report_step(&mut self, target: f64, stability_limited: bool) {
+        if stability_limited {
             self.warned_stability = true;
             if self.log_enabled(Category::Warning) {
                 let message = format!(
@@ -797,7 +821,6 @@ impl Instance {
             );
             self.log(fmi2Status_fmi2OK, Category::Solver, &message);
         }
-        Ok(())
     }
 
     pub fn terminate(&mut self) -> Outcome {

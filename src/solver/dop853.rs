@@ -115,6 +115,32 @@ impl<const N: usize> Dop853<N> {
         self.progress.next_step
     }
 
+    /// The step size to try first: the one the last call proposed, else Hairer's starting
+    /// step for the span to `target`.
+    #[inline(always)]
+    fn first_step_size<S: OdeSystem<N>>(
+        &mut self,
+        system: &S,
+        t: f64,
+        y: &[f64; N],
+        target: f64,
+    ) -> f64 {
+        match self.progress.next_step {
+            Some(h) => h,
+            None => {
+                let f0 = self.stages[NEXT_FIRST];
+                initial_step(
+                    system,
+                    (t, y, &f0),
+                    target - t,
+                    self.progress.tolerances,
+                    8,
+                    &mut self.progress.stats,
+                )
+            }
+        }
+    }
+
     /// Evaluate the extra stages and form the interpolant's seven coefficient vectors in
     /// `self.dense`, and return them. Formed in place: returned by value, the 448 bytes
     /// were copied twice on their way into the field.
@@ -213,6 +239,17 @@ impl<const N: usize> Dop853<N> {
     fn eval<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N], stage: usize) {
         system.rhs(t, y, &mut self.stages[stage]);
         self.progress.stats.n_rhs += 1;
+    }
+}
+
+/// The factor a rejected step's size shrinks by: Hairer's, the accepted steps' formula
+/// without the memory; a tenth after a non-finite stage.
+#[inline(always)]
+fn rejection_factor(error: f64) -> f64 {
+    if error.is_finite() {
+        step_factor(error, rough_log2(error), 0.0, false)
+    } else {
+        0.1
     }
 }
 
@@ -403,20 +440,7 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
             self.eval(system, *t, y, NEXT_FIRST);
             self.first_stage_valid = true;
         }
-        let mut h = match self.progress.next_step {
-            Some(h) => h,
-            None => {
-                let f0 = self.stages[NEXT_FIRST];
-                initial_step(
-                    system,
-                    (*t, y, &f0),
-                    target - *t,
-                    self.progress.tolerances,
-                    8,
-                    &mut self.progress.stats,
-                )
-            }
-        };
+        let mut h = self.first_step_size(system, *t, y, target);
         let mut last_rejected = false;
         let mut taken = 0u64;
         let (mut y_new, mut last_stage) = ([0.0; N], [0.0; N]);
@@ -429,13 +453,7 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
             if error.is_nan() || error > 1.0 {
                 // Rejected, or a non-finite stage (error is NaN or infinite).
                 self.progress.stats.n_rejected += 1;
-                // Hairer's shrink factor: the accepted steps' formula without the memory.
-                let factor = if error.is_finite() {
-                    step_factor(error, rough_log2(error), 0.0, false)
-                } else {
-                    0.1
-                };
-                h = h_step * factor;
+                h = h_step * rejection_factor(error);
                 last_rejected = true;
                 check_step_size(*t, h)?;
                 continue;

@@ -395,6 +395,61 @@ impl<const N: usize> Radau5<N> {
         size
     }
 
+    /// The first-stage value and the Jacobian at (t, y) if missing, and the step size to
+    /// try first: the one the last call proposed, else the starting step for the span to
+    /// `target`.
+    fn prepare<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N], target: f64) -> f64 {
+        if !self.f0_valid {
+            self.f0 = evaluate(system, &mut self.progress.stats, t, y);
+            self.f0_valid = true;
+        }
+        if !self.jacobian_valid {
+            self.update_jacobian(system, t, y);
+        }
+        match self.progress.next_step {
+            Some(h) => h,
+            None => {
+                let f0 = self.f0;
+                initial_step(
+                    system,
+                    (t, y, &f0),
+                    target - t,
+                    self.progress.tolerances,
+                    5,
+                    &mut self.progress.stats,
+                )
+            }
+        }
+    }
+
+    /// After an accepted step of `h_step` with scaled `error`, at its end (t, y): the
+    /// Jacobian renewed when the Newton iteration said it was poor (it goes stale with the
+    /// state), and the next step size, kept (with the LU factors) when the change would be
+    /// small.
+    fn next_step_size<S: OdeSystem<N>>(
+        &mut self,
+        system: &S,
+        (t, y): (f64, &[f64; N]),
+        (h_step, error, safety): (f64, f64, f64),
+        iterations: usize,
+        after_rejection: bool,
+    ) -> f64 {
+        let renew = iterations > 1 && self.contraction > JACOBIAN_REUSE_RATE;
+        if renew {
+            self.update_jacobian(system, t, y);
+        }
+        let mut factor = (safety * self.predicted_factor(h_step, error)).min(FACTOR_MAX);
+        if after_rejection {
+            factor = factor.min(1.0);
+        }
+        self.previous = Some((h_step, error));
+        if (1.0..KEEP_STEP).contains(&factor) && !renew {
+            h_step
+        } else {
+            h_step * factor
+        }
+    }
+
     /// Forward-difference Jacobian at (t, y), with f(t, y) = `self.f0`: N evaluations.
     fn update_jacobian<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N]) {
         let mut shifted = *y;
@@ -519,28 +574,7 @@ impl<const N: usize> Stepper<N> for Radau5<N> {
         if *t >= target {
             return Ok(());
         }
-        if !self.f0_valid {
-            self.f0 = evaluate(system, &mut self.progress.stats, *t, y);
-            self.f0_valid = true;
-        }
-        if !self.jacobian_valid {
-            self.update_jacobian(system, *t, y);
-        }
-        let mut h = match self.progress.next_step {
-            Some(h) => h,
-            None => {
-                let span = target - *t;
-                let f0 = self.f0;
-                initial_step(
-                    system,
-                    (*t, y, &f0),
-                    span,
-                    self.progress.tolerances,
-                    5,
-                    &mut self.progress.stats,
-                )
-            }
-        };
+        let mut h = self.prepare(system, *t, y, target);
         let (mut rejected, mut taken) = (false, 0u64);
         let mut z = [[0.0; N]; 3];
         while *t < target {
@@ -572,22 +606,13 @@ impl<const N: usize> Stepper<N> for Radau5<N> {
             }
             let t_new = if landing { limit } else { *t + h_step };
             self.accept(system, t, y, t_new, &z)?;
-            // The Jacobian goes stale with the state; renew it only when the Newton
-            // iteration said it was poor.
-            let renew = iterations > 1 && self.contraction > JACOBIAN_REUSE_RATE;
-            if renew {
-                self.update_jacobian(system, *t, y);
-            }
-            let mut factor = (safety * self.predicted_factor(h_step, error)).min(FACTOR_MAX);
-            if rejected {
-                factor = factor.min(1.0);
-            }
-            self.previous = Some((h_step, error));
-            let h_new = if (1.0..KEEP_STEP).contains(&factor) && !renew {
-                h_step
-            } else {
-                h_step * factor
-            };
+            let h_new = self.next_step_size(
+                system,
+                (*t, y),
+                (h_step, error, safety),
+                iterations,
+                rejected,
+            );
             // A step cut short to land on the limit says nothing against the longer step.
             h = if landing { h_new.max(h) } else { h_new };
             self.record_stiffness(h);
