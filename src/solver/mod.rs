@@ -80,8 +80,8 @@ pub trait Stepper<const N: usize>: Clone + Sized {
 
 /// A runaway guard per `integrate` call: a legitimate long call needs far fewer steps (a
 /// 100 s step of a k = 1e7 spring takes about 2.5e5 explicit ones), while a runaway (a
-/// blow-up, a model made stiff beyond the explicit method) is stopped after about half a
-/// second of work.
+/// blow-up, a model made stiff beyond the explicit method) is stopped while a master
+/// still waits for the call, not after.
 const MAX_STEPS_PER_CALL: u64 = 1_000_000;
 
 /// The next step to try from `t` with proposed size `h`, the `taken`-th of this call: its
