@@ -563,8 +563,20 @@ impl Plant {
         Ok(var.slot)
     }
 
-    /// The independent coordinates and their derivatives (docs/model.md §6).
+    /// The event indicator of the leading angle's chart at the current configuration:
+    /// positive while it determines the loop (docs/model.md §6).
+    pub fn handover_indicator(&self) -> f64 {
+        let y = &self.state;
+        let (_, b1, c1) = model::kinematics::closure_with_gradient(&self.params, y[1], y[2]);
+        handover_indicator(&self.params, self.chart, b1, c1)
+    }
+
+    /// The independent coordinates, their derivatives and the event indicator (docs/model.md
+    /// §6).
     pub fn local(&self, local: Local) -> f64 {
+        if local == Local::HandoverIndicator {
+            return self.handover_indicator();
+        }
         real_value(
             &self.params,
             &self.inputs,

@@ -65,6 +65,8 @@ pub enum Local {
     LoopSpeed,
     /// The time derivative of component i of x.
     Derivative(usize),
+    /// Model Exchange's event indicator: the leading angle's handover function.
+    HandoverIndicator,
 }
 
 /// Where a variable's value lives.
@@ -394,12 +396,20 @@ const EXCHANGE_VARIABLES: [Variable; 9] = [
 
 /// Variables added after the first release, last so that every earlier value reference
 /// keeps its number.
-const LATER_VARIABLES: [Variable; 1] = [Variable {
-    name: "builtin_laws",
-    unit: "",
-    description: "Whether the built-in motor and load laws (Mm_a0..Mm_a2, Mr_b0, Mr_b1; the paper's by default) add to the inputs M_m and M_r; false for external motor and load models, whose torques are then the inputs alone",
-    slot: Slot::BuiltinLaws,
-}];
+const LATER_VARIABLES: [Variable; 2] = [
+    Variable {
+        name: "builtin_laws",
+        unit: "",
+        description: "Whether the built-in motor and load laws (Mm_a0..Mm_a2, Mr_b0, Mr_b1; the paper's by default) add to the inputs M_m and M_r; false for external motor and load models, whose torques are then the inputs alone",
+        slot: Slot::BuiltinLaws,
+    },
+    local(
+        "handover_indicator",
+        "",
+        "Model Exchange's event indicator: positive while loop_angle determines the loop, crossing zero where the other angle should lead (docs/model.md §6)",
+        Local::HandoverIndicator,
+    ),
+];
 
 /// Number of variables (and one past the largest value reference).
 pub const COUNT: usize = INPUTS.len()
@@ -559,6 +569,8 @@ pub fn dependencies(unknown: &Variable, list: Unknowns) -> Vec<(&'static str, Ki
 pub fn is_unknown(v: &Variable, list: Unknowns) -> bool {
     match (v.slot, list) {
         (Slot::Local(Local::Derivative(_)), _) => true,
+        // An event indicator, listed as such (FMI 3.0), not among the initial unknowns.
+        (Slot::Local(Local::HandoverIndicator), _) => false,
         (Slot::Local(_), Unknowns::Initial) => true,
         _ => v.causality() == Causality::Output,
     }
@@ -604,6 +616,8 @@ fn running_dependencies(slot: Slot) -> Vec<(&'static str, Kind)> {
         ],
         // Integer and Enumeration outputs change only at steps and events.
         Slot::Statistic(_) | Slot::LinkageClass => vec![],
+        // The leading angle's handover function: of the configuration alone.
+        Slot::Local(Local::HandoverIndicator) => vec![("loop_angle", Dependent)],
         // Not unknowns while running.
         Slot::Local(_) | Slot::LoopChart => vec![],
         Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
@@ -658,7 +672,9 @@ fn initial_dependencies(slot: Slot) -> Vec<&'static str> {
             [ASSEMBLY, LOOP_FORCES, START_SPEEDS, TWISTS].concat()
         }
         // Which angle leads depends on the assembly; φ2 or φ3 then as above.
-        Slot::Local(Local::LoopAngle) => ASSEMBLY.to_vec(),
+        Slot::Local(Local::LoopAngle) | Slot::Local(Local::HandoverIndicator) => {
+            ASSEMBLY.to_vec()
+        }
         Slot::Local(Local::LoopSpeed) | Slot::Local(Local::Derivative(1)) => {
             [ASSEMBLY, &["omega2_0"]].concat()
         }

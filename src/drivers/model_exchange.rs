@@ -96,7 +96,7 @@ impl Exchange {
 
     /// The event indicator: the current chart's handover function.
     pub fn indicators(plant: &Plant) -> [f64; 1] {
-        [indicator(plant.params(), plant.chart(), plant.state())]
+        [plant.handover_indicator()]
     }
 
     /// fmi2NewDiscreteStates: hand over to the other chart if the indicator has crossed.

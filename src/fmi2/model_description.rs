@@ -315,6 +315,7 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
     element.write_inner_content(|w| {
         let mut typed = w.create_element(v.var_type().as_str());
         match v.var_type() {
+            VarType::Real if v.unit.is_empty() => {}
             VarType::Real => {
                 typed = typed.with_attribute(("unit", v.unit));
                 if let Some((display, _)) = display_unit(v.unit) {

@@ -34,7 +34,10 @@ EXCHANGE = {"loop_angle": ("rad", None), "loop_speed": ("rad/s", None), "loop_ch
 def test_interface_is_as_specified(model_description):
     variables = by_name(model_description)
     assert set(variables) == (set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS
-                              | {"solver", "linkage_class", "builtin_laws"} | set(EXCHANGE))
+                              | {"solver", "linkage_class", "builtin_laws", "handover_indicator"}
+                              | set(EXCHANGE))
+    indicator = variables["handover_indicator"]
+    assert (indicator.causality, indicator.variability, indicator.unit) == ("local", "continuous", None)
     for name, (unit, derivative_of) in EXCHANGE.items():
         v = variables[name]
         assert (v.causality, v.unit, v.initial) == ("local", unit, "calculated"), name

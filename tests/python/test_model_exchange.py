@@ -367,3 +367,23 @@ def test_co_simulation_directional_derivatives(unzipped, model_description):
         slave.fmu.getDirectionalDerivative([slave.vr["phi2"]], [slave.vr["phi1"]], [1.0])
     assert "the knowns are the inputs (in Co-Simulation)" in slave.messages[-1]
     slave.fmu.freeInstance()
+
+
+def test_the_event_indicator_is_readable_as_a_variable(model, unzipped, model_description):
+    """`handover_indicator` is the event indicator, in Model Exchange at any state the master
+    sets and in Co-Simulation after every step."""
+    model.start(**reference.PAPER_LAWS, omega2_0=2.0)
+    z = (ctypes.c_double * 1)()
+    for shift in (0.0, 0.3, 0.6, 0.9):
+        x = model.states()
+        x[1] += shift
+        model.set_states(x)
+        model.fmu.getEventIndicators(z, 1)
+        assert model.real(["handover_indicator"])[0] == z[0]
+    slave = Model(unzipped, model_description, kind=FMU2Slave).start(omega2_0=2.0)
+    values = []
+    for k in range(50):
+        slave.fmu.doStep(k * 0.02, 0.02)
+        values.append(slave.real(["handover_indicator"])[0])
+    assert all(np.isfinite(values)) and len(set(values)) > 1
+    slave.fmu.freeInstance()
