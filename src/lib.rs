@@ -2,6 +2,7 @@
 //! ARCHITECTURE.md at the repository's root tells how the parts fit; from the top down:
 //!
 //! - [`fmi2`]: the C ABI, the only `unsafe` code in the crate (with the runner's loader);
+//! - [`fmi3`]: FMI 3.0's model description (its functions are not exported yet);
 //! - [`drivers`]: the co-simulation driver (the FMU's own integrator) and the Model Exchange
 //!   adapter (the master's integrator), each over the plant;
 //! - [`plant`]: the mechanism as a master sees it: variables, checks, outputs, derivatives;
@@ -12,6 +13,7 @@
 
 pub mod drivers;
 pub mod fmi2;
+pub mod fmi3;
 pub mod model;
 pub mod plant;
 pub mod snapshot;

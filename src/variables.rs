@@ -711,6 +711,8 @@ pub const UNITS: &[(&str, [i32; 4])] = &[
     ("N.m.s/rad", [1, 2, -1, -1]),
     ("N.m.s2/rad2", [1, 2, 0, -2]),
     ("rad/s2", [0, 0, -2, 1]),
+    // Time, FMI 3.0's independent variable.
+    ("s", [0, 0, 1, 0]),
 ];
 
 #[cfg(test)]

@@ -1,6 +1,6 @@
 //! Generated files committed to the repository stay in sync with their sources:
-//! `modelDescription/modelDescription.xml` and the README's variable table (from the
-//! variable table), and `modelDescription/index.html`, the FMU's documentation (from
+//! `modelDescription/modelDescription.xml`, FMI 3.0's `modelDescription/fmi3/modelDescription.xml`
+//! and the README's variable table (from the variable table), and `modelDescription/index.html`, the FMU's documentation (from
 //! docs/fmu.md, the README and docs/model.md). Regenerate with
 //! `cargo run --release --bin fmu-assets -- modelDescription` (and paste
 //! `modelDescription/variables.md` into the README).
@@ -17,6 +17,15 @@ fn committed_model_description_is_the_generated_one() {
     assert!(
         read("modelDescription/modelDescription.xml") == xml(),
         "modelDescription/modelDescription.xml is stale: run `cargo run --bin fmu-assets -- modelDescription`"
+    );
+}
+
+#[test]
+fn committed_fmi3_model_description_is_the_generated_one() {
+    assert!(
+        read("modelDescription/fmi3/modelDescription.xml")
+            == cyclic_mechanism::fmi3::model_description::xml(),
+        "modelDescription/fmi3/modelDescription.xml is stale: run `cargo run --bin fmu-assets -- modelDescription`"
     );
 }
 

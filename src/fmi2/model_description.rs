@@ -98,7 +98,11 @@ fn interface_guid() -> String {
             v.range()
         );
     }
-    let hash = fnv1a_128(text.as_bytes());
+    uuid_text(fnv1a_128(text.as_bytes()))
+}
+
+/// A 128-bit hash written as a UUID in braces, as FMI tools show GUIDs.
+pub(crate) fn uuid_text(hash: u128) -> String {
     let hex = format!("{hash:032x}");
     format!(
         "{{{}-{}-{}-{}-{}}}",
@@ -110,7 +114,7 @@ fn interface_guid() -> String {
     )
 }
 
-fn fnv1a_128(bytes: &[u8]) -> u128 {
+pub(crate) fn fnv1a_128(bytes: &[u8]) -> u128 {
     const OFFSET: u128 = 0x6c62272e07bb014262b821756295c58d;
     const PRIME: u128 = 0x0000000001000000000000000000013B;
     bytes
@@ -120,10 +124,10 @@ fn fnv1a_128(bytes: &[u8]) -> u128 {
 
 /// When this interface was last changed: fixed, so that the generated file is reproducible
 /// (a timestamp of the build would make every build differ). Set with `version`.
-const GENERATION_DATE: &str = "2026-11-23T00:00:00Z";
+pub(crate) const GENERATION_DATE: &str = "2026-11-23T00:00:00Z";
 
 /// A unit's display unit for tools' dialogs: name and factor (display = factor · value).
-fn display_unit(unit: &str) -> Option<(&'static str, f64)> {
+pub(crate) fn display_unit(unit: &str) -> Option<(&'static str, f64)> {
     match unit {
         "rad" => Some(("deg", 180.0 / std::f64::consts::PI)),
         "rad/s" => Some(("rpm", 30.0 / std::f64::consts::PI)),
@@ -199,7 +203,7 @@ fn write_co_simulation(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     Ok(())
 }
 
-fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+pub(crate) fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     w.create_element("UnitDefinitions")
         .write_inner_content(|w| {
             for (name, exponents) in UNITS {
@@ -230,7 +234,7 @@ fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
 }
 
 /// An enumeration's items: name, value, description.
-type Items = [(&'static str, i32, &'static str)];
+pub(crate) type Items = [(&'static str, i32, &'static str)];
 
 fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     let types: [(&str, &Items); 2] = [
@@ -263,7 +267,7 @@ fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     Ok(())
 }
 
-fn write_log_categories(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+pub(crate) fn write_log_categories(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     w.create_element("LogCategories").write_inner_content(|w| {
         for (name, description) in LOG_CATEGORIES {
             w.create_element("Category")
@@ -275,7 +279,7 @@ fn write_log_categories(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     Ok(())
 }
 
-fn write_default_experiment(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+pub(crate) fn write_default_experiment(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     let (start, stop, step) = DEFAULT_EXPERIMENT;
     w.create_element("DefaultExperiment")
         .with_attributes([
@@ -398,7 +402,7 @@ fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
 }
 
 /// The start value as the XML writes it: a number, or `true`/`false` for a Boolean.
-fn start_text(v: &Variable) -> Option<String> {
+pub(crate) fn start_text(v: &Variable) -> Option<String> {
     v.start().map(|s| match v.var_type() {
         VarType::Boolean => (s != 0.0).to_string(),
         _ => s.to_string(),

@@ -1,6 +1,6 @@
 //! Writes the FMU's generated files: `fmu-assets <dir>` writes
-//! `<dir>/modelDescription.xml` and `<dir>/variables.md` (the table as the README shows
-//! it), both from the variable table, and `<dir>/index.html`, the documentation inside the
+//! `<dir>/modelDescription.xml`, `<dir>/fmi3/modelDescription.xml` (FMI 3.0's) and
+//! `<dir>/variables.md` (the table as the README shows it), all from the variable table, and `<dir>/index.html`, the documentation inside the
 //! FMU, from the repository's own documents: docs/fmu.md, the README's section on using
 //! the FMU, docs/model.md and the variable table. Copies are committed under
 //! `modelDescription/`, and `tests/generated_files.rs` fails when one is out of date.
@@ -22,8 +22,10 @@ fn main() {
         std::process::exit(2);
     };
     let write = |name: &str, text: String| {
+        let path = dir.join(name);
+        let folder = path.parent().unwrap_or(&dir).to_path_buf();
         if let Err(error) =
-            std::fs::create_dir_all(&dir).and_then(|()| std::fs::write(dir.join(name), text))
+            std::fs::create_dir_all(folder).and_then(|()| std::fs::write(&path, text))
         {
             eprintln!(
                 "fmu-assets: cannot write {}: {error}",
@@ -33,6 +35,10 @@ fn main() {
         }
     };
     write("modelDescription.xml", xml());
+    write(
+        "fmi3/modelDescription.xml",
+        cyclic_mechanism::fmi3::model_description::xml(),
+    );
     write("variables.md", variables_markdown());
     write("index.html", documentation());
 }

@@ -1,0 +1,330 @@
+//! The FMI 3.0 `modelDescription.xml`, from the same variable table, units, types and log
+//! categories as FMI 2.0's. Value references: `time`, the independent variable FMI 3.0
+//! requires, is 0, and every other variable has its FMI 2.0 reference plus one, so that
+//! both stay positional and append-only. State derivatives name their state's value
+//! reference, and the event indicator is a variable (`handover_indicator`).
+
+use quick_xml::events::{BytesDecl, Event};
+use quick_xml::Writer;
+use std::io;
+
+use crate::fmi2::model_description::{
+    display_unit, fnv1a_128, start_text, uuid_text, write_default_experiment, write_log_categories,
+    write_units, Items, GENERATION_DATE, MAX_OUTPUT_DERIVATIVE_ORDER, MODEL_IDENTIFIER, MODEL_NAME,
+    VERSION,
+};
+use crate::model::LINKAGE_CLASSES;
+use crate::variables::{
+    dependencies, is_unknown, value_reference, variables, Causality, Local, Slot, Unknowns,
+    VarType, Variable, LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE,
+};
+
+pub const FMI_VERSION: &str = "3.0";
+
+/// The value reference of the independent variable `time`.
+pub const TIME_REFERENCE: u32 = 0;
+
+/// Model Exchange capabilities, as declared: only what the FMU provides through FMI 2.0
+/// today (FMU states, serialization, directional derivatives).
+pub const EXCHANGE_CAPABILITIES: &[(&str, bool)] = &[
+    ("needsExecutionTool", false),
+    ("canBeInstantiatedOnlyOncePerProcess", false),
+    ("canGetAndSetFMUState", true),
+    ("canSerializeFMUState", true),
+    ("providesDirectionalDerivatives", true),
+    ("needsCompletedIntegratorStep", false),
+];
+
+/// Co-Simulation capabilities, as declared (as for Model Exchange; the output derivatives'
+/// order is written beside them).
+pub const CAPABILITIES: &[(&str, bool)] = &[
+    ("needsExecutionTool", false),
+    ("canBeInstantiatedOnlyOncePerProcess", false),
+    ("canGetAndSetFMUState", true),
+    ("canSerializeFMUState", true),
+    ("providesDirectionalDerivatives", true),
+    ("canHandleVariableCommunicationStepSize", true),
+];
+
+/// A variable's FMI 3.0 value reference.
+pub fn reference(fmi2_reference: u32) -> u32 {
+    fmi2_reference + 1
+}
+
+/// The instantiation token: a hash of this description written without it, so that it
+/// changes whenever anything in the interface does.
+pub fn instantiation_token() -> &'static str {
+    static TOKEN: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    TOKEN.get_or_init(|| uuid_text(fnv1a_128(document("").as_bytes())))
+}
+
+/// The complete FMI 3.0 `modelDescription.xml`.
+pub fn xml() -> String {
+    document(instantiation_token())
+}
+
+fn document(token: &str) -> String {
+    let mut writer = Writer::new_with_indent(Vec::new(), b' ', 2);
+    write_model_description(&mut writer, token).expect("writing to a Vec cannot fail");
+    let mut text = String::from_utf8(writer.into_inner()).expect("quick-xml writes UTF-8");
+    text.push('\n');
+    text
+}
+
+fn flag(value: bool) -> &'static str {
+    if value {
+        "true"
+    } else {
+        "false"
+    }
+}
+
+fn write_model_description(w: &mut Writer<Vec<u8>>, token: &str) -> io::Result<()> {
+    w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None)))?;
+    w.create_element("fmiModelDescription")
+        .with_attributes([
+            ("fmiVersion", FMI_VERSION),
+            ("modelName", MODEL_NAME),
+            ("instantiationToken", token),
+            (
+                "description",
+                "Four-bar cyclic mechanism with two torsional springs (Tataru), orthogonal-complement method",
+            ),
+            ("version", VERSION),
+            ("author", "the cyclic-mechanism developers"),
+            ("copyright", "Copyright the cyclic-mechanism developers"),
+            ("license", "MIT"),
+            ("generationTool", "cyclic-mechanism (Rust)"),
+            ("generationDateAndTime", GENERATION_DATE),
+            ("variableNamingConvention", "flat"),
+        ])
+        .write_inner_content(|w| {
+            write_interfaces(w)?;
+            write_units(w)?;
+            write_types(w)?;
+            write_log_categories(w)?;
+            write_default_experiment(w)?;
+            write_variables(w)?;
+            write_structure(w)
+        })?;
+    Ok(())
+}
+
+fn write_interfaces(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    let mut exchange = w
+        .create_element("ModelExchange")
+        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
+    for (name, value) in EXCHANGE_CAPABILITIES {
+        exchange = exchange.with_attribute((*name, flag(*value)));
+    }
+    exchange.write_empty()?;
+    let order = MAX_OUTPUT_DERIVATIVE_ORDER.to_string();
+    let mut cosimulation = w
+        .create_element("CoSimulation")
+        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
+    for (name, value) in CAPABILITIES {
+        cosimulation = cosimulation.with_attribute((*name, flag(*value)));
+    }
+    cosimulation
+        .with_attribute(("maxOutputDerivativeOrder", order.as_str()))
+        .write_empty()?;
+    Ok(())
+}
+
+fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    let types: [(&str, &Items); 2] = [
+        (SOLVER_TYPE, &SOLVER_ITEMS),
+        (LINKAGE_TYPE, &LINKAGE_CLASSES),
+    ];
+    w.create_element("TypeDefinitions")
+        .write_inner_content(|w| {
+            for (type_name, items) in types {
+                w.create_element("EnumerationType")
+                    .with_attribute(("name", type_name))
+                    .write_inner_content(|w| {
+                        for (name, value, description) in items {
+                            w.create_element("Item")
+                                .with_attributes([
+                                    ("name", *name),
+                                    ("value", value.to_string().as_str()),
+                                    ("description", *description),
+                                ])
+                                .write_empty()?;
+                        }
+                        Ok(())
+                    })?;
+            }
+            Ok(())
+        })?;
+    Ok(())
+}
+
+fn write_variables(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    w.create_element("ModelVariables")
+        .write_inner_content(|w| {
+            w.create_element("Float64")
+                .with_attributes([
+                    ("name", "time"),
+                    ("valueReference", TIME_REFERENCE.to_string().as_str()),
+                    ("description", "Simulation time"),
+                    ("causality", "independent"),
+                    ("variability", "continuous"),
+                    ("unit", "s"),
+                ])
+                .write_empty()?;
+            for (vr, v) in variables() {
+                write_variable(w, reference(vr), &v)?;
+            }
+            Ok(())
+        })?;
+    Ok(())
+}
+
+/// The element of a variable's type in FMI 3.0.
+fn element_name(var_type: VarType) -> &'static str {
+    match var_type {
+        VarType::Real => "Float64",
+        VarType::Integer => "Int32",
+        VarType::Boolean => "Boolean",
+        VarType::Enumeration => "Enumeration",
+    }
+}
+
+fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<()> {
+    let vr = vr.to_string();
+    let mut element = w
+        .create_element(element_name(v.var_type()))
+        .with_attributes([
+            ("name", v.name),
+            ("valueReference", vr.as_str()),
+            ("description", v.description),
+            ("causality", v.causality().as_str()),
+            ("variability", v.variability()),
+        ]);
+    if let Some(initial) = v.initial() {
+        element = element.with_attribute(("initial", initial));
+    }
+    match v.var_type() {
+        VarType::Real if !v.unit.is_empty() => {
+            element = element.with_attribute(("unit", v.unit));
+            if let Some((display, _)) = display_unit(v.unit) {
+                element = element.with_attribute(("displayUnit", display));
+            }
+        }
+        VarType::Enumeration => {
+            element =
+                element.with_attribute(("declaredType", v.declared_type().unwrap_or(SOLVER_TYPE)))
+        }
+        _ => {}
+    }
+    let range = v
+        .range()
+        .map(|(low, high)| (low.to_string(), high.to_string()));
+    if let Some((low, high)) = &range {
+        element = element.with_attributes([("min", low.as_str()), ("max", high.as_str())]);
+    }
+    let start = start_text(v);
+    if let Some(start) = &start {
+        element = element.with_attribute(("start", start.as_str()));
+    }
+    let derivative = v.derivative_of().map(|state| reference(state).to_string());
+    if let Some(state) = &derivative {
+        element = element.with_attribute(("derivative", state.as_str()));
+    }
+    element.write_empty()?;
+    Ok(())
+}
+
+/// Outputs, state derivatives (in the order of the continuous states), initial unknowns
+/// and the event indicator, each by value reference with the knowns it depends on and how.
+fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
+    let listed = |keep: &dyn Fn(&Variable) -> bool| -> Vec<(u32, Variable)> {
+        variables()
+            .filter(|(_, v)| keep(v))
+            .map(|(vr, v)| (reference(vr), v))
+            .collect()
+    };
+    let outputs = listed(&|v| v.causality() == Causality::Output);
+    let derivatives = listed(&|v| v.derivative_of().is_some());
+    let initial = listed(&|v| is_unknown(v, Unknowns::Initial));
+    let indicators = listed(&|v| v.slot == Slot::Local(Local::HandoverIndicator));
+    w.create_element("ModelStructure")
+        .write_inner_content(|w| {
+            write_unknowns(w, "Output", &outputs, Unknowns::Running)?;
+            write_unknowns(
+                w,
+                "ContinuousStateDerivative",
+                &derivatives,
+                Unknowns::Running,
+            )?;
+            write_unknowns(w, "InitialUnknown", &initial, Unknowns::Initial)?;
+            write_unknowns(w, "EventIndicator", &indicators, Unknowns::Running)
+        })?;
+    Ok(())
+}
+
+fn write_unknowns(
+    w: &mut Writer<Vec<u8>>,
+    element: &str,
+    members: &[(u32, Variable)],
+    which: Unknowns,
+) -> io::Result<()> {
+    for (vr, v) in members {
+        let pairs = dependencies(v, which);
+        let known: Vec<String> = pairs
+            .iter()
+            .map(|(n, _)| reference(value_reference(n).expect("known")).to_string())
+            .collect();
+        let kinds: Vec<&str> = pairs.iter().map(|(_, k)| k.as_str()).collect();
+        let mut unknown = w.create_element(element).with_attributes([
+            ("valueReference", vr.to_string().as_str()),
+            ("dependencies", known.join(" ").as_str()),
+        ]);
+        // An empty list says "depends on none"; its kinds would be an empty list too.
+        if !known.is_empty() {
+            unknown = unknown.with_attribute(("dependenciesKind", kinds.join(" ").as_str()));
+        }
+        unknown.write_empty()?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_variable_once_after_time_and_the_token_is_stable() {
+        let text = xml();
+        assert!(text.contains(
+            "name=\"time\" valueReference=\"0\" description=\"Simulation time\" causality=\"independent\""
+        ));
+        for (vr, v) in variables() {
+            let needle = format!("name=\"{}\" valueReference=\"{}\"", v.name, vr + 1);
+            assert_eq!(text.matches(&needle).count(), 1, "{needle}");
+        }
+        assert_eq!(instantiation_token(), instantiation_token());
+        assert!(text.contains(instantiation_token()));
+        assert_ne!(
+            instantiation_token(),
+            crate::fmi2::model_description::guid()
+        );
+    }
+
+    #[test]
+    fn derivatives_name_their_states_and_the_indicator_is_listed() {
+        let text = xml();
+        let vr = |name: &str| reference(value_reference(name).unwrap());
+        let needle = format!("name=\"der(phi1)\" valueReference=\"{}\"", vr("der(phi1)"));
+        let line = text.lines().find(|l| l.contains(&needle)).unwrap();
+        assert!(
+            line.contains(&format!("derivative=\"{}\"", vr("phi1"))),
+            "{line}"
+        );
+        assert!(text.contains(&format!(
+            "<EventIndicator valueReference=\"{}\" dependencies=\"{}\"",
+            vr("handover_indicator"),
+            vr("loop_angle")
+        )));
+    }
+}
