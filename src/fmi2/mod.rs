@@ -17,6 +17,7 @@
 
 pub mod common;
 pub mod cosimulation;
+pub mod fmu_state;
 pub mod instance;
 pub mod isa;
 pub mod model_description;

@@ -31,6 +31,8 @@ const RUST_TESTS_ON_WINDOWS: &[&str] = &[
     "stiff",
     "isa",
     "no_allocation",
+    "golden_outputs",
+    "integrators",
 ];
 
 /// How a scenario's runs must agree with linux64's.

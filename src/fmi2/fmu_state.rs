@@ -1,0 +1,213 @@
+//! The restorable state of an instance, in one place: the FMI state, the experiment, the
+//! plant and its driver. fmi2GetFMUstate clones it, fmi2SetFMUstate puts a clone back,
+//! fmi2Reset starts a new one, and serialization writes and reads its fields in one order,
+//! each part checking its values again on reading.
+
+use super::instance::Failure;
+use super::model_description::{guid, DEFAULT_EXPERIMENT};
+use super::state_machine::{Interface, State};
+use crate::drivers::{CoSimulation, Exchange, Experiment};
+use crate::plant::{Activity, Plant};
+use crate::snapshot::{fnv1a_64, FormatError, Reader, Writer};
+use crate::solver::Method;
+
+/// The driver of an instance, by interface; each exists once initialisation (or, in
+/// initialization mode, a read) has assembled the plant.
+// One per instance and saved state, never moved on the step's path: boxing the larger
+// variant would add an indirection to every step for no saving that matters.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+pub enum Driver {
+    CoSimulation(Option<CoSimulation>),
+    ModelExchange(Option<Exchange>),
+}
+
+impl Driver {
+    pub(super) fn new(interface: Interface) -> Self {
+        match interface {
+            Interface::CoSimulation => Driver::CoSimulation(None),
+            Interface::ModelExchange => Driver::ModelExchange(None),
+        }
+    }
+
+    fn interface(&self) -> Interface {
+        match self {
+            Driver::CoSimulation(_) => Interface::CoSimulation,
+            Driver::ModelExchange(_) => Interface::ModelExchange,
+        }
+    }
+
+    pub(super) fn is_started(&self) -> bool {
+        match self {
+            Driver::CoSimulation(driver) => driver.is_some(),
+            Driver::ModelExchange(exchange) => exchange.is_some(),
+        }
+    }
+
+    /// Back to not started: the plant's assembly it was made from is stale.
+    pub(super) fn stop(&mut self) {
+        *self = Driver::new(self.interface());
+    }
+}
+
+/// The restorable state of an instance, in one place: what fmi2GetFMUstate saves,
+/// fmi2SetFMUstate restores, fmi2SerializeFMUstate writes and fmi2Reset starts again from.
+/// The logging settings belong to the instance, not here.
+#[derive(Clone, Debug)]
+pub struct FmuState {
+    pub state: State,
+    pub(super) experiment: Experiment,
+    pub(super) plant: Plant,
+    pub(super) driver: Driver,
+    /// Whether the plant holds the assembly for the current parameters (initialization
+    /// mode).
+    pub(super) assembled: bool,
+}
+
+impl FmuState {
+    /// Just after fmi2Instantiate: every variable at its start value.
+    pub(super) fn new(interface: Interface) -> Self {
+        let mut plant = Plant::new();
+        plant.set_time(DEFAULT_EXPERIMENT.0);
+        Self {
+            state: State::Instantiated,
+            experiment: Experiment::new(DEFAULT_EXPERIMENT.0),
+            plant,
+            driver: Driver::new(interface),
+            assembled: false,
+        }
+    }
+
+    pub(super) fn interface(&self) -> Interface {
+        self.driver.interface()
+    }
+
+    /// What the statistics outputs show: the co-simulation integrator's work, or none in
+    /// Model Exchange (where the method shown is the one `solver` names first).
+    pub(super) fn activity(&self) -> Activity {
+        match &self.driver {
+            Driver::CoSimulation(Some(driver)) => driver.activity(),
+            _ => Activity {
+                method: match self.plant.solver_kind().choice() {
+                    crate::solver::Choice::Fixed(Method::Radau5) => Method::Radau5,
+                    _ => Method::Dop853,
+                },
+                ..Activity::idle()
+            },
+        }
+    }
+
+    /// The versioned, position-independent byte form (see [`crate::snapshot`]).
+    pub fn serialize(&self) -> Vec<u8> {
+        let mut w = Writer::default();
+        w.u8(self.interface() as u8);
+        w.u8(self.state.code());
+        let e = &self.experiment;
+        w.f64s(&[e.tolerance, e.start]);
+        w.bool(e.stop.is_some());
+        w.f64(e.stop.unwrap_or(e.start));
+        w.bool(self.assembled);
+        self.plant.serialize_into(&mut w);
+        w.bool(self.driver.is_started());
+        match &self.driver {
+            Driver::CoSimulation(Some(driver)) => driver.serialize_into(&mut w),
+            Driver::ModelExchange(Some(exchange)) => exchange.serialize_into(&mut w),
+            _ => {}
+        }
+        w.finish(interface_hash())
+    }
+
+    pub fn deserialize(bytes: &[u8]) -> Result<Self, Failure> {
+        Self::read(bytes).map_err(|e| Failure::error(e.to_string()))
+    }
+
+    fn read(bytes: &[u8]) -> Result<Self, FormatError> {
+        let invalid = |what: String| FormatError(format!("invalid serialized state: {what}"));
+        let mut r = Reader::open(bytes, interface_hash())?;
+        let interface = match r.u8()? {
+            0 => Interface::ModelExchange,
+            1 => Interface::CoSimulation,
+            other => return Err(invalid(format!("interface {other}"))),
+        };
+        let code = r.u8()?;
+        let state =
+            State::from_code(code).ok_or_else(|| invalid(format!("FMI state code {code}")))?;
+        let [tolerance, start] = r.f64s()?;
+        Experiment::check_tolerance(tolerance).map_err(|e| invalid(e.to_string()))?;
+        let has_stop = r.bool()?;
+        let stop = r.f64()?;
+        let experiment = Experiment {
+            tolerance,
+            start,
+            stop: has_stop.then_some(stop),
+        };
+        let assembled = r.bool()?;
+        let plant = Plant::deserialize_from(&mut r)?;
+        let started = r.bool()?;
+        let driver = match (interface, started) {
+            (_, false) => Driver::new(interface),
+            (Interface::CoSimulation, true) => Driver::CoSimulation(Some(
+                CoSimulation::deserialize_from(&mut r, &plant, &experiment)?,
+            )),
+            (Interface::ModelExchange, true) => {
+                Driver::ModelExchange(Some(Exchange::deserialize_from(&mut r, &plant)?))
+            }
+        };
+        r.finish()?;
+        let restored = Self {
+            state,
+            experiment,
+            plant,
+            driver,
+            assembled,
+        };
+        restored.check().map_err(invalid)?;
+        Ok(restored)
+    }
+
+    /// The parts of a restored state agree with each other and with its FMI state.
+    fn check(&self) -> Result<(), String> {
+        let state = self.state;
+        let exchange_states = matches!(state, State::EventMode | State::ContinuousTimeMode);
+        let cs_states = matches!(state, State::StepComplete | State::StepFailed);
+        let initialised = !matches!(state, State::Instantiated | State::InitializationMode);
+        let started = self.driver.is_started();
+        let consistent = match self.interface() {
+            Interface::ModelExchange => !cs_states && (started || !exchange_states),
+            Interface::CoSimulation => !exchange_states && (started || !cs_states),
+        };
+        if !consistent {
+            return Err(format!(
+                "{} in a {} instance",
+                state.describe(),
+                self.interface().name()
+            ));
+        }
+        let steps = self.activity().statistics.n_steps;
+        if !initialised && (self.plant.time() != self.experiment.start || steps != 0) {
+            return Err("an instance before initialisation has not moved".into());
+        }
+        if started && !(self.assembled || initialised) {
+            return Err("a started driver without an assembly".into());
+        }
+        if self.assembled || initialised {
+            self.plant.check_consistent()?;
+            if let Driver::CoSimulation(Some(driver)) = &self.driver {
+                driver.check_initialised(&self.plant, &self.experiment)?;
+            }
+        }
+        if self
+            .experiment
+            .stop
+            .is_some_and(|stop| stop < self.experiment.start)
+        {
+            return Err("the stop time is before the start time".into());
+        }
+        Ok(())
+    }
+}
+
+/// Serialized states carry this hash of the GUID: a state of another FMU is refused.
+pub(super) fn interface_hash() -> u64 {
+    fnv1a_64(guid().as_bytes())
+}
