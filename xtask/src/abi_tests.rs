@@ -20,7 +20,10 @@ const QEMU: &str = "/usr/bin/qemu-aarch64-static";
 const AARCH64_SYSROOT: &str = "/usr/aarch64-linux-gnu";
 
 /// The crate's tests that need nothing but the library (no Python, no files of the
-/// checkout), run as Windows programs.
+/// checkout), run as Windows programs. The golden outputs are not among them: they hold
+/// linux64's bits, and under Wine the free run's differed from its first second on (the
+/// C library's functions, which the model calls in places, differ in their last bits);
+/// the C master below compares the platforms' runs instead.
 const RUST_TESTS_ON_WINDOWS: &[&str] = &[
     "paper_cases",
     "fuzz_api",
@@ -31,7 +34,6 @@ const RUST_TESTS_ON_WINDOWS: &[&str] = &[
     "stiff",
     "isa",
     "no_allocation",
-    "golden_outputs",
     "integrators",
 ];
 
