@@ -124,7 +124,7 @@ pub(crate) fn fnv1a_128(bytes: &[u8]) -> u128 {
 
 /// When this interface was last changed: fixed, so that the generated file is reproducible
 /// (a timestamp of the build would make every build differ). Set with `version`.
-pub(crate) const GENERATION_DATE: &str = "2026-11-23T00:00:00Z";
+const GENERATION_DATE: &str = "2026-11-23T00:00:00Z";
 
 /// A unit's display unit for tools' dialogs: name and factor (display = factor · value).
 pub(crate) fn display_unit(unit: &str) -> Option<(&'static str, f64)> {
@@ -144,30 +144,62 @@ pub fn xml() -> String {
     text
 }
 
+/// The attributes of `fmiModelDescription` that FMI 2.0 and 3.0 write alike, after the
+/// version, the model's name and its identifying token.
+pub(crate) const DESCRIPTION_ATTRIBUTES: [(&str, &str); 8] = [
+    (
+        "description",
+        "Four-bar cyclic mechanism with two torsional springs (Tataru), orthogonal-complement method",
+    ),
+    ("version", VERSION),
+    ("author", "the cyclic-mechanism developers"),
+    ("copyright", "Copyright the cyclic-mechanism developers"),
+    ("license", "MIT"),
+    ("generationTool", "cyclic-mechanism (Rust)"),
+    ("generationDateAndTime", GENERATION_DATE),
+    ("variableNamingConvention", "flat"),
+];
+
+/// An interface element (`ModelExchange`, `CoSimulation`) with the model identifier, its
+/// capability flags and then the attributes `more`.
+pub(crate) fn write_interface(
+    w: &mut Writer<Vec<u8>>,
+    element: &str,
+    flags: &[(&str, bool)],
+    more: &[(&str, &str)],
+) -> io::Result<()> {
+    let mut interface = w
+        .create_element(element)
+        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
+    for (name, value) in flags {
+        interface = interface.with_attribute((*name, if *value { "true" } else { "false" }));
+    }
+    interface
+        .with_attributes(more.iter().copied())
+        .write_empty()?;
+    Ok(())
+}
+
 fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
     w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None)))?;
-    let guid = guid();
+    let indicators = EVENT_INDICATORS.to_string();
+    let order = MAX_OUTPUT_DERIVATIVE_ORDER.to_string();
     w.create_element("fmiModelDescription")
         .with_attributes([
             ("fmiVersion", FMI_VERSION),
             ("modelName", MODEL_NAME),
-            ("guid", guid),
-            (
-                "description",
-                "Four-bar cyclic mechanism with two torsional springs (Tataru), orthogonal-complement method",
-            ),
-            ("version", VERSION),
-            ("author", "the cyclic-mechanism developers"),
-            ("copyright", "Copyright the cyclic-mechanism developers"),
-            ("license", "MIT"),
-            ("generationTool", "cyclic-mechanism (Rust)"),
-            ("generationDateAndTime", GENERATION_DATE),
-            ("variableNamingConvention", "flat"),
-            ("numberOfEventIndicators", EVENT_INDICATORS.to_string().as_str()),
+            ("guid", guid()),
         ])
+        .with_attributes(DESCRIPTION_ATTRIBUTES)
+        .with_attribute(("numberOfEventIndicators", indicators.as_str()))
         .write_inner_content(|w| {
-            write_model_exchange(w)?;
-            write_co_simulation(w)?;
+            write_interface(w, "ModelExchange", EXCHANGE_CAPABILITIES, &[])?;
+            write_interface(
+                w,
+                "CoSimulation",
+                CAPABILITIES,
+                &[("maxOutputDerivativeOrder", order.as_str())],
+            )?;
             write_units(w)?;
             write_types(w)?;
             write_log_categories(w)?;
@@ -175,31 +207,6 @@ fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
             write_variables(w)?;
             write_structure(w)
         })?;
-    Ok(())
-}
-
-fn write_model_exchange(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
-    let mut element = w
-        .create_element("ModelExchange")
-        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
-    for (name, value) in EXCHANGE_CAPABILITIES {
-        element = element.with_attribute((*name, if *value { "true" } else { "false" }));
-    }
-    element.write_empty()?;
-    Ok(())
-}
-
-fn write_co_simulation(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
-    let order = MAX_OUTPUT_DERIVATIVE_ORDER.to_string();
-    let mut element = w
-        .create_element("CoSimulation")
-        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
-    for (name, value) in CAPABILITIES {
-        element = element.with_attribute((*name, if *value { "true" } else { "false" }));
-    }
-    element
-        .with_attribute(("maxOutputDerivativeOrder", order.as_str()))
-        .write_empty()?;
     Ok(())
 }
 

@@ -9,9 +9,9 @@ use quick_xml::Writer;
 use std::io;
 
 use crate::fmi2::model_description::{
-    display_unit, fnv1a_128, start_text, uuid_text, write_default_experiment, write_log_categories,
-    write_units, Items, GENERATION_DATE, MAX_OUTPUT_DERIVATIVE_ORDER, MODEL_IDENTIFIER, MODEL_NAME,
-    VERSION,
+    display_unit, fnv1a_128, start_text, uuid_text, write_default_experiment, write_interface,
+    write_log_categories, write_units, Items, DESCRIPTION_ATTRIBUTES, MAX_OUTPUT_DERIVATIVE_ORDER,
+    MODEL_NAME,
 };
 use crate::model::LINKAGE_CLASSES;
 use crate::variables::{
@@ -71,35 +71,24 @@ fn document(token: &str) -> String {
     text
 }
 
-fn flag(value: bool) -> &'static str {
-    if value {
-        "true"
-    } else {
-        "false"
-    }
-}
-
 fn write_model_description(w: &mut Writer<Vec<u8>>, token: &str) -> io::Result<()> {
     w.write_event(Event::Decl(BytesDecl::new("1.0", Some("UTF-8"), None)))?;
+    let order = MAX_OUTPUT_DERIVATIVE_ORDER.to_string();
     w.create_element("fmiModelDescription")
         .with_attributes([
             ("fmiVersion", FMI_VERSION),
             ("modelName", MODEL_NAME),
             ("instantiationToken", token),
-            (
-                "description",
-                "Four-bar cyclic mechanism with two torsional springs (Tataru), orthogonal-complement method",
-            ),
-            ("version", VERSION),
-            ("author", "the cyclic-mechanism developers"),
-            ("copyright", "Copyright the cyclic-mechanism developers"),
-            ("license", "MIT"),
-            ("generationTool", "cyclic-mechanism (Rust)"),
-            ("generationDateAndTime", GENERATION_DATE),
-            ("variableNamingConvention", "flat"),
         ])
+        .with_attributes(DESCRIPTION_ATTRIBUTES)
         .write_inner_content(|w| {
-            write_interfaces(w)?;
+            write_interface(w, "ModelExchange", EXCHANGE_CAPABILITIES, &[])?;
+            write_interface(
+                w,
+                "CoSimulation",
+                CAPABILITIES,
+                &[("maxOutputDerivativeOrder", order.as_str())],
+            )?;
             write_units(w)?;
             write_types(w)?;
             write_log_categories(w)?;
@@ -107,27 +96,6 @@ fn write_model_description(w: &mut Writer<Vec<u8>>, token: &str) -> io::Result<(
             write_variables(w)?;
             write_structure(w)
         })?;
-    Ok(())
-}
-
-fn write_interfaces(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
-    let mut exchange = w
-        .create_element("ModelExchange")
-        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
-    for (name, value) in EXCHANGE_CAPABILITIES {
-        exchange = exchange.with_attribute((*name, flag(*value)));
-    }
-    exchange.write_empty()?;
-    let order = MAX_OUTPUT_DERIVATIVE_ORDER.to_string();
-    let mut cosimulation = w
-        .create_element("CoSimulation")
-        .with_attribute(("modelIdentifier", MODEL_IDENTIFIER));
-    for (name, value) in CAPABILITIES {
-        cosimulation = cosimulation.with_attribute((*name, flag(*value)));
-    }
-    cosimulation
-        .with_attribute(("maxOutputDerivativeOrder", order.as_str()))
-        .write_empty()?;
     Ok(())
 }
 

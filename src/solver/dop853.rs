@@ -15,8 +15,7 @@
 
 use super::dop853_tableau::{A, A_DENSE, B, C, C_DENSE, D, E3, E5};
 use super::{
-    check_step_size, initial_step, plan_step, OdeSystem, Progress, SolverError, Statistics,
-    Stepper, Tolerances,
+    check_step_size, initial_step, plan_step, OdeSystem, Progress, SolverError, Stepper, Tolerances,
 };
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 
@@ -395,21 +394,12 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
         }
     }
 
-    fn statistics(&self) -> Statistics {
-        self.progress.stats
-    }
-
-    /// What this method hands on when `auto` changes method.
     fn progress(&self) -> Progress {
         self.progress
     }
 
-    /// Continue where another method stopped: its counters go on, and its proposed step
-    /// size is this one's first guess.
-    fn resume(progress: Progress) -> Self {
-        let mut solver = Self::new(progress.tolerances);
-        solver.progress = progress;
-        solver
+    fn progress_mut(&mut self) -> &mut Progress {
+        &mut self.progress
     }
 
     /// The state or the right-hand side changed outside the integrator (new inputs, a

@@ -34,14 +34,22 @@ pub trait Stepper<const N: usize>: Clone + Sized {
     /// A method with no memory, working to `tolerances`.
     fn new(tolerances: Tolerances) -> Self;
 
-    fn statistics(&self) -> Statistics;
-
     /// What this method hands on when `auto` changes method.
     fn progress(&self) -> Progress;
 
+    fn progress_mut(&mut self) -> &mut Progress;
+
+    fn statistics(&self) -> Statistics {
+        self.progress().stats
+    }
+
     /// Continue where another method stopped: its counters go on, and its proposed step
     /// size is this one's first guess.
-    fn resume(progress: Progress) -> Self;
+    fn resume(progress: Progress) -> Self {
+        let mut method = Self::new(progress.tolerances);
+        *method.progress_mut() = progress;
+        method
+    }
 
     /// The state or the right-hand side changed outside the integrator (new inputs, a
     /// restored state): what the method remembers of the last step no longer applies. The

@@ -529,21 +529,12 @@ impl<const N: usize> Stepper<N> for Radau5<N> {
         }
     }
 
-    fn statistics(&self) -> Statistics {
-        self.progress.stats
-    }
-
-    /// What this method hands on when `auto` changes method.
     fn progress(&self) -> Progress {
         self.progress
     }
 
-    /// Continue where another method stopped: its counters go on, and its proposed step
-    /// size is this one's first guess.
-    fn resume(progress: Progress) -> Self {
-        let mut solver = Self::new(progress.tolerances);
-        solver.progress = progress;
-        solver
+    fn progress_mut(&mut self) -> &mut Progress {
+        &mut self.progress
     }
 
     /// The state or the right-hand side changed outside the integrator: f(t, y), the
