@@ -1,8 +1,10 @@
 """Couple an external DC-motor model to the mechanism, by FMPy's low-level API:
 
-    python examples/dc_motor/coupling.py <CyclicMechanism.fmu> <output directory> [stop time]
+    python examples/dc_motor/coupling.py <CyclicMechanism.fmu> <output directory> [stop time] [--motor DcMotor.fmu]
 
-The motor (examples/dc_motor/dc_motor.py) is built into an FMU with pythonfmu; each
+The motor is the compiled one of examples/dc_motor/native (`cargo xtask motor` packs
+target/fmu/DcMotor.fmu) when given with --motor, else examples/dc_motor/dc_motor.py, the
+same motor written in Python, built into an FMU with pythonfmu; each
 communication step the master passes the mechanism's `omega1` to the motor and the motor's
 `torque` to the mechanism's `M_m` (Jacobi coupling: both step from the previous outputs).
 The motor replaces the mechanism's built-in motor law, whose coefficients are set to 0;
@@ -52,10 +54,10 @@ def load(fmu_path, instance):
     return slave, refs, unzipped
 
 
-def run(mechanism_fmu, out, stop_time=5.0, step=1e-3):
+def run(mechanism_fmu, out, stop_time=5.0, step=1e-3, motor_fmu=None):
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    motor, motor_vr, motor_dir = load(build_motor(out), "motor")
+    motor, motor_vr, motor_dir = load(motor_fmu or build_motor(out), "motor")
     mech, mech_vr, mech_dir = load(mechanism_fmu, "mechanism")
     for slave in (motor, mech):
         slave.instantiate()
@@ -108,8 +110,14 @@ def plot(data, path):
 
 
 if __name__ == "__main__":
-    if len(sys.argv) < 3:
-        sys.exit("usage: coupling.py <CyclicMechanism.fmu> <output directory> [stop time]")
-    result = run(sys.argv[1], sys.argv[2], float(sys.argv[3]) if len(sys.argv) > 3 else 5.0)
+    args = sys.argv[1:]
+    motor_fmu = None
+    if "--motor" in args:
+        at = args.index("--motor")
+        motor_fmu = args[at + 1] if at + 1 < len(args) else sys.exit("--motor needs the motor's .fmu")
+        del args[at:at + 2]
+    if len(args) < 2:
+        sys.exit("usage: coupling.py <CyclicMechanism.fmu> <output directory> [stop time] [--motor DcMotor.fmu]")
+    result = run(args[0], args[1], float(args[2]) if len(args) > 2 else 5.0, motor_fmu=motor_fmu)
     print(f"final: omega1 = {result['omega1'][-1]:.3f} rad/s, current = {result['current'][-1]:.3f} A")
-    print(f"written: {pathlib.Path(sys.argv[2]) / 'coupling.csv'}, {pathlib.Path(sys.argv[2]) / 'coupling.png'}")
+    print(f"written: {pathlib.Path(args[1]) / 'coupling.csv'}, {pathlib.Path(args[1]) / 'coupling.png'}")

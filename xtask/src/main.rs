@@ -12,6 +12,7 @@ mod cli;
 mod demo;
 mod fmu;
 mod instructions;
+mod motor;
 mod platforms;
 mod setup;
 mod sweep;
@@ -69,6 +70,13 @@ const JOBS: &[Job] = &[
         about: "formatting, clippy, unsafe only in the FFI and loader files, no figures in src/ comments",
         flags: &[],
         run: tidy::job,
+    },
+    Job {
+        name: "motor",
+        operands: &[],
+        about: "build and pack target/fmu/DcMotor.fmu, the compiled DC motor of examples/dc_motor/native",
+        flags: &[],
+        run: motor::job,
     },
     Job {
         name: "bench",

@@ -31,10 +31,12 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .arg(&smoke)
         .args(["--quick", "--fmu-only"]))?;
     let python = crate::sweep::ensure_sweep_package()?;
+    let motor = crate::motor::build_motor()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(root().join("tests/python"))
         .env("CYCLIC_MECHANISM_FMU", &fmu)
+        .env("DC_MOTOR_FMU", &motor)
         .current_dir(root()))?;
     // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
     // by the packed FMU, the test files, the installed packages and the selection and

@@ -1,0 +1,316 @@
+/* A DC motor as an FMI 2.0 co-simulation FMU in C: armature voltage and shaft speed in,
+ * current and torque out. Electrical state: L·di/dt = V − R·i − k·ω; torque k·i. With the
+ * inputs held over a communication step the current has an exact solution, so a step of
+ * any size is exact; its output derivatives are exact too (the same equations as
+ * ../dc_motor.py, which builds the same motor with pythonfmu). Built and packed by
+ * `cargo xtask motor` into target/fmu/DcMotor.fmu. */
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fmi2Functions.h"
+
+/* Also in modelDescription.xml; tests/python/test_dc_motor.py checks the two agree. */
+#define GUID "{4d4f544f-5200-4443-2d6d-6f746f720001}"
+
+enum { VR_R, VR_L, VR_K, VR_VOLTAGE, VR_OMEGA, VR_CURRENT, VR_TORQUE, N_VARIABLES };
+static const char *const NAMES[N_VARIABLES] = {"R", "L", "k", "voltage", "omega", "current",
+                                                "torque"};
+
+typedef enum { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED } State;
+
+typedef struct {
+    double values[N_VARIABLES];
+    double time;
+    State state;
+    fmi2CallbackFunctions callbacks;
+    char name[64];
+} Motor;
+
+/* The message is passed as the logger's format, with '%' doubled: masters that format it
+ * and masters that print it as it is (FMPy's ctypes callback cannot read variadic
+ * arguments) both show it. */
+static void report(Motor *m, fmi2Status status, const char *format, ...) {
+    char message[512], escaped[1024];
+    size_t i, j = 0;
+    va_list args;
+    if (!m->callbacks.logger) return;
+    va_start(args, format);
+    vsnprintf(message, sizeof message, format, args);
+    va_end(args);
+    for (i = 0; message[i] && j + 2 < sizeof escaped; i++) {
+        if (message[i] == '%') escaped[j++] = '%';
+        escaped[j++] = message[i];
+    }
+    escaped[j] = '\0';
+    m->callbacks.logger(m->callbacks.componentEnvironment, m->name, status,
+                        status == fmi2OK ? "logAll" : "logStatusError", escaped);
+}
+
+static fmi2Status refuse(Motor *m, const char *function, const char *why) {
+    report(m, fmi2Error, "%s: %s", function, why);
+    return fmi2Error;
+}
+
+/* The outputs from the state: torque = k·i. */
+static void update_outputs(Motor *m) {
+    m->values[VR_TORQUE] = m->values[VR_K] * m->values[VR_CURRENT];
+}
+
+static void set_defaults(Motor *m) {
+    memset(m->values, 0, sizeof m->values);
+    m->values[VR_R] = 0.5;
+    m->values[VR_L] = 0.01;
+    m->values[VR_K] = 2.0;
+    m->values[VR_VOLTAGE] = 24.0;
+    m->time = 0.0;
+    m->state = INSTANTIATED;
+}
+
+/* di/dt with the inputs held. */
+static double current_rate(const Motor *m) {
+    const double *v = m->values;
+    return (v[VR_VOLTAGE] - v[VR_R] * v[VR_CURRENT] - v[VR_K] * v[VR_OMEGA]) / v[VR_L];
+}
+
+const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
+const char *fmi2GetVersion(void) { return fmi2Version; }
+
+fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2String fmuGUID,
+                              fmi2String resources, const fmi2CallbackFunctions *functions,
+                              fmi2Boolean visible, fmi2Boolean loggingOn) {
+    Motor *m;
+    (void)resources;
+    (void)visible;
+    (void)loggingOn;
+    if (!functions || fmuType != fmi2CoSimulation || !fmuGUID || strcmp(fmuGUID, GUID) != 0)
+        return NULL;
+    m = calloc(1, sizeof *m);
+    if (!m) return NULL;
+    m->callbacks = *functions;
+    snprintf(m->name, sizeof m->name, "%s", instanceName ? instanceName : "motor");
+    set_defaults(m);
+    return m;
+}
+
+void fmi2FreeInstance(fmi2Component c) { free(c); }
+
+fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean on, size_t n, const fmi2String cats[]) {
+    (void)on;
+    (void)n;
+    (void)cats;
+    return c ? fmi2OK : fmi2Error;
+}
+
+fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean tolDefined, fmi2Real tol,
+                               fmi2Real start, fmi2Boolean stopDefined, fmi2Real stop) {
+    Motor *m = c;
+    (void)tolDefined;
+    (void)tol;
+    (void)stopDefined;
+    (void)stop;
+    if (!m) return fmi2Error;
+    if (m->state != INSTANTIATED) return refuse(m, "fmi2SetupExperiment", "only after instantiation");
+    if (!isfinite(start)) return refuse(m, "fmi2SetupExperiment", "startTime must be finite");
+    m->time = start;
+    return fmi2OK;
+}
+
+fmi2Status fmi2EnterInitializationMode(fmi2Component c) {
+    Motor *m = c;
+    if (!m) return fmi2Error;
+    if (m->state != INSTANTIATED) return refuse(m, "fmi2EnterInitializationMode", "only after instantiation");
+    m->state = INITIALIZATION;
+    return fmi2OK;
+}
+
+fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
+    Motor *m = c;
+    if (!m) return fmi2Error;
+    if (m->state != INITIALIZATION) return refuse(m, "fmi2ExitInitializationMode", "not in initialization mode");
+    update_outputs(m);
+    m->state = STEPPING;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Terminate(fmi2Component c) {
+    Motor *m = c;
+    if (!m) return fmi2Error;
+    m->state = TERMINATED;
+    return fmi2OK;
+}
+
+fmi2Status fmi2Reset(fmi2Component c) {
+    Motor *m = c;
+    if (!m) return fmi2Error;
+    set_defaults(m);
+    return fmi2OK;
+}
+
+/* A value's rule: parameters R, L > 0 and k >= 0, settable before initialisation ends;
+ * inputs any finite number; outputs not settable. */
+static const char *refusal(const Motor *m, fmi2ValueReference vr, double value) {
+    static char why[160];
+    if (vr >= N_VARIABLES) {
+        snprintf(why, sizeof why, "no variable has value reference %u", vr);
+        return why;
+    }
+    if (!isfinite(value)) {
+        snprintf(why, sizeof why, "%s = %g: must be a finite number", NAMES[vr], value);
+        return why;
+    }
+    if (vr == VR_CURRENT || vr == VR_TORQUE) {
+        snprintf(why, sizeof why, "%s is an output and cannot be set", NAMES[vr]);
+        return why;
+    }
+    if (vr <= VR_K && m->state != INSTANTIATED && m->state != INITIALIZATION) {
+        snprintf(why, sizeof why, "%s is a fixed parameter: set it before fmi2ExitInitializationMode", NAMES[vr]);
+        return why;
+    }
+    if ((vr == VR_R || vr == VR_L) && !(value > 0.0)) {
+        snprintf(why, sizeof why, "%s = %g: must be > 0", NAMES[vr], value);
+        return why;
+    }
+    if (vr == VR_K && value < 0.0) {
+        snprintf(why, sizeof why, "k = %g: must be >= 0", value);
+        return why;
+    }
+    return NULL;
+}
+
+fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
+    Motor *m = c;
+    size_t i;
+    if (!m) return fmi2Error;
+    if (m->state == TERMINATED) return refuse(m, "fmi2SetReal", "not after fmi2Terminate");
+    if (n > 0 && (!vr || !value)) return refuse(m, "fmi2SetReal", "vr or value is NULL");
+    for (i = 0; i < n; i++) {
+        const char *why = refusal(m, vr[i], value[i]);
+        if (why) return refuse(m, "fmi2SetReal", why); /* nothing applied */
+    }
+    for (i = 0; i < n; i++) m->values[vr[i]] = value[i];
+    return fmi2OK;
+}
+
+fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, fmi2Real value[]) {
+    Motor *m = c;
+    size_t i;
+    if (!m) return fmi2Error;
+    if (m->state == INSTANTIATED) return refuse(m, "fmi2GetReal", "not before fmi2EnterInitializationMode");
+    if (n > 0 && (!vr || !value)) return refuse(m, "fmi2GetReal", "vr or value is NULL");
+    update_outputs(m);
+    for (i = 0; i < n; i++) {
+        if (vr[i] >= N_VARIABLES) return refuse(m, "fmi2GetReal", "unknown value reference");
+        value[i] = m->values[vr[i]];
+    }
+    return fmi2OK;
+}
+
+/* The exact step for held inputs: i relaxes to its steady value (V − k·ω)/R with the time
+ * constant L/R. */
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real now, fmi2Real h, fmi2Boolean noSetPrior) {
+    Motor *m = c;
+    double steady, decay;
+    (void)noSetPrior;
+    if (!m) return fmi2Error;
+    if (m->state != STEPPING) return refuse(m, "fmi2DoStep", "only after initialisation");
+    if (!(h > 0.0) || !isfinite(h)) return refuse(m, "fmi2DoStep", "communicationStepSize must be finite and > 0");
+    if (fabs(now - m->time) > 1e-12 * fmax(fabs(m->time), h))
+        return refuse(m, "fmi2DoStep", "currentCommunicationPoint does not match the FMU's time");
+    steady = (m->values[VR_VOLTAGE] - m->values[VR_K] * m->values[VR_OMEGA]) / m->values[VR_R];
+    decay = exp(-h * m->values[VR_R] / m->values[VR_L]);
+    m->values[VR_CURRENT] = steady + (m->values[VR_CURRENT] - steady) * decay;
+    update_outputs(m);
+    m->time = now + h;
+    return fmi2OK;
+}
+
+/* torque' = k·di/dt and torque'' = k·d²i/dt² = −(R/L)·k·di/dt with the inputs held;
+ * likewise for the current. */
+fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                                        const fmi2Integer order[], fmi2Real value[]) {
+    Motor *m = c;
+    size_t i;
+    if (!m) return fmi2Error;
+    if (m->state != STEPPING && m->state != TERMINATED)
+        return refuse(m, "fmi2GetRealOutputDerivatives", "only after initialisation");
+    if (n > 0 && (!vr || !order || !value)) return refuse(m, "fmi2GetRealOutputDerivatives", "an array is NULL");
+    for (i = 0; i < n; i++) {
+        double rate = current_rate(m), scale;
+        if (vr[i] != VR_CURRENT && vr[i] != VR_TORQUE)
+            return refuse(m, "fmi2GetRealOutputDerivatives", "only current and torque have output derivatives");
+        if (order[i] != 1 && order[i] != 2)
+            return refuse(m, "fmi2GetRealOutputDerivatives", "order must be 1 or 2");
+        scale = vr[i] == VR_TORQUE ? m->values[VR_K] : 1.0;
+        value[i] = scale * (order[i] == 1 ? rate : -(m->values[VR_R] / m->values[VR_L]) * rate);
+    }
+    return fmi2OK;
+}
+
+/* What this motor does not have: no Integer, Boolean or String variables (an empty request
+ * succeeds), no FMU state, no directional derivatives, no input derivatives, no
+ * asynchronous steps. */
+#define NO_VARIABLES(fn, T, qualifier)                                                          \
+    fmi2Status fn(fmi2Component c, const fmi2ValueReference vr[], size_t n, qualifier T value[]) { \
+        (void)vr;                                                                               \
+        (void)value;                                                                            \
+        if (!c) return fmi2Error;                                                               \
+        return n == 0 ? fmi2OK : refuse(c, #fn, "this FMU has no variables of this type");       \
+    }
+NO_VARIABLES(fmi2GetInteger, fmi2Integer, )
+NO_VARIABLES(fmi2GetBoolean, fmi2Boolean, )
+NO_VARIABLES(fmi2GetString, fmi2String, )
+NO_VARIABLES(fmi2SetInteger, fmi2Integer, const)
+NO_VARIABLES(fmi2SetBoolean, fmi2Boolean, const)
+NO_VARIABLES(fmi2SetString, fmi2String, const)
+
+#define UNSUPPORTED(fn, ...)                                                                    \
+    fmi2Status fn(fmi2Component c, __VA_ARGS__) {                                               \
+        return c ? refuse(c, #fn, "not supported by this FMU (see its modelDescription.xml)")    \
+                 : fmi2Error;                                                                   \
+    }
+UNSUPPORTED(fmi2GetFMUstate, fmi2FMUstate *s)
+UNSUPPORTED(fmi2SetFMUstate, fmi2FMUstate s)
+UNSUPPORTED(fmi2FreeFMUstate, fmi2FMUstate *s)
+UNSUPPORTED(fmi2SerializedFMUstateSize, fmi2FMUstate s, size_t *size)
+UNSUPPORTED(fmi2SerializeFMUstate, fmi2FMUstate s, fmi2Byte b[], size_t size)
+UNSUPPORTED(fmi2DeSerializeFMUstate, const fmi2Byte b[], size_t size, fmi2FMUstate *s)
+UNSUPPORTED(fmi2GetDirectionalDerivative, const fmi2ValueReference u[], size_t nu,
+            const fmi2ValueReference k[], size_t nk, const fmi2Real dk[], fmi2Real du[])
+UNSUPPORTED(fmi2SetRealInputDerivatives, const fmi2ValueReference vr[], size_t n,
+            const fmi2Integer order[], const fmi2Real value[])
+UNSUPPORTED(fmi2GetStatus, const fmi2StatusKind s, fmi2Status *value)
+UNSUPPORTED(fmi2GetRealStatus, const fmi2StatusKind s, fmi2Real *value)
+UNSUPPORTED(fmi2GetIntegerStatus, const fmi2StatusKind s, fmi2Integer *value)
+UNSUPPORTED(fmi2GetBooleanStatus, const fmi2StatusKind s, fmi2Boolean *value)
+UNSUPPORTED(fmi2GetStringStatus, const fmi2StatusKind s, fmi2String *value)
+
+fmi2Status fmi2CancelStep(fmi2Component c) {
+    return c ? refuse(c, "fmi2CancelStep", "this FMU never returns fmi2Pending") : fmi2Error;
+}
+
+/* Model Exchange functions: exported because fmi2Functions.h declares them, refused
+ * because this FMU is for Co-Simulation only. */
+#define NOT_MODEL_EXCHANGE(fn, ...)                                                             \
+    fmi2Status fn(fmi2Component c, __VA_ARGS__) {                                               \
+        return c ? refuse(c, #fn, "a Model Exchange function; this FMU is Co-Simulation only")  \
+                 : fmi2Error;                                                                   \
+    }
+fmi2Status fmi2EnterEventMode(fmi2Component c) {
+    return c ? refuse(c, "fmi2EnterEventMode", "a Model Exchange function; this FMU is Co-Simulation only") : fmi2Error;
+}
+fmi2Status fmi2EnterContinuousTimeMode(fmi2Component c) {
+    return c ? refuse(c, "fmi2EnterContinuousTimeMode", "a Model Exchange function; this FMU is Co-Simulation only") : fmi2Error;
+}
+NOT_MODEL_EXCHANGE(fmi2NewDiscreteStates, fmi2EventInfo *info)
+NOT_MODEL_EXCHANGE(fmi2CompletedIntegratorStep, fmi2Boolean noSetPrior, fmi2Boolean *event,
+                   fmi2Boolean *terminate)
+NOT_MODEL_EXCHANGE(fmi2SetTime, fmi2Real time)
+NOT_MODEL_EXCHANGE(fmi2SetContinuousStates, const fmi2Real x[], size_t nx)
+NOT_MODEL_EXCHANGE(fmi2GetDerivatives, fmi2Real dx[], size_t nx)
+NOT_MODEL_EXCHANGE(fmi2GetEventIndicators, fmi2Real z[], size_t nz)
+NOT_MODEL_EXCHANGE(fmi2GetContinuousStates, fmi2Real x[], size_t nx)
+NOT_MODEL_EXCHANGE(fmi2GetNominalsOfContinuousStates, fmi2Real x[], size_t nx)

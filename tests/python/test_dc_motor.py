@@ -1,0 +1,104 @@
+"""The compiled DC motor of examples/dc_motor/native (packed by `cargo xtask motor`): a
+valid FMU, exact steps and output derivatives for held inputs, bad values refused by name,
+and coupled to the mechanism the same run as the Python-written motor of
+examples/dc_motor/dc_motor.py."""
+
+import math
+import os
+import pathlib
+import re
+import sys
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy.fmi1 import FMICallException
+from fmpy.validation import validate_fmu
+
+from conftest import ROOT
+
+sys.path.insert(0, str(ROOT / "examples/dc_motor"))
+import coupling  # noqa: E402
+
+NATIVE = ROOT / "examples/dc_motor/native"
+R, L, K, V = 0.5, 0.01, 2.0, 24.0
+
+
+@pytest.fixture(scope="module")
+def motor_path():
+    path = pathlib.Path(os.environ.get("DC_MOTOR_FMU", ROOT / "target/fmu/DcMotor.fmu"))
+    if not path.exists():
+        pytest.fail(f"{path} does not exist: run `cargo xtask motor` (or `cargo xtask test`)")
+    return path
+
+
+@pytest.fixture
+def motor(motor_path, tmp_path):
+    unzipped = fmpy.extract(str(motor_path), unzipdir=str(tmp_path / "motor"))
+    description = fmpy.read_model_description(unzipped)
+    slave = fmpy.fmi2.FMU2Slave(guid=description.guid, unzipDirectory=unzipped,
+                                modelIdentifier="DcMotor", instanceName="motor")
+    slave.vr = {v.name: v.valueReference for v in description.modelVariables}
+    slave.messages = []
+    logger = fmpy.fmi2.fmi2CallbackLoggerTYPE(
+        lambda env, name, status, category, message: slave.messages.append(message.decode()))
+    callbacks = fmpy.fmi2.fmi2CallbackFunctions()
+    callbacks.logger = logger
+    callbacks.allocateMemory = fmpy.fmi2.fmi2CallbackAllocateMemoryTYPE(fmpy.fmi2.calloc)
+    callbacks.freeMemory = fmpy.fmi2.fmi2CallbackFreeMemoryTYPE(fmpy.fmi2.free)
+    slave.instantiate(callbacks=callbacks)
+    slave.keep = (logger, callbacks)
+    yield slave
+    slave.freeInstance()
+
+
+def test_the_fmu_is_valid_and_its_guid_is_the_binarys(motor_path):
+    assert validate_fmu(str(motor_path)) == []
+    source_guid = re.search(r'#define GUID "([^"]+)"', (NATIVE / "dc_motor.c").read_text()).group(1)
+    assert fmpy.read_model_description(str(motor_path)).guid == source_guid
+
+
+def test_a_step_of_any_size_is_exact_for_held_inputs(motor):
+    motor.setupExperiment(startTime=0.0)
+    motor.enterInitializationMode()
+    motor.setReal([motor.vr["omega"]], [5.0])
+    motor.exitInitializationMode()
+    steady = (V - K * 5.0) / R
+    t, current = 0.0, 0.0
+    for h in (1e-4, 0.003, 0.02, 0.5):
+        # Output derivatives at the start of the step, from the equations.
+        rate = (V - R * current - K * 5.0) / L
+        first, second = motor.getRealOutputDerivatives([motor.vr["torque"]] * 2, [1, 2])
+        assert math.isclose(first, K * rate, rel_tol=1e-14)
+        assert math.isclose(second, -(R / L) * K * rate, rel_tol=1e-14)
+        motor.doStep(t, h)
+        t += h
+        current = steady + (current - steady) * math.exp(-h * R / L)
+        got_current, got_torque = motor.getReal([motor.vr["current"], motor.vr["torque"]])
+        assert math.isclose(got_current, current, rel_tol=1e-14)
+        assert got_torque == K * got_current
+
+
+def test_bad_values_are_refused_by_name_and_change_nothing(motor):
+    motor.setupExperiment(startTime=0.0)
+    motor.enterInitializationMode()
+    for name, value in (("R", 0.0), ("L", -1.0), ("voltage", math.nan)):
+        with pytest.raises(FMICallException):
+            motor.setReal([motor.vr["voltage"], motor.vr[name]], [12.0, value])
+    assert motor.getReal([motor.vr["voltage"]]) == [V]  # the batch's valid part was not applied
+    motor.exitInitializationMode()
+    with pytest.raises(FMICallException):
+        motor.setReal([motor.vr["k"]], [3.0])  # a fixed parameter after initialisation
+    with pytest.raises(FMICallException):
+        motor.doStep(0.0, -1.0)
+    said = motor.messages
+    assert "fmi2SetReal: R = 0: must be > 0" in said[0] and "L = -1: must be > 0" in said[1]
+    assert "voltage = nan: must be a finite number" in said[2]
+    assert "k is a fixed parameter" in said[3] and "communicationStepSize" in said[4]
+
+
+def test_coupled_to_the_mechanism_it_is_the_python_motors_run(fmu_path, motor_path, tmp_path):
+    compiled = coupling.run(fmu_path, tmp_path / "compiled", stop_time=0.5, motor_fmu=str(motor_path))
+    scripted = coupling.run(fmu_path, tmp_path / "python", stop_time=0.5)
+    for name in ("current", "torque", "omega1", "phi3", "rod_force"):
+        assert np.max(np.abs(compiled[name] - scripted[name])) <= 1e-12 * np.max(np.abs(scripted[name])), name

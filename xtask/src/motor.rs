@@ -1,0 +1,46 @@
+//! `cargo xtask motor`: the compiled DC motor of `examples/dc_motor/native` (C, FMI 2.0
+//! Co-Simulation) built against glibc 2.17 with zig, checked and packed as
+//! `target/fmu/DcMotor.fmu`, for coupling and sweeping the mechanism at native speed.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use crate::cli::Parsed;
+use crate::setup::{check_glibc, ensure_venv, root, run, Packages};
+use crate::Result;
+
+pub(crate) fn job(_: &Parsed) -> Result {
+    println!("FMU: {}", build_motor()?.display());
+    Ok(())
+}
+
+/// Build and pack the motor; returns the archive.
+pub(crate) fn build_motor() -> Result<PathBuf> {
+    let source = root().join("examples/dc_motor/native");
+    let zig = crate::platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
+    let dir = root().join("target/motor");
+    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let library = dir.join("DcMotor.so");
+    run(Command::new(zig.venv_bin.join("python"))
+        .args(["-m", "ziglang", "cc", "-target", "x86_64-linux-gnu.2.17"])
+        .args(["-O2", "-std=c99", "-shared", "-fPIC", "-fvisibility=hidden"])
+        .args(["-Wall", "-Wextra", "-Wno-unused-parameter", "-Werror", "-I"])
+        .arg(crate::abi_tests::fmi2_headers()?)
+        .arg("-o")
+        .arg(&library)
+        .arg(source.join("dc_motor.c"))
+        .arg("-lm"))?;
+    check_glibc(&library)?;
+    let fmu = root().join("target/fmu/DcMotor.fmu");
+    crate::fmu::pack(
+        &fmu,
+        &[
+            (
+                "modelDescription.xml".to_string(),
+                source.join("modelDescription.xml"),
+            ),
+            ("binaries/linux64/DcMotor.so".to_string(), library),
+        ],
+    )?;
+    Ok(fmu)
+}
