@@ -298,6 +298,11 @@ def test_a_coupled_ssp_system_sweeps_through_fmpy(fmu_path, tmp_path):
     # The parameter reaches its component: three loads, three motions.
     assert p["omega1_final"].nunique() == 3
     assert results.meta["ssp_sha256"] and at_20["steps"] == 500
+    # 10 s at 1 ms is 10 000 steps, ending at 10 s (an accumulated time took one more).
+    long = run_sweep(dict(spec, scenario=dict(spec["scenario"], stop=10.0),
+                          design={"kind": "list", "parameters": {"mechanism.Mr_b0": {"values": [20.0]}}}),
+                     out=tmp_path / "long", serial=True, progress=False, plots=False).points.iloc[0]
+    assert (long["status"], long["steps"], long["t_end"]) == ("ok", 10000, 10.0)
     with pytest.raises(SpecError) as refused:
         run_sweep(dict(spec, design={"kind": "list", "parameters": {"mechanism.Mr_b9": {"values": [1.0]}}}),
                   out=tmp_path / "bad", serial=True, progress=False)
