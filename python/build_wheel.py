@@ -38,6 +38,7 @@ def build(runner: pathlib.Path, out_dir: pathlib.Path, platform: str | None = No
     files = {}
     for path in sorted((HERE / NAME).rglob("*.py")):
         files[path.relative_to(HERE).as_posix()] = (path.read_bytes(), 0o644)
+    files[f"{NAME}/py.typed"] = ((HERE / NAME / "py.typed").read_bytes(), 0o644)
     files[f"{NAME}/bin/fmu-runner"] = (runner.read_bytes(), 0o755)
     metadata = "\n".join(
         ["Metadata-Version: 2.1", f"Name: {NAME}", f"Version: {v}",

@@ -6,13 +6,32 @@ from __future__ import annotations
 import argparse
 import sys
 
+from . import __version__
 from .engine import run_sweep
 from .native import RunnerError
 from .spec import SpecError
 
+EXAMPLE = """example:
+  python -m fmusweep sweep.toml --workers 4 --out results/k34
+
+with sweep.toml:
+  fmu = "CyclicMechanism.fmu"
+  [scenario]
+  stop = 10.0
+  step = 0.01
+  [design]
+  kind = "grid"
+  [design.parameters]
+  k34 = { linspace = [20.0, 200.0, 10] }
+  [outputs.metrics]
+  rod_force_peak = { variable = "rod_force", kind = "peak_abs" }
+"""
+
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="fmusweep", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="fmusweep", description=__doc__.split("\n\n")[0],
+                                     epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"fmusweep {__version__}")
     parser.add_argument("spec", help="the sweep specification (TOML)")
     parser.add_argument("--fmu", help="the FMU, when the spec names none (or to override it)")
     parser.add_argument("--out", help="output directory (default: sweep-<spec digest>)")

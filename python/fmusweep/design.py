@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spec import SpecError
+from .errors import SpecError
 
 __all__ = ["Design", "generate"]
 

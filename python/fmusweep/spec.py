@@ -43,18 +43,13 @@ import pathlib
 import tomllib
 from dataclasses import dataclass, field
 
+from . import design as _design
+from .errors import SpecError
+
 __all__ = ["SpecError", "Spec", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS"]
 
 METRIC_KINDS = ("final", "min", "max", "peak_abs", "mean", "rms", "peak_to_peak")
 DESIGN_KINDS = ("grid", "list", "lhs", "sobol", "morris")
-
-
-class SpecError(ValueError):
-    """A specification that cannot run; the message names the field and the rule."""
-
-    def __init__(self, field_name: str, rule: str):
-        super().__init__(f"{field_name}: {rule}")
-        self.field = field_name
 
 
 @dataclass(frozen=True)
@@ -184,7 +179,7 @@ class Spec:
                     parameters=parameters, inputs=inputs, design_kind=kind, design=design,
                     seed=seed, metrics=metrics, series_variables=series_variables,
                     series_every=every)
-        from . import design as _design  # the design's own fields are checked there
+        # The design's own fields are checked where its points are generated.
         spec.points = _design.generate(spec)
         return spec
 
