@@ -12,7 +12,8 @@ use crate::snapshot::{fnv1a_64, FormatError, Reader, Writer};
 use crate::solver::Method;
 
 /// The driver of an instance, by interface; each exists once initialisation (or, in
-/// initialization mode, a read) has assembled the plant.
+/// initialization mode, a read) has assembled the plant, so that in initialization mode a
+/// started driver says the assembly is current.
 // One per instance and saved state, never moved on the step's path: boxing the larger
 // variant would add an indirection to every step for no saving that matters.
 #[allow(clippy::large_enum_variant)]
@@ -59,9 +60,6 @@ pub struct FmuState {
     pub(super) experiment: Experiment,
     pub(super) plant: Plant,
     pub(super) driver: Driver,
-    /// Whether the plant holds the assembly for the current parameters (initialization
-    /// mode).
-    pub(super) assembled: bool,
 }
 
 impl FmuState {
@@ -74,7 +72,6 @@ impl FmuState {
             experiment: Experiment::new(DEFAULT_EXPERIMENT.0),
             plant,
             driver: Driver::new(interface),
-            assembled: false,
         }
     }
 
@@ -106,7 +103,6 @@ impl FmuState {
         w.f64s(&[e.tolerance, e.start]);
         w.bool(e.stop.is_some());
         w.f64(e.stop.unwrap_or(e.start));
-        w.bool(self.assembled);
         self.plant.serialize_into(&mut w);
         w.bool(self.driver.is_started());
         match &self.driver {
@@ -141,7 +137,6 @@ impl FmuState {
             start,
             stop: has_stop.then_some(stop),
         };
-        let assembled = r.bool()?;
         let plant = Plant::deserialize_from(&mut r)?;
         let started = r.bool()?;
         let driver = match (interface, started) {
@@ -159,7 +154,6 @@ impl FmuState {
             experiment,
             plant,
             driver,
-            assembled,
         };
         restored.check().map_err(invalid)?;
         Ok(restored)
@@ -187,10 +181,10 @@ impl FmuState {
         if !initialised && (self.plant.time() != self.experiment.start || steps != 0) {
             return Err("an instance before initialisation has not moved".into());
         }
-        if started && !(self.assembled || initialised) {
-            return Err("a started driver without an assembly".into());
+        if started && state == State::Instantiated {
+            return Err("a started driver before initialization mode".into());
         }
-        if self.assembled || initialised {
+        if started || initialised {
             self.plant.check_consistent()?;
             if let Driver::CoSimulation(Some(driver)) = &self.driver {
                 driver.check_initialised(&self.plant, &self.experiment)?;

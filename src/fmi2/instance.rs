@@ -65,7 +65,6 @@ pub type Outcome = Result<(), Failure>;
 const TIME_MATCH: f64 = 1e-12;
 
 pub struct Instance {
-    pub interface: Interface,
     name: CString,
     logger: fmi2CallbackLogger,
     environment: fmi2ComponentEnvironment,
@@ -99,7 +98,6 @@ impl Instance {
         debug_logging: bool,
     ) -> Self {
         Self {
-            interface,
             name,
             logger,
             environment,
@@ -221,13 +219,17 @@ impl Instance {
 
     pub fn enter_initialization_mode(&mut self) -> Outcome {
         self.current.state = State::InitializationMode;
-        self.current.assembled = false;
         Ok(())
+    }
+
+    /// The interface the instance was created for.
+    pub fn interface(&self) -> Interface {
+        self.current.interface()
     }
 
     pub fn exit_initialization_mode(&mut self) -> Outcome {
         self.initialise_plant()?;
-        self.current.state = match self.interface {
+        self.current.state = match self.interface() {
             Interface::CoSimulation => State::StepComplete,
             Interface::ModelExchange => State::EventMode,
         };
@@ -255,12 +257,13 @@ impl Instance {
     fn initialise_plant(&mut self) -> Outcome {
         let failed =
             |e: crate::model::ModelError| Failure::error(format!("initialisation failed: {e}"));
+        let interface = self.interface();
         let current = &mut self.current;
         current
             .plant
             .initialize(current.experiment.start)
             .map_err(failed)?;
-        current.driver = match self.interface {
+        current.driver = match interface {
             Interface::CoSimulation => {
                 Driver::CoSimulation(Some(CoSimulation::new(&current.plant, &current.experiment)))
             }
@@ -271,11 +274,11 @@ impl Instance {
         Ok(())
     }
 
-    /// Outputs in initialization mode reflect the parameters set so far.
+    /// Outputs in initialization mode reflect the parameters set so far: the plant is
+    /// assembled, and its driver started, on the first read after a change.
     fn assemble_if_needed(&mut self) -> Outcome {
-        if self.current.state == State::InitializationMode && !self.current.assembled {
+        if self.current.state == State::InitializationMode && !self.current.driver.is_started() {
             self.initialise_plant()?;
-            self.current.assembled = true;
         }
         Ok(())
     }
@@ -390,7 +393,7 @@ impl Instance {
     ) -> Outcome {
         self.assemble_if_needed()?;
         let (mut input_seed, mut state_seed) = ([0.0; 2], [0.0; STATES]);
-        let exchange = self.interface == Interface::ModelExchange;
+        let exchange = self.interface() == Interface::ModelExchange;
         for (vr, s) in knowns.iter().zip(seed) {
             let var = variable(*vr).ok_or(AccessError::UnknownReference(*vr))?;
             if !s.is_finite() {
@@ -484,7 +487,6 @@ impl Instance {
         if current.state == State::InitializationMode {
             // The assembly, and the driver started on it, are stale: the next read makes
             // them again.
-            current.assembled = false;
             current.driver.stop();
         }
         Ok(())
@@ -629,7 +631,7 @@ impl Instance {
 
     /// Back to the state just after fmi2Instantiate, every variable at its start value.
     pub fn reset(&mut self) -> Outcome {
-        self.current = FmuState::new(self.interface);
+        self.current = FmuState::new(self.interface());
         Ok(())
     }
 
@@ -642,11 +644,11 @@ impl Instance {
     }
 
     pub fn restore(&mut self, saved: &FmuState) -> Outcome {
-        if saved.interface() != self.interface {
+        if saved.interface() != self.interface() {
             return Err(Failure::error(format!(
                 "the FMU state was saved by a {} instance; this one is {}",
                 saved.interface().name(),
-                self.interface.name()
+                self.interface().name()
             )));
         }
         self.current = saved.clone();

@@ -100,11 +100,11 @@ pub(crate) fn guarded(
 /// Whether `function` may be called on `instance` now: its interface, then its state.
 fn admitted(instance: &Instance, function: Function) -> Outcome {
     if let Belongs::Only(interface) = function.belongs() {
-        if interface != instance.interface {
+        if interface != instance.interface() {
             return Err(Failure::error(format!(
                 "a {} function, and this instance was instantiated for {}",
                 interface.name(),
-                instance.interface.name()
+                instance.interface().name()
             )));
         }
     }
