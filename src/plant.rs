@@ -9,7 +9,7 @@
 //! input derivative, a new state) marks the plant as changed; a driver that remembers the
 //! trajectory (the co-simulation integrator) takes that mark and starts over.
 
-use crate::model::chart::{handover_indicator, preferred_chart};
+use crate::model::chart::{handover_indicator, handover_indicator_at, preferred_chart};
 use crate::model::params::check_rule;
 use crate::model::{
     self, Chart, Coordinates, Dual, Independent, Inputs, ModelError, Parameters, Projected, Scalar,
@@ -566,9 +566,7 @@ impl Plant {
     /// The event indicator of the leading angle's chart at the current configuration:
     /// positive while it determines the loop (docs/model.md §6).
     pub fn handover_indicator(&self) -> f64 {
-        let y = &self.state;
-        let (_, b1, c1) = model::kinematics::closure_with_gradient(&self.params, y[1], y[2]);
-        handover_indicator(&self.params, self.chart, b1, c1)
+        handover_indicator_at(&self.params, self.chart, &self.state)
     }
 
     /// The independent coordinates, their derivatives and the event indicator (docs/model.md

@@ -7,10 +7,10 @@
 //! meaning, and the master is told so.
 //!
 //! The [`Plant`] holds parameters, inputs, time and the full state, so every variable
-//! reads as in Co-Plant; this module keeps what Model Exchange adds: the chart with
+//! reads as in Co-Simulation; this adapter keeps what Model Exchange adds: the chart with
 //! its branch and turns, and the master's x.
 
-use crate::model::chart::{coordinates_for, full_state, handover_indicator, independent};
+use crate::model::chart::{coordinates_for, full_state, handover_indicator_at, independent};
 use crate::model::{Chart, Coordinates, Independent, ModelError, State};
 use crate::plant::Plant;
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
@@ -18,12 +18,6 @@ use crate::variables::{Local, STATES as STATE_NAMES};
 
 /// The number of continuous states.
 pub const STATES: usize = STATE_NAMES.len();
-
-/// The handover indicator of `chart` at configuration `y`.
-fn indicator(p: &crate::model::Parameters, chart: Chart, y: &State) -> f64 {
-    let (_, b1, c1) = crate::model::kinematics::closure_with_gradient(p, y[1], y[2]);
-    handover_indicator(p, chart, b1, c1)
-}
 
 /// An indicator below this counts as crossed: a master's root finder may stop just before
 /// the zero, and leaving a chart early is harmless (the other one is good there).
@@ -108,7 +102,7 @@ impl Exchange {
         }
         let next = Self::enter(plant, plant.chart().other())?;
         let y = next.full_state(plant)?;
-        if indicator(plant.params(), next.at.chart, &y) < CROSSED {
+        if handover_indicator_at(plant.params(), next.at.chart, &y) < CROSSED {
             return Err(ModelError::new(format!(
                 "neither loop angle determines the motion at phi2 = {}, phi3 = {}: crank, rod \
                  and rocker are collinear, a change point; {}",

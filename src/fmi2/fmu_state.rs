@@ -9,7 +9,6 @@ use super::state_machine::{Interface, State};
 use crate::drivers::{CoSimulation, Exchange, Experiment};
 use crate::plant::{Activity, Plant};
 use crate::snapshot::{fnv1a_64, FormatError, Reader, Writer};
-use crate::solver::Method;
 
 /// The driver of an instance, by interface; each exists once initialisation (or, in
 /// initialization mode, a read) has assembled the plant, so that in initialization mode a
@@ -85,10 +84,7 @@ impl FmuState {
         match &self.driver {
             Driver::CoSimulation(Some(driver)) => driver.activity(),
             _ => Activity {
-                method: match self.plant.solver_kind().choice() {
-                    crate::solver::Choice::Fixed(Method::Radau5) => Method::Radau5,
-                    _ => Method::Dop853,
-                },
+                method: self.plant.solver_kind().choice().first_method(),
                 ..Activity::idle()
             },
         }

@@ -104,6 +104,12 @@ pub fn handover_indicator(p: &Parameters, chart: Chart, b1: f64, c1: f64) -> f64
     }
 }
 
+/// [`handover_indicator`] of `chart` at the configuration of state `y`.
+pub fn handover_indicator_at(p: &Parameters, chart: Chart, y: &[f64; 8]) -> f64 {
+    let (_, b1, c1) = super::kinematics::closure_with_gradient(p, y[1], y[2]);
+    handover_indicator(p, chart, b1, c1)
+}
+
 /// The leader's pin seen from the follower's pivot, as (θ, r): its direction, continuous
 /// in the leader's angle q (no branch cut), and its distance. The leader's pin lies at
 /// `a`·(cos q, sin q) from its own pivot, the pivots `l` apart, `sign` = −1 when the

@@ -47,6 +47,16 @@ pub enum Choice {
     Fixed(Method),
 }
 
+impl Choice {
+    /// The method a run starts with: `auto` starts explicit.
+    pub fn first_method(self) -> Method {
+        match self {
+            Choice::Fixed(method) => method,
+            Choice::Auto => Method::Dop853,
+        }
+    }
+}
+
 #[derive(Clone, Debug)]
 enum Active<const N: usize> {
     Explicit(Dop853<N>),
@@ -73,10 +83,9 @@ pub struct Integrator<const N: usize> {
 
 impl<const N: usize> Integrator<N> {
     pub fn new(choice: Choice, tolerances: Tolerances) -> Self {
-        let active = match choice {
-            Choice::Fixed(Method::Radau5) => Active::Implicit(Radau5::new(tolerances)),
-            Choice::Fixed(Method::Dop853) => Active::Explicit(Dop853::new(tolerances)),
-            Choice::Auto => Active::Explicit(Dop853::new(tolerances)),
+        let active = match choice.first_method() {
+            Method::Radau5 => Active::Implicit(Radau5::new(tolerances)),
+            Method::Dop853 => Active::Explicit(Dop853::new(tolerances)),
         };
         Self { choice, active }
     }
