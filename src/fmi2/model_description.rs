@@ -254,23 +254,27 @@ fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
                 w.create_element("SimpleType")
                     .with_attribute(("name", type_name))
                     .write_inner_content(|w| {
-                        w.create_element("Enumeration").write_inner_content(|w| {
-                            for (name, value, description) in items {
-                                w.create_element("Item")
-                                    .with_attributes([
-                                        ("name", *name),
-                                        ("value", value.to_string().as_str()),
-                                        ("description", *description),
-                                    ])
-                                    .write_empty()?;
-                            }
-                            Ok(())
-                        })?;
+                        w.create_element("Enumeration")
+                            .write_inner_content(|w| write_items(w, items))?;
                         Ok(())
                     })?;
             }
             Ok(())
         })?;
+    Ok(())
+}
+
+/// An enumeration's `Item` elements, as both FMI versions write them.
+pub(crate) fn write_items(w: &mut Writer<Vec<u8>>, items: &Items) -> io::Result<()> {
+    for (name, value, description) in items {
+        w.create_element("Item")
+            .with_attributes([
+                ("name", *name),
+                ("value", value.to_string().as_str()),
+                ("description", *description),
+            ])
+            .write_empty()?;
+    }
     Ok(())
 }
 
@@ -322,40 +326,45 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
     if let Some(initial) = v.initial() {
         element = element.with_attribute(("initial", initial));
     }
-    let derivative = v.derivative_of().map(|state| (state + 1).to_string());
+    // FMI 2.0 names a state by its 1-based index into ModelVariables.
+    let attributes = type_attributes(v, v.derivative_of().map(|state| state + 1));
     element.write_inner_content(|w| {
-        let mut typed = w.create_element(v.var_type().as_str());
-        match v.var_type() {
-            VarType::Real if v.unit.is_empty() => {}
-            VarType::Real => {
-                typed = typed.with_attribute(("unit", v.unit));
-                if let Some((display, _)) = display_unit(v.unit) {
-                    typed = typed.with_attribute(("displayUnit", display));
-                }
-            }
-            VarType::Enumeration => {
-                typed =
-                    typed.with_attribute(("declaredType", v.declared_type().unwrap_or(SOLVER_TYPE)))
-            }
-            VarType::Integer | VarType::Boolean => {}
-        }
-        let range = v
-            .range()
-            .map(|(low, high)| (low.to_string(), high.to_string()));
-        if let Some((low, high)) = &range {
-            typed = typed.with_attributes([("min", low.as_str()), ("max", high.as_str())]);
-        }
-        let start = start_text(v);
-        if let Some(start) = &start {
-            typed = typed.with_attribute(("start", start.as_str()));
-        }
-        if let Some(index) = &derivative {
-            typed = typed.with_attribute(("derivative", index.as_str()));
-        }
-        typed.write_empty()?;
+        w.create_element(v.var_type().as_str())
+            .with_attributes(attributes.iter().map(|(k, v)| (*k, v.as_str())))
+            .write_empty()?;
         Ok(())
     })?;
     Ok(())
+}
+
+/// The attributes of a variable's type, which FMI 2.0 writes on its type element and FMI
+/// 3.0 on the variable: unit and display unit, declared type, range, start, and for a state
+/// derivative `derivative` (its state as the version numbers it).
+pub(crate) fn type_attributes(
+    v: &Variable,
+    derivative: Option<u32>,
+) -> Vec<(&'static str, String)> {
+    let mut attributes = Vec::new();
+    match v.var_type() {
+        VarType::Real if !v.unit.is_empty() => {
+            attributes.push(("unit", v.unit.to_string()));
+            if let Some((display, _)) = display_unit(v.unit) {
+                attributes.push(("displayUnit", display.to_string()));
+            }
+        }
+        VarType::Enumeration => attributes.push((
+            "declaredType",
+            v.declared_type().unwrap_or(SOLVER_TYPE).to_string(),
+        )),
+        _ => {}
+    }
+    if let Some((low, high)) = v.range() {
+        attributes.push(("min", low.to_string()));
+        attributes.push(("max", high.to_string()));
+    }
+    attributes.extend(start_text(v).map(|start| ("start", start)));
+    attributes.extend(derivative.map(|state| ("derivative", state.to_string())));
+    attributes
 }
 
 /// Outputs, state derivatives and initial unknowns, by 1-based index into ModelVariables,
@@ -377,22 +386,9 @@ fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
      -> io::Result<()> {
         w.create_element(list).write_inner_content(|w| {
             for (index, v) in members {
-                let pairs = dependencies(v, which);
-                let known: Vec<String> = pairs
-                    .iter()
-                    .map(|(n, _)| (value_reference(n).expect("known") + 1).to_string())
-                    .collect();
-                let kinds: Vec<&str> = pairs.iter().map(|(_, k)| k.as_str()).collect();
-                let mut unknown = w.create_element("Unknown").with_attributes([
-                    ("index", index.to_string().as_str()),
-                    ("dependencies", known.join(" ").as_str()),
-                ]);
-                // An empty list says "depends on none"; its kinds would be an empty list too.
-                if !known.is_empty() {
-                    unknown =
-                        unknown.with_attribute(("dependenciesKind", kinds.join(" ").as_str()));
-                }
-                unknown.write_empty()?;
+                write_unknown(w, "Unknown", ("index", *index as u32), v, which, |vr| {
+                    vr + 1
+                })?;
             }
             Ok(())
         })?;
@@ -405,6 +401,35 @@ fn write_structure(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
             unknowns(w, "Derivatives", &derivatives, Unknowns::Running)?;
             unknowns(w, "InitialUnknowns", &initial, Unknowns::Initial)
         })?;
+    Ok(())
+}
+
+/// A ModelStructure entry: `element`, naming the unknown `v` by the attribute `key`, with
+/// the knowns it depends on in list `which` (each numbered by `number` from its value
+/// reference) and how.
+pub(crate) fn write_unknown(
+    w: &mut Writer<Vec<u8>>,
+    element: &str,
+    (key, id): (&str, u32),
+    v: &Variable,
+    which: Unknowns,
+    number: impl Fn(u32) -> u32,
+) -> io::Result<()> {
+    let pairs = dependencies(v, which);
+    let known: Vec<String> = pairs
+        .iter()
+        .map(|(n, _)| number(value_reference(n).expect("known")).to_string())
+        .collect();
+    let kinds: Vec<&str> = pairs.iter().map(|(_, k)| k.as_str()).collect();
+    let mut unknown = w.create_element(element).with_attributes([
+        (key, id.to_string().as_str()),
+        ("dependencies", known.join(" ").as_str()),
+    ]);
+    // An empty list says "depends on none"; its kinds would be an empty list too.
+    if !known.is_empty() {
+        unknown = unknown.with_attribute(("dependenciesKind", kinds.join(" ").as_str()));
+    }
+    unknown.write_empty()?;
     Ok(())
 }
 

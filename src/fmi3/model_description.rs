@@ -9,14 +9,14 @@ use quick_xml::Writer;
 use std::io;
 
 use crate::fmi2::model_description::{
-    display_unit, fnv1a_128, start_text, uuid_text, write_default_experiment, write_interface,
-    write_log_categories, write_units, Items, DESCRIPTION_ATTRIBUTES, MAX_OUTPUT_DERIVATIVE_ORDER,
-    MODEL_NAME,
+    fnv1a_128, type_attributes, uuid_text, write_default_experiment, write_interface, write_items,
+    write_log_categories, write_units, write_unknown, Items, DESCRIPTION_ATTRIBUTES,
+    MAX_OUTPUT_DERIVATIVE_ORDER, MODEL_NAME,
 };
 use crate::model::LINKAGE_CLASSES;
 use crate::variables::{
-    dependencies, is_unknown, value_reference, variables, Causality, Local, Slot, Unknowns,
-    VarType, Variable, LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE,
+    is_unknown, variables, Causality, Local, Slot, Unknowns, VarType, Variable, LINKAGE_TYPE,
+    SOLVER_ITEMS, SOLVER_TYPE,
 };
 
 pub const FMI_VERSION: &str = "3.0";
@@ -109,18 +109,7 @@ fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
             for (type_name, items) in types {
                 w.create_element("EnumerationType")
                     .with_attribute(("name", type_name))
-                    .write_inner_content(|w| {
-                        for (name, value, description) in items {
-                            w.create_element("Item")
-                                .with_attributes([
-                                    ("name", *name),
-                                    ("value", value.to_string().as_str()),
-                                    ("description", *description),
-                                ])
-                                .write_empty()?;
-                        }
-                        Ok(())
-                    })?;
+                    .write_inner_content(|w| write_items(w, items))?;
             }
             Ok(())
         })?;
@@ -172,34 +161,11 @@ fn write_variable(w: &mut Writer<Vec<u8>>, vr: u32, v: &Variable) -> io::Result<
     if let Some(initial) = v.initial() {
         element = element.with_attribute(("initial", initial));
     }
-    match v.var_type() {
-        VarType::Real if !v.unit.is_empty() => {
-            element = element.with_attribute(("unit", v.unit));
-            if let Some((display, _)) = display_unit(v.unit) {
-                element = element.with_attribute(("displayUnit", display));
-            }
-        }
-        VarType::Enumeration => {
-            element =
-                element.with_attribute(("declaredType", v.declared_type().unwrap_or(SOLVER_TYPE)))
-        }
-        _ => {}
-    }
-    let range = v
-        .range()
-        .map(|(low, high)| (low.to_string(), high.to_string()));
-    if let Some((low, high)) = &range {
-        element = element.with_attributes([("min", low.as_str()), ("max", high.as_str())]);
-    }
-    let start = start_text(v);
-    if let Some(start) = &start {
-        element = element.with_attribute(("start", start.as_str()));
-    }
-    let derivative = v.derivative_of().map(|state| reference(state).to_string());
-    if let Some(state) = &derivative {
-        element = element.with_attribute(("derivative", state.as_str()));
-    }
-    element.write_empty()?;
+    // FMI 3.0 names a state by its value reference.
+    let attributes = type_attributes(v, v.derivative_of().map(reference));
+    element
+        .with_attributes(attributes.iter().map(|(k, v)| (*k, v.as_str())))
+        .write_empty()?;
     Ok(())
 }
 
@@ -238,21 +204,7 @@ fn write_unknowns(
     which: Unknowns,
 ) -> io::Result<()> {
     for (vr, v) in members {
-        let pairs = dependencies(v, which);
-        let known: Vec<String> = pairs
-            .iter()
-            .map(|(n, _)| reference(value_reference(n).expect("known")).to_string())
-            .collect();
-        let kinds: Vec<&str> = pairs.iter().map(|(_, k)| k.as_str()).collect();
-        let mut unknown = w.create_element(element).with_attributes([
-            ("valueReference", vr.to_string().as_str()),
-            ("dependencies", known.join(" ").as_str()),
-        ]);
-        // An empty list says "depends on none"; its kinds would be an empty list too.
-        if !known.is_empty() {
-            unknown = unknown.with_attribute(("dependenciesKind", kinds.join(" ").as_str()));
-        }
-        unknown.write_empty()?;
+        write_unknown(w, element, ("valueReference", *vr), v, which, reference)?;
     }
     Ok(())
 }
@@ -260,6 +212,7 @@ fn write_unknowns(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::variables::value_reference;
 
     #[test]
     fn every_variable_once_after_time_and_the_token_is_stable() {
