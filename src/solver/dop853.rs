@@ -15,7 +15,7 @@
 
 use super::dop853_tableau::{A, A_DENSE, B, C, C_DENSE, D, E3, E5};
 use super::{
-    check_step_size, initial_step, plan_step, OdeSystem, Progress, SolverError, Stepper, Tolerances,
+    check_step_size, first_step, plan_step, OdeSystem, Progress, SolverError, Stepper, Tolerances,
 };
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 
@@ -112,32 +112,6 @@ impl<const N: usize> Dop853<N> {
     /// The step size the next call will try first, once chosen.
     pub fn next_step(&self) -> Option<f64> {
         self.progress.next_step
-    }
-
-    /// The step size to try first: the one the last call proposed, else Hairer's starting
-    /// step for the span to `target`.
-    #[inline(always)]
-    fn first_step_size<S: OdeSystem<N>>(
-        &mut self,
-        system: &S,
-        t: f64,
-        y: &[f64; N],
-        target: f64,
-    ) -> f64 {
-        match self.progress.next_step {
-            Some(h) => h,
-            None => {
-                let f0 = self.stages[NEXT_FIRST];
-                initial_step(
-                    system,
-                    (t, y, &f0),
-                    target - t,
-                    self.progress.tolerances,
-                    8,
-                    &mut self.progress.stats,
-                )
-            }
-        }
     }
 
     /// Evaluate the extra stages and form the interpolant's seven coefficient vectors in
@@ -430,7 +404,8 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
             self.eval(system, *t, y, NEXT_FIRST);
             self.first_stage_valid = true;
         }
-        let mut h = self.first_step_size(system, *t, y, target);
+        let first = (*t, &*y, &self.stages[NEXT_FIRST]);
+        let mut h = first_step(&mut self.progress, system, first, target, 8);
         let mut last_rejected = false;
         let mut taken = 0u64;
         let (mut y_new, mut last_stage) = ([0.0; N], [0.0; N]);

@@ -250,9 +250,31 @@ fn combine<const N: usize>(weights: &[f64], vectors: &[[f64; N]]) -> [f64; N] {
     sum
 }
 
+/// The step size a call tries first: the one the last call proposed, else Hairer's starting
+/// step for a method of order `order` over the span to `target` ([`initial_step`]).
+pub(crate) fn first_step<S: OdeSystem<N>, const N: usize>(
+    progress: &mut Progress,
+    system: &S,
+    (t, y, f0): (f64, &[f64; N], &[f64; N]),
+    target: f64,
+    order: i32,
+) -> f64 {
+    match progress.next_step {
+        Some(h) => h,
+        None => initial_step(
+            system,
+            (t, y, f0),
+            target - t,
+            progress.tolerances,
+            order,
+            &mut progress.stats,
+        ),
+    }
+}
+
 /// Hairer's starting step size (HNW I, II.4) for a method of order `order` at (t, y) with
 /// f(t, y) = `f0`, bounded by the span to integrate. Costs one evaluation.
-pub(crate) fn initial_step<S: OdeSystem<N>, const N: usize>(
+fn initial_step<S: OdeSystem<N>, const N: usize>(
     system: &S,
     (t, y, f0): (f64, &[f64; N], &[f64; N]),
     span: f64,

@@ -15,8 +15,8 @@
 
 use super::linear::{Complex, Lu, Singular};
 use super::{
-    check_step_size, combine, initial_step, plan_step, OdeSystem, Progress, SolverError,
-    Statistics, Stepper, Tolerances,
+    check_step_size, combine, first_step, plan_step, OdeSystem, Progress, SolverError, Statistics,
+    Stepper, Tolerances,
 };
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 
@@ -406,20 +406,7 @@ impl<const N: usize> Radau5<N> {
         if !self.jacobian_valid {
             self.update_jacobian(system, t, y);
         }
-        match self.progress.next_step {
-            Some(h) => h,
-            None => {
-                let f0 = self.f0;
-                initial_step(
-                    system,
-                    (t, y, &f0),
-                    target - t,
-                    self.progress.tolerances,
-                    5,
-                    &mut self.progress.stats,
-                )
-            }
-        }
+        first_step(&mut self.progress, system, (t, y, &self.f0), target, 5)
     }
 
     /// After an accepted step of `h_step` with scaled `error`, at its end (t, y): the
