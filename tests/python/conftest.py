@@ -12,12 +12,18 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 STATES = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4"]
 
 
+def packed(variable, default, job):
+    """A packed FMU: the path in environment `variable`, else `default`; a failure that says
+    which xtask job packs it when it is missing."""
+    path = pathlib.Path(os.environ.get(variable, ROOT / default))
+    if not path.exists():
+        pytest.fail(f"{path} does not exist: run `cargo xtask {job}` (or `cargo xtask test`)")
+    return path
+
+
 @pytest.fixture(scope="session")
 def fmu_path():
-    path = pathlib.Path(os.environ.get("CYCLIC_MECHANISM_FMU", ROOT / "target/fmu/CyclicMechanism.fmu"))
-    if not path.exists():
-        pytest.fail(f"{path} does not exist: run `cargo xtask fmu` (or `cargo xtask test`)")
-    return path
+    return packed("CYCLIC_MECHANISM_FMU", "target/fmu/CyclicMechanism.fmu", "fmu")
 
 
 @pytest.fixture(scope="session")

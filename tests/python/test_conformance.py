@@ -147,9 +147,12 @@ class Probe:
     def refs(self, *names):
         return (c_uint * len(names))(*(self.vr[n] for n in names))
 
-    def initialise(self, parameters=None):
+    def enter_initialization(self):
         self.must("fmi2SetupExperiment", 1, c_double(1e-8), c_double(0.0), 0, c_double(0.0))
         self.must("fmi2EnterInitializationMode")
+
+    def initialise(self, parameters=None):
+        self.enter_initialization()
         for name, value in (parameters or {}).items():
             self.must("fmi2SetReal", self.refs(name), 1, (c_double * 1)(value))
         self.must("fmi2ExitInitializationMode")
@@ -163,8 +166,7 @@ def reach(probe, state):
     if state == "Instantiated":
         return
     if state == "InitializationMode":
-        probe.must("fmi2SetupExperiment", 1, c_double(1e-8), c_double(0.0), 0, c_double(0.0))
-        probe.must("fmi2EnterInitializationMode")
+        probe.enter_initialization()
         return
     if state == "StepFailed":
         probe.initialise(RUNAWAY)

@@ -4,8 +4,6 @@ and coupled to the mechanism the same run as the Python-written motor of
 examples/dc_motor/dc_motor.py."""
 
 import math
-import os
-import pathlib
 import re
 import sys
 
@@ -15,7 +13,7 @@ import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import ROOT
+from conftest import ROOT, packed
 
 sys.path.insert(0, str(ROOT / "examples/dc_motor"))
 import coupling  # noqa: E402
@@ -26,10 +24,7 @@ R, L, K, V = 0.5, 0.01, 2.0, 24.0
 
 @pytest.fixture(scope="module")
 def motor_path():
-    path = pathlib.Path(os.environ.get("DC_MOTOR_FMU", ROOT / "target/fmu/DcMotor.fmu"))
-    if not path.exists():
-        pytest.fail(f"{path} does not exist: run `cargo xtask motor` (or `cargo xtask test`)")
-    return path
+    return packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
 
 
 @pytest.fixture
