@@ -174,38 +174,31 @@ fn work_dir() -> PathBuf {
 fn build_masters(zig: &Zig) -> Result<(PathBuf, PathBuf, PathBuf)> {
     let dir = work_dir();
     fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-    let source = root().join("tests/platforms/master.c");
-    let headers = fmi2_headers()?;
-    let flags = ["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror"];
-    let native = dir.join("master");
-    run(Command::new("cc")
-        .args(flags)
-        .arg("-I")
-        .arg(&headers)
-        .arg("-o")
-        .arg(&native)
-        .arg(&source)
-        .arg("-ldl"))?;
+    let native = build_native_master(&dir)?;
     let windows = dir.join("master.exe");
-    run(Command::new(MINGW_GCC)
-        .args(flags)
-        .arg("-static")
-        .arg("-I")
-        .arg(&headers)
-        .arg("-o")
-        .arg(&windows)
-        .arg(&source))?;
+    compile_master(Command::new(MINGW_GCC).arg("-static"), &windows, &[])?;
     let aarch64 = dir.join("master-aarch64");
-    run(Command::new(zig.venv_bin.join("python"))
-        .args(["-m", "ziglang", "cc", "-target", "aarch64-linux-gnu.2.17"])
-        .args(flags)
-        .arg("-I")
-        .arg(&headers)
-        .arg("-o")
-        .arg(&aarch64)
-        .arg(&source)
-        .arg("-ldl"))?;
+    compile_master(&mut zig.cc("aarch64-linux-gnu.2.17"), &aarch64, &["-ldl"])?;
     Ok((native, windows, aarch64))
+}
+
+/// The C master for this machine, in `dir` (also what `cargo xtask instructions` runs).
+pub fn build_native_master(dir: &Path) -> Result<PathBuf> {
+    let native = dir.join("master");
+    compile_master(&mut Command::new("cc"), &native, &["-ldl"])?;
+    Ok(native)
+}
+
+/// Compile tests/platforms/master.c with `compiler` (its own options given) and the shared
+/// flags into `output`, linking `libraries`.
+fn compile_master(compiler: &mut Command, output: &Path, libraries: &[&str]) -> Result {
+    run(compiler
+        .args(["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-I"])
+        .arg(fmi2_headers()?)
+        .arg("-o")
+        .arg(output)
+        .arg(root().join("tests/platforms/master.c"))
+        .args(libraries))
 }
 
 /// The FMI 2.0 headers that fmi-sys ships (fetched into cargo's registry by the build).

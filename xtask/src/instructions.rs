@@ -6,10 +6,10 @@
 //! number of points. The report goes to `docs/bench/instructions.md`.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-use crate::setup::{apt_install, output_of, root, run};
+use crate::setup::{apt_install, output_of, root};
 use crate::Result;
 
 const OUTPUTS: [&str; 10] = [
@@ -42,19 +42,6 @@ fn references(xml: &Path) -> Result<(String, Vec<u32>)> {
         })
         .collect::<Result<Vec<u32>>>()?;
     Ok((description.guid, refs))
-}
-
-fn build_master(dir: &Path) -> Result<PathBuf> {
-    let master = dir.join("master");
-    run(Command::new("cc")
-        .args(["-O2", "-std=c99"])
-        .arg("-I")
-        .arg(crate::abi_tests::fmi2_headers()?)
-        .arg("-o")
-        .arg(&master)
-        .arg(root().join("tests/platforms/master.c"))
-        .arg("-ldl"))?;
-    Ok(master)
 }
 
 /// Instructions counted inside the stepping and reading functions.
@@ -91,7 +78,7 @@ pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
     let dir = root().join("target/instructions");
     fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
     let (guid, refs) = references(&root().join("target/fmu/assets/modelDescription.xml"))?;
-    let master = build_master(&dir)?;
+    let master = crate::abi_tests::build_native_master(&dir)?;
     let total = count(&master, &packed.linux64, &guid, &refs, &dir)?;
     let points = (STOP / STEP).round() as u64;
     let commit = build_label();

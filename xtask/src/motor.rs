@@ -3,7 +3,6 @@
 //! `target/fmu/DcMotor.fmu`, for coupling and sweeping the mechanism at native speed.
 
 use std::path::PathBuf;
-use std::process::Command;
 
 use crate::cli::Parsed;
 use crate::setup::{check_glibc, ensure_venv, root, run, Packages};
@@ -21,8 +20,8 @@ pub(crate) fn build_motor() -> Result<PathBuf> {
     let dir = root().join("target/motor");
     std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
     let library = dir.join("DcMotor.so");
-    run(Command::new(zig.venv_bin.join("python"))
-        .args(["-m", "ziglang", "cc", "-target", "x86_64-linux-gnu.2.17"])
+    run(zig
+        .cc("x86_64-linux-gnu.2.17")
         .args(["-O2", "-std=c99", "-shared", "-fPIC", "-fvisibility=hidden"])
         .args(["-Wall", "-Wextra", "-Wno-unused-parameter", "-Werror", "-I"])
         .arg(crate::abi_tests::fmi2_headers()?)

@@ -253,6 +253,13 @@ impl Zig {
         })
     }
 
+    /// `zig cc` for `target` (a zig triple, with a glibc version where it matters).
+    pub fn cc(&self, target: &str) -> Command {
+        let mut command = Command::new(self.venv_bin.join("python"));
+        command.args(["-m", "ziglang", "cc", "-target", target]);
+        command
+    }
+
     /// `PATH` with zig's folder and the venv's bin folder first.
     pub fn path(&self) -> Result<std::ffi::OsString> {
         std::env::join_paths(
