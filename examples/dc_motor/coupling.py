@@ -16,6 +16,7 @@ near √(k34/J4) ≈ 12 rad/s, drives the load spring into resonance.)
 Writes coupling.csv and coupling.png to the output directory.
 """
 
+import argparse
 import pathlib
 import shutil
 import subprocess
@@ -110,14 +111,13 @@ def plot(data, path):
 
 
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    motor_fmu = None
-    if "--motor" in args:
-        at = args.index("--motor")
-        motor_fmu = args[at + 1] if at + 1 < len(args) else sys.exit("--motor needs the motor's .fmu")
-        del args[at:at + 2]
-    if len(args) < 2:
-        sys.exit("usage: coupling.py <CyclicMechanism.fmu> <output directory> [stop time] [--motor DcMotor.fmu]")
-    result = run(args[0], args[1], float(args[2]) if len(args) > 2 else 5.0, motor_fmu=motor_fmu)
+    parser = argparse.ArgumentParser(description="Couple a DC-motor FMU to the mechanism FMU.")
+    parser.add_argument("mechanism", help="CyclicMechanism.fmu")
+    parser.add_argument("out", help="output directory")
+    parser.add_argument("stop_time", nargs="?", type=float, default=5.0, help="stop time (s)")
+    parser.add_argument("--motor", help="a DC-motor FMU (default: dc_motor.py built with pythonfmu)")
+    args = parser.parse_args()
+    result = run(args.mechanism, args.out, args.stop_time, motor_fmu=args.motor)
     print(f"final: omega1 = {result['omega1'][-1]:.3f} rad/s, current = {result['current'][-1]:.3f} A")
-    print(f"written: {pathlib.Path(args[1]) / 'coupling.csv'}, {pathlib.Path(args[1]) / 'coupling.png'}")
+    out = pathlib.Path(args.out)
+    print(f"written: {out / 'coupling.csv'}, {out / 'coupling.png'}")

@@ -150,35 +150,27 @@ fmi2Status fmi2Reset(fmi2Component c) {
     return fmi2OK;
 }
 
-/* A value's rule: parameters R, L > 0 and k >= 0, settable before initialisation ends;
- * inputs any finite number; outputs not settable. */
-static const char *refusal(const Motor *m, fmi2ValueReference vr, double value) {
-    static char why[160];
-    if (vr >= N_VARIABLES) {
-        snprintf(why, sizeof why, "no variable has value reference %u", vr);
-        return why;
-    }
-    if (!isfinite(value)) {
-        snprintf(why, sizeof why, "%s = %g: must be a finite number", NAMES[vr], value);
-        return why;
-    }
-    if (vr == VR_CURRENT || vr == VR_TORQUE) {
-        snprintf(why, sizeof why, "%s is an output and cannot be set", NAMES[vr]);
-        return why;
-    }
-    if (vr <= VR_K && m->state != INSTANTIATED && m->state != INITIALIZATION) {
-        snprintf(why, sizeof why, "%s is a fixed parameter: set it before fmi2ExitInitializationMode", NAMES[vr]);
-        return why;
-    }
-    if ((vr == VR_R || vr == VR_L) && !(value > 0.0)) {
-        snprintf(why, sizeof why, "%s = %g: must be > 0", NAMES[vr], value);
-        return why;
-    }
-    if (vr == VR_K && value < 0.0) {
-        snprintf(why, sizeof why, "k = %g: must be >= 0", value);
-        return why;
-    }
-    return NULL;
+/* Whether `value` may be written to `vr` now, and if not why, in `why` (the caller's
+ * buffer: instances may run in threads of their own). The rules: parameters R, L > 0 and
+ * k >= 0, settable before initialisation ends; inputs any finite number; outputs not
+ * settable. */
+static int refused(const Motor *m, fmi2ValueReference vr, double value, char *why, size_t size) {
+    if (vr >= N_VARIABLES)
+        snprintf(why, size, "no variable has value reference %u", vr);
+    else if (!isfinite(value))
+        snprintf(why, size, "%s = %g: must be a finite number", NAMES[vr], value);
+    else if (vr == VR_CURRENT || vr == VR_TORQUE)
+        snprintf(why, size, "%s is an output and cannot be set", NAMES[vr]);
+    else if (vr <= VR_K && m->state != INSTANTIATED && m->state != INITIALIZATION)
+        snprintf(why, size, "%s is a fixed parameter: set it before fmi2ExitInitializationMode",
+                 NAMES[vr]);
+    else if ((vr == VR_R || vr == VR_L) && !(value > 0.0))
+        snprintf(why, size, "%s = %g: must be > 0", NAMES[vr], value);
+    else if (vr == VR_K && value < 0.0)
+        snprintf(why, size, "k = %g: must be >= 0", value);
+    else
+        return 0;
+    return 1;
 }
 
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
@@ -188,8 +180,9 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
     if (m->state == TERMINATED) return refuse(m, "fmi2SetReal", "not after fmi2Terminate");
     if (n > 0 && (!vr || !value)) return refuse(m, "fmi2SetReal", "vr or value is NULL");
     for (i = 0; i < n; i++) {
-        const char *why = refusal(m, vr[i], value[i]);
-        if (why) return refuse(m, "fmi2SetReal", why); /* nothing applied */
+        char why[160];
+        if (refused(m, vr[i], value[i], why, sizeof why))
+            return refuse(m, "fmi2SetReal", why); /* nothing applied */
     }
     for (i = 0; i < n; i++) m->values[vr[i]] = value[i];
     return fmi2OK;
