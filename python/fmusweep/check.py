@@ -2,6 +2,7 @@
 kind, and every value the design and the scenario set is one the FMU accepts. The FMU is
 asked itself (its values are set in initialisation mode, nothing runs), so its own rules
 (J > 0, k ≥ 0, …) apply, whatever FMU it is; refusals become SpecErrors naming the field.
+A sweep and a fit share these checks; each names its own fields.
 """
 
 from __future__ import annotations
@@ -10,57 +11,76 @@ import numpy as np
 
 from .spec import SpecError
 
-__all__ = ["check_against_fmu"]
+__all__ = ["check_against_fmu", "Variables"]
 
 SETTABLE = ("parameter", "input")
+VALUE_TYPES = ("real", "integer", "enumeration", "boolean")
 
 
-def check_against_fmu(spec, design, description: dict, runner) -> None:
-    variables = {v["name"]: v for v in description["variables"]}
+class Variables:
+    """The FMU's variables by name, as the runner describes them."""
 
-    def variable(name: str, where: str, causalities=None, types=None) -> dict:
-        v = variables.get(name)
+    def __init__(self, description: dict):
+        self.by_name = {v["name"]: v for v in description["variables"]}
+
+    def get(self, name: str, where: str, causalities=None, types=None, what="variable") -> dict:
+        v = self.by_name.get(name)
         if v is None:
-            raise SpecError(where, f"the FMU has no variable {name!r}")
+            raise SpecError(where, f"the FMU has no {what} {name!r}")
         if causalities and v["causality"] not in causalities:
             raise SpecError(where, f"{name} has causality {v['causality']}; "
-                                   f"only {' or '.join(causalities)} variables can be set")
+                                   f"only {' or '.join(causalities)} variables can be {what_for(causalities)}")
         if types and v["type"] not in types:
             raise SpecError(where, f"{name} is of type {v['type']}; expected {' or '.join(types)}")
         return v
 
-    for name in spec.parameters:
-        variable(name, f"scenario.parameters.{name}", SETTABLE, ("real", "integer", "enumeration", "boolean"))
-    for name in spec.inputs:
-        variable(name, f"scenario.inputs.{name}", ("input",), ("real",))
+    def check_scenario(self, scenario) -> None:
+        for name in scenario.parameters:
+            self.get(name, f"scenario.parameters.{name}", SETTABLE, VALUE_TYPES)
+        for name in scenario.inputs:
+            self.get(name, f"scenario.inputs.{name}", ("input",), ("real",))
+
+    def check_columns(self, names: list[str], rows: np.ndarray, field: str) -> None:
+        """Each column of a design (or a fit's parameters) is a settable variable, and its
+        values suit the variable's type."""
+        for j, name in enumerate(names):
+            v = self.get(name, f"{field}.{name}", SETTABLE, VALUE_TYPES)
+            column = rows[:, j]
+            if v["type"] in ("integer", "enumeration") and np.any(column != np.round(column)):
+                raise SpecError(f"{field}.{name}", f"{name} is an Integer; the design gives "
+                                                   f"{column[column != np.round(column)][0]}")
+            if v["type"] == "boolean" and not np.all((column == 0) | (column == 1)):
+                raise SpecError(f"{field}.{name}", f"{name} is a Boolean; the design must give 0 or 1")
+
+
+def what_for(causalities) -> str:
+    return "set" if set(causalities) <= set(SETTABLE) else "read"
+
+
+def check_against_fmu(spec, design, description: dict, runner) -> None:
+    variables = Variables(description)
+    variables.check_scenario(spec)
     for m in spec.metrics:
-        variable(m.variable, f"outputs.metrics.{m.name}.variable", None, ("real", "integer", "enumeration", "boolean"))
+        variables.get(m.variable, f"outputs.metrics.{m.name}.variable", None, VALUE_TYPES)
     for name in spec.series_variables:
-        variable(name, "outputs.series.variables", None, ("real", "integer", "enumeration", "boolean"))
-    for j, name in enumerate(design.names):
-        v = variable(name, f"design.parameters.{name}", SETTABLE, ("real", "integer", "enumeration", "boolean"))
-        column = design.rows[:, j]
-        if v["type"] in ("integer", "enumeration") and np.any(column != np.round(column)):
-            raise SpecError(f"design.parameters.{name}", f"{name} is an Integer; the design gives "
-                                                         f"{column[column != np.round(column)][0]}")
-        if v["type"] == "boolean" and not np.all((column == 0) | (column == 1)):
-            raise SpecError(f"design.parameters.{name}", f"{name} is a Boolean; the design must give 0 or 1")
-
-    _ask_the_fmu(spec, design, runner)
+        variables.get(name, "outputs.series.variables", None, VALUE_TYPES)
+    variables.check_columns(design.names, design.rows, "design.parameters")
+    ask_the_fmu(spec.plan(), design.names, design.rows, runner, "design.parameters",
+                "scenario.parameters")
 
 
-def _ask_the_fmu(spec, design, runner):
-    """Set the fixed values, then each design column's extremes, and report what the FMU
-    refuses. Single-variable rules are caught here; a combination that cannot run (a
-    geometry that does not assemble) is a result of the sweep, not a mistake in it."""
-    runner.configure(spec.plan())
+def ask_the_fmu(plan: dict, columns: list[str], rows: np.ndarray, runner, field: str,
+                fixed_field: str) -> None:
+    """Set the fixed values, then each column's extremes, and report what the FMU refuses.
+    Single-variable rules are caught here; a combination that cannot run (a geometry that
+    does not assemble) is a result of the sweep, not a mistake in it."""
+    runner.configure(plan)
     fixed = runner.check([], [[]])[0]
     if fixed["status"] != "ok":
-        raise SpecError("scenario.parameters", f"the FMU refuses the fixed values: {fixed['message']}")
-    rows, columns = design.rows, design.names
+        raise SpecError(fixed_field, f"the FMU refuses the fixed values: {fixed['message']}")
     first = runner.check(columns, rows[:1])[0]
     if first["status"] != "ok":
-        raise SpecError("design", f"the FMU refuses the first point: {first['message']}")
+        raise SpecError(field, f"the FMU refuses the first point: {first['message']}")
     # From the first point, which passed, change one column to its extreme values: a
     # refusal then belongs to that column.
     probes, owners = [], []
@@ -72,5 +92,5 @@ def _ask_the_fmu(spec, design, runner):
             owners.append((name, value))
     for (name, value), answer in zip(owners, runner.check(columns, probes)):
         if answer["status"] != "ok":
-            raise SpecError(f"design.parameters.{name}",
+            raise SpecError(f"{field}.{name}",
                             f"the FMU refuses {name} = {value:g}: {answer['message']}")

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import SpecError
+from .fields import finite as _finite
+from .fields import low_high, whole
 
 __all__ = ["Design", "generate"]
 
@@ -107,16 +109,7 @@ def _not_too_many(count: int):
 
 
 def _count(d: dict, key: str, where: str) -> int:
-    n = d.get(key)
-    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-        raise SpecError(where, f"must be a whole number ≥ 1, got {n!r}")
-    return n
-
-
-def _finite(x, where: str) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
-        raise SpecError(where, f"must be a finite number, got {x!r}")
-    return float(x)
+    return whole(d.get(key), where, 1)
 
 
 def _values(name: str, entry) -> list[float]:
@@ -163,12 +156,7 @@ def _range(name: str, entry, allow_log: bool):
     keys = {"range", "log"} if allow_log else {"range"}
     if not isinstance(entry, dict) or "range" not in entry or set(entry) - keys:
         raise SpecError(where, f"give range = [low, high]{' (and log = true)' if allow_log else ''}")
-    r = entry["range"]
-    if not (isinstance(r, list) and len(r) == 2):
-        raise SpecError(f"{where}.range", f"must be [low, high], got {r!r}")
-    low, high = _finite(r[0], f"{where}.range"), _finite(r[1], f"{where}.range")
-    if not low < high:
-        raise SpecError(f"{where}.range", f"needs low < high, got [{low}, {high}]")
+    low, high = low_high(entry["range"], f"{where}.range")
     log = entry.get("log", False)
     if not isinstance(log, bool):
         raise SpecError(f"{where}.log", f"must be true or false, got {log!r}")

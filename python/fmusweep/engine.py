@@ -1,28 +1,27 @@
 """Running a sweep: check the spec against the FMU, cut the remaining points into
 batches of about half a second of work, run them serially or on Dask (a LocalCluster of
 single-threaded worker processes, or an existing cluster), and write each finished batch
-as it arrives. Scheduling lives here; the work of a batch lives in ``worker``."""
+as it arrives. The batches are placed by ``pool``; their work lives in ``worker``."""
 
 from __future__ import annotations
 
 import hashlib
 import math
 import os
-import platform
 import sys
 import time
 from dataclasses import dataclass, field
-from importlib import metadata
 
 import numpy as np
 import pyarrow as pa
 
 from . import design as design_module
 from .check import check_against_fmu
-from .fmu import Archive, local_runner
+from .fmu import Archive, open_for_checks
+from .pool import Pool, without_message_log
 from .spec import Spec, SpecError
 from .ssp import check_ssp, describe_ssp, prepare_ssp_worker, run_ssp_batch
-from .store import FORMAT, ResultStore
+from .store import FORMAT, ResultStore, versions
 from .worker import prepare_worker, run_batch
 
 __all__ = ["run_sweep", "SweepReport", "BATCH_SECONDS"]
@@ -33,9 +32,6 @@ BATCH_SECONDS = 0.5
 # last ones do not leave workers idle.
 BATCHES_PER_WORKER = 4
 CALIBRATION_POINTS = 4
-# Batches in flight per worker on Dask: one running and the next ones queued, so that no
-# worker waits; the rest stay here as indices until a slot frees.
-IN_FLIGHT_PER_WORKER = 3
 
 
 @dataclass
@@ -58,17 +54,6 @@ class SweepReport:
     # batch was saved (its own accounting; 0: nothing of them stays on the workers). None
     # when the sweep ran without Dask.
     held_results: int | None = None
-
-
-def _versions() -> dict:
-    names = ["fmusweep", "numpy", "pyarrow", "dask", "distributed", "SALib", "scipy"]
-    found = {"python": platform.python_version()}
-    for name in names:
-        try:
-            found[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            found[name] = None
-    return found
 
 
 def point_ids(fmu_sha: str, spec_digest: str, names: list[str], rows: np.ndarray) -> list[str]:
@@ -170,13 +155,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         identity = {"ssp_name": target.name, "ssp_sha256": target.sha256}
         batch_function, prepare_function = run_ssp_batch, prepare_ssp_worker
     else:
-        fmu_path = fmu or spec.fmu or os.environ.get("FMUSWEEP_FMU")
-        if not fmu_path:
-            raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), pass fmu=, "
-                                   "or set FMUSWEEP_FMU")
-        target = Archive.read(fmu_path)
-        local = local_runner(target)
-        description = local.describe()
+        target, local, description = open_for_checks(fmu, spec.fmu)
         check_against_fmu(spec, design, description, local)
         local.configure(plan)
         identity = {"fmu_name": target.name, "fmu_guid": description["guid"]}
@@ -187,7 +166,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         "format": FORMAT, "spec": spec.raw, "spec_digest": digest, "seed": spec.seed,
         "fmu_sha256": target.sha256, **identity,
         "design": {"kind": design.kind, "names": names, "points": len(rows)},
-        "metrics": [m.name for m in spec.metrics], "versions": _versions(),
+        "metrics": [m.name for m in spec.metrics], "versions": versions(),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
     }
     out = out or f"sweep-{digest[:10]}"
@@ -210,8 +189,9 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         if on_batch is not None:
             on_batch(saved, len(rows))
 
-    n_workers = 1 if serial else (workers or os.cpu_count() or 1)
-    size, batches, startup_s, dispatch_s, held = 0, 0, 0.0, 0.0, None
+    size, batches, dispatch_s, held = 0, 0, 0.0, None
+    pool = Pool(target, (batch_function, prepare_function), plan, workers=workers,
+                scheduler=scheduler, serial=serial, prefix=f"fmusweep-{digest[:8]}-")
     try:
         if len(todo):
             # Calibrate the batch size on the first points, here; they are kept.
@@ -220,125 +200,28 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
             keep(calibration)
             per_point = float(np.median([r["wall_s"] or 0.0 for r in calibration["results"]]))
             todo = todo[len(first):]
-            size = _batch_size(batch_size, per_point, len(todo), n_workers)
+            expected_workers = 1 if serial else (workers or os.cpu_count() or 1)
+            size = _batch_size(batch_size, per_point, len(todo), expected_workers)
             chunks = [todo[i:i + size] for i in range(0, len(todo), size)]
             batches = len(chunks) + 1
-            if serial:
+            with without_message_log(serial), pool:
                 t0 = time.perf_counter()
-                for chunk in chunks:
-                    keep(batch_function(target, plan, names, rows[chunk], chunk))
+                for batch in pool.stream(names, rows, chunks,
+                                         key=lambda chunk: f"{pool.prefix}{int(chunk[0])}"):
+                    keep(batch)
                 dispatch_s = time.perf_counter() - t0
-            else:
-                with _without_message_log():
-                    n_workers, startup_s, dispatch_s, held = _run_on_dask(
-                        target, (batch_function, prepare_function), plan, names, rows, chunks,
-                        keep, workers, scheduler, digest)
+                held = pool.held_by_scheduler()
     finally:
         bar.close()
     table = store.consolidate()
     report = SweepReport(
         out=str(store.out), points=len(rows), computed=sum(statuses.values()),
-        resumed=len(done), batch_size=size, batches=batches, workers=n_workers,
-        engine="serial" if serial else (scheduler or "LocalCluster"),
-        wall_s=time.perf_counter() - started, point_seconds=point_seconds, startup_s=startup_s,
+        resumed=len(done), batch_size=size, batches=batches, workers=pool.workers,
+        engine=pool.engine,
+        wall_s=time.perf_counter() - started, point_seconds=point_seconds, startup_s=pool.startup_s,
         dispatch_s=dispatch_s, statuses=statuses, held_results=held)
     from .results import Results
     results = Results(store.out, table.to_pandas(), store.meta, report)
     if plots:
         results.analyse_and_plot(design)
     return results
-
-
-def _without_message_log():
-    """Dask keeps the last messages of every connection for debugging (1000 by default),
-    and a task's message carries its batch's rows: the sweep's client and, in a
-    LocalCluster, the scheduler and workers would grow by each batch up to that many."""
-    import dask
-    import distributed  # noqa: F401  (its defaults must be in dask's config before the set)
-    return dask.config.set({"distributed.admin.low-level-log-length": 0})
-
-
-def _run_on_dask(target, functions, plan, names, rows, chunks, keep, workers, scheduler, digest):
-    """Run the chunks on Dask; returns the workers used, the start-up and dispatch times,
-    and how many finished batches the scheduler still held at the end.
-
-    Memory stays flat whatever the number of points: at most IN_FLIGHT_PER_WORKER batches
-    per worker are submitted at a time, and each batch's future is released as soon as
-    its rows are written, so that neither the workers nor the scheduler keep its result.
-    """
-    import logging
-    from distributed import Client, LocalCluster, as_completed
-    from distributed.scheduler import KilledWorker
-
-    cluster = None
-    t0 = time.perf_counter()
-    if scheduler:
-        client = Client(scheduler, timeout="30s")
-    else:
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                               processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR)
-        client = Client(cluster)
-    pending = {}
-    prefix = f"fmusweep-{digest[:8]}-"
-    try:
-        n_workers = len(client.scheduler_info()["workers"])
-        if n_workers == 0:
-            client.wait_for_workers(1, timeout=60)
-            n_workers = len(client.scheduler_info()["workers"])
-        # The FMU travels to every worker once; tasks carry only a reference to it.
-        batch_function, prepare_function = functions
-        [fmu_future] = client.scatter([target], broadcast=True, hash=False)
-        # Each worker unpacks the FMU and starts its runner now, as part of start-up.
-        warm = [client.submit(prepare_function, fmu_future, plan, workers=[address], pure=False,
-                              key=f"{prefix}warm-{i}")
-                for i, address in enumerate(client.scheduler_info()["workers"])]
-        client.gather(warm)
-        for future in warm:
-            future.release()
-        t1 = time.perf_counter()
-        waiting = iter(chunks)
-        finished = as_completed()
-
-        def submit_next():
-            chunk = next(waiting, None)
-            if chunk is not None:
-                future = client.submit(batch_function, fmu_future, plan, names, rows[chunk],
-                                       chunk, key=f"{prefix}{int(chunk[0])}", pure=False)
-                pending[future] = chunk
-                finished.add(future)
-
-        for _ in range(IN_FLIGHT_PER_WORKER * max(n_workers, 1)):
-            submit_next()
-        for future in finished:
-            chunk = pending.pop(future)
-            try:
-                batch = future.result()
-            except KilledWorker as e:  # a worker process lost again and again
-                batch = {"points": chunk, "worker": "", "results": [
-                    {"status": "crashed", "message": f"the batch failed on the cluster: {e!r}",
-                     "metrics": [None] * len(plan["metrics"]), "t_end": None, "steps": None,
-                     "wall_s": None} for _ in chunk]}
-            future.release()
-            del future
-            submit_next()
-            keep(batch)
-
-        def held_by_scheduler(dask_scheduler=None):
-            # Defined here to travel by value: the scheduler need not have this package.
-            return sum(1 for key, task in dask_scheduler.tasks.items()
-                       if str(key).startswith(prefix) and task.state == "memory")
-
-        # The releases travel on the client's batched stream and the question on another
-        # connection: a second to let them arrive. A result held for good stays counted.
-        deadline = time.monotonic() + 1.0
-        while (held := client.run_on_scheduler(held_by_scheduler)) and time.monotonic() < deadline:
-            time.sleep(0.02)
-        return n_workers, t1 - t0, time.perf_counter() - t1, held
-    finally:
-        for future in pending:
-            future.cancel()
-        client.close()
-        if cluster is not None:
-            cluster.close()
-

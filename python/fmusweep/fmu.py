@@ -4,6 +4,7 @@ directory of its own, with one native runner kept beside it."""
 from __future__ import annotations
 
 import atexit
+import os
 import hashlib
 import io
 import pathlib
@@ -11,9 +12,10 @@ import shutil
 import tempfile
 import zipfile
 
+from .errors import SpecError
 from .native import NativeRunner
 
-__all__ = ["Archive", "local_runner"]
+__all__ = ["Archive", "local_runner", "open_for_checks"]
 
 
 class Archive:
@@ -56,6 +58,18 @@ def local_runner(fmu: Archive) -> NativeRunner:
     runner = NativeRunner(directory)
     _RUNNERS[fmu.sha256] = (directory, runner)
     return runner
+
+
+def open_for_checks(fmu, spec_fmu) -> tuple[Archive, NativeRunner, dict]:
+    """The FMU the caller names, else the spec's, else $FMUSWEEP_FMU: its bytes, this
+    process's runner for it, and its description, for the checks before anything runs."""
+    path = fmu or spec_fmu or os.environ.get("FMUSWEEP_FMU")
+    if not path:
+        raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), pass fmu=, "
+                               "or set FMUSWEEP_FMU")
+    target = Archive.read(path)
+    local = local_runner(target)
+    return target, local, local.describe()
 
 
 @atexit.register

@@ -45,8 +45,11 @@ from dataclasses import dataclass, field
 
 from . import design as _design
 from .errors import SpecError
+from .fields import number as _number
+from .fields import only as _only
+from .fields import table as _table
 
-__all__ = ["SpecError", "Spec", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS"]
+__all__ = ["SpecError", "Spec", "Scenario", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS"]
 
 METRIC_KINDS = ("final", "min", "max", "peak_abs", "mean", "rms", "peak_to_peak")
 DESIGN_KINDS = ("grid", "list", "lhs", "sobol", "morris")
@@ -61,59 +64,24 @@ class MetricSpec:
     end: float | None
 
 
-@dataclass
-class Spec:
-    raw: dict
-    base_dir: pathlib.Path
-    fmu: pathlib.Path | None
-    ssp: pathlib.Path | None
+@dataclass(frozen=True)
+class Scenario:
+    """The ``[scenario]`` table: the time grid, the tolerance, the per-point budget and
+    the settings every run shares (a sweep's and a fit's)."""
     start: float
     stop: float
     step: float
     tolerance: float | None
     timeout: float | None
-    parameters: dict[str, float]
-    inputs: dict[str, dict]
-    design_kind: str
-    design: dict
-    seed: int | None
-    metrics: list[MetricSpec]
-    series_variables: list[str] = field(default_factory=list)
-    series_every: int = 0
-    # The design's points, generated once when the spec is checked (a large design costs
-    # seconds to generate).
-    points: object = field(default=None, repr=False)
+    parameters: dict
+    inputs: dict
 
-    # --- loading -------------------------------------------------------------------
-    @staticmethod
-    def load(source, base_dir: str | pathlib.Path | None = None) -> "Spec":
-        """A Spec from a TOML path, a TOML string's dict, or a Spec (returned as is)."""
-        if isinstance(source, Spec):
-            return source
-        if isinstance(source, (str, pathlib.Path)):
-            path = pathlib.Path(source)
-            try:
-                raw = tomllib.loads(path.read_text())
-            except FileNotFoundError:
-                raise SpecError("spec", f"no file {path}") from None
-            except tomllib.TOMLDecodeError as e:
-                raise SpecError("spec", f"{path} is not valid TOML: {e}") from None
-            return Spec.from_dict(raw, base_dir or path.parent)
-        if isinstance(source, dict):
-            return Spec.from_dict(source, base_dir or pathlib.Path.cwd())
-        raise SpecError("spec", f"expected a path, a dict or a Spec, got {type(source).__name__}")
+    @property
+    def steps(self) -> int:
+        return round((self.stop - self.start) / self.step)
 
     @staticmethod
-    def from_dict(raw: dict, base_dir) -> "Spec":
-        raw = copy.deepcopy(raw)
-        base_dir = pathlib.Path(base_dir)
-        _only(raw, "spec", {"fmu", "ssp", "scenario", "design", "outputs"})
-        fmu, ssp = raw.get("fmu"), raw.get("ssp")
-        for key, value in (("fmu", fmu), ("ssp", ssp)):
-            if value is not None and not isinstance(value, str):
-                raise SpecError(key, "must be a path (a string)")
-        if fmu is not None and ssp is not None:
-            raise SpecError("ssp", "a spec names an FMU or an SSP system, not both")
+    def of(raw: dict) -> "Scenario":
         scenario = _table(raw, "scenario", "spec", required=True)
         _only(scenario, "scenario", {"start", "stop", "step", "tolerance", "timeout", "parameters", "inputs"})
         start = _number(scenario.get("start", 0.0), "scenario.start")
@@ -144,6 +112,59 @@ class Spec:
             name: _input(value, f"scenario.inputs.{name}")
             for name, value in _table(scenario, "inputs", "scenario").items()
         }
+        return Scenario(start, stop, step, tolerance, timeout, parameters, inputs)
+
+    def plan(self, metrics: list[dict], series: dict | None) -> dict:
+        """The native runner's plan: what every point shares, and what it reads."""
+        return {"start": self.start, "stop": self.stop, "step": self.step,
+                "tolerance": self.tolerance, "fixed": self.parameters, "inputs": self.inputs,
+                "metrics": metrics, "series": series, "timeout_s": self.timeout}
+
+
+@dataclass
+class Spec:
+    raw: dict
+    base_dir: pathlib.Path
+    fmu: pathlib.Path | None
+    ssp: pathlib.Path | None
+    start: float
+    stop: float
+    step: float
+    tolerance: float | None
+    timeout: float | None
+    parameters: dict[str, float]
+    inputs: dict[str, dict]
+    design_kind: str
+    design: dict
+    seed: int | None
+    metrics: list[MetricSpec]
+    series_variables: list[str] = field(default_factory=list)
+    series_every: int = 0
+    scenario: Scenario | None = None
+    # The design's points, generated once when the spec is checked (a large design costs
+    # seconds to generate).
+    points: object = field(default=None, repr=False)
+
+    # --- loading -------------------------------------------------------------------
+    @staticmethod
+    def load(source, base_dir: str | pathlib.Path | None = None) -> "Spec":
+        """A Spec from a TOML path, a TOML string's dict, or a Spec (returned as is)."""
+        if isinstance(source, Spec):
+            return source
+        return Spec.from_dict(*read_source(source, base_dir, "a Spec"))
+
+    @staticmethod
+    def from_dict(raw: dict, base_dir) -> "Spec":
+        raw = copy.deepcopy(raw)
+        base_dir = pathlib.Path(base_dir)
+        _only(raw, "spec", {"fmu", "ssp", "scenario", "design", "outputs"})
+        fmu, ssp = raw.get("fmu"), raw.get("ssp")
+        for key, value in (("fmu", fmu), ("ssp", ssp)):
+            if value is not None and not isinstance(value, str):
+                raise SpecError(key, "must be a path (a string)")
+        if fmu is not None and ssp is not None:
+            raise SpecError("ssp", "a spec names an FMU or an SSP system, not both")
+        scenario = Scenario.of(raw)
         design = _table(raw, "design", "spec", required=True)
         kind = design.get("kind", "grid")
         if kind not in DESIGN_KINDS:
@@ -166,6 +187,7 @@ class Spec:
             if not (isinstance(series_variables, list) and series_variables
                     and all(isinstance(v, str) for v in series_variables)):
                 raise SpecError("outputs.series.variables", "must be a non-empty list of variable names")
+            step = scenario.step
             interval = _number(series.get("interval", step), "outputs.series.interval")
             every = round(interval / step)
             if every < 1 or abs(interval / step - every) > 1e-6:
@@ -175,10 +197,12 @@ class Spec:
             raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
         spec = Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
                     ssp=(base_dir / ssp) if ssp else None,
-                    start=start, stop=stop, step=step, tolerance=tolerance, timeout=timeout,
-                    parameters=parameters, inputs=inputs, design_kind=kind, design=design,
+                    start=scenario.start, stop=scenario.stop, step=scenario.step,
+                    tolerance=scenario.tolerance, timeout=scenario.timeout,
+                    parameters=scenario.parameters, inputs=scenario.inputs,
+                    design_kind=kind, design=design,
                     seed=seed, metrics=metrics, series_variables=series_variables,
-                    series_every=every)
+                    series_every=every, scenario=scenario)
         # The design's own fields are checked where its points are generated.
         spec.points = _design.generate(spec)
         return spec
@@ -186,21 +210,11 @@ class Spec:
     # --- derived ---------------------------------------------------------------------
     def plan(self) -> dict:
         """The native runner's plan: everything every point shares."""
-        return {
-            "start": self.start,
-            "stop": self.stop,
-            "step": self.step,
-            "tolerance": self.tolerance,
-            "fixed": self.parameters,
-            "inputs": self.inputs,
-            "metrics": [
-                {"variable": m.variable, "kind": m.kind, "from": m.start, "to": m.end}
-                for m in self.metrics
-            ],
-            "series": ({"variables": self.series_variables, "every": self.series_every}
-                       if self.series_variables else None),
-            "timeout_s": self.timeout,
-        }
+        metrics = [{"variable": m.variable, "kind": m.kind, "from": m.start, "to": m.end}
+                   for m in self.metrics]
+        series = ({"variables": self.series_variables, "every": self.series_every}
+                  if self.series_variables else None)
+        return self.scenario.plan(metrics, series)
 
     def digest(self) -> str:
         """A hash of everything that decides the results (not the FMU's path)."""
@@ -209,37 +223,24 @@ class Spec:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
+def read_source(source, base_dir, also: str) -> tuple[dict, pathlib.Path]:
+    """A specification's table and the directory its paths are relative to, from a TOML
+    path (its own directory) or a dict (the current directory), unless base_dir says."""
+    if isinstance(source, (str, pathlib.Path)):
+        path = pathlib.Path(source)
+        try:
+            raw = tomllib.loads(path.read_text())
+        except FileNotFoundError:
+            raise SpecError("spec", f"no file {path}") from None
+        except tomllib.TOMLDecodeError as e:
+            raise SpecError("spec", f"{path} is not valid TOML: {e}") from None
+        return raw, pathlib.Path(base_dir or path.parent)
+    if isinstance(source, dict):
+        return source, pathlib.Path(base_dir or pathlib.Path.cwd())
+    raise SpecError("spec", f"expected a path, a dict or {also}, got {type(source).__name__}")
+
+
 # --- field checks -----------------------------------------------------------------------
-def _only(table: dict, where: str, allowed: set):
-    unknown = sorted(set(table) - allowed)
-    if unknown:
-        raise SpecError(f"{where}.{unknown[0]}" if where != "spec" else unknown[0],
-                        f"unknown field; expected one of {', '.join(sorted(allowed))}")
-
-
-def _table(parent: dict, key: str, where: str, required: bool = False) -> dict:
-    value = parent.get(key)
-    name = key if where == "spec" else f"{where}.{key}"
-    if value is None:
-        if required:
-            raise SpecError(name, "is missing")
-        return {}
-    if not isinstance(value, dict):
-        raise SpecError(name, f"must be a table, got {type(value).__name__}")
-    return value
-
-
-def _number(value, where: str) -> float:
-    if value is None:
-        raise SpecError(where, "is missing")
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SpecError(where, f"must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise SpecError(where, f"must be finite, got {value}")
-    return value
-
-
 def _setting(value, where: str) -> float:
     """A fixed parameter's value: a number, or true/false for a Boolean (1 or 0, as the
     runner passes Booleans)."""

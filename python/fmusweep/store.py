@@ -17,13 +17,15 @@ from __future__ import annotations
 import json
 import os
 import pathlib
+import platform
 import secrets
+from importlib import metadata
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-__all__ = ["ResultStore", "FORMAT"]
+__all__ = ["ResultStore", "FORMAT", "versions"]
 
 FORMAT = 1
 
@@ -46,14 +48,15 @@ def atomic_write_text(text: str, path: pathlib.Path):
 class ResultStore:
     def __init__(self, out, meta: dict, resume: bool):
         self.out = pathlib.Path(out)
+        self.kind = meta.get("kind", "sweep")
         self.points_dir = self.out / "points"
         self.series_dir = self.out / "series"
         meta_path = self.out / "sweep.json"
         if meta_path.exists():
             if not resume:
                 raise FileExistsError(
-                    f"{self.out} already holds a sweep: pass resume=True (--resume) to finish "
-                    "it, or choose another output directory")
+                    f"{self.out} already holds a {self.kind}: pass resume=True (--resume) to "
+                    "finish it, or choose another output directory")
             self._check_same_sweep(json.loads(meta_path.read_text()), meta)
         self.out.mkdir(parents=True, exist_ok=True)
         self.points_dir.mkdir(exist_ok=True)
@@ -64,11 +67,12 @@ class ResultStore:
         self._drop_orphans()
 
     def _check_same_sweep(self, stored: dict, meta: dict):
-        for key, what in (("spec_digest", "the specification"), ("fmu_sha256", "the FMU"),
+        spec = "the specification or its data" if self.kind == "fit" else "the specification"
+        for key, what in (("spec_digest", spec), ("fmu_sha256", "the FMU"),
                           ("format", "the results format")):
             if stored.get(key) != meta.get(key):
-                raise ValueError(f"cannot resume in {self.out}: {what} changed since the sweep "
-                                 f"began ({key} {stored.get(key)} → {meta.get(key)})")
+                raise ValueError(f"cannot resume in {self.out}: {what} changed since the "
+                                 f"{self.kind} began ({key} {stored.get(key)} → {meta.get(key)})")
 
     def _drop_orphans(self):
         """Temporary files of a killed write, and series parts whose points part never
@@ -117,3 +121,15 @@ class ResultStore:
             table = table.set_column(table.schema.get_field_index("variable"), "variable",
                                      variable.cast(pa.string()))
         return table.sort_by([("point", "ascending"), ("variable", "ascending"), ("time", "ascending")])
+
+
+def versions() -> dict:
+    """The versions of the packages that make the results, recorded beside them."""
+    names = ["fmusweep", "numpy", "pyarrow", "dask", "distributed", "SALib", "scipy"]
+    found = {"python": platform.python_version()}
+    for name in names:
+        try:
+            found[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            found[name] = None
+    return found

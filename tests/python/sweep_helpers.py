@@ -1,13 +1,18 @@
 """Shared pieces of the sweep tests: specs, the faulty FMU, comparisons."""
 
+import json
 import os
 import pathlib
+import signal
 import subprocess
+import sys
+import time
 import zipfile
 
 import fmpy
 
 HERE = pathlib.Path(__file__).parent
+VENV_BIN = pathlib.Path(sys.executable).parent
 PAPER_LAWS = dict(Mm_a0=100.0, Mm_a1=-20.0, Mm_a2=-1.0, Mr_b0=20.0, Mr_b1=-0.05)
 # Columns that depend only on the points, not on where or when they ran.
 RESULT_COLUMNS = ["point", "point_id", "status", "message", "t_end", "steps"]
@@ -53,3 +58,41 @@ def environment_for_workers():
     env = dict(os.environ)
     env.pop("FMUSWEEP_RUNNER", None)
     return env
+
+
+def start_cluster(tmp_path, env, worker_options):
+    """`dask scheduler` and two single-threaded `dask worker` processes (w0, w1) on
+    127.0.0.1; returns the address and the processes, the scheduler first."""
+    scheduler_file = tmp_path / "scheduler.json"
+    common = dict(env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                  start_new_session=True)
+    processes = [subprocess.Popen(
+        [str(VENV_BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0",
+         "--no-dashboard", "--scheduler-file", str(scheduler_file)], **common)]
+    deadline = time.monotonic() + 60
+    while not scheduler_file.exists() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    address = json.loads(scheduler_file.read_text())["address"]
+    for i in range(2):
+        work = tmp_path / f"worker{i}"
+        work.mkdir()
+        processes.append(subprocess.Popen(
+            [str(VENV_BIN / "dask"), "worker", address, "--nthreads", "1", *worker_options,
+             "--no-dashboard", "--name", f"w{i}", "--local-directory", str(work)],
+            cwd=work, **common))
+    from distributed import Client
+    with Client(address) as client:
+        client.wait_for_workers(2, timeout=60)
+    return address, processes
+
+
+def stop_cluster(processes):
+    """Workers first, while their scheduler is there to release them; then the scheduler."""
+    for p in processes[1:] + processes[:1]:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGTERM)
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait(timeout=15)

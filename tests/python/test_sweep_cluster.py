@@ -14,7 +14,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from fmusweep import run_sweep
-from sweep_helpers import environment_for_workers, faulty_fmu, grid_spec, same_results
+from sweep_helpers import (environment_for_workers, faulty_fmu, grid_spec, same_results,
+                           start_cluster, stop_cluster)
 
 VENV_BIN = pathlib.Path(sys.executable).parent
 METRICS = ["peak_rod_force", "omega1_ripple", "n_rhs"]
@@ -33,44 +34,6 @@ def test_local_cluster_gives_the_serial_results(fmu_path, tmp_path, serial_grid)
     assert same_results(results.points, serial_grid.points, METRICS)
     # The points ran on both workers (and the calibration batch in the client).
     assert results.points["worker"].nunique() == 3
-
-
-def start_cluster(tmp_path, env, worker_options):
-    """`dask scheduler` and two single-threaded `dask worker` processes (w0, w1) on
-    127.0.0.1; returns the address and the processes, the scheduler first."""
-    scheduler_file = tmp_path / "scheduler.json"
-    common = dict(env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                  start_new_session=True)
-    processes = [subprocess.Popen(
-        [str(VENV_BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", "0",
-         "--no-dashboard", "--scheduler-file", str(scheduler_file)], **common)]
-    deadline = time.monotonic() + 60
-    while not scheduler_file.exists() and time.monotonic() < deadline:
-        time.sleep(0.1)
-    address = json.loads(scheduler_file.read_text())["address"]
-    for i in range(2):
-        work = tmp_path / f"worker{i}"
-        work.mkdir()
-        processes.append(subprocess.Popen(
-            [str(VENV_BIN / "dask"), "worker", address, "--nthreads", "1", *worker_options,
-             "--no-dashboard", "--name", f"w{i}", "--local-directory", str(work)],
-            cwd=work, **common))
-    from distributed import Client
-    with Client(address) as client:
-        client.wait_for_workers(2, timeout=60)
-    return address, processes
-
-
-def stop_cluster(processes):
-    """Workers first, while their scheduler is there to release them; then the scheduler."""
-    for p in processes[1:] + processes[:1]:
-        if p.poll() is None:
-            os.killpg(p.pid, signal.SIGTERM)
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                os.killpg(p.pid, signal.SIGKILL)
-                p.wait(timeout=15)
 
 
 @pytest.fixture

@@ -1,0 +1,188 @@
+"""Where batches of points run: this process (serial) or Dask (a LocalCluster of
+single-threaded worker processes, or an existing cluster). A sweep streams its batches
+through a pool; a fit asks it for a few points at a time and waits for them. What a
+batch does lives in ``worker`` (or ``ssp``); the pool only places and collects it."""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import logging
+import os
+import threading
+import time
+
+import numpy as np
+
+__all__ = ["Pool", "IN_FLIGHT_PER_WORKER", "without_message_log"]
+
+# Batches in flight per worker on Dask: one running and the next ones queued, so that no
+# worker waits; the rest stay with the caller as indices until a slot frees.
+IN_FLIGHT_PER_WORKER = 3
+
+
+class Pool:
+    """Runs ``batch_function(target, plan, names, rows, points)`` on chunks of points.
+
+    Use as a context manager: entering starts (or connects to) the cluster, ships the
+    target to every worker once and has each worker prepare itself (unpack, start its
+    runner); leaving closes what entering opened. With ``serial`` nothing starts and
+    batches run here, one at a time (``run`` is then safe to call from several threads:
+    they take turns)."""
+
+    def __init__(self, target, functions, plan: dict, *, workers: int | None = None,
+                 scheduler: str | None = None, serial: bool = False, prefix: str = "fmusweep-"):
+        self.target = target
+        self.batch_function, self.prepare_function = functions
+        self.plan = plan
+        self.serial = serial
+        self.scheduler = scheduler
+        self.requested_workers = workers
+        self.prefix = prefix
+        self.workers = 1
+        self.startup_s = 0.0
+        self.client = None
+        self._cluster = None
+        self._target_future = None
+        self._serial_lock = threading.Lock()
+        self._keys = itertools.count()
+
+    @property
+    def engine(self) -> str:
+        return "serial" if self.serial else (self.scheduler or "LocalCluster")
+
+    # --- life ------------------------------------------------------------------------
+    def __enter__(self) -> "Pool":
+        if not self.serial:
+            t0 = time.perf_counter()
+            self._connect()
+            self.startup_s = time.perf_counter() - t0
+        return self
+
+    def __exit__(self, *exc):
+        if self.client is not None:
+            self.client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+        self.client = self._cluster = None
+
+    def _connect(self):
+        from distributed import Client, LocalCluster
+        if self.scheduler:
+            self.client = Client(self.scheduler, timeout="30s")
+        else:
+            self._cluster = LocalCluster(
+                n_workers=self.requested_workers or os.cpu_count() or 1, threads_per_worker=1,
+                processes=True, dashboard_address=":0", silence_logs=logging.ERROR)
+            self.client = Client(self._cluster)
+        client = self.client
+        if not client.scheduler_info()["workers"]:
+            client.wait_for_workers(1, timeout=60)
+        addresses = list(client.scheduler_info()["workers"])
+        self.workers = len(addresses)
+        # The target travels to every worker once; tasks carry only a reference to it.
+        [self._target_future] = client.scatter([self.target], broadcast=True, hash=False)
+        warm = [client.submit(self.prepare_function, self._target_future, self.plan,
+                              workers=[address], pure=False, key=f"{self.prefix}warm-{i}")
+                for i, address in enumerate(addresses)]
+        client.gather(warm)
+        for future in warm:
+            future.release()
+
+    # --- work ------------------------------------------------------------------------
+    def stream(self, names: list[str], rows: np.ndarray, chunks, key=None):
+        """Yield each chunk's batch (a dict: points, results, worker) as it finishes.
+
+        On Dask at most IN_FLIGHT_PER_WORKER batches per worker are submitted at a time,
+        and each batch's future is released as soon as it is yielded, so that neither the
+        workers nor the scheduler keep its result: memory stays flat whatever the count.
+        A batch whose worker was lost again and again comes back as rows ``crashed``."""
+        if self.serial:
+            for chunk in chunks:
+                with self._serial_lock:
+                    batch = self.batch_function(self.target, self.plan, names, rows[chunk], chunk)
+                yield batch
+            return
+        from distributed import as_completed
+        from distributed.scheduler import KilledWorker
+        key = key or (lambda chunk: f"{self.prefix}{next(self._keys)}")
+        waiting = iter(chunks)
+        finished = as_completed()
+        pending = {}
+
+        def submit_next():
+            chunk = next(waiting, None)
+            if chunk is not None:
+                future = self.client.submit(self.batch_function, self._target_future, self.plan,
+                                            names, rows[chunk], chunk, key=key(chunk), pure=False)
+                pending[future] = chunk
+                finished.add(future)
+
+        try:
+            for _ in range(IN_FLIGHT_PER_WORKER * max(self.workers, 1)):
+                submit_next()
+            for future in finished:
+                chunk = pending.pop(future)
+                try:
+                    batch = future.result()
+                except KilledWorker as e:
+                    batch = {"points": chunk, "worker": "",
+                             "results": [lost(f"the batch failed on the cluster: {e!r}", self.plan)
+                                         for _ in chunk]}
+                future.release()
+                del future
+                submit_next()
+                yield batch
+        finally:
+            for future in pending:
+                future.cancel()
+
+    def run(self, names: list[str], rows: np.ndarray) -> list[dict]:
+        """Every row's result, in order: the rows cut into one batch per worker, run at
+        once, and gathered."""
+        rows = np.asarray(rows, dtype=float).reshape(len(rows), len(names))
+        parts = min(len(rows), 1 if self.serial else self.workers)
+        chunks = [c for c in np.array_split(np.arange(len(rows)), max(parts, 1)) if len(c)]
+        results: list[dict | None] = [None] * len(rows)
+        for batch in self.stream(names, rows, chunks):
+            for i, result in zip(batch["points"], batch["results"]):
+                results[int(i)] = dict(result, worker=batch["worker"])
+        return results
+
+    def held_by_scheduler(self) -> int | None:
+        """How many finished batches of this pool the scheduler still holds in memory
+        (its own accounting; None without Dask)."""
+        if self.client is None:
+            return None
+        prefix = self.prefix
+
+        def held(dask_scheduler=None):
+            # Defined here to travel by value: the scheduler need not have this package.
+            return sum(1 for key, task in dask_scheduler.tasks.items()
+                       if str(key).startswith(prefix) and task.state == "memory")
+
+        # The releases travel on the client's batched stream and the question on another
+        # connection: a second to let them arrive. A result held for good stays counted.
+        deadline = time.monotonic() + 1.0
+        while (count := self.client.run_on_scheduler(held)) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        return count
+
+
+def lost(message: str, plan: dict) -> dict:
+    """The result of a point that never came back."""
+    return {"status": "crashed", "message": message,
+            "metrics": [None] * len(plan.get("metrics") or []), "t_end": None, "steps": None,
+            "wall_s": None}
+
+
+def without_message_log(serial: bool = False):
+    """Dask keeps the last messages of every connection for debugging (1000 by default),
+    and a task's message carries its batch's rows: the sweep's client and, in a
+    LocalCluster, the scheduler and workers would grow by each batch up to that many.
+    A serial run does not import Dask at all."""
+    if serial:
+        return contextlib.nullcontext()
+    import dask
+    import distributed  # noqa: F401  (its defaults must be in dask's config before the set)
+    return dask.config.set({"distributed.admin.low-level-log-length": 0})
