@@ -260,6 +260,13 @@ def machine():
     return f"{platform.machine()}, {os.cpu_count()} cores ({cpu}), Linux {platform.release()}"
 
 
+def write_results(out: pathlib.Path, r: dict, text: str):
+    """results.json (every figure) and results.md (the report), and the report shown."""
+    (out / "results.json").write_text(json.dumps(r, indent=2))
+    (out / "results.md").write_text(text)
+    print(text)
+
+
 def report(r) -> str:
     w = r["per_worker"]
     bare = w["bare_loop"]
@@ -343,10 +350,7 @@ def main():
     per_axis = 100 if quick else 1000
     print(f"bench-sweep: memory of a {per_axis ** 2:,}-point sweep on 2 workers", flush=True)
     r["sweep_memory"] = [sweep_memory(fmu, per_axis, series) for series in (False, True)]
-    (out / "results.json").write_text(json.dumps(r, indent=2))
-    text = report(r)
-    (out / "results.md").write_text(text)
-    print(text)
+    write_results(out, r, report(r))
 
 
 if __name__ == "__main__":

@@ -4,6 +4,10 @@
     results = run_sweep("examples/sweeps/rod_force_grid.toml", fmu="Model.fmu")
     results.points            # a pandas DataFrame, one row per point
 
+    from fmusweep import fit
+    result = fit("examples/fit/fit.toml", fmu="Model.fmu")
+    result.summary            # estimates, intervals, correlations: what fit.json holds
+
 The per-point work runs in the native runner (``fmu-runner``), one process per worker,
 so no Python runs per communication step; Dask spreads batches of points over the cores
 of this machine or over an existing cluster; results land in Parquet as batches finish.
@@ -11,12 +15,13 @@ of this machine or over an existing cluster; results land in Parquet as batches 
 
 from .design import Design, generate
 from .engine import SweepReport, run_sweep
+from .fitting import FitResult, FitSpec, fit
 from .native import NativeRunner, RunnerError
 from .results import Results, load_results
 from .sensitivity import morris_effects, sobol_indices
 from .spec import Spec, SpecError
 
-__all__ = ["run_sweep", "load_results", "Results", "SweepReport", "Spec", "SpecError",
+__all__ = ["run_sweep", "fit", "FitResult", "FitSpec", "load_results", "Results", "SweepReport", "Spec", "SpecError",
            "Design", "generate", "NativeRunner", "RunnerError", "sobol_indices",
            "morris_effects"]
 

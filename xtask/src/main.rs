@@ -10,6 +10,7 @@ mod abi_tests;
 mod bench;
 mod cli;
 mod demo;
+mod fit;
 mod fmu;
 mod instructions;
 mod motor;
@@ -93,6 +94,13 @@ const JOBS: &[Job] = &[
         run: sweep::job,
     },
     Job {
+        name: "fit",
+        operands: &["SPEC"],
+        about: "fit parameters to measured data as SPEC.toml says (the packed FMU unless it names another)",
+        flags: fit::FLAGS,
+        run: fit::job,
+    },
+    Job {
         name: "wheel",
         operands: &[],
         about: "build the fmusweep wheel (the sweep package with its native runner) in target/wheels",
@@ -105,6 +113,13 @@ const JOBS: &[Job] = &[
         about: "the sweep benchmark into target/bench-sweep",
         flags: &[QUICK],
         run: sweep::job_bench,
+    },
+    Job {
+        name: "bench-fit",
+        operands: &[],
+        about: "the fit benchmark into target/bench-fit",
+        flags: &[QUICK],
+        run: fit::job_bench,
     },
     Job {
         name: "instructions",

@@ -52,12 +52,18 @@ pub(crate) fn ensure_sweep_package() -> Result<PathBuf> {
 
 /// `cargo xtask sweep SPEC [options]`: the packed FMU is the default FMU of the spec.
 pub(crate) fn job(parsed: &Parsed) -> Result {
+    run_fmusweep(&[], parsed)
+}
+
+/// `python -m fmusweep [SUBCOMMAND] OPERANDS FLAGS` with the packed FMU as the default FMU.
+pub(crate) fn run_fmusweep(subcommand: &[&str], parsed: &Parsed) -> Result {
     let fmu = fmu::build_fmu(false)?.fmu;
     let python = ensure_sweep_package()?;
     // Run where the user is: spec paths are theirs.
     crate::setup::run(
         Command::new(python)
             .args(["-m", "fmusweep"])
+            .args(subcommand)
             .args(&parsed.operands)
             .args(parsed.flag_args())
             .env("FMUSWEEP_FMU", &fmu),
@@ -65,13 +71,18 @@ pub(crate) fn job(parsed: &Parsed) -> Result {
 }
 
 pub(crate) fn job_bench(parsed: &Parsed) -> Result {
+    run_bench_script("bench/bench_sweep.py", "target/bench-sweep", parsed)
+}
+
+/// A Python benchmark of the sweep package: `python SCRIPT FMU OUT FLAGS`.
+pub(crate) fn run_bench_script(script: &str, out: &str, parsed: &Parsed) -> Result {
     let fmu = fmu::build_fmu(false)?.fmu;
     let python = ensure_sweep_package()?;
-    let out = root().join("target/bench-sweep");
+    let out = root().join(out);
     fs::create_dir_all(&out).map_err(|e| e.to_string())?;
     crate::setup::run(
         Command::new(python)
-            .arg(root().join("bench/bench_sweep.py"))
+            .arg(root().join(script))
             .arg(&fmu)
             .arg(&out)
             .args(parsed.flag_args()),
@@ -85,18 +96,27 @@ pub(crate) fn job_wheel(_: &Parsed) -> Result {
     Ok(())
 }
 
+/// Where the runs go, for a sweep and a fit alike.
+pub(crate) const WORKERS: Flag = Flag {
+    name: "workers",
+    value: Some("N"),
+    help: "local Dask worker processes (default: every core)",
+};
+pub(crate) const SCHEDULER: Flag = Flag {
+    name: "scheduler",
+    value: Some("ADDRESS"),
+    help: "an existing Dask scheduler, tcp://HOST:PORT",
+};
+pub(crate) const SERIAL: Flag = Flag {
+    name: "serial",
+    value: None,
+    help: "no Dask: run in this process",
+};
+
 /// The flags of `cargo xtask sweep`, handed on to `python -m fmusweep`.
 pub(crate) const FLAGS: &[Flag] = &[
-    Flag {
-        name: "workers",
-        value: Some("N"),
-        help: "local Dask worker processes (default: every core)",
-    },
-    Flag {
-        name: "scheduler",
-        value: Some("ADDRESS"),
-        help: "an existing Dask scheduler, tcp://HOST:PORT",
-    },
+    WORKERS,
+    SCHEDULER,
     Flag {
         name: "out",
         value: Some("DIR"),
@@ -107,11 +127,7 @@ pub(crate) const FLAGS: &[Flag] = &[
         value: None,
         help: "finish the sweep in --out, redoing only missing points",
     },
-    Flag {
-        name: "serial",
-        value: None,
-        help: "no Dask: run in this process",
-    },
+    SERIAL,
     Flag {
         name: "batch-size",
         value: Some("N"),

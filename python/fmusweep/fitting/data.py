@@ -1,0 +1,146 @@
+"""Measured data: a CSV file with a ``time`` column and one column per measured output.
+
+The model is compared with the data at the data's own times, which must lie on the
+scenario's communication grid (start + k·step, to a millionth of a step): there the FMU's
+values are exact to its tolerance, while an interpolation between communication points
+would add an error of its own that the fit would read as a wrong parameter. Data sampled
+at 1 kHz fits a step of 1 ms (or 0.5 ms, …); data on another clock is resampled first.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import math
+import pathlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SpecError
+from ..fields import only
+
+__all__ = ["Data"]
+
+GRID_SLACK = 1e-6  # of a step: how far a data time may sit from its communication point
+
+
+@dataclass
+class Data:
+    path: pathlib.Path
+    sha256: str
+    times: np.ndarray    # (n,)
+    columns: list[str]   # the measured variables, in the file's order
+    values: np.ndarray   # (n, columns)
+    sigma: np.ndarray    # (columns,): each column's standard deviation
+    sigma_given: list[bool]
+    steps: np.ndarray    # (n,): each time's communication point k
+    every: int           # the runner records every this many points: each data time's
+
+    @property
+    def rows(self) -> np.ndarray:
+        """Each data time's row in the runner's series."""
+        return self.steps // self.every
+
+    @staticmethod
+    def of(table: dict, base_dir: pathlib.Path, scenario) -> "Data":
+        only(table, "data", {"file", "sigma"})
+        name = table.get("file")
+        if not isinstance(name, str):
+            raise SpecError("data.file", "must name a CSV file (a path relative to the spec)")
+        path = base_dir / name
+        try:
+            content = path.read_bytes()
+        except OSError as e:
+            raise SpecError("data.file", f"cannot read {path}: {e.strerror}") from None
+        columns, times, values = _parse(content, path)
+        steps = _grid_steps(times, scenario, path)
+        every = math.gcd(scenario.steps, *steps.tolist())
+        sigma, given = _sigma(table.get("sigma"), columns)
+        return Data(path, hashlib.sha256(content).hexdigest(), times, columns, values, sigma,
+                    given, steps, every)
+
+
+def _parse(content: bytes, path: pathlib.Path):
+    try:
+        text = content.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise SpecError("data.file", f"{path} is not UTF-8 text") from None
+    lines = list(csv.reader(text.splitlines()))
+    while lines and not any(cell.strip() for cell in lines[-1]):
+        lines.pop()
+    if not lines:
+        raise SpecError("data.file", f"{path} is empty")
+    header = [cell.strip() for cell in lines[0]]
+    if "time" not in header:
+        raise SpecError("data.file", f"{path} has no time column (its header: {', '.join(header)})")
+    if len(set(header)) != len(header):
+        twice = sorted({h for h in header if header.count(h) > 1})
+        raise SpecError("data.file", f"{path} names the column {twice[0]!r} twice")
+    if any(not h for h in header):
+        raise SpecError("data.file", f"{path} has a column without a name")
+    columns = [h for h in header if h != "time"]
+    if not columns:
+        raise SpecError("data.file", f"{path} has a time column and no measured column")
+    body = lines[1:]
+    if not body:
+        raise SpecError("data.file", f"{path} has a header and no data")
+    table = np.empty((len(body), len(header)))
+    for i, row in enumerate(body):
+        line = i + 2
+        if len(row) != len(header):
+            raise SpecError("data.file", f"{path} line {line}: {len(row)} cells, the header has {len(header)}")
+        for j, cell in enumerate(row):
+            try:
+                x = float(cell)
+            except ValueError:
+                x = math.nan
+            if not math.isfinite(x):
+                raise SpecError("data.file", f"{path} line {line}, column {header[j]}: "
+                                             f"{cell.strip()!r} is not a finite number")
+            table[i, j] = x
+    t = table[:, header.index("time")]
+    keep = [j for j, h in enumerate(header) if h != "time"]
+    return columns, t, table[:, keep]
+
+
+def _grid_steps(times: np.ndarray, scenario, path) -> np.ndarray:
+    decreasing = np.flatnonzero(np.diff(times) <= 0)
+    if len(decreasing):
+        line = int(decreasing[0]) + 3
+        raise SpecError("data.file", f"{path} line {line}: time {times[decreasing[0] + 1]} does "
+                                     f"not increase (the times must be strictly increasing)")
+    for i, t in enumerate(times):
+        if not scenario.start - GRID_SLACK * scenario.step <= t <= scenario.stop + GRID_SLACK * scenario.step:
+            raise SpecError("data.file", f"{path} line {i + 2}: time {t} lies outside the scenario "
+                                         f"[{scenario.start}, {scenario.stop}]")
+    k = (times - scenario.start) / scenario.step
+    steps = np.round(k).astype(np.int64)
+    off = np.flatnonzero(np.abs(k - steps) > GRID_SLACK)
+    if len(off):
+        i = int(off[0])
+        raise SpecError("data.file", f"{path} line {i + 2}: time {times[i]} is not on the "
+                                     f"scenario's communication grid (start {scenario.start} + k·"
+                                     f"{scenario.step}); the model is compared at communication "
+                                     "points: choose a step that divides the sampling interval, "
+                                     "or resample the data")
+    return steps
+
+
+def _sigma(table, columns: list[str]):
+    sigma = np.ones(len(columns))
+    given = [False] * len(columns)
+    if table is None:
+        return sigma, given
+    if not isinstance(table, dict):
+        raise SpecError("data.sigma", f"must be a table of column = standard deviation, got {table!r}")
+    for name, value in table.items():
+        where = f"data.sigma.{name}"
+        if name not in columns:
+            raise SpecError(where, f"names no measured column of data.file ({', '.join(columns)})")
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or not math.isfinite(value) or value <= 0):
+            raise SpecError(where, f"must be a finite number > 0, got {value!r}")
+        j = columns.index(name)
+        sigma[j], given[j] = float(value), True
+    return sigma, given

@@ -1,0 +1,131 @@
+"""Bounded nonlinear least squares on the weighted residuals: scipy's trust-region
+reflective method in the unit box of the parameters' ranges, with the Jacobian from
+forward differences. Each trial point goes to the pool together with its perturbed
+points, as one batch: on n workers a trial costs the time of one run whatever the number
+of parameters, and an accepted trial has its Jacobian ready (a rejected one wastes its
+perturbed runs, which on spare workers cost no time)."""
+
+from __future__ import annotations
+
+import concurrent.futures
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Start", "solve", "starting_points"]
+
+STATUS = {-1: "failed", 0: "max_iterations", 1: "converged", 2: "converged", 3: "converged",
+          4: "converged"}
+
+
+@dataclass
+class Start:
+    """One optimisation from one starting point."""
+    index: int
+    start: np.ndarray
+    status: str = "failed"
+    message: str = ""
+    estimate: np.ndarray | None = None
+    cost: float = float("inf")
+    iterations: int = 0
+    jacobian: np.ndarray | None = None  # d(weighted residuals)/d(parameters) at the estimate
+    residuals: np.ndarray | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def starting_points(spec) -> np.ndarray:
+    """The spec's start, then a seeded Latin hypercube over the ranges for the others."""
+    first = np.array([[p.start for p in spec.parameters]])
+    if spec.starts == 1:
+        return first
+    from scipy.stats import qmc
+    unit = qmc.LatinHypercube(d=len(spec.parameters), seed=spec.seed).random(spec.starts - 1)
+    return np.vstack([first, spec.lows + unit * (spec.highs - spec.lows)])
+
+
+def solve_all(problem, starts: np.ndarray, concurrency: int) -> list[Start]:
+    """Every start's optimisation; with concurrency > 1 they run side by side, each
+    waiting on its own batches, so that the workers stay busy."""
+    if concurrency <= 1 or len(starts) == 1:
+        return [solve(problem, s, i) for i, s in enumerate(starts)]
+    with concurrent.futures.ThreadPoolExecutor(max_workers=min(concurrency, len(starts))) as threads:
+        return list(threads.map(lambda item: solve(problem, item[1], item[0]), enumerate(starts)))
+
+
+def solve(problem, start: np.ndarray, index: int) -> Start:
+    from scipy.optimize import least_squares
+    spec = problem.spec
+    low, width = spec.lows, spec.highs - spec.lows
+    outcome = Start(index, start)
+    jacobians: dict[bytes, np.ndarray] = {}
+    last_failure = [""]
+
+    def theta(z):
+        return low + np.asarray(z) * width
+
+    def residuals(z):
+        f, jacobian, message = _evaluate_with_jacobian(problem, theta(z), index, outcome.notes)
+        if jacobian is None:
+            # Asked for only at the start (scipy then stops on the infinite residuals):
+            # any finite matrix will do.
+            jacobian = np.zeros((len(f), len(width)))
+            last_failure[0] = message
+        jacobians[np.asarray(z).tobytes()] = jacobian * width
+        return f
+
+    def jacobian(z, *_):
+        key = np.asarray(z).tobytes()
+        if key not in jacobians:
+            residuals(z)
+        return jacobians[key]
+
+    z0 = (start - low) / width
+    try:
+        result = least_squares(residuals, z0, jac=jacobian, bounds=(0.0, 1.0), method="trf",
+                               max_nfev=spec.max_iterations)
+    except ValueError as e:
+        outcome.message = (f"the run at the start failed: {last_failure[0]}" if last_failure[0]
+                           else f"the optimiser stopped: {e}")
+        return outcome
+    outcome.status = STATUS.get(result.status, "failed")
+    outcome.message = str(result.message)
+    outcome.estimate = theta(result.x)
+    outcome.cost = float(result.cost)
+    outcome.iterations = int(result.nfev)
+    outcome.jacobian = np.asarray(result.jac) / width
+    outcome.residuals = np.asarray(result.fun)
+    return outcome
+
+
+def _evaluate_with_jacobian(problem, theta: np.ndarray, start: int, notes: list[str]):
+    """The residuals at theta and their Jacobian in parameter units, from one batch of
+    theta and its perturbed points (and a second batch for a column whose perturbed run
+    failed, perturbed the other way)."""
+    spec = problem.spec
+    steps = _steps(spec, theta)
+    rows = [theta] + [theta + np.eye(len(theta))[j] * steps[j] for j in range(len(theta))]
+    evaluations = problem.evaluate(np.array(rows), start, ["trial"] + ["jacobian"] * len(theta))
+    if not evaluations[0].ok:
+        return problem.residuals(evaluations[0]), None, evaluations[0].message
+    f = problem.residuals(evaluations[0])
+    columns = [None if not e.ok else (problem.residuals(e) - f) / steps[j]
+               for j, e in enumerate(evaluations[1:])]
+    retry = [j for j, c in enumerate(columns) if c is None]
+    if retry:
+        back = np.array([theta - np.eye(len(theta))[j] * steps[j] for j in retry])
+        for j, e in zip(retry, problem.evaluate(back, start, ["jacobian"] * len(retry))):
+            if e.ok:
+                columns[j] = (f - problem.residuals(e)) / steps[j]
+            else:
+                columns[j] = np.zeros_like(f)
+                notes.append(f"{spec.names[j]}: the runs perturbed both ways from {theta[j]:g} "
+                             f"failed ({e.message}); its Jacobian column was taken as zero")
+    return f, np.column_stack(columns), ""
+
+
+def _steps(spec, theta: np.ndarray) -> np.ndarray:
+    """A forward step per parameter, from its size and its range; backward where forward
+    would leave the range."""
+    width = spec.highs - spec.lows
+    h = spec.relative_step * np.maximum(np.abs(theta), 0.1 * width)
+    return np.where(theta + h > spec.highs, -h, h)

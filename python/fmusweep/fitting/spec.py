@@ -1,0 +1,153 @@
+"""A fit's specification: the sweep's ``fmu`` and ``[scenario]``, the measured data, and
+the parameters to estimate::
+
+    fmu = "CyclicMechanism.fmu"
+    [scenario]
+    stop = 5.0
+    step = 0.01
+    tolerance = 1e-8
+    parameters = { Mm_a0 = 100.0 }    # fixed for every run
+
+    [data]
+    file = "measured.csv"             # relative to the spec: a time column, one per output
+    sigma = { omega1 = 1e-3 }         # optional: each column's standard deviation
+
+    [fit]
+    starts = 4                        # optional: the start below and 3 from a Latin hypercube
+    seed = 1                          # needed when starts > 1
+    max_iterations = 100              # optional: trial points of each start, at most
+    relative_step = 1e-4              # optional: of the Jacobian's perturbations
+
+    [fit.parameters]
+    k34 = { start = 80.0, range = [10.0, 400.0] }
+    d34 = { start = 0.1, range = [0.0, 5.0] }
+
+Each mistake is a SpecError naming the field; the checks that need the FMU are in
+``fmusweep.fitting.problem``.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import math
+import pathlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import SpecError
+from ..fields import finite, low_high, only, table, whole
+from ..spec import Scenario, read_source
+from .data import Data
+
+__all__ = ["FitSpec", "FitParameter"]
+
+MAX_STARTS = 1000
+DEFAULT_MAX_ITERATIONS = 100
+
+
+@dataclass(frozen=True)
+class FitParameter:
+    name: str
+    start: float
+    low: float
+    high: float
+
+    @property
+    def width(self) -> float:
+        return self.high - self.low
+
+
+@dataclass
+class FitSpec:
+    raw: dict
+    base_dir: pathlib.Path
+    fmu: pathlib.Path | None
+    scenario: Scenario
+    data: Data
+    parameters: list[FitParameter]
+    starts: int
+    seed: int | None
+    max_iterations: int
+    relative_step: float
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.parameters]
+
+    @property
+    def lows(self) -> np.ndarray:
+        return np.array([p.low for p in self.parameters])
+
+    @property
+    def highs(self) -> np.ndarray:
+        return np.array([p.high for p in self.parameters])
+
+    @staticmethod
+    def load(source, base_dir=None) -> "FitSpec":
+        if isinstance(source, FitSpec):
+            return source
+        return FitSpec.from_dict(*read_source(source, base_dir, "a FitSpec"))
+
+    @staticmethod
+    def from_dict(raw: dict, base_dir) -> "FitSpec":
+        raw = copy.deepcopy(raw)
+        base_dir = pathlib.Path(base_dir)
+        only(raw, "spec", {"fmu", "scenario", "data", "fit"})
+        fmu = raw.get("fmu")
+        if fmu is not None and not isinstance(fmu, str):
+            raise SpecError("fmu", "must be a path (a string)")
+        scenario = Scenario.of(raw)
+        data = Data.of(table(raw, "data", "spec", required=True), base_dir, scenario)
+        fit = table(raw, "fit", "spec", required=True)
+        only(fit, "fit", {"parameters", "starts", "seed", "max_iterations", "relative_step"})
+        parameters = [_parameter(name, entry, scenario)
+                      for name, entry in table(fit, "parameters", "fit", required=True).items()]
+        if not parameters:
+            raise SpecError("fit.parameters", "names no parameter: there is nothing to fit")
+        starts = whole(fit.get("starts", 1), "fit.starts", 1, MAX_STARTS)
+        seed = fit.get("seed")
+        if seed is not None:
+            seed = whole(seed, "fit.seed", 0, None)
+        if starts > 1 and seed is None:
+            raise SpecError("fit.seed", "more than one start needs a seed, so that the fit can "
+                                        "be repeated")
+        max_iterations = whole(fit.get("max_iterations", DEFAULT_MAX_ITERATIONS),
+                                "fit.max_iterations", 1, None)
+        # A forward difference's error is the step plus the model's own error over the
+        # step; the square root of the integrator's tolerance balances the two.
+        default_step = math.sqrt(scenario.tolerance) if scenario.tolerance else 1e-4
+        relative_step = fit.get("relative_step", default_step)
+        if (isinstance(relative_step, bool) or not isinstance(relative_step, (int, float))
+                or not 0 < relative_step < 0.1):
+            raise SpecError("fit.relative_step", f"must be a number in (0, 0.1), got {relative_step!r}")
+        return FitSpec(raw, base_dir, (base_dir / fmu) if fmu else None, scenario, data,
+                       parameters, starts, seed, max_iterations, float(relative_step))
+
+    def digest(self) -> str:
+        """A hash of everything that decides the results: the spec and the data file's
+        content (not where the FMU or the data file lie)."""
+        canonical = {k: v for k, v in self.raw.items() if k != "fmu"}
+        canonical["data"] = {k: v for k, v in canonical["data"].items() if k != "file"}
+        text = json.dumps(canonical, sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode() + self.data.sha256.encode()).hexdigest()
+
+    def plan(self) -> dict:
+        """The runner's plan: the scenario, reading the measured variables at every
+        communication point that holds a data time (and at no other, where it can)."""
+        return self.scenario.plan([], {"variables": self.data.columns, "every": self.data.every})
+
+
+def _parameter(name: str, entry, scenario: Scenario) -> FitParameter:
+    where = f"fit.parameters.{name}"
+    if not isinstance(entry, dict) or set(entry) != {"start", "range"}:
+        raise SpecError(where, "give start = x and range = [low, high]")
+    if name in scenario.parameters:
+        raise SpecError(where, f"{name} is also fixed in scenario.parameters: fix it or fit it")
+    low, high = low_high(entry["range"], f"{where}.range")
+    start = finite(entry["start"], f"{where}.start")
+    if not low <= start <= high:
+        raise SpecError(f"{where}.start", f"must lie in its range [{low}, {high}], got {start}")
+    return FitParameter(name, start, low, high)
