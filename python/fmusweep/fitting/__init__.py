@@ -93,8 +93,10 @@ def fit(spec, *, fmu=None, out=None, workers: int | None = None, scheduler: str 
     if plots and summary["status"] != "failed":
         from .plots import plot_fit
         best = min(starts, key=lambda s: s.cost)
-        written = plot_fit(spec, problem.evaluate(best.estimate[None, :], best.index, ["best"])[0],
-                           summary, out / "plots")
+        # The optimiser's last accepted point: run, and kept, on the way.
+        at_best = problem.cached(best.estimate)
+        if at_best is not None and at_best.ok:
+            written = plot_fit(spec, at_best, summary, out / "plots")
     return FitResult(out, summary, written)
 
 

@@ -67,6 +67,12 @@ class Problem:
             return np.full(data.values.size, np.inf)
         return ((evaluation.predictions - data.values) / data.sigma).ravel()
 
+    def cached(self, theta: np.ndarray) -> Evaluation | None:
+        """The evaluation of a point already run (or read back), without running it."""
+        [key] = point_ids(self.fmu_sha256, self.digest, self.spec.names, np.atleast_2d(theta))
+        with self.lock:
+            return self.cache.get(key)
+
     def evaluate(self, thetas: np.ndarray, start: int, roles: list[str]) -> list[Evaluation]:
         thetas = np.atleast_2d(np.asarray(thetas, dtype=float))
         ids = point_ids(self.fmu_sha256, self.digest, self.spec.names, thetas)
