@@ -7,7 +7,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
 use cyclic_mechanism::snapshot::{Reader, Writer};
-use cyclic_mechanism::solver::{Dop853, OdeSystem, Radau5, Stepper, Tolerances};
+use cyclic_mechanism::solver::{Dop853, OdeSystem, Radau5, Rk4, Stepper, Tolerances};
 
 /// Counts this thread's allocations while `COUNTING` is set.
 struct Counting;
@@ -225,3 +225,4 @@ macro_rules! conformance {
 
 conformance!(dop853, Dop853);
 conformance!(radau_iia, Radau5);
+conformance!(rk4, Rk4);

@@ -7,7 +7,9 @@
 //! points and the state at each point comes from the dense output (then projected onto
 //! the constraint). When the master changes a parameter or the state, or an input by
 //! enough to matter at the tolerance ([`CoSimulation::input_change_is_negligible`]), the
-//! integrator restarts from the communication point.
+//! integrator restarts from the communication point; a restarted communication step far
+//! shorter than the integrator's natural step is taken by short RK4 steps that end on it
+//! (a master coupling the FMU to another sets an input at every step).
 
 use crate::model::{self, Inputs, Parameters, Projected, State, STATE_SIZE};
 use crate::plant::{check_inputs, Activity, InputDerivatives, Plant};
@@ -160,30 +162,41 @@ impl CoSimulation {
         if inputs_changed && !self.input_change_is_negligible(plant, experiment) {
             self.restart = true;
         }
-        if self.restart {
+        // Whether the integrator starts this step afresh from the communication point.
+        let fresh = if self.restart {
             self.integrator_time = plant.time();
             self.integrator_state = *plant.state();
             self.integrator_inputs = *plant.inputs();
             self.solver.invalidate();
             self.restart = false;
+            true
         } else if inputs_changed && self.integrator_time < t_end {
             // A negligible change: the next step takes the new inputs, from the integrator's
-            // own point and with its step size.
+            // own point and with its step size. From the communication point itself, that
+            // is a fresh start if the change matters over the step.
+            let fresh = self.integrator_time == plant.time()
+                && !self.input_change_is_negligible_over(plant, experiment, t_end - plant.time());
             self.integrator_inputs = *plant.inputs();
             self.solver.invalidate();
-        }
-        let (y, at) = self.integrate_to(plant, t_end, experiment)?;
+            fresh
+        } else {
+            false
+        };
+        let short = fresh && self.solver.suits_short_step(t_end - plant.time());
+        let (y, at) = self.integrate_to(plant, t_end, experiment, short)?;
         plant.accept_point(t_end, y, &at);
         Ok(())
     }
 
-    /// The integrator taken to (or past) `t_end`, and the state there, projected.
+    /// The integrator taken to (or past) `t_end`, and the state there, projected; with
+    /// `short`, by short steps that end on `t_end` ([`Integrator::integrate_short`]).
     #[inline(always)]
     fn integrate_to(
         &mut self,
         plant: &Plant,
         t_end: f64,
         experiment: &Experiment,
+        short: bool,
     ) -> Result<(State, Projected), SolverError> {
         let system = Driven::new(plant, &self.integrator_inputs, experiment.tolerance);
         let limit = experiment.limit().max(t_end);
@@ -202,7 +215,12 @@ impl CoSimulation {
                 self.solver.invalidate();
             } else {
                 let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
-                if let Err(error) = self.solver.integrate(&system, t, y, t_end, limit) {
+                let stepped = if short {
+                    self.solver.integrate_short(&system, t, y, t_end)
+                } else {
+                    self.solver.integrate(&system, t, y, t_end, limit)
+                };
+                if let Err(error) = stepped {
                     self.restart = true;
                     return Err(error);
                 }
@@ -227,9 +245,18 @@ impl CoSimulation {
     /// about 1e-12; a change that matters restarts the integrator as before.
     fn input_change_is_negligible(&self, plant: &Plant, experiment: &Experiment) -> bool {
         let lag = self.integrator_time - plant.time();
-        if lag <= 0.0 {
-            return true;
-        }
+        lag <= 0.0 || self.input_change_is_negligible_over(plant, experiment, lag)
+    }
+
+    /// Whether the drift the input change causes over `span` is within a tenth of the
+    /// integrator's error scale in every component (see
+    /// [`CoSimulation::input_change_is_negligible`]).
+    fn input_change_is_negligible_over(
+        &self,
+        plant: &Plant,
+        experiment: &Experiment,
+        span: f64,
+    ) -> bool {
         let (mut new, mut old) = ([0.0; STATE_SIZE], [0.0; STATE_SIZE]);
         let (time, state) = (plant.time(), plant.state());
         Driven::new(plant, plant.inputs(), experiment.tolerance).rhs(time, state, &mut new);
@@ -237,7 +264,7 @@ impl CoSimulation {
             .rhs(time, state, &mut old);
         let Tolerances { rtol, atol } = self.solver.tolerances();
         (0..STATE_SIZE).all(|i| {
-            (new[i] - old[i]).abs() * lag <= NEGLIGIBLE_DRIFT * (atol + rtol * state[i].abs())
+            (new[i] - old[i]).abs() * span <= NEGLIGIBLE_DRIFT * (atol + rtol * state[i].abs())
         })
     }
 
@@ -419,10 +446,15 @@ mod tests {
         driver.advance(&mut plant, 0.5, &experiment).unwrap();
         let steps = driver.statistics().n_steps;
         let nudged = f64::from_bits(1f64.to_bits() + 1);
+        // A communication step longer than DOP853's steps after the change, so that its
+        // last step reaches past the communication point (a short one ends on it).
         plant.set(motor, Value::Real(1.0), false).unwrap();
-        driver.advance(&mut plant, 0.501, &experiment).unwrap();
+        driver.advance(&mut plant, 0.6, &experiment).unwrap();
         plant.set(motor, Value::Real(nudged), false).unwrap();
-        driver.advance(&mut plant, 0.502, &experiment).unwrap();
+        // A communication point inside the integrator's last step.
+        let inside = 0.5 * (0.6 + driver.integrator_time);
+        assert!(inside > 0.6, "the integrator is not ahead");
+        driver.advance(&mut plant, inside, &experiment).unwrap();
         assert!(
             driver.integrator_time > plant.time(),
             "the integrator is not ahead"

@@ -5,10 +5,12 @@ pub mod dop853;
 mod dop853_tableau;
 mod linear;
 pub mod radau5;
+pub mod rk4;
 pub mod switching;
 
 pub use dop853::Dop853;
 pub use radau5::Radau5;
+pub use rk4::Rk4;
 pub use switching::{Choice, Integrator, Method};
 
 use crate::snapshot::{FormatError, Reader, Writer};
@@ -27,8 +29,8 @@ pub trait OdeSystem<const N: usize> {
     }
 }
 
-/// One integration method, as the co-simulation driver uses it: DOP853 and Radau IIA
-/// implement it, [`Integrator`] switches between them through it, and one conformance
+/// One integration method, as the co-simulation driver uses it: DOP853, Radau IIA and the
+/// short-step RK4 implement it, [`Integrator`] uses them through it, and one conformance
 /// suite (`tests/integrators.rs`) runs for each.
 pub trait Stepper<const N: usize>: Clone + Sized {
     /// A method with no memory, working to `tolerances`.
@@ -137,6 +139,13 @@ pub struct Statistics {
 }
 
 impl Statistics {
+    /// Count `other`'s work in these counters too.
+    pub fn add(&mut self, other: &Statistics) {
+        self.n_steps += other.n_steps;
+        self.n_rejected += other.n_rejected;
+        self.n_rhs += other.n_rhs;
+    }
+
     fn serialize_into(&self, w: &mut Writer) {
         w.u64(self.n_steps);
         w.u64(self.n_rejected);

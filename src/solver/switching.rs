@@ -16,8 +16,13 @@
 //! - A switch happens only at the start of a communication step, never within one. The
 //!   new method restarts from the communication point with the old method's step size;
 //!   the statistics continue.
+//!
+//! Besides, a communication step that starts afresh (new inputs, say) and is far shorter
+//! than DOP853's natural step is taken by [`Rk4`] ([`Integrator::integrate_short`]): a
+//! master that sets an input at every step restarts the integrator at every step, and
+//! there five evaluations of RK4 do what twelve or more of DOP853 would.
 
-use super::{Dop853, OdeSystem, Radau5, SolverError, Statistics, Stepper, Tolerances};
+use super::{Dop853, OdeSystem, Radau5, Rk4, SolverError, Statistics, Stepper, Tolerances};
 use crate::snapshot::{FormatError, Reader, Writer};
 
 /// Radau IIA ends a step on every communication point, so it can only beat a
@@ -26,6 +31,18 @@ use crate::snapshot::{FormatError, Reader, Writer};
 /// short communication steps, switching there costs far more evaluations than DOP853
 /// takes. tests/stiff.rs fails without this condition.)
 const MIN_STEPS_PER_COMMUNICATION: f64 = 4.0;
+
+/// Before RK4 has taken a short step, a communication step at most this fraction of
+/// DOP853's natural step, starting afresh, goes to it first; from then on the cost of each
+/// method decides ([`Integrator::suits_short_step`]).
+const FIRST_SHORT_FRACTION: f64 = 0.25;
+/// Evaluations per step: RK4 (four stages and the estimate's), and DOP853 (twelve stages),
+/// which starting afresh and stepping past the communication point also evaluates f at
+/// the start and three stages of its interpolant.
+const RK4_STEP_COST: f64 = 5.0;
+const SHORT_TOLERANCE_FACTOR: f64 = 3.0;
+const DOP853_STEP_COST: f64 = 12.0;
+const DOP853_FRESH_COST: f64 = 4.0;
 
 fn worth_landing<const N: usize>(explicit: &Dop853<N>, communication_step: f64) -> bool {
     explicit
@@ -79,6 +96,8 @@ macro_rules! on_active {
 pub struct Integrator<const N: usize> {
     choice: Choice,
     active: Active<N>,
+    /// The step RK4 proposed at the end of its last short steps, if it took any.
+    short_step: Option<f64>,
 }
 
 impl<const N: usize> Integrator<N> {
@@ -87,7 +106,11 @@ impl<const N: usize> Integrator<N> {
             Method::Radau5 => Active::Implicit(Radau5::new(tolerances)),
             Method::Dop853 => Active::Explicit(Dop853::new(tolerances)),
         };
-        Self { choice, active }
+        Self {
+            choice,
+            active,
+            short_step: None,
+        }
     }
 
     pub fn method(&self) -> Method {
@@ -139,6 +162,57 @@ impl<const N: usize> Integrator<N> {
         on_active!(&mut self.active, s => s.dense_output(system, t))
     }
 
+    /// Whether a communication step of `communication_step` that starts afresh costs less
+    /// by [`Integrator::integrate_short`] than by DOP853, the active method: RK4's steps at
+    /// the size it last proposed against DOP853's at its natural step, each method's
+    /// evaluations per step counted; before RK4's first short steps, when the step is a
+    /// small fraction of DOP853's ([`FIRST_SHORT_FRACTION`]).
+    pub fn suits_short_step(&self, communication_step: f64) -> bool {
+        let Active::Explicit(explicit) = &self.active else {
+            return false;
+        };
+        let Some(natural) = explicit.next_step() else {
+            return false;
+        };
+        match self.short_step {
+            None => communication_step <= FIRST_SHORT_FRACTION * natural,
+            Some(short) => {
+                let short_cost = RK4_STEP_COST * (communication_step / short).ceil();
+                let explicit_cost =
+                    DOP853_STEP_COST * (communication_step / natural).ceil() + DOP853_FRESH_COST;
+                short_cost < explicit_cost
+            }
+        }
+    }
+
+    /// Integrate from (`*t`, `*y`) to exactly `t_end` with [`Rk4`], starting with one
+    /// step of the whole span or the step it last proposed, whichever is shorter; its
+    /// work counts in the statistics. The active method's
+    /// memory no longer applies afterwards; its step size stays for when it goes on.
+    pub fn integrate_short<S: OdeSystem<N>>(
+        &mut self,
+        system: &S,
+        t: &mut f64,
+        y: &mut [f64; N],
+        t_end: f64,
+    ) -> Result<(), SolverError> {
+        let Tolerances { rtol, atol } = self.tolerances();
+        let mut short = Rk4::<N>::new(Tolerances {
+            rtol: rtol * SHORT_TOLERANCE_FACTOR,
+            atol: atol * SHORT_TOLERANCE_FACTOR,
+        });
+        let span = t_end - *t;
+        short.progress_mut().next_step = Some(self.short_step.map_or(span, |h| h.min(span)));
+        let result = short.integrate(system, t, y, t_end, t_end);
+        self.short_step = short.progress().next_step.filter(|_| result.is_ok());
+        let work = short.statistics();
+        on_active!(&mut self.active, s => {
+            s.progress_mut().stats.add(&work);
+            s.invalidate();
+        });
+        result
+    }
+
     /// Whether the user fixed DOP853 and its stiffness test finds the step size limited by
     /// stability: the fast modes may carry noise above the tolerance on stiff damped
     /// couplings, which the error estimate does not see and Radau IIA would not leave.
@@ -180,6 +254,8 @@ impl<const N: usize> Integrator<N> {
             Method::Radau5 => 2,
         });
         on_active!(&self.active, s => s.serialize_into(w));
+        w.bool(self.short_step.is_some());
+        w.f64(self.short_step.unwrap_or(0.0));
     }
 
     /// The integrator written by [`Integrator::serialize_into`].
@@ -195,7 +271,17 @@ impl<const N: usize> Integrator<N> {
             2 => Active::Implicit(Radau5::deserialize_from(r)?),
             other => return Err(FormatError(format!("invalid active method {other}"))),
         };
-        Ok(Self { choice, active })
+        // Like the methods' own step sizes, one that is not finite and positive is dropped.
+        let has_short = r.bool()?;
+        let short = r.f64()?;
+        let short_step = has_short
+            .then_some(short)
+            .filter(|h| h.is_finite() && *h > 0.0);
+        Ok(Self {
+            choice,
+            active,
+            short_step,
+        })
     }
 }
 

@@ -115,6 +115,13 @@ const JOBS: &[Job] = &[
         run: sweep::job_bench,
     },
     Job {
+        name: "bench-coupling",
+        operands: &[],
+        about: "the cost and accuracy of a coupled step (mechanism and motor) into target/bench-coupling",
+        flags: motor::BENCH_FLAGS,
+        run: motor::job_bench,
+    },
+    Job {
         name: "bench-fit",
         operands: &[],
         about: "the fit benchmark into target/bench-fit",

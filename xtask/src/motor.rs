@@ -1,10 +1,11 @@
 //! `cargo xtask motor`: the compiled DC motor of `examples/dc_motor/native` (C, FMI 2.0
 //! Co-Simulation) built against glibc 2.17 with zig, checked and packed as
-//! `target/fmu/DcMotor.fmu`, for coupling and sweeping the mechanism at native speed.
+//! `target/fmu/DcMotor.fmu`, for coupling and sweeping the mechanism at native speed; and
+//! `cargo xtask bench-coupling`, which measures a coupled step with it.
 
 use std::path::PathBuf;
 
-use crate::cli::Parsed;
+use crate::cli::{Flag, Parsed};
 use crate::setup::{check_glibc, ensure_venv, root, run, Packages};
 use crate::Result;
 
@@ -43,3 +44,26 @@ pub(crate) fn build_motor() -> Result<PathBuf> {
     )?;
     Ok(fmu)
 }
+
+/// `cargo xtask bench-coupling [--before FMU]`: the cost and accuracy of a coupled
+/// communication step (the mechanism driven by the motor) into target/bench-coupling; with
+/// `--before`, another build of the mechanism measured beside this one.
+pub(crate) fn job_bench(parsed: &Parsed) -> Result {
+    let mechanism = crate::fmu::build_fmu(false)?.fmu;
+    let motor = build_motor()?;
+    let python = crate::sweep::ensure_sweep_package()?;
+    let out = root().join("target/bench-coupling");
+    std::fs::create_dir_all(&out).map_err(|e| e.to_string())?;
+    run(std::process::Command::new(python)
+        .arg(root().join("bench/bench_coupled_step.py"))
+        .arg(&mechanism)
+        .arg(&motor)
+        .arg(&out)
+        .args(parsed.flag_args()))
+}
+
+pub(crate) const BENCH_FLAGS: &[Flag] = &[Flag {
+    name: "before",
+    value: Some("FMU"),
+    help: "another build of CyclicMechanism.fmu, measured beside this one",
+}];
