@@ -13,6 +13,8 @@ so no Python runs per communication step; Dask spreads batches of points over th
 of this machine or over an existing cluster; results land in Parquet as batches finish.
 """
 
+from importlib import metadata as _metadata
+
 from .design import Design, generate
 from .engine import SweepReport, run_sweep
 from .fitting import FitResult, FitSpec, fit
@@ -25,4 +27,7 @@ __all__ = ["run_sweep", "fit", "FitResult", "FitSpec", "load_results", "Results"
            "Design", "generate", "NativeRunner", "RunnerError", "sobol_indices",
            "morris_effects"]
 
-__version__ = "0.1.0"
+try:
+    __version__ = _metadata.version("fmusweep")
+except _metadata.PackageNotFoundError:  # run from the source tree, not installed
+    __version__ = "0.0.0+source"

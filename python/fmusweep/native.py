@@ -16,8 +16,11 @@ import json
 import os
 import pathlib
 import select
+import shutil
 import signal
 import subprocess
+import sys
+import sysconfig
 import tempfile
 import time
 
@@ -25,19 +28,34 @@ import numpy as np
 
 __all__ = ["RunnerError", "NativeRunner", "runner_path"]
 
+RUNNER = "fmu-runner"
+
 
 class RunnerError(RuntimeError):
     """The runner could not start, or refused a request (the message says why)."""
 
 
 def runner_path() -> pathlib.Path:
-    """The `fmu-runner` program: $FMUSWEEP_RUNNER, else the one packed in this package."""
+    """The `fmu-runner` program: $FMUSWEEP_RUNNER, else the one installed with this package
+    (among the environment's scripts, beside the `fmusweep` command)."""
     override = os.environ.get("FMUSWEEP_RUNNER")
-    path = pathlib.Path(override) if override else pathlib.Path(__file__).parent / "bin" / "fmu-runner"
+    if override:
+        candidates = [pathlib.Path(override)]
+    else:
+        # The interpreter's own scripts directory first: a venv's Python run by its path
+        # has no bin/ of its own on PATH.
+        candidates = [pathlib.Path(sysconfig.get_path("scripts")) / RUNNER,
+                      pathlib.Path(sys.executable).parent / RUNNER,
+                      pathlib.Path(sysconfig.get_path("scripts", f"{os.name}_user")) / RUNNER]
+        found = shutil.which(RUNNER)
+        if found:
+            candidates.append(pathlib.Path(found))
+    path = next((c for c in candidates if c.is_file()), candidates[0])
     if not path.is_file():
         raise RunnerError(
-            f"the native runner is missing ({path}): install the wheel that `cargo xtask wheel` "
-            "builds, or point FMUSWEEP_RUNNER at target/release/fmu-runner")
+            f"the native runner is missing ({path}): install the package (`pip install ./python`, "
+            "or the wheel that `cargo xtask wheel` builds), or point FMUSWEEP_RUNNER at "
+            "target/release/fmu-runner")
     return path
 
 

@@ -1,7 +1,9 @@
-"""The fmusweep package as a user meets it: its version, a --help whose example runs, a
-typed package (py.typed), and no import cycle among its modules."""
+"""The fmusweep package as a user meets it: `pip install ./python` in a fresh environment,
+its version, a --help whose example runs, a typed package (py.typed), and no import cycle
+among its modules."""
 
 import ast
+import os
 import pathlib
 import subprocess
 import sys
@@ -42,24 +44,43 @@ def test_the_installed_package_is_typed():
     assert (pathlib.Path(fmusweep.__file__).parent / "py.typed").exists()
 
 
+def _module_name(path: pathlib.Path) -> str:
+    parts = list(path.relative_to(PACKAGE).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts) or "__init__"
+
+
+def _relative_imports(path: pathlib.Path, name: str) -> set[str]:
+    """The package's modules that `path` imports at module level, by dotted name."""
+    package = name.split(".")[:-1] if path.name != "__init__.py" else name.split(".")
+    if name == "__init__":
+        package = []
+    found = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.ImportFrom) and node.level >= 1:
+            base = package[:len(package) - (node.level - 1)]
+            if node.module:
+                found.add(".".join(base + node.module.split(".")))
+            else:
+                found.update(".".join(base + [alias.name]) for alias in node.names)
+    return found
+
+
 def test_no_import_cycle_among_the_modules():
-    """Module-level relative imports form no cycle (imports inside functions are left
-    out: they run later)."""
+    """Module-level relative imports, subpackages included, form no cycle (imports inside
+    functions are left out: they run later). A package's import of its own __init__ from a
+    submodule would be one, and is found like any other."""
+    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
     graph = {}
-    for path in PACKAGE.glob("*.py"):
-        tree = ast.parse(path.read_text())
-        imported = set()
-        for node in tree.body:
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                if node.module:
-                    imported.add(node.module.split(".")[0])
-                else:
-                    imported.update(alias.name for alias in node.names)
-        graph[path.stem] = imported - {path.stem}
+    for name, path in modules.items():
+        targets = set()
+        for target in _relative_imports(path, name):
+            # `from .fitting import fit`: the package fitting (its __init__), or a module.
+            targets.add(target if target in modules else target.rsplit(".", 1)[0])
+        graph[name] = {t for t in targets if t in modules and t != name}
     visiting, done = set(), set()
 
     def visit(module, trail):
-        if module in done or module not in graph:
+        if module in done:
             return
         assert module not in visiting, "import cycle: " + " -> ".join(trail + [module])
         visiting.add(module)
@@ -70,4 +91,29 @@ def test_no_import_cycle_among_the_modules():
 
     for module in graph:
         visit(module, [])
+    assert "fitting" in modules and "fitting.method" in graph["fitting"]
     assert "design" not in graph["errors"] and "spec" not in graph["design"]
+
+
+def test_pip_installs_the_package_in_a_fresh_environment(fmu_path, tmp_path):
+    """`pip install ./python` as a user runs it: maturin builds the runner from source, pip
+    pulls the dependencies, and the installed package finds its runner and sweeps."""
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+    python = venv / "bin/python"
+    env = {k: v for k, v in os.environ.items() if k not in ("FMUSWEEP_RUNNER", "PYTHONPATH")}
+    done = subprocess.run([str(python), "-m", "pip", "install", "--quiet", str(ROOT / "python")],
+                          capture_output=True, text=True, env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    version = subprocess.run([str(python), "-m", "fmusweep", "--version"], capture_output=True,
+                             text=True, env=env, cwd=tmp_path)
+    assert version.returncode == 0 and version.stdout.startswith("fmusweep 0."), version.stderr
+    (tmp_path / "sweep.toml").write_text(
+        f'fmu = "{fmu_path.resolve()}"\n[scenario]\nstop = 1.0\nstep = 0.01\n'
+        '[design]\nparameters = { k34 = { values = [50.0, 100.0] } }\n'
+        '[outputs.metrics]\nfinal = { variable = "omega1", kind = "final" }\n')
+    sweep = subprocess.run([str(python), "-m", "fmusweep", "sweep.toml", "--serial", "--no-progress",
+                            "--no-plots", "--out", "out"], capture_output=True, text=True,
+                           env=env, cwd=tmp_path)
+    assert sweep.returncode == 0, sweep.stderr
+    assert "2 points" in sweep.stdout

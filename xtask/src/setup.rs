@@ -188,11 +188,7 @@ pub(crate) fn build_portable(selection: &[&str], artifact: &str) -> Result<PathB
             ZIGBUILD_VERSION,
         ]))?;
     }
-    let venv_bin = python.parent().expect("the venv's bin").to_path_buf();
-    let path = std::env::join_paths(std::iter::once(venv_bin).chain(std::env::split_paths(
-        &std::env::var_os("PATH").unwrap_or_default(),
-    )))
-    .map_err(|e| e.to_string())?;
+    let path = path_with_venv(&python)?;
     let target = "x86_64-unknown-linux-gnu";
     run(cargo()
         .args(["zigbuild", "--release", "--quiet"])
@@ -207,6 +203,15 @@ pub(crate) fn build_portable(selection: &[&str], artifact: &str) -> Result<PathB
         // standard C headers, the same for any glibc version.
         .env("BINDGEN_EXTRA_CLANG_ARGS", c_header_args()?))?;
     Ok(root().join(format!("target/{target}/release/{artifact}")))
+}
+
+/// PATH with the venv's bin first: its `python` (with the pinned zig) and its tools.
+pub(crate) fn path_with_venv(python: &Path) -> Result<std::ffi::OsString> {
+    let venv_bin = python.parent().expect("the venv's bin").to_path_buf();
+    std::env::join_paths(std::iter::once(venv_bin).chain(std::env::split_paths(
+        &std::env::var_os("PATH").unwrap_or_default(),
+    )))
+    .map_err(|e| e.to_string())
 }
 
 /// `-isystem` for clang's own headers and the system's C headers.

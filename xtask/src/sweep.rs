@@ -9,29 +9,39 @@ use crate::cli::{Flag, Parsed};
 use crate::setup::*;
 use crate::{fmu, Result};
 
-/// The fmusweep wheel: the native runner, built against glibc 2.17 like the FMU, packed
-/// with the Python package by `python/build_wheel.py` (standard library only) as a
-/// manylinux_2_17 wheel: workers on older Linux install it too.
+/// The fmusweep wheel, built by maturin from `python/pyproject.toml`: the Python package
+/// and the native runner, built with zig against glibc 2.17 (as the FMU) and tagged
+/// manylinux_2_17, so that workers on older Linux install it too.
 pub(crate) fn build_wheel() -> Result<PathBuf> {
     ensure_libclang()?;
     let python = ensure_venv(Packages::Tests)?;
-    let runner = build_portable(
-        &["--package", "fmu-runner", "--bin", "fmu-runner"],
-        "fmu-runner",
+    let out = root().join("target/wheels");
+    if out.exists() {
+        fs::remove_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    }
+    let maturin = python.with_file_name("maturin");
+    crate::setup::run(
+        Command::new(&maturin)
+            .current_dir(root().join("python"))
+            .args(["build", "--release", "--quiet", "--zig", "--compatibility"])
+            .arg(format!("manylinux{}", MANYLINUX_FOR_BASELINE))
+            .arg("--out")
+            .arg(&out)
+            .env("PATH", path_with_venv(&python)?)
+            // As for cargo-zigbuild: bindgen gets the C headers from here, not from zig.
+            .env("BINDGEN_EXTRA_CLANG_ARGS", c_header_args()?),
     )?;
-    check_glibc(&runner)?;
-    let wheel = output_of(
-        Command::new(&python)
-            .arg(root().join("python/build_wheel.py"))
-            .arg(&runner)
-            .arg(root().join("target/wheels"))
-            .arg(format!(
-                "manylinux_{}_{}_x86_64",
-                GLIBC_BASELINE.0, GLIBC_BASELINE.1
-            )),
-    )?;
-    Ok(PathBuf::from(wheel.trim()))
+    check_glibc(&root().join("target/x86_64-unknown-linux-gnu/release/fmu-runner"))?;
+    fs::read_dir(&out)
+        .map_err(|e| format!("{}: {e}", out.display()))?
+        .flatten()
+        .map(|entry| entry.path())
+        .find(|path| path.extension().is_some_and(|e| e == "whl"))
+        .ok_or_else(|| format!("maturin wrote no wheel to {}", out.display()))
 }
+
+/// manylinux2014 is glibc 2.17, the baseline of every Linux binary here.
+const MANYLINUX_FOR_BASELINE: &str = "2014";
 
 /// Build the wheel and install it in the venv, unless that very wheel is installed.
 pub(crate) fn ensure_sweep_package() -> Result<PathBuf> {
