@@ -17,7 +17,8 @@ import pyarrow as pa
 
 from . import design as design_module
 from .check import check_against_fmu
-from .fmu import Archive, open_for_checks
+from .fmu import Archive, local_runner, open_for_checks
+from .native import RunnerError
 from .pool import Pool, without_message_log
 from .spec import Spec, SpecError
 from .ssp import check_ssp, describe_ssp, prepare_ssp_worker, run_ssp_batch
@@ -155,10 +156,16 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         identity = {"ssp_name": target.name, "ssp_sha256": target.sha256}
         batch_function, prepare_function = run_ssp_batch, prepare_ssp_worker
     else:
-        target, local, description = open_for_checks(fmu, spec.fmu)
+        if spec.system is not None and fmu is None:
+            target = spec.system.build(spec.step)
+            local, description = _load_system(target)
+            identity = {"system": {name: str(path) for name, path in spec.system.components.items()},
+                        "connections": [str(c) for c in spec.system.connections]}
+        else:
+            target, local, description = open_for_checks(fmu, spec.fmu)
+            identity = {"fmu_name": target.name, "fmu_guid": description["guid"]}
         check_against_fmu(spec, design, description, local)
         local.configure(plan)
-        identity = {"fmu_name": target.name, "fmu_guid": description["guid"]}
         batch_function, prepare_function = run_batch, prepare_worker
     names, rows = design.names, design.rows
     digest = spec.digest()
@@ -225,3 +232,18 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     if plots:
         results.analyse_and_plot(design)
     return results
+
+
+def _load_system(target: Archive):
+    """The runner of a coupled system's container and its description; a system that
+    does not load (a component the container cannot load, say) is refused as a whole."""
+    try:
+        local = local_runner(target)
+        local.configure({"start": 0.0, "stop": 1.0, "step": 1.0, "tolerance": None, "fixed": {},
+                         "inputs": {}, "metrics": [], "series": None, "timeout_s": None})
+        loaded = local.check([], [[]])[0]
+    except RunnerError as e:
+        raise SpecError("system", f"the system does not load: {e}") from None
+    if loaded["status"] != "ok":
+        raise SpecError("system", f"the system does not load: {loaded['message']}")
+    return local, local.describe()

@@ -4,6 +4,10 @@ A specification is a TOML file or the equivalent dict::
 
     fmu = "path/to/Model.fmu"          # optional: the caller may name the FMU instead
     # or: ssp = "path/to/System.ssp"   # a coupled system, run through FMPy's SSP support
+    # or a coupled system run natively (fmusweep.system):
+    # [system]
+    # components = { motor = "DcMotor.fmu", mechanism = "CyclicMechanism.fmu" }
+    # connections = [["motor.torque", "mechanism.M_m"], ["mechanism.omega1", "motor.omega"]]
 
     [scenario]
     start = 0.0
@@ -45,6 +49,7 @@ from dataclasses import dataclass, field
 
 from . import design as _design
 from .errors import SpecError
+from .system import System
 from .fields import number as _number
 from .fields import only as _only
 from .fields import table as _table
@@ -127,6 +132,7 @@ class Spec:
     base_dir: pathlib.Path
     fmu: pathlib.Path | None
     ssp: pathlib.Path | None
+    system: System | None
     start: float
     stop: float
     step: float
@@ -157,13 +163,16 @@ class Spec:
     def from_dict(raw: dict, base_dir) -> "Spec":
         raw = copy.deepcopy(raw)
         base_dir = pathlib.Path(base_dir)
-        _only(raw, "spec", {"fmu", "ssp", "scenario", "design", "outputs"})
+        _only(raw, "spec", {"fmu", "ssp", "system", "scenario", "design", "outputs"})
         fmu, ssp = raw.get("fmu"), raw.get("ssp")
         for key, value in (("fmu", fmu), ("ssp", ssp)):
             if value is not None and not isinstance(value, str):
                 raise SpecError(key, "must be a path (a string)")
-        if fmu is not None and ssp is not None:
-            raise SpecError("ssp", "a spec names an FMU or an SSP system, not both")
+        named = [key for key in ("fmu", "ssp", "system") if raw.get(key) is not None]
+        if len(named) > 1:
+            raise SpecError(named[1], f"a spec names one of an FMU, an SSP system or a [system], "
+                                      f"not {' and '.join(named)}")
+        system = System.of(raw["system"], base_dir) if "system" in raw else None
         scenario = Scenario.of(raw)
         design = _table(raw, "design", "spec", required=True)
         kind = design.get("kind", "grid")
@@ -196,7 +205,7 @@ class Spec:
         if not metrics and not series_variables:
             raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
         spec = Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
-                    ssp=(base_dir / ssp) if ssp else None,
+                    ssp=(base_dir / ssp) if ssp else None, system=system,
                     start=scenario.start, stop=scenario.stop, step=scenario.step,
                     tolerance=scenario.tolerance, timeout=scenario.timeout,
                     parameters=scenario.parameters, inputs=scenario.inputs,
@@ -219,6 +228,8 @@ class Spec:
     def digest(self) -> str:
         """A hash of everything that decides the results (not the FMU's path)."""
         canonical = {k: v for k, v in self.raw.items() if k not in ("fmu", "ssp")}
+        if self.system is not None:  # the components' contents count, not where they lie
+            canonical["system"] = self.system.digest()
         text = json.dumps(canonical, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
 

@@ -96,3 +96,21 @@ def stop_cluster(processes):
             except subprocess.TimeoutExpired:
                 os.killpg(p.pid, signal.SIGKILL)
                 p.wait(timeout=15)
+
+
+def kill_during(sweep, victim, ready, timeout=300):
+    """Run `sweep()` (which returns results) in a thread, `kill -9` the process group of
+    `victim` once `ready()` holds, and return the sweep's results when it ends."""
+    import threading
+    outcome = {}
+    thread = threading.Thread(target=lambda: outcome.update(results=sweep()))
+    thread.start()
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and not ready():
+        assert thread.is_alive(), "the sweep ended before a worker could be killed"
+        time.sleep(0.002)
+    os.killpg(victim.pid, signal.SIGKILL)
+    victim.wait()
+    thread.join(timeout=timeout)
+    assert not thread.is_alive()
+    return outcome["results"]

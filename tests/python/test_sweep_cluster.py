@@ -14,8 +14,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from fmusweep import run_sweep
-from sweep_helpers import (environment_for_workers, faulty_fmu, grid_spec, same_results,
-                           start_cluster, stop_cluster)
+from sweep_helpers import (environment_for_workers, faulty_fmu, grid_spec, kill_during,
+                           same_results, start_cluster, stop_cluster)
 
 VENV_BIN = pathlib.Path(sys.executable).parent
 METRICS = ["peak_rod_force", "omega1_ripple", "n_rhs"]
@@ -170,25 +170,10 @@ def test_a_worker_killed_mid_sweep_costs_nothing(fmu_path, tmp_path, workers_wit
     """`kill -9` of one worker (and its runner) once a third of the batches have started:
     the other worker runs the rest, and every point is written exactly once, all ok."""
     address, (victim, _), trace = workers_without_nanny
-    import threading
-    outcome = {}
-
-    def sweep():
-        outcome["results"] = run_sweep(small_grid(50), fmu=fmu_path, out=tmp_path / "out",
-                                       scheduler=address, batch_size=25, progress=False,
-                                       plots=False)
-
-    thread = threading.Thread(target=sweep)
-    thread.start()
-    deadline = time.monotonic() + 120
-    while time.monotonic() < deadline and len(_started(trace)) < 35:
-        assert thread.is_alive(), "the sweep ended before a worker could be killed"
-        time.sleep(0.002)
-    os.killpg(victim.pid, signal.SIGKILL)
-    victim.wait()
-    thread.join(timeout=300)
-    assert not thread.is_alive()
-    results = outcome["results"]
+    results = kill_during(
+        lambda: run_sweep(small_grid(50), fmu=fmu_path, out=tmp_path / "out", scheduler=address,
+                          batch_size=25, progress=False, plots=False),
+        victim, lambda: len(_started(trace)) >= 35)
     points = results.points
     assert len(points) == 2500 and points["point"].is_unique
     assert (points["status"] == "ok").all()

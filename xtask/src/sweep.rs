@@ -65,9 +65,12 @@ pub(crate) fn job(parsed: &Parsed) -> Result {
     run_fmusweep(&[], parsed)
 }
 
-/// `python -m fmusweep [SUBCOMMAND] OPERANDS FLAGS` with the packed FMU as the default FMU.
+/// `python -m fmusweep [SUBCOMMAND] OPERANDS FLAGS` with the packed FMU as the default FMU
+/// (and the compiled DC motor packed beside it, in target/fmu).
 pub(crate) fn run_fmusweep(subcommand: &[&str], parsed: &Parsed) -> Result {
     let fmu = fmu::build_fmu(false)?.fmu;
+    // The compiled motor too: the worked coupled systems use it.
+    crate::motor::build_motor()?;
     let python = ensure_sweep_package()?;
     // Run where the user is: spec paths are theirs.
     crate::setup::run(

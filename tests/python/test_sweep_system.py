@@ -1,0 +1,199 @@
+"""Coupled systems swept natively: a [system] of the compiled DC motor and the mechanism
+runs as one FMU in the runner, gives an FMPy master loop's run, addresses its variables as
+component.variable, and is refused by field when a name, a file, a connection or a loop is
+wrong; a component that crashes is one row, and a worker killed mid-sweep loses no point."""
+
+import zipfile
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, packed
+from fmusweep import SpecError, run_sweep
+from sweep_helpers import (environment_for_workers, faulty_fmu, kill_during, start_cluster,
+                           stop_cluster)
+
+MECHANISM = {"Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0, "Mr_b0": 20.0, "Mr_b1": -0.05, "c4": 0.5}
+
+
+@pytest.fixture(scope="module")
+def motor_path():
+    return packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
+
+
+def system_spec(fmu_path, motor_path, stop=2.0, design=None, series=False):
+    spec = {
+        "system": {"components": {"motor": str(motor_path), "mechanism": str(fmu_path)},
+                   "connections": [["motor.torque", "mechanism.M_m"],
+                                   ["mechanism.omega1", "motor.omega"]]},
+        "scenario": {"stop": stop, "step": 0.001, "tolerance": 1e-8,
+                     "parameters": {f"mechanism.{k}": v for k, v in MECHANISM.items()}},
+        "design": {"kind": "list", "parameters": design or {
+            "motor.voltage": {"values": [24.0, 30.0]}, "mechanism.d34": {"values": [1.0, 0.5]}}},
+        "outputs": {"metrics": {"final_omega1": {"variable": "mechanism.omega1", "kind": "final"},
+                                "peak_current": {"variable": "motor.current", "kind": "peak_abs"}}},
+    }
+    if series:
+        spec["outputs"]["series"] = {"variables": ["mechanism.omega1", "motor.current"]}
+    return spec
+
+
+def fmpy_master_loop(fmu_path, motor_path, voltage, d34, stop, step=0.001):
+    """examples/dc_motor/coupling.py's loop (Jacobi: both step from the previous outputs),
+    returning omega1 and the current after every step."""
+    import sys
+    sys.path.insert(0, str(ROOT / "bench"))
+    from bench_coupled_step import load
+    motor, mv = load(motor_path, "motor")
+    mech, xv = load(fmu_path, "mechanism")
+    for slave in (motor, mech):
+        slave.instantiate()
+        slave.setupExperiment(tolerance=1e-8, startTime=0.0, stopTime=stop)
+        slave.enterInitializationMode()
+    values = dict(MECHANISM, d34=d34)
+    mech.setReal([xv[n] for n in values], list(values.values()))
+    motor.setReal([mv["voltage"]], [voltage])
+    for slave in (motor, mech):
+        slave.exitInitializationMode()
+    rows = []
+    for k in range(round(stop / step)):
+        omega1 = mech.getReal([xv["omega1"]])[0]
+        torque = motor.getReal([mv["torque"]])[0]
+        motor.setReal([mv["omega"]], [omega1])
+        mech.setReal([xv["M_m"]], [torque])
+        motor.doStep(k * step, step)
+        mech.doStep(k * step, step)
+        rows.append([mech.getReal([xv["omega1"]])[0], motor.getReal([mv["current"]])[0]])
+    return np.array(rows)
+
+
+def test_a_coupled_system_sweeps_natively_as_an_fmpy_master_loop_runs_it(fmu_path, motor_path, tmp_path):
+    results = run_sweep(system_spec(fmu_path, motor_path, series=True), out=tmp_path / "out",
+                        serial=True, progress=False, plots=False)
+    points = results.points
+    assert list(points["status"]) == ["ok", "ok"]
+    assert {"motor.voltage", "mechanism.d34"} <= set(points.columns)
+    series = results.series()
+    for point, (voltage, d34) in enumerate([(24.0, 1.0), (30.0, 0.5)]):
+        expected = fmpy_master_loop(fmu_path, motor_path, voltage, d34, 2.0)
+        mine = series[series["point"] == point]
+        omega1 = mine[mine["variable"] == "mechanism.omega1"].sort_values("time")["value"].to_numpy()[1:]
+        current = mine[mine["variable"] == "motor.current"].sort_values("time")["value"].to_numpy()[1:]
+        assert len(omega1) == len(expected) == 2000
+        np.testing.assert_allclose(omega1, expected[:, 0], rtol=0, atol=1e-8 * 15)
+        np.testing.assert_allclose(current, expected[:, 1], rtol=0, atol=1e-8 * 40)
+    assert points["final_omega1"][1] > points["final_omega1"][0]  # more voltage, more speed
+
+
+def gain_fmu(directory, name):
+    """A model description alone: an input u and an output y depending on it directly."""
+    path = directory / f"{name}.fmu"
+    xml = f"""<?xml version="1.0" encoding="UTF-8"?>
+<fmiModelDescription fmiVersion="2.0" modelName="{name}" guid="{{gain-{name}}}">
+  <CoSimulation modelIdentifier="{name}"/>
+  <ModelVariables>
+    <ScalarVariable name="u" valueReference="0" causality="input" variability="continuous"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="y" valueReference="1" causality="output" variability="continuous" initial="calculated"><Real/></ScalarVariable>
+  </ModelVariables>
+  <ModelStructure><Outputs><Unknown index="2" dependencies="1"/></Outputs><InitialUnknowns><Unknown index="2" dependencies="1"/></InitialUnknowns></ModelStructure>
+</fmiModelDescription>"""
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("modelDescription.xml", xml)
+    return path
+
+
+def _bad_systems(fmu_path, motor_path, tmp):
+    def connections(*pairs):
+        return lambda s: s["system"].update(connections=[list(p) for p in pairs])
+
+    def components(**more):
+        return lambda s: s["system"]["components"].update(**more)
+
+    not_a_zip = tmp / "broken.fmu"
+    not_a_zip.write_text("not an FMU")
+    gain_a, gain_b = gain_fmu(tmp, "gain_a"), gain_fmu(tmp, "gain_b")
+
+    def loop(s):
+        s["system"] = {"components": {"a": str(gain_a), "b": str(gain_b)},
+                       "connections": [["a.y", "b.u"], ["b.y", "a.u"]]}
+        s["scenario"]["parameters"] = {}
+        s["design"]["parameters"] = {"a.u": {"values": [0.0]}}
+        s["outputs"]["metrics"] = {"y": {"variable": "b.y", "kind": "final"}}
+
+    return {
+        "an unknown component": ("system.connections[1]", connections(
+            ["motor.torque", "mechanism.M_m"], ["mechanism.omega1", "pump.omega"])),
+        "an unknown variable": ("system.connections[0]", connections(["motor.torque", "mechanism.M_x"])),
+        "from an input": ("system.connections[0]", connections(["motor.omega", "mechanism.M_m"])),
+        "to an output": ("system.connections[0]", connections(["motor.torque", "mechanism.omega2"])),
+        "an Integer into a Real": ("system.connections[0]", connections(["mechanism.n_steps", "motor.voltage"])),
+        "an input fed twice": ("system.connections[1]", connections(
+            ["motor.torque", "mechanism.M_m"], ["motor.current", "mechanism.M_m"])),
+        "not component.variable": ("system.connections[0]", connections(["torque", "mechanism.M_m"])),
+        "a bad component name": ("system.components.Motor", components(Motor=str(motor_path))),
+        "a missing file": ("system.components.pump", components(pump=str(tmp / "pump.fmu"))),
+        "a file that is not an FMU": ("system.components.pump", components(pump=str(not_a_zip))),
+        "an algebraic loop": ("system.connections", loop),
+        "a parameter the system lacks": ("design.parameters.mechanism.k99", lambda s: s["design"].update(
+            parameters={"mechanism.k99": {"values": [1.0]}})),
+        "a bare name": ("design.parameters.d34", lambda s: s["design"].update(
+            parameters={"d34": {"values": [1.0]}})),
+        "an FMU and a system": ("system", lambda s: s.update(fmu=str(fmu_path))),
+        "a component the container cannot load": ("system", components(gain=str(gain_a))),
+    }
+
+
+BAD = [
+    "an unknown component", "an unknown variable", "from an input", "to an output",
+    "an Integer into a Real", "an input fed twice", "not component.variable", "a bad component name",
+    "a missing file", "a file that is not an FMU", "an algebraic loop", "a parameter the system lacks",
+    "a bare name", "an FMU and a system", "a component the container cannot load"]
+
+
+@pytest.mark.parametrize("case", BAD)
+def test_a_bad_system_is_refused_by_field_before_anything_runs(fmu_path, motor_path, tmp_path, case):
+    field, change = _bad_systems(fmu_path, motor_path, tmp_path)[case]
+    spec = system_spec(fmu_path, motor_path)
+    change(spec)
+    with pytest.raises(SpecError) as refused:
+        run_sweep(spec, out=tmp_path / "out", serial=True, progress=False, plots=False)
+    assert refused.value.field == field, str(refused.value)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_component_that_crashes_is_one_row(fmu_path, motor_path, tmp_path):
+    """The faulty FMU beside the motor: at x = 13 it dereferences NULL, which takes the
+    container and its runner down; that point is `crashed`, the others finish."""
+    faulty = faulty_fmu(tmp_path)
+    spec = {"system": {"components": {"faulty": str(faulty), "motor": str(motor_path)},
+                       "connections": []},
+            "scenario": {"stop": 0.2, "step": 0.01},
+            "design": {"kind": "list", "parameters": {"faulty.x": {"values": [1.0, 2.0, 13.0, 4.0, 6.0]}}},
+            "outputs": {"metrics": {"y": {"variable": "faulty.y", "kind": "final"},
+                                    "i": {"variable": "motor.current", "kind": "final"}}}}
+    points = run_sweep(spec, out=tmp_path / "out", serial=True, progress=False, plots=False).points
+    assert list(points["status"]) == ["ok", "ok", "crashed", "ok", "ok"]
+    ok = points[points["status"] == "ok"]
+    np.testing.assert_allclose(ok["y"], 0.2 * ok["faulty.x"], rtol=1e-12)  # y = x·t
+
+
+def test_a_worker_killed_mid_coupled_sweep_loses_no_point(fmu_path, motor_path, tmp_path):
+    """`kill -9` of one of two `dask worker` processes (no nanny) while the coupled sweep
+    runs: the other worker finishes, every point is there once, all ok."""
+    env = dict(environment_for_workers(), FMUSWEEP_TRACE=str(tmp_path / "trace"))
+    address, processes = start_cluster(tmp_path, env, ["--no-nanny"])
+    victim = processes[1]
+    design = {"motor.voltage": {"linspace": [12.0, 36.0, 20]}, "mechanism.d34": {"linspace": [0.2, 2.0, 10]}}
+    spec = system_spec(fmu_path, motor_path, stop=1.0, design=design)
+    spec["design"]["kind"] = "grid"
+    trace = tmp_path / "trace"
+    try:
+        results = kill_during(
+            lambda: run_sweep(spec, out=tmp_path / "out", scheduler=address, batch_size=5,
+                              progress=False, plots=False),
+            victim, lambda: trace.exists() and trace.read_text().count("start") >= 10)
+    finally:
+        stop_cluster(processes)
+    points = results.points
+    assert len(points) == 200 and points["point"].is_unique
+    assert (points["status"] == "ok").all()
