@@ -10,6 +10,7 @@ import sys
 import pyarrow.parquet as pq
 import pytest
 
+from conftest import packed
 from sweep_helpers import environment_for_workers
 
 EXAMPLES = pathlib.Path(__file__).resolve().parents[2] / "examples/sweeps"
@@ -51,3 +52,18 @@ def test_latin_hypercube_over_the_geometry(fmu_path, tmp_path):
     failed = points[points["status"] != "ok"]
     assert failed["message"].str.len().gt(0).all()
     assert (tmp_path / "plots" / "scatter.png").exists()
+
+
+def test_coupled_motor_and_mechanism(fmu_path, tmp_path):
+    """The [system] example, its components the FMUs under test: 400 coupled runs, all ok,
+    and the load spring's resonance where the motor's no-load speed V/k meets √(k34/J4)."""
+    motor = packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
+    text = (EXAMPLES / "coupled_motor.toml").read_text()
+    text = text.replace('"../../target/fmu/DcMotor.fmu"', f'"{motor.resolve()}"')
+    text = text.replace('"../../target/fmu/CyclicMechanism.fmu"', f'"{fmu_path.resolve()}"')
+    (tmp_path / "coupled.toml").write_text(text)
+    points, said = sweep(tmp_path / "coupled.toml", fmu_path, tmp_path / "out")
+    assert len(points) == 400 and (points["status"] == "ok").all()
+    assert "400 points" in said
+    worst = points.loc[points["omega1_ripple"].idxmax()]
+    assert 22.0 <= worst["motor.voltage"] <= 28.0 and worst["mechanism.d34"] == points["mechanism.d34"].min()

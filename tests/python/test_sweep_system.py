@@ -197,3 +197,28 @@ def test_a_worker_killed_mid_coupled_sweep_loses_no_point(fmu_path, motor_path, 
     points = results.points
     assert len(points) == 200 and points["point"].is_unique
     assert (points["status"] == "ok").all()
+
+
+def test_the_coupling_error_against_the_monolithic_reference_is_first_order(fmu_path, motor_path, tmp_path):
+    """Motor and mechanism as one ODE (tests/python/reference.py, scipy at rtol 1e-11) against
+    the coupled sweep at H = 1 and 2 ms over 1 s: the engine holds inputs over a step, so the
+    error halves with the step (order 1), and at 1 ms it is about a hundredth of the scale."""
+    import reference
+    p = reference.Params(**MECHANISM, d34=1.0)
+    names = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4"]
+    errors = []
+    for step in (1e-3, 2e-3):
+        spec = system_spec(fmu_path, motor_path, stop=1.0, design={"mechanism.d34": {"values": [1.0]}})
+        spec["scenario"]["step"] = step
+        spec["outputs"]["series"] = {"variables": [f"mechanism.{n}" for n in names] + ["motor.current"]}
+        series = run_sweep(spec, out=tmp_path / f"out{step}", serial=True, progress=False,
+                           plots=False).series()
+        columns = [series[series["variable"] == v].sort_values("time")
+                   for v in [f"mechanism.{n}" for n in names] + ["motor.current"]]
+        times = columns[0]["time"].to_numpy()
+        mine = np.column_stack([c["value"].to_numpy() for c in columns])
+        exact = reference.solve_with_motor(p, reference.Motor(), times, rtol=1e-11)
+        errors.append(float((np.abs(mine - exact) / np.maximum(1.0, np.abs(exact).max(axis=0))).max()))
+    order = np.log2(errors[1] / errors[0])
+    assert 0.8 < order < 1.3, errors
+    assert errors[0] < 2e-2, errors

@@ -36,8 +36,14 @@ impl Parsed {
 
     /// The flags given, as they were written (for a job that hands them on).
     pub fn flag_args(&self) -> Vec<String> {
+        self.flag_args_except(&[])
+    }
+
+    /// The flags given but those named, as they were written.
+    pub fn flag_args_except(&self, left_out: &[&str]) -> Vec<String> {
         self.flags
             .iter()
+            .filter(|(name, _)| !left_out.contains(name))
             .flat_map(|(name, value)| std::iter::once(format!("--{name}")).chain(value.clone()))
             .collect()
     }

@@ -117,7 +117,7 @@ const JOBS: &[Job] = &[
     Job {
         name: "bench-coupling",
         operands: &[],
-        about: "the cost and accuracy of a coupled step (mechanism and motor) into target/bench-coupling",
+        about: "coupled runs (mechanism and motor): the cost of a step and the sweep engines, into target/bench-coupling",
         flags: motor::BENCH_FLAGS,
         run: motor::job_bench,
     },

@@ -45,25 +45,42 @@ pub(crate) fn build_motor() -> Result<PathBuf> {
     Ok(fmu)
 }
 
-/// `cargo xtask bench-coupling [--before FMU]`: the cost and accuracy of a coupled
-/// communication step (the mechanism driven by the motor) into target/bench-coupling; with
-/// `--before`, another build of the mechanism measured beside this one.
+/// `cargo xtask bench-coupling [--before FMU] [--quick]`: into target/bench-coupling, the
+/// cost and accuracy of a coupled communication step (`step/`; with `--before`, another
+/// build of the mechanism measured beside this one) and the coupled sweep's engines and
+/// coupling error (`sweep/`).
 pub(crate) fn job_bench(parsed: &Parsed) -> Result {
     let mechanism = crate::fmu::build_fmu(false)?.fmu;
     let motor = build_motor()?;
     let python = crate::sweep::ensure_sweep_package()?;
     let out = root().join("target/bench-coupling");
-    std::fs::create_dir_all(&out).map_err(|e| e.to_string())?;
-    run(std::process::Command::new(python)
-        .arg(root().join("bench/bench_coupled_step.py"))
-        .arg(&mechanism)
-        .arg(&motor)
-        .arg(&out)
-        .args(parsed.flag_args()))
+    for (script, part, flags) in [
+        (
+            "bench/bench_coupled_step.py",
+            "step",
+            parsed.flag_args_except(&["quick"]),
+        ),
+        (
+            "bench/bench_coupled_sweep.py",
+            "sweep",
+            parsed.flag_args_except(&["before"]),
+        ),
+    ] {
+        run(std::process::Command::new(&python)
+            .arg(root().join(script))
+            .arg(&mechanism)
+            .arg(&motor)
+            .arg(out.join(part))
+            .args(flags))?;
+    }
+    Ok(())
 }
 
-pub(crate) const BENCH_FLAGS: &[Flag] = &[Flag {
-    name: "before",
-    value: Some("FMU"),
-    help: "another build of CyclicMechanism.fmu, measured beside this one",
-}];
+pub(crate) const BENCH_FLAGS: &[Flag] = &[
+    Flag {
+        name: "before",
+        value: Some("FMU"),
+        help: "another build of CyclicMechanism.fmu, its coupled step measured beside this one",
+    },
+    crate::QUICK,
+];
