@@ -18,10 +18,10 @@ import pyarrow as pa
 from . import design as design_module
 from .check import check_against_fmu
 from .fmu import Archive, local_runner, open_for_checks
-from .native import RunnerError
 from .pool import Pool, without_message_log
 from .spec import Spec, SpecError
 from .ssp import check_ssp, describe_ssp, prepare_ssp_worker, run_ssp_batch
+from .system import load_system
 from .store import FORMAT, ResultStore, versions
 from .worker import prepare_worker, run_batch
 
@@ -158,7 +158,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     else:
         if spec.system is not None and fmu is None:
             target = spec.system.build(spec.step)
-            local, description = _load_system(target)
+            local, description = load_system(target)
             identity = {"system": {name: str(path) for name, path in spec.system.components.items()},
                         "connections": [str(c) for c in spec.system.connections]}
         else:
@@ -232,18 +232,3 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
     if plots:
         results.analyse_and_plot(design)
     return results
-
-
-def _load_system(target: Archive):
-    """The runner of a coupled system's container and its description; a system that
-    does not load (a component the container cannot load, say) is refused as a whole."""
-    try:
-        local = local_runner(target)
-        local.configure({"start": 0.0, "stop": 1.0, "step": 1.0, "tolerance": None, "fixed": {},
-                         "inputs": {}, "metrics": [], "series": None, "timeout_s": None})
-        loaded = local.check([], [[]])[0]
-    except RunnerError as e:
-        raise SpecError("system", f"the system does not load: {e}") from None
-    if loaded["status"] != "ok":
-        raise SpecError("system", f"the system does not load: {loaded['message']}")
-    return local, local.describe()

@@ -29,9 +29,10 @@ import zipfile
 from dataclasses import dataclass
 
 from .errors import SpecError
-from .fmu import Archive
+from .fmu import Archive, local_runner
+from .native import RunnerError
 
-__all__ = ["System"]
+__all__ = ["System", "load_system"]
 
 NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
 
@@ -238,3 +239,18 @@ def _algebraic_loop(connections: list[Connection], descriptions: dict) -> list[s
             if found:
                 return found
     return None
+
+
+def load_system(target: Archive):
+    """The runner of a coupled system's container and its description; a system that
+    does not load (a component the container cannot load, say) is refused as a whole."""
+    try:
+        local = local_runner(target)
+        local.configure({"start": 0.0, "stop": 1.0, "step": 1.0, "tolerance": None, "fixed": {},
+                         "inputs": {}, "metrics": [], "series": None, "timeout_s": None})
+        loaded = local.check([], [[]])[0]
+    except RunnerError as e:
+        raise SpecError("system", f"the system does not load: {e}") from None
+    if loaded["status"] != "ok":
+        raise SpecError("system", f"the system does not load: {loaded['message']}")
+    return local, local.describe()

@@ -329,3 +329,32 @@ def test_the_command_line_refuses_a_bad_spec_by_field(fmu_path, tmp_path):
     help_text = subprocess.run([sys.executable, "-m", "fmusweep", "fit", "--help"], capture_output=True,
                                text=True).stdout
     assert "example:" in help_text and "[fit.parameters]" in help_text
+
+
+def test_a_coupled_system_fits_as_one_fmu(fmu_path, tmp_path):
+    """A [system] of the DC motor and the mechanism: the motor's resistance and the load
+    spring's damping from the mechanism's speed and the motor's current, measured with
+    noise; both 95 % intervals hold the truth."""
+    motor = packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
+    system = {"components": {"motor": str(motor), "mechanism": str(fmu_path)},
+              "connections": [["motor.torque", "mechanism.M_m"], ["mechanism.omega1", "motor.omega"]]}
+    laws = {"mechanism.Mm_a0": 0.0, "mechanism.Mm_a1": 0.0, "mechanism.Mm_a2": 0.0, "mechanism.c4": 0.5}
+    scenario = {"stop": 1.0, "step": 0.001, "tolerance": 1e-8, "parameters": laws}
+    from fmusweep.system import System, load_system
+    runner, _ = load_system(System.of(system, tmp_path).build(0.001))
+    columns = ["mechanism.omega1", "motor.current"]
+    runner.configure(Scenario.of({"scenario": scenario}).plan([], {"variables": columns, "every": 10}))
+    [made] = runner.run(["motor.R", "mechanism.d34"], [[0.6, 0.8]])
+    rows = np.array(made["series"])
+    rows[:, 1:] += np.random.default_rng(21).normal(0.0, [0.02, 0.05], size=rows[:, 1:].shape)
+    write_csv(tmp_path / "measured.csv", rows, ("time", *columns))
+    spec = {"system": system, "scenario": scenario,
+            "data": {"file": str(tmp_path / "measured.csv"),
+                     "sigma": {"mechanism.omega1": 0.02, "motor.current": 0.05}},
+            "fit": {"parameters": {"motor.R": {"start": 1.0, "range": [0.1, 5.0]},
+                                   "mechanism.d34": {"start": 0.3, "range": [0.0, 5.0]}}}}
+    summary = fit(spec, out=tmp_path / "out", serial=True, plots=False).summary
+    assert summary["status"] == "converged"
+    for name, true in {"motor.R": 0.6, "mechanism.d34": 0.8}.items():
+        low, high = summary["parameters"][name]["ci95"]
+        assert low <= true <= high, (name, low, high)

@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from ..fmu import open_for_checks
+from ..system import load_system
 from ..pool import Pool, without_message_log
 from ..store import FORMAT, ResultStore, atomic_write_text, versions
 from ..worker import prepare_worker, run_batch
@@ -61,7 +62,7 @@ def fit(spec, *, fmu=None, out=None, workers: int | None = None, scheduler: str 
     """Fit the spec's parameters to its data and return a FitResult.
 
     spec: a TOML path, a dict, or a FitSpec. fmu: the FMU's path, over the spec's own
-    (default: the spec's, else $FMUSWEEP_FMU). out: the output directory (default
+    (default: the spec's FMU or coupled [system], else $FMUSWEEP_FMU). out: the output directory (default
     ``fit-<digest>`` here). workers, scheduler, serial: as for ``run_sweep``; given none,
     the fit runs here when one run takes less than SERIAL_BELOW_S, else on a LocalCluster
     of every core. resume: continue a fit that ``out`` holds; the points it evaluated are
@@ -69,7 +70,11 @@ def fit(spec, *, fmu=None, out=None, workers: int | None = None, scheduler: str 
     """
     started = time.perf_counter()
     spec = FitSpec.load(spec)
-    target, local, description = open_for_checks(fmu, spec.fmu)
+    if spec.system is not None and fmu is None:
+        target = spec.system.build(spec.scenario.step)
+        local, description = load_system(target)
+    else:
+        target, local, description = open_for_checks(fmu, spec.fmu)
     check_fit_against_fmu(spec, description, local)
     plan = spec.plan()
     local.configure(plan)

@@ -1,7 +1,7 @@
 """A fit's specification: the sweep's ``fmu`` and ``[scenario]``, the measured data, and
 the parameters to estimate::
 
-    fmu = "CyclicMechanism.fmu"
+    fmu = "CyclicMechanism.fmu"       # or a coupled [system], as a sweep names one
     [scenario]
     stop = 5.0
     step = 0.01
@@ -40,6 +40,7 @@ import numpy as np
 from ..errors import SpecError
 from ..fields import finite, low_high, only, table, whole
 from ..spec import Scenario, read_source
+from ..system import System
 from .data import Data
 
 __all__ = ["FitSpec", "FitParameter"]
@@ -65,6 +66,7 @@ class FitSpec:
     raw: dict
     base_dir: pathlib.Path
     fmu: pathlib.Path | None
+    system: System | None
     scenario: Scenario
     data: Data
     parameters: list[FitParameter]
@@ -95,10 +97,13 @@ class FitSpec:
     def from_dict(raw: dict, base_dir) -> "FitSpec":
         raw = copy.deepcopy(raw)
         base_dir = pathlib.Path(base_dir)
-        only(raw, "spec", {"fmu", "scenario", "data", "fit"})
+        only(raw, "spec", {"fmu", "system", "scenario", "data", "fit"})
         fmu = raw.get("fmu")
         if fmu is not None and not isinstance(fmu, str):
             raise SpecError("fmu", "must be a path (a string)")
+        if fmu is not None and raw.get("system") is not None:
+            raise SpecError("system", "a fit names an FMU or a [system], not both")
+        system = System.of(raw["system"], base_dir) if "system" in raw else None
         scenario = Scenario.of(raw)
         data = Data.of(table(raw, "data", "spec", required=True), base_dir, scenario)
         fit = table(raw, "fit", "spec", required=True)
@@ -123,7 +128,7 @@ class FitSpec:
         if (isinstance(relative_step, bool) or not isinstance(relative_step, (int, float))
                 or not 0 < relative_step < 0.1):
             raise SpecError("fit.relative_step", f"must be a number in (0, 0.1), got {relative_step!r}")
-        return FitSpec(raw, base_dir, (base_dir / fmu) if fmu else None, scenario, data,
+        return FitSpec(raw, base_dir, (base_dir / fmu) if fmu else None, system, scenario, data,
                        parameters, starts, seed, max_iterations, float(relative_step))
 
     def digest(self) -> str:
@@ -131,6 +136,8 @@ class FitSpec:
         content (not where the FMU or the data file lie)."""
         canonical = {k: v for k, v in self.raw.items() if k != "fmu"}
         canonical["data"] = {k: v for k, v in canonical["data"].items() if k != "file"}
+        if self.system is not None:  # the components' contents count, not where they lie
+            canonical["system"] = self.system.digest()
         text = json.dumps(canonical, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode() + self.data.sha256.encode()).hexdigest()
 
