@@ -15,7 +15,8 @@
 
 use super::dop853_tableau::{A, A_DENSE, B, C, C_DENSE, D, E3, E5};
 use super::{
-    check_step_size, first_step, plan_step, OdeSystem, Progress, SolverError, Stepper, Tolerances,
+    after_accepted, check_step_size, first_step, plan_step, OdeSystem, Progress, SolverError,
+    Stepper, Tolerances,
 };
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 
@@ -446,12 +447,7 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
             let log2_error = rough_log2(error);
             let factor = step_factor(error, log2_error, self.log2_last_error, last_rejected);
             self.log2_last_error = log2_error.max(LOG2_SMALLEST_REMEMBERED_ERROR);
-            // A step cut short to land on the limit says nothing against the longer step.
-            h = if landing {
-                (h_step * factor).max(h)
-            } else {
-                h_step * factor
-            };
+            h = after_accepted(h_step * factor, h, landing);
             last_rejected = false;
         }
         self.progress.next_step = Some(h);

@@ -112,6 +112,18 @@ fn plan_step(t: f64, h: f64, limit: f64, taken: u64) -> Result<(f64, bool), Solv
     Ok((h_step, landing))
 }
 
+/// The step to try after an accepted step whose control proposed `proposed`, `planned`
+/// having been the size planned for it: a step cut short to land on the limit says nothing
+/// against the longer step, so the planned size stays if larger.
+#[inline(always)]
+fn after_accepted(proposed: f64, planned: f64, landing: bool) -> f64 {
+    if landing {
+        proposed.max(planned)
+    } else {
+        proposed
+    }
+}
+
 /// A step size must stay resolvable in t's precision.
 fn check_step_size(t: f64, h: f64) -> Result<(), SolverError> {
     if h <= 16.0 * f64::EPSILON * t.abs().max(1.0) {

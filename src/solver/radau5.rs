@@ -15,8 +15,8 @@
 
 use super::linear::{Complex, Lu, Singular};
 use super::{
-    check_step_size, combine, first_step, plan_step, OdeSystem, Progress, SolverError, Statistics,
-    Stepper, Tolerances,
+    after_accepted, check_step_size, combine, first_step, plan_step, OdeSystem, Progress,
+    SolverError, Statistics, Stepper, Tolerances,
 };
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 
@@ -591,8 +591,7 @@ impl<const N: usize> Stepper<N> for Radau5<N> {
                 iterations,
                 rejected,
             );
-            // A step cut short to land on the limit says nothing against the longer step.
-            h = if landing { h_new.max(h) } else { h_new };
+            h = after_accepted(h_new, h, landing);
             self.record_stiffness(h);
             rejected = false;
         }

@@ -10,7 +10,8 @@
 //! below what an eighth-order method needs to be accurate.
 
 use super::{
-    check_step_size, first_step, plan_step, OdeSystem, Progress, SolverError, Stepper, Tolerances,
+    after_accepted, check_step_size, first_step, plan_step, OdeSystem, Progress, SolverError,
+    Stepper, Tolerances,
 };
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 
@@ -36,16 +37,17 @@ struct LastStep<const N: usize> {
 pub struct Rk4<const N: usize> {
     progress: Progress,
     /// f(t, y) at the integrator's point, while valid.
-    first: [f64; N],
-    first_valid: bool,
+    first: Option<[f64; N]>,
     last_step: Option<LastStep<N>>,
 }
 
 impl<const N: usize> Rk4<N> {
     #[inline(always)]
-    fn eval<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N], into: &mut [f64; N]) {
-        system.rhs(t, y, into);
+    fn eval<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N]) -> [f64; N] {
+        let mut f = [0.0; N];
+        system.rhs(t, y, &mut f);
         self.progress.stats.n_rhs += 1;
+        f
     }
 
     /// One trial step of size `h` from (t, y) with f(t, y) = `k1`: the fourth-order end in
@@ -59,25 +61,23 @@ impl<const N: usize> Rk4<N> {
         y_new: &mut [f64; N],
         f_new: &mut [f64; N],
     ) -> f64 {
-        let (mut k2, mut k3, mut k4, mut stage) = ([0.0; N], [0.0; N], [0.0; N], [0.0; N]);
         let half = 0.5 * h;
-        for n in 0..N {
-            stage[n] = y[n] + half * k1[n];
-        }
-        self.eval(system, t + half, &stage, &mut k2);
-        for n in 0..N {
-            stage[n] = y[n] + half * k2[n];
-        }
-        self.eval(system, t + half, &stage, &mut k3);
-        for n in 0..N {
-            stage[n] = y[n] + h * k3[n];
-        }
-        self.eval(system, t + h, &stage, &mut k4);
+        let k2 = self.eval(
+            system,
+            t + half,
+            &std::array::from_fn(|n| y[n] + half * k1[n]),
+        );
+        let k3 = self.eval(
+            system,
+            t + half,
+            &std::array::from_fn(|n| y[n] + half * k2[n]),
+        );
+        let k4 = self.eval(system, t + h, &std::array::from_fn(|n| y[n] + h * k3[n]));
         let sixth = h / 6.0;
         for n in 0..N {
             y_new[n] = y[n] + sixth * ((k1[n] + k4[n]) + 2.0 * (k2[n] + k3[n]));
         }
-        self.eval(system, t + h, y_new, f_new);
+        *f_new = self.eval(system, t + h, y_new);
         let Tolerances { rtol, atol } = self.progress.tolerances;
         let mut sum = 0.0;
         for n in 0..N {
@@ -110,8 +110,7 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
     fn new(tolerances: Tolerances) -> Self {
         Self {
             progress: Progress::new(tolerances),
-            first: [0.0; N],
-            first_valid: false,
+            first: None,
             last_step: None,
         }
     }
@@ -125,7 +124,7 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
     }
 
     fn invalidate(&mut self) {
-        self.first_valid = false;
+        self.first = None;
         self.last_step = None;
     }
 
@@ -141,25 +140,16 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
         if *t >= target {
             return Ok(());
         }
-        if !self.first_valid {
-            let mut first = [0.0; N];
-            self.eval(system, *t, y, &mut first);
-            self.first = first;
-            self.first_valid = true;
-        }
-        let mut h = first_step(
-            &mut self.progress,
-            system,
-            (*t, &*y, &self.first),
-            target,
-            4,
-        );
+        let mut k1 = match self.first {
+            Some(first) => first,
+            None => self.eval(system, *t, y),
+        };
+        let mut h = first_step(&mut self.progress, system, (*t, &*y, &k1), target, 4);
         let (mut taken, mut last_rejected) = (0u64, false);
         let (mut y_new, mut f_new) = ([0.0; N], [0.0; N]);
         while *t < target {
             let (h_step, landing) = plan_step(*t, h, limit, taken)?;
             taken += 1;
-            let k1 = self.first;
             let error = self.attempt(system, (*t, y, &k1), h_step, &mut y_new, &mut f_new);
             if error.is_nan() || error > 1.0 {
                 self.progress.stats.n_rejected += 1;
@@ -168,8 +158,8 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
                 check_step_size(*t, h)?;
                 continue;
             }
+            self.first = None;
             if let Err(reason) = system.project(y, &mut y_new) {
-                self.first_valid = false;
                 self.last_step = None;
                 return Err(SolverError::ProjectionFailed {
                     t: *t + h_step,
@@ -188,20 +178,11 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
             *y = y_new;
             *t = if landing { limit } else { *t + h_step };
             // The projection moved the end: f there is evaluated afresh, by the next step.
-            self.first_valid = false;
             if *t < target {
-                let mut first = [0.0; N];
-                self.eval(system, *t, y, &mut first);
-                self.first = first;
-                self.first_valid = true;
+                k1 = self.eval(system, *t, y);
+                self.first = Some(k1);
             }
-            let factor = step_factor(error, last_rejected);
-            // A step cut short to land on the limit says nothing against the longer step.
-            h = if landing {
-                (h_step * factor).max(h)
-            } else {
-                h_step * factor
-            };
+            h = after_accepted(h_step * step_factor(error, last_rejected), h, landing);
             last_rejected = false;
         }
         self.progress.next_step = Some(h);
@@ -233,10 +214,8 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
         y: &[f64; N],
     ) -> Result<(), String> {
         let mut copy = self.clone();
-        if self.first_valid {
-            let mut first = [0.0; N];
-            copy.eval(system, t, y, &mut first);
-            if !same_bits(&first, &self.first) {
+        if let Some(first) = self.first {
+            if !same_bits(&copy.eval(system, t, y), &first) {
                 return Err("the stored f(t, y) is not the system's".into());
             }
         }
@@ -246,8 +225,7 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
         if !same_bits(&step.y_new, y) {
             return Err("the last step does not end at the integrator's state".into());
         }
-        let mut f_old = [0.0; N];
-        copy.eval(system, step.t_old, &step.y_old, &mut f_old);
+        let f_old = copy.eval(system, step.t_old, &step.y_old);
         let (mut y_new, mut f_new) = ([0.0; N], [0.0; N]);
         copy.attempt(
             system,
@@ -268,8 +246,8 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
 
     fn serialize_into(&self, w: &mut Writer) {
         self.progress.serialize_into(w);
-        w.bool(self.first_valid);
-        w.f64s(&self.first);
+        w.bool(self.first.is_some());
+        w.f64s(&self.first.unwrap_or([0.0; N]));
         w.bool(self.last_step.is_some());
         if let Some(step) = &self.last_step {
             w.f64s(&[step.t_old, step.h]);
@@ -281,8 +259,9 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
 
     fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
         let mut method = Self::resume(Progress::deserialize_from(r)?);
-        method.first_valid = r.bool()?;
-        method.first = r.f64s()?;
+        let has_first = r.bool()?;
+        let first = r.f64s()?;
+        method.first = has_first.then_some(first);
         if r.bool()? {
             let [t_old, h] = r.f64s()?;
             method.last_step = Some(LastStep {
