@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-__all__ = ["RunnerError", "NativeRunner", "runner_path"]
+__all__ = ["RunnerError", "NativeRunner", "runner_path", "failed_result"]
 
 RUNNER = "fmu-runner"
 
@@ -250,19 +250,20 @@ class NativeRunner:
                 message = (f"no answer within {HARD_DEADLINE_FACTOR} × the budget of "
                            f"{self.plan['timeout_s']} s + {HARD_DEADLINE_GRACE_S} s: the runner "
                            "was killed")
-                results.append(_failed("timeout", message, self.plan))
+                results.append(failed_result("timeout", message, self.plan))
             self._restart()
             return results, True
         except BrokenPipeError:
             pass
         if careful:
             message = self._died() + " while running this point"
-            results.append(_failed("crashed", message, self.plan))
+            results.append(failed_result("crashed", message, self.plan))
         self._restart()
         return results, True
 
 
-def _failed(status: str, message: str, plan: dict) -> dict:
+def failed_result(status: str, message: str, plan: dict) -> dict:
+    """The result of a point that ended without a reply of the runner's."""
     return {"status": status, "message": message,
             "metrics": [None] * len(plan.get("metrics") or []),
             "t_end": None, "steps": None, "wall_s": None}

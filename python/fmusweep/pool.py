@@ -14,6 +14,8 @@ import time
 
 import numpy as np
 
+from .native import failed_result
+
 __all__ = ["Pool", "IN_FLIGHT_PER_WORKER", "without_message_log"]
 
 # Batches in flight per worker on Dask: one running and the next ones queued, so that no
@@ -126,9 +128,9 @@ class Pool:
                 try:
                     batch = future.result()
                 except KilledWorker as e:
-                    batch = {"points": chunk, "worker": "",
-                             "results": [lost(f"the batch failed on the cluster: {e!r}", self.plan)
-                                         for _ in chunk]}
+                    lost = failed_result("crashed", f"the batch failed on the cluster: {e!r}",
+                                         self.plan)
+                    batch = {"points": chunk, "worker": "", "results": [dict(lost) for _ in chunk]}
                 future.release()
                 del future
                 submit_next()
@@ -167,13 +169,6 @@ class Pool:
         while (count := self.client.run_on_scheduler(held)) and time.monotonic() < deadline:
             time.sleep(0.02)
         return count
-
-
-def lost(message: str, plan: dict) -> dict:
-    """The result of a point that never came back."""
-    return {"status": "crashed", "message": message,
-            "metrics": [None] * len(plan.get("metrics") or []), "t_end": None, "steps": None,
-            "wall_s": None}
 
 
 def without_message_log(serial: bool = False):

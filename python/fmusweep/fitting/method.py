@@ -57,34 +57,36 @@ def solve(problem, start: np.ndarray, index: int) -> Start:
     spec = problem.spec
     low, width = spec.lows, spec.highs - spec.lows
     outcome = Start(index, start)
-    jacobians: dict[bytes, np.ndarray] = {}
-    last_failure = [""]
+    # The Jacobian of the last evaluated point: the trust region asks for the Jacobian of
+    # an accepted trial, always the point it evaluated last.
+    last: tuple[bytes, np.ndarray] | None = None
+    failure = ""
 
     def theta(z):
         return low + np.asarray(z) * width
 
     def residuals(z):
+        nonlocal last, failure
         f, jacobian, message = _evaluate_with_jacobian(problem, theta(z), index, outcome.notes)
         if jacobian is None:
             # Asked for only at the start (scipy then stops on the infinite residuals):
             # any finite matrix will do.
             jacobian = np.zeros((len(f), len(width)))
-            last_failure[0] = message
-        jacobians[np.asarray(z).tobytes()] = jacobian * width
+            failure = message
+        last = (np.asarray(z).tobytes(), jacobian * width)
         return f
 
     def jacobian(z, *_):
-        key = np.asarray(z).tobytes()
-        if key not in jacobians:
+        if last is None or last[0] != np.asarray(z).tobytes():
             residuals(z)
-        return jacobians[key]
+        return last[1]
 
     z0 = (start - low) / width
     try:
         result = least_squares(residuals, z0, jac=jacobian, bounds=(0.0, 1.0), method="trf",
                                max_nfev=spec.max_iterations)
     except ValueError as e:
-        outcome.message = (f"the run at the start failed: {last_failure[0]}" if last_failure[0]
+        outcome.message = (f"the run at the start failed: {failure}" if failure
                            else f"the optimiser stopped: {e}")
         return outcome
     outcome.status = STATUS.get(result.status, "failed")
