@@ -19,12 +19,11 @@ import time
 import numpy as np
 
 from bench_coupled_step import coupled_run
-from bench_sweep import machine, write_results
+from bench_sweep import machine, ssp_rate, write_results
 from fmusweep import run_sweep
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests/python"))
-sys.path.insert(0, str(ROOT / "examples/dc_motor"))
 import reference  # noqa: E402
 
 MECHANISM = {"Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0, "Mr_b0": 20.0, "Mr_b1": -0.05, "c4": 0.5}
@@ -48,18 +47,6 @@ def system_spec(fmu, motor, stop, step, points, series=False):
 def native_rate(fmu, motor, points, tmp):
     spec = system_spec(fmu, motor, 10.0, 1e-3, points)
     r = run_sweep(spec, out=pathlib.Path(tmp) / "native", serial=True, progress=False, plots=False).report
-    return r.computed / r.point_seconds
-
-
-def ssp_rate(fmu, points, tmp):
-    import ssp as example
-    system = example.build_ssp(fmu, pathlib.Path(tmp) / "ssp")
-    spec = {"ssp": str(system),
-            "scenario": {"stop": 10.0, "step": 1e-3, "parameters": {
-                f"mechanism.{k}": v for k, v in example.LOAD.items() if k != "d34"}},
-            "design": {"kind": "grid", "parameters": {"mechanism.d34": {"linspace": [0.5, 1.5, points]}}},
-            "outputs": {"metrics": {"final": {"variable": "mechanism.omega1", "kind": "final"}}}}
-    r = run_sweep(spec, out=pathlib.Path(tmp) / "ssp-out", serial=True, progress=False, plots=False).report
     return r.computed / r.point_seconds
 
 
@@ -125,7 +112,7 @@ def main():
         print("bench-coupled-sweep: engines", flush=True)
         r["rates"]["native"] = native_rate(fmu, motor, 20 if quick else 100, tmp)
         r["rates"]["master_loop"] = master_loop_rate(fmu, motor, 2 if quick else 5)
-        r["rates"]["ssp"] = ssp_rate(fmu, 2 if quick else 4, tmp)
+        r["rates"]["ssp"] = ssp_rate(fmu, 2 if quick else 4, stop=10.0)["points_per_s"]
         print("bench-coupled-sweep: coupling error", flush=True)
         r["errors"] = {str(k): v for k, v in coupling_errors(fmu, motor, tmp).items()}
     write_results(out, r, report(r))
