@@ -100,6 +100,16 @@ impl OdeSystem<STATE_SIZE> for Driven<'_> {
     }
 }
 
+/// f at the integrator's point after short steps that ended on the communication point,
+/// with the inputs it was evaluated with. While nothing but the inputs changes, the next
+/// short step starts from it, shifted to the new inputs ([`model::shift_inputs`]), and
+/// evaluates no f of its own at the start.
+#[derive(Clone, Copy, Debug)]
+struct CarriedStage {
+    f: State,
+    inputs: Inputs,
+}
+
 #[derive(Clone, Debug)]
 pub struct CoSimulation {
     /// The integrator's own point, at or ahead of the plant's communication point.
@@ -113,6 +123,7 @@ pub struct CoSimulation {
     /// (it failed, or changed method).
     restart: bool,
     solver: Integrator<STATE_SIZE>,
+    carried: Option<CarriedStage>,
 }
 
 impl CoSimulation {
@@ -128,6 +139,7 @@ impl CoSimulation {
                 plant.solver_kind().choice(),
                 tolerances(experiment.tolerance),
             ),
+            carried: None,
         }
     }
 
@@ -158,13 +170,23 @@ impl CoSimulation {
         t_end: f64,
         experiment: &Experiment,
     ) -> Result<(), SolverError> {
-        if plant.take_changed() {
+        let restarting = self.restart;
+        let changed = plant.take_changed();
+        if changed {
             self.restart = true;
         }
-        if self.solver.reconsider(t_end - plant.time()) {
+        let reconsidered = self.solver.reconsider(t_end - plant.time());
+        if reconsidered {
             // `auto` changed method: the new one starts from the communication point.
             self.restart = true;
         }
+        // The last short steps' f at the end holds while the integrator stands on the
+        // communication point and only inputs changed since.
+        let carried = self
+            .carried
+            .take()
+            .filter(|_| !(restarting || changed || reconsidered))
+            .filter(|_| self.integrator_time == plant.time());
         if !plant.input_derivatives().is_zero() {
             // The input polynomials are anchored at this step's start: a new right-hand side.
             self.restart = true;
@@ -175,8 +197,10 @@ impl CoSimulation {
         }
         // Whether the integrator starts this step afresh from the communication point.
         let fresh = if self.restart {
-            self.integrator_time = plant.time();
-            self.integrator_state = *plant.state();
+            if carried.is_none() {
+                self.integrator_time = plant.time();
+                self.integrator_state = *plant.state();
+            }
             self.integrator_inputs = *plant.inputs();
             self.solver.invalidate();
             self.restart = false;
@@ -195,20 +219,22 @@ impl CoSimulation {
             false
         };
         let short = fresh && self.solver.suits_short_step(t_end - plant.time());
-        let (y, at) = self.integrate_to(plant, t_end, experiment, short)?;
+        let carried = carried.filter(|_| short);
+        let (y, at) = self.integrate_to(plant, t_end, experiment, (short, carried))?;
         plant.accept_point(t_end, y, &at);
         Ok(())
     }
 
     /// The integrator taken to (or past) `t_end`, and the state there, projected; with
-    /// `short`, by short steps that end on `t_end` ([`Integrator::integrate_short`]).
+    /// `short`, by short steps that end on `t_end` ([`Integrator::integrate_short`]), the
+    /// first from the `carried` stage if any.
     #[inline(always)]
     fn integrate_to(
         &mut self,
         plant: &Plant,
         t_end: f64,
         experiment: &Experiment,
-        short: bool,
+        (short, carried): (bool, Option<CarriedStage>),
     ) -> Result<(State, Projected), SolverError> {
         let system = Driven::new(plant, &self.integrator_inputs, experiment.tolerance);
         let limit = experiment.limit().max(t_end);
@@ -228,7 +254,24 @@ impl CoSimulation {
             } else {
                 let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
                 let stepped = if short {
-                    self.solver.integrate_short(&system, t, y, t_end)
+                    let first = carried.map(|stage| {
+                        let mut f = stage.f;
+                        model::shift_inputs(
+                            system.params,
+                            &mut f,
+                            &stage.inputs,
+                            &system.inputs_at(*t),
+                        );
+                        f
+                    });
+                    self.solver
+                        .integrate_short(&system, (t, y), t_end, first)
+                        .map(|end| {
+                            self.carried = end.map(|f| CarriedStage {
+                                f,
+                                inputs: system.inputs_at(t_end),
+                            })
+                        })
                 } else {
                     self.solver.integrate(&system, t, y, t_end, limit)
                 };
@@ -241,6 +284,7 @@ impl CoSimulation {
         let integrator = (self.integrator_time, &self.integrator_state);
         at_communication_point(&mut self.solver, &system, integrator, t_end).inspect_err(|_| {
             self.restart = true;
+            self.carried = None;
         })
     }
 
@@ -281,6 +325,13 @@ impl CoSimulation {
         ]);
         w.bool(self.restart);
         self.solver.serialize_into(w);
+        w.bool(self.carried.is_some());
+        let carried = self.carried.unwrap_or(CarriedStage {
+            f: [0.0; STATE_SIZE],
+            inputs: Inputs::default(),
+        });
+        w.f64s(&carried.f);
+        w.f64s(&[carried.inputs.motor_torque, carried.inputs.load_torque]);
     }
 
     /// The driver written by [`CoSimulation::serialize_into`], checked against the plant
@@ -295,6 +346,16 @@ impl CoSimulation {
         let [motor_torque, load_torque] = r.f64s()?;
         let restart = r.bool()?;
         let solver = Integrator::deserialize_from(r)?;
+        let has_carried = r.bool()?;
+        let f = r.f64s()?;
+        let [motor_torque_then, load_torque_then] = r.f64s()?;
+        let carried = has_carried.then_some(CarriedStage {
+            f,
+            inputs: Inputs {
+                motor_torque: motor_torque_then,
+                load_torque: load_torque_then,
+            },
+        });
         let driver = Self {
             integrator_time,
             integrator_state,
@@ -304,6 +365,7 @@ impl CoSimulation {
             },
             restart,
             solver,
+            carried,
         };
         driver
             .check_restored(plant, experiment)
@@ -323,6 +385,20 @@ impl CoSimulation {
         check_inputs(&self.integrator_inputs, " (integrator's)")?;
         if self.restarts(plant) {
             return Ok(());
+        }
+        // Used only while nothing restarts the integrator.
+        if let Some(stage) = &self.carried {
+            check_inputs(&stage.inputs, " (carried stage's)")?;
+            let mut f = [0.0; STATE_SIZE];
+            model::state_derivative(
+                plant.params(),
+                &stage.inputs,
+                &self.integrator_state,
+                &mut f,
+            );
+            if !same_bits(&f, &stage.f) {
+                return Err("the carried first stage is not f at the integrator's point".into());
+            }
         }
         if self.integrator_time < plant.time() {
             return Err("the integrator is behind the communication point".into());

@@ -88,6 +88,17 @@ pub fn state_derivative(p: &Parameters, inputs: &Inputs, y: &State, dy: &mut Sta
     dy[4..].copy_from_slice(&a.omega_dot);
 }
 
+/// ẏ at the same (t, y) for inputs `to` instead of `from`, from ẏ = `dy` with `from`. The
+/// inputs are torques on the crank and the rocker: they enter Q1 and Q4 alone, additively
+/// (the built-in laws add to them, independent of the inputs), and ω̇1 = Q1/J1,
+/// ω̇4 = Q4/J4; the constrained pair sees only Q2 and Q3. So ∂ẏ/∂M_m = 1/J1 on ω̇1 and
+/// ∂ẏ/∂M_r = −1/J4 on ω̇4, whatever the state: the shift is exact up to rounding.
+#[inline(always)]
+pub fn shift_inputs(p: &Parameters, dy: &mut State, from: &Inputs, to: &Inputs) {
+    dy[4] += (to.motor_torque - from.motor_torque) / p.J1;
+    dy[7] -= (to.load_torque - from.load_torque) / p.J4;
+}
+
 /// Rod axial force, tension positive: −λ·L (docs/model.md §2), with λ from whichever of
 /// λ = (J2·ω̇2 − Q2)/B1 = −(J3·ω̇3 − Q3)/C1 has the larger denominator.
 pub fn rod_force<T: Scalar>(p: &Parameters, inputs: &Inputs<T>, y: &[T; 8]) -> T {
@@ -253,5 +264,46 @@ mod tests {
             tension.abs() > 1.0,
             "a loaded linkage carries rod force: {tension}"
         );
+    }
+
+    /// The input shift equals evaluating afresh with the other inputs, to rounding of the
+    /// terms, on states and inputs across their ranges, built-in laws on and off.
+    #[test]
+    fn shifting_the_inputs_equals_evaluating_with_them() {
+        for builtin_laws in [false, true] {
+            let p = Parameters {
+                builtin_laws,
+                d12: 0.3,
+                d34: 0.2,
+                ..Parameters::default()
+            };
+            let y = sample_state(&p);
+            for (k, (m, r)) in [(0.0, 0.0), (150.0, -20.0), (-3e3, 7.5), (1e-9, 1e5)]
+                .into_iter()
+                .enumerate()
+            {
+                let from = Inputs {
+                    motor_torque: 10.0 * k as f64 - 5.0,
+                    load_torque: 2.0 - k as f64,
+                };
+                let to = Inputs {
+                    motor_torque: m,
+                    load_torque: r,
+                };
+                let (mut shifted, mut fresh) = ([0.0; 8], [0.0; 8]);
+                state_derivative(&p, &from, &y, &mut shifted);
+                shift_inputs(&p, &mut shifted, &from, &to);
+                state_derivative(&p, &to, &y, &mut fresh);
+                for i in 0..8 {
+                    let size = fresh[i].abs() + (m.abs() + r.abs() + 1e3) / p.J1.min(p.J4);
+                    assert!(
+                        (shifted[i] - fresh[i]).abs() <= 8.0 * f64::EPSILON * size,
+                        "component {i}: {} against {}",
+                        shifted[i],
+                        fresh[i]
+                    );
+                }
+            }
+        }
     }
 }

@@ -12,7 +12,7 @@ pub mod scalar;
 pub mod trig;
 
 pub use chart::{Chart, Coordinates, Independent};
-pub use dynamics::{accelerations, energy, power, rod_force, state_derivative};
+pub use dynamics::{accelerations, energy, power, rod_force, shift_inputs, state_derivative};
 pub use kinematics::{length_residual, length_residual_from_closure};
 pub use linkage::{classify, LinkageClass, LINKAGE_CLASSES};
 pub use params::{Parameters, PARAMETERS};

@@ -1,13 +1,20 @@
 //! The classic fourth-order Runge–Kutta method with an embedded third-order estimate,
 //! for steps far shorter than DOP853's natural step.
 //!
-//! A step costs four evaluations and a fifth, f at the step's end, for its error: with
-//! k5 = f(t + h, y_new), the weights (1/6, 1/3, 1/3, 0, 1/6) on (k1 … k5) give a
-//! third-order solution, and the difference from the fourth-order one is h/6·(k4 − k5).
+//! A step costs three evaluations besides f at its start, and a fourth, f at its end, for
+//! its error: with k5 = f(t + h, y_new), the weights (1/6, 1/3, 1/3, 0, 1/6) on (k1 … k5)
+//! give a third-order solution, and the difference from the fourth-order one is
+//! h/6·(k4 − k5). The end is projected onto the manifold before k5 is evaluated there, so
+//! k5 is f at the point the next step starts from: the next step's k1 (first same as
+//! last). The projection moves the end by about a local error, which changes the estimate
+//! by h·L times that, an order higher than the estimate itself.
+//!
 //! When the right-hand side changes at every communication point (a coupled master sets
-//! an input each step), every step starts afresh anyway; a DOP853 step then costs at
-//! least twelve evaluations where this one costs five, and a step of a millisecond is far
-//! below what an eighth-order method needs to be accurate.
+//! an input each step), a DOP853 step costs at least twelve evaluations where this one
+//! costs four, and a step of a millisecond is far below what an eighth-order method needs
+//! to be accurate. The caller may give the first step's k1 ([`Rk4::start_with`]): the
+//! driver derives it from the last k5 when only inputs that enter the right-hand side
+//! linearly changed.
 
 use super::{
     after_accepted, check_step_size, first_step, plan_step, OdeSystem, Progress, SolverError,
@@ -28,7 +35,7 @@ struct LastStep<const N: usize> {
     /// The step's end after projection.
     y_new: [f64; N],
     f_old: [f64; N],
-    /// f at the step's end before projection (the fifth stage).
+    /// f at the projected end (the fifth stage).
     f_new: [f64; N],
 }
 
@@ -50,8 +57,21 @@ impl<const N: usize> Rk4<N> {
         f
     }
 
-    /// One trial step of size `h` from (t, y) with f(t, y) = `k1`: the fourth-order end in
-    /// `y_new`, f there in `f_new`, and the scaled error norm (NaN for a non-finite stage).
+    /// Start the next call's first step with `k1` = f(t, y) at the point it starts from.
+    pub fn start_with(&mut self, k1: [f64; N]) {
+        self.first = Some(k1);
+    }
+
+    /// f(t, y) at the integrator's point, if known: after a step, f at its projected end.
+    pub fn first_stage(&self) -> Option<[f64; N]> {
+        self.first
+    }
+
+    /// One trial step of size `h` from (t, y) with f(t, y) = `k1`: the fourth-order end,
+    /// projected, in `y_new`, f there in `f_new`, and the scaled error norm (NaN for a
+    /// non-finite stage). Where the end cannot be projected, the error of the unprojected
+    /// end decides: a step to be rejected anyway is rejected, an accepted one fails with
+    /// the projection's reason.
     #[inline(always)]
     fn attempt<S: OdeSystem<N>>(
         &mut self,
@@ -60,7 +80,7 @@ impl<const N: usize> Rk4<N> {
         h: f64,
         y_new: &mut [f64; N],
         f_new: &mut [f64; N],
-    ) -> f64 {
+    ) -> Result<f64, String> {
         let half = 0.5 * h;
         let k2 = self.eval(
             system,
@@ -77,6 +97,11 @@ impl<const N: usize> Rk4<N> {
         for n in 0..N {
             y_new[n] = y[n] + sixth * ((k1[n] + k4[n]) + 2.0 * (k2[n] + k3[n]));
         }
+        let mut projected = *y_new;
+        let projection = system.project(y, &mut projected);
+        if projection.is_ok() {
+            *y_new = projected;
+        }
         *f_new = self.eval(system, t + h, y_new);
         let Tolerances { rtol, atol } = self.progress.tolerances;
         let mut sum = 0.0;
@@ -84,7 +109,11 @@ impl<const N: usize> Rk4<N> {
             let scale = atol + rtol * y[n].abs().max(y_new[n].abs());
             sum += (sixth * (k4[n] - f_new[n]) / scale).powi(2);
         }
-        (sum / N as f64).sqrt()
+        let error = (sum / N as f64).sqrt();
+        match projection {
+            Err(reason) if error <= 1.0 => Err(reason),
+            _ => Ok(error),
+        }
     }
 }
 
@@ -150,21 +179,24 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
         while *t < target {
             let (h_step, landing) = plan_step(*t, h, limit, taken)?;
             taken += 1;
-            let error = self.attempt(system, (*t, y, &k1), h_step, &mut y_new, &mut f_new);
+            let attempted = self.attempt(system, (*t, y, &k1), h_step, &mut y_new, &mut f_new);
+            let error = match attempted {
+                Ok(error) => error,
+                Err(reason) => {
+                    self.first = None;
+                    self.last_step = None;
+                    return Err(SolverError::ProjectionFailed {
+                        t: *t + h_step,
+                        reason,
+                    });
+                }
+            };
             if error.is_nan() || error > 1.0 {
                 self.progress.stats.n_rejected += 1;
                 h = h_step * step_factor(error, true).min(0.5);
                 last_rejected = true;
                 check_step_size(*t, h)?;
                 continue;
-            }
-            self.first = None;
-            if let Err(reason) = system.project(y, &mut y_new) {
-                self.last_step = None;
-                return Err(SolverError::ProjectionFailed {
-                    t: *t + h_step,
-                    reason,
-                });
             }
             self.progress.stats.n_steps += 1;
             self.last_step = Some(LastStep {
@@ -177,11 +209,8 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
             });
             *y = y_new;
             *t = if landing { limit } else { *t + h_step };
-            // The projection moved the end: f there is evaluated afresh, by the next step.
-            if *t < target {
-                k1 = self.eval(system, *t, y);
-                self.first = Some(k1);
-            }
+            k1 = f_new;
+            self.first = Some(k1);
             h = after_accepted(h_step * step_factor(error, last_rejected), h, landing);
             last_rejected = false;
         }
@@ -233,8 +262,7 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
             step.h,
             &mut y_new,
             &mut f_new,
-        );
-        system.project(&step.y_old, &mut y_new)?;
+        )?;
         let agree = same_bits(&f_old, &step.f_old)
             && same_bits(&f_new, &step.f_new)
             && same_bits(&y_new, &step.y_new);
@@ -291,7 +319,9 @@ mod tests {
             let (y, mut k1) = ([1.0, 0.0], [0.0; 2]);
             Oscillator.rhs(0.0, &y, &mut k1);
             let (mut y_new, mut f_new) = ([0.0; 2], [0.0; 2]);
-            let estimate = method.attempt(&Oscillator, (0.0, &y, &k1), h, &mut y_new, &mut f_new);
+            let estimate = method
+                .attempt(&Oscillator, (0.0, &y, &k1), h, &mut y_new, &mut f_new)
+                .unwrap();
             let true_error = (y_new[0] - h.cos()).abs().max((y_new[1] + h.sin()).abs());
             (estimate, true_error)
         };
@@ -310,17 +340,31 @@ mod tests {
     }
 
     /// A step that lands on the limit costs five evaluations when f at the start is not
-    /// known: the four stages and the estimate's.
+    /// known (the four stages and the estimate's), four when it is given, and the next
+    /// step starts from the estimate's f at the projected end.
     #[test]
-    fn a_fresh_landing_step_costs_five_evaluations() {
-        let mut method = Rk4::<2>::new(tol(1e-8));
-        method.progress_mut().next_step = Some(1e-3);
-        let (mut t, mut y) = (0.0, [1.0, 0.0]);
-        method
-            .integrate(&Oscillator, &mut t, &mut y, 1e-3, 1e-3)
-            .unwrap();
-        assert_eq!(t, 1e-3);
-        let stats = method.statistics();
-        assert_eq!((stats.n_steps, stats.n_rhs, stats.n_rejected), (1, 5, 0));
+    fn a_landing_step_costs_five_evaluations_or_four_given_its_first_stage() {
+        let run = |first: Option<[f64; 2]>| {
+            let mut method = Rk4::<2>::new(tol(1e-8));
+            method.progress_mut().next_step = Some(1e-3);
+            if let Some(k1) = first {
+                method.start_with(k1);
+            }
+            let (mut t, mut y) = (0.0, [1.0, 0.0]);
+            method
+                .integrate(&Oscillator, &mut t, &mut y, 1e-3, 1e-3)
+                .unwrap();
+            assert_eq!(t, 1e-3);
+            let mut f_end = [0.0; 2];
+            Oscillator.rhs(t, &y, &mut f_end);
+            assert_eq!(method.first_stage(), Some(f_end));
+            let stats = method.statistics();
+            (stats.n_steps, stats.n_rhs, stats.n_rejected, y)
+        };
+        let (steps, rhs, rejected, cold) = run(None);
+        assert_eq!((steps, rhs, rejected), (1, 5, 0));
+        let (steps, rhs, rejected, given) = run(Some([0.0, -1.0]));
+        assert_eq!((steps, rhs, rejected), (1, 4, 0));
+        assert_eq!(cold, given);
     }
 }
