@@ -1,5 +1,6 @@
 """The compiled DC motor of examples/dc_motor/native (packed by `cargo xtask motor`): a
-valid FMU, exact steps and output derivatives for held inputs, bad values refused by name,
+valid FMU, exact steps and output derivatives for held inputs and for inputs moving along
+their derivatives, bad values refused by name,
 and coupled to the mechanism the same run as the Python-written motor of
 examples/dc_motor/dc_motor.py."""
 
@@ -72,6 +73,41 @@ def test_a_step_of_any_size_is_exact_for_held_inputs(motor):
         got_current, got_torque = motor.getReal([motor.vr["current"], motor.vr["torque"]])
         assert math.isclose(got_current, current, rel_tol=1e-14)
         assert got_torque == K * got_current
+
+
+def test_steps_along_input_derivatives_are_exact(motor):
+    """Speed and voltage moving along the derivatives the master sets: steps of any size,
+    and values set between them, agree with the current's ODE solved by scipy at tight
+    tolerance, and so do the output derivatives."""
+    from scipy.integrate import solve_ivp
+    w0, w1, w2, v1 = 5.0, 30.0, -40.0, 6.0   # omega(t) = w0 + w1·t + w2·t²/2, V' = v1
+
+    def omega(t):
+        return w0 + w1 * t + 0.5 * w2 * t * t
+
+    def rate(t, i):
+        return (V + v1 * t - R * i - K * omega(t)) / L
+
+    motor.setupExperiment(startTime=0.0)
+    motor.enterInitializationMode()
+    motor.setReal([motor.vr["omega"]], [w0])
+    motor.setRealInputDerivatives([motor.vr["omega"]] * 2 + [motor.vr["voltage"]], [1, 2, 1],
+                                  [w1, w2, v1])
+    motor.exitInitializationMode()
+    times = [0.0, 1e-4, 0.003, 0.02, 0.05, 0.2]
+    exact = solve_ivp(lambda t, i: [rate(t, i[0])], (0.0, times[-1]), [0.0], method="DOP853",
+                      rtol=1e-13, atol=1e-15, t_eval=times[1:], dense_output=True)
+    for k, (t, t_next) in enumerate(zip(times, times[1:])):
+        if k == 3:
+            # The master sets the speed it would have anyway: the course goes on.
+            motor.setReal([motor.vr["omega"]], [omega(t)])
+        motor.doStep(t, t_next - t)
+        current = motor.getReal([motor.vr["current"]])[0]
+        assert math.isclose(current, exact.y[0][k], rel_tol=1e-11, abs_tol=1e-12), t_next
+        first, second = motor.getRealOutputDerivatives([motor.vr["current"]] * 2, [1, 2])
+        assert math.isclose(first, rate(t_next, current), rel_tol=1e-11)
+        rate_of_rate = (v1 - K * (w1 + w2 * t_next) - R * first) / L
+        assert math.isclose(second, rate_of_rate, rel_tol=1e-11)
 
 
 def test_bad_values_are_refused_by_name_and_change_nothing(motor):

@@ -1,9 +1,10 @@
 /* A DC motor as an FMI 2.0 co-simulation FMU in C: armature voltage and shaft speed in,
  * current and torque out. Electrical state: L·di/dt = V − R·i − k·ω; torque k·i. With the
- * inputs held over a communication step the current has an exact solution, so a step of
- * any size is exact; its output derivatives are exact too (the same equations as
- * ../dc_motor.py, which builds the same motor with pythonfmu). Built and packed by
- * `cargo xtask motor` into target/fmu/DcMotor.fmu. */
+ * inputs held over a communication step, or moving along the first and second derivatives
+ * a master sets (fmi2SetRealInputDerivatives), the current has an exact solution, so a
+ * step of any size is exact; its output derivatives are exact too (the same equations as
+ * ../dc_motor.py, which builds the same motor with pythonfmu and holds its inputs). Built
+ * and packed by `cargo xtask motor` into target/fmu/DcMotor.fmu. */
 
 #include <math.h>
 #include <stdarg.h>
@@ -24,6 +25,10 @@ typedef enum { INSTANTIATED, INITIALIZATION, STEPPING, TERMINATED } State;
 
 typedef struct {
     double values[N_VARIABLES];
+    /* d/dt and d²/dt² of the inputs voltage and omega, as the master set them; the inputs
+     * move along them from the time they were set, `elapsed` ago. */
+    double input_derivatives[2][2];
+    double elapsed;
     double time;
     State state;
     fmi2CallbackFunctions callbacks;
@@ -62,6 +67,8 @@ static void update_outputs(Motor *m) {
 
 static void set_defaults(Motor *m) {
     memset(m->values, 0, sizeof m->values);
+    memset(m->input_derivatives, 0, sizeof m->input_derivatives);
+    m->elapsed = 0.0;
     m->values[VR_R] = 0.5;
     m->values[VR_L] = 0.01;
     m->values[VR_K] = 2.0;
@@ -70,10 +77,23 @@ static void set_defaults(Motor *m) {
     m->state = INSTANTIATED;
 }
 
-/* di/dt with the inputs held. */
-static double current_rate(const Motor *m) {
+/* The forcing V − k·ω and its first two time derivatives, `s` after the inputs were set. */
+static void forcing(const Motor *m, double s, double f[3]) {
+    const double *v = m->values, (*d)[2] = m->input_derivatives;
+    double voltage = v[VR_VOLTAGE] + s * (d[0][0] + 0.5 * s * d[0][1]);
+    double omega = v[VR_OMEGA] + s * (d[1][0] + 0.5 * s * d[1][1]);
+    f[0] = voltage - v[VR_K] * omega;
+    f[1] = (d[0][0] + s * d[0][1]) - v[VR_K] * (d[1][0] + s * d[1][1]);
+    f[2] = d[0][1] - v[VR_K] * d[1][1];
+}
+
+/* di/dt and d²i/dt² now. */
+static void current_rates(const Motor *m, double rates[2]) {
     const double *v = m->values;
-    return (v[VR_VOLTAGE] - v[VR_R] * v[VR_CURRENT] - v[VR_K] * v[VR_OMEGA]) / v[VR_L];
+    double f[3];
+    forcing(m, m->elapsed, f);
+    rates[0] = (f[0] - v[VR_R] * v[VR_CURRENT]) / v[VR_L];
+    rates[1] = (f[1] - v[VR_R] * rates[0]) / v[VR_L];
 }
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -173,6 +193,19 @@ static int refused(const Motor *m, fmi2ValueReference vr, double value, char *wh
     return 1;
 }
 
+/* Move the inputs to now along their derivatives, all but `kept` (just set), and count
+ * their time from now. */
+static void restart_inputs(Motor *m, fmi2ValueReference kept) {
+    double s = m->elapsed, (*d)[2] = m->input_derivatives;
+    int j;
+    for (j = 0; j < 2; j++) {
+        fmi2ValueReference vr = j == 0 ? VR_VOLTAGE : VR_OMEGA;
+        if (vr != kept) m->values[vr] += s * (d[j][0] + 0.5 * s * d[j][1]);
+        d[j][0] += s * d[j][1];
+    }
+    m->elapsed = 0.0;
+}
+
 fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n, const fmi2Real value[]) {
     Motor *m = c;
     size_t i;
@@ -184,7 +217,12 @@ fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
         if (refused(m, vr[i], value[i], why, sizeof why))
             return refuse(m, "fmi2SetReal", why); /* nothing applied */
     }
-    for (i = 0; i < n; i++) m->values[vr[i]] = value[i];
+    for (i = 0; i < n; i++) {
+        m->values[vr[i]] = value[i];
+        /* A new input value: the inputs move from here along their derivatives. The other
+         * input is moved to now first, so that it keeps its course. */
+        if (vr[i] == VR_VOLTAGE || vr[i] == VR_OMEGA) restart_inputs(m, vr[i]);
+    }
     return fmi2OK;
 }
 
@@ -202,27 +240,35 @@ fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t n,
     return fmi2OK;
 }
 
-/* The exact step for held inputs: i relaxes to its steady value (V − k·ω)/R with the time
- * constant L/R. */
+/* The exact step: with the forcing F(s) = F0 + F1·s + F2·s²/2 over the step (constant for
+ * held inputs), L·i' + R·i = F has the particular solution a + b·s + c·s² with R·c = F2/2,
+ * R·b = F1 − 2L·c, R·a = F0 − L·b, and i − (a + b·s + c·s²) decays with the time constant
+ * L/R. Held inputs give b = c = 0: i relaxes to its steady value (V − k·ω)/R. */
 fmi2Status fmi2DoStep(fmi2Component c, fmi2Real now, fmi2Real h, fmi2Boolean noSetPrior) {
     Motor *m = c;
-    double steady, decay;
+    double f[3], a, b, cc, R, L, decay;
     (void)noSetPrior;
     if (!m) return fmi2Error;
     if (m->state != STEPPING) return refuse(m, "fmi2DoStep", "only after initialisation");
     if (!(h > 0.0) || !isfinite(h)) return refuse(m, "fmi2DoStep", "communicationStepSize must be finite and > 0");
     if (fabs(now - m->time) > 1e-12 * fmax(fabs(m->time), h))
         return refuse(m, "fmi2DoStep", "currentCommunicationPoint does not match the FMU's time");
-    steady = (m->values[VR_VOLTAGE] - m->values[VR_K] * m->values[VR_OMEGA]) / m->values[VR_R];
-    decay = exp(-h * m->values[VR_R] / m->values[VR_L]);
-    m->values[VR_CURRENT] = steady + (m->values[VR_CURRENT] - steady) * decay;
+    R = m->values[VR_R];
+    L = m->values[VR_L];
+    forcing(m, m->elapsed, f);
+    cc = 0.5 * f[2] / R;
+    b = (f[1] - 2.0 * L * cc) / R;
+    a = (f[0] - L * b) / R;
+    decay = exp(-h * R / L);
+    m->values[VR_CURRENT] = (a + h * (b + h * cc)) + (m->values[VR_CURRENT] - a) * decay;
     update_outputs(m);
+    m->elapsed += h;
     m->time = now + h;
     return fmi2OK;
 }
 
-/* torque' = k·di/dt and torque'' = k·d²i/dt² = −(R/L)·k·di/dt with the inputs held;
- * likewise for the current. */
+/* torque' = k·di/dt and torque'' = k·d²i/dt², with d²i/dt² = (F' − R·di/dt)/L (F' = 0
+ * for held inputs); likewise for the current. */
 fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                         const fmi2Integer order[], fmi2Real value[]) {
     Motor *m = c;
@@ -232,20 +278,42 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
         return refuse(m, "fmi2GetRealOutputDerivatives", "only after initialisation");
     if (n > 0 && (!vr || !order || !value)) return refuse(m, "fmi2GetRealOutputDerivatives", "an array is NULL");
     for (i = 0; i < n; i++) {
-        double rate = current_rate(m), scale;
+        double rates[2], scale;
+        current_rates(m, rates);
         if (vr[i] != VR_CURRENT && vr[i] != VR_TORQUE)
             return refuse(m, "fmi2GetRealOutputDerivatives", "only current and torque have output derivatives");
         if (order[i] != 1 && order[i] != 2)
             return refuse(m, "fmi2GetRealOutputDerivatives", "order must be 1 or 2");
         scale = vr[i] == VR_TORQUE ? m->values[VR_K] : 1.0;
-        value[i] = scale * (order[i] == 1 ? rate : -(m->values[VR_R] / m->values[VR_L]) * rate);
+        value[i] = scale * rates[order[i] - 1];
     }
     return fmi2OK;
 }
 
+/* The inputs' first and second derivatives, for the steps to come: applied from now (the
+ * inputs' values are moved to now first). */
+fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference vr[], size_t n,
+                                       const fmi2Integer order[], const fmi2Real value[]) {
+    Motor *m = c;
+    size_t i;
+    if (!m) return fmi2Error;
+    if (m->state != INITIALIZATION && m->state != STEPPING)
+        return refuse(m, "fmi2SetRealInputDerivatives", "only in initialisation or stepping");
+    if (n > 0 && (!vr || !order || !value)) return refuse(m, "fmi2SetRealInputDerivatives", "an array is NULL");
+    for (i = 0; i < n; i++) {
+        if (vr[i] != VR_VOLTAGE && vr[i] != VR_OMEGA)
+            return refuse(m, "fmi2SetRealInputDerivatives", "only voltage and omega are inputs");
+        if (order[i] != 1 && order[i] != 2)
+            return refuse(m, "fmi2SetRealInputDerivatives", "order must be 1 or 2");
+        if (!isfinite(value[i])) return refuse(m, "fmi2SetRealInputDerivatives", "a derivative must be finite");
+    }
+    restart_inputs(m, N_VARIABLES);
+    for (i = 0; i < n; i++) m->input_derivatives[vr[i] == VR_OMEGA][order[i] - 1] = value[i];
+    return fmi2OK;
+}
+
 /* What this motor does not have: no Integer, Boolean or String variables (an empty request
- * succeeds), no FMU state, no directional derivatives, no input derivatives, no
- * asynchronous steps. */
+ * succeeds), no FMU state, no directional derivatives, no asynchronous steps. */
 #define NO_VARIABLES(fn, T, qualifier)                                                          \
     fmi2Status fn(fmi2Component c, const fmi2ValueReference vr[], size_t n, qualifier T value[]) { \
         (void)vr;                                                                               \
@@ -273,8 +341,6 @@ UNSUPPORTED(fmi2SerializeFMUstate, fmi2FMUstate s, fmi2Byte b[], size_t size)
 UNSUPPORTED(fmi2DeSerializeFMUstate, const fmi2Byte b[], size_t size, fmi2FMUstate *s)
 UNSUPPORTED(fmi2GetDirectionalDerivative, const fmi2ValueReference u[], size_t nu,
             const fmi2ValueReference k[], size_t nk, const fmi2Real dk[], fmi2Real du[])
-UNSUPPORTED(fmi2SetRealInputDerivatives, const fmi2ValueReference vr[], size_t n,
-            const fmi2Integer order[], const fmi2Real value[])
 UNSUPPORTED(fmi2GetStatus, const fmi2StatusKind s, fmi2Status *value)
 UNSUPPORTED(fmi2GetRealStatus, const fmi2StatusKind s, fmi2Real *value)
 UNSUPPORTED(fmi2GetIntegerStatus, const fmi2StatusKind s, fmi2Integer *value)
