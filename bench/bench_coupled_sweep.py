@@ -1,14 +1,16 @@
 """The coupled-sweep benchmark: the DC motor driving the mechanism (examples/dc_motor, 10 s
 at H = 1 ms), points per second of one worker through each engine, side by side in this
-process, and the coupling error of the native engine against the monolithic reference
-(motor and mechanism as one ODE, scipy's DOP853 at rtol 1e-11) at H = 1, 2, 5 and 10 ms.
+process; and for each engine of a [system] the coupling error against the monolithic
+reference (motor and mechanism as one ODE, scipy's DOP853 at rtol 1e-11) and the points
+per second at H = 1, 2, 5 and 10 ms: the two curves that decide between the engines.
 
     python bench/bench_coupled_sweep.py <CyclicMechanism.fmu> <DcMotor.fmu> <output directory> [--quick]
 
-Engines: the native one (a [system] of the compiled motor and the mechanism, one container
-FMU in the runner), FMPy's SSP support through fmusweep (the Python-written motor, as the
-SSP example packs it), and an FMPy master loop of FMPy's calls (the compiled motor).
-Writes results.json and results.md.
+Engines: a [system] of the compiled motor and the mechanism run by the runner itself
+(`native`, with input derivatives of order 0, 1 or 2) or as one container FMU
+(`container`); FMPy's SSP support through fmusweep (the Python-written motor, as the SSP
+example packs it); and an FMPy master loop of FMPy's calls (the compiled motor).
+Writes results.json, results.md and curves.png.
 """
 
 import pathlib
@@ -30,10 +32,20 @@ MECHANISM = {"Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0, "Mr_b0": 20.0, "Mr_b1": -
 STATES = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4"]
 
 
-def system_spec(fmu, motor, stop, step, points, series=False):
+# (engine, input derivatives): the [system] engines compared.
+ENGINES = [("native", 2), ("native", 1), ("native", 0), ("container", 0)]
+STEPS = (1e-3, 2e-3, 5e-3, 1e-2)
+
+
+def engine_name(engine, derivatives):
+    return f"{engine}, input derivatives {derivatives}" if engine == "native" else engine
+
+
+def system_spec(fmu, motor, stop, step, points, series=False, engine=("native", 2)):
     spec = {"system": {"components": {"motor": str(motor), "mechanism": str(fmu)},
                        "connections": [["motor.torque", "mechanism.M_m"],
-                                       ["mechanism.omega1", "motor.omega"]]},
+                                       ["mechanism.omega1", "motor.omega"]],
+                       "engine": engine[0], "input_derivatives": engine[1]},
             "scenario": {"stop": stop, "step": step, "tolerance": 1e-8,
                          "parameters": {f"mechanism.{k}": v for k, v in MECHANISM.items()}},
             "design": {"kind": "grid", "parameters": {
@@ -44,9 +56,10 @@ def system_spec(fmu, motor, stop, step, points, series=False):
     return spec
 
 
-def native_rate(fmu, motor, points, tmp):
-    spec = system_spec(fmu, motor, 10.0, 1e-3, points)
-    r = run_sweep(spec, out=pathlib.Path(tmp) / "native", serial=True, progress=False, plots=False).report
+def system_rate(fmu, motor, points, tmp, engine=("native", 2), step=1e-3):
+    spec = system_spec(fmu, motor, 10.0, step, points, engine=engine)
+    out = pathlib.Path(tmp) / f"rate-{engine[0]}-{engine[1]}-{step}"
+    r = run_sweep(spec, out=out, serial=True, progress=False, plots=False).report
     return r.computed / r.point_seconds
 
 
@@ -57,16 +70,16 @@ def master_loop_rate(fmu, motor, points):
     return points / (time.perf_counter() - t0)
 
 
-def coupling_errors(fmu, motor, tmp, stop=2.0):
-    """The native engine's worst error over the states and the current at every
-    communication point against the monolithic reference, in units of each one's scale
-    max(1, max |y|), per communication step."""
+def coupling_errors(fmu, motor, tmp, engine, stop=2.0):
+    """An engine's worst error over the states and the current at every communication point
+    against the monolithic reference, in units of each one's scale max(1, max |y|), per
+    communication step."""
     p = reference.Params(**MECHANISM, d34=1.0)
     errors = {}
-    for step in (1e-3, 2e-3, 5e-3, 1e-2):
-        spec = system_spec(fmu, motor, stop, step, 1, series=True)
-        results = run_sweep(spec, out=pathlib.Path(tmp) / f"error-{step}", serial=True,
-                            progress=False, plots=False)
+    for step in STEPS:
+        spec = system_spec(fmu, motor, stop, step, 1, series=True, engine=engine)
+        out = pathlib.Path(tmp) / f"error-{engine[0]}-{engine[1]}-{step}"
+        results = run_sweep(spec, out=out, serial=True, progress=False, plots=False)
         series = results.series()
         names = [f"mechanism.{s}" for s in STATES] + ["motor.current"]
         columns = [series[series["variable"] == n].sort_values("time") for n in names]
@@ -78,44 +91,106 @@ def coupling_errors(fmu, motor, tmp, stop=2.0):
     return errors
 
 
+def rate_at_error(curve, target):
+    """Points/s at coupling error `target` on an engine's curve [(step, error, rate)],
+    log-log interpolated between measured steps, as text: "≥ rate" when even the longest
+    step measured is more accurate (longer steps would be faster still), "–" when the
+    shortest is not accurate enough."""
+    for (h0, e0, r0), (h1, e1, r1) in zip(curve, curve[1:]):
+        if min(e0, e1) <= target <= max(e0, e1):
+            x = np.log(target / e0) / np.log(e1 / e0)
+            return f"{np.exp(np.log(r0) + x * np.log(r1 / r0)):.0f}"
+    if target > max(e for _, e, _ in curve):
+        return f"≥ {curve[-1][2]:.0f}"
+    return "–"
+
+
 def report(r) -> str:
     rates = r["rates"]
-    e = r["errors"]
-    steps = sorted(e, key=float)
-    orders = [np.log(e[b] / e[a]) / np.log(float(b) / float(a)) for a, b in zip(steps, steps[1:])]
-    return "\n".join([
+    curves = r["curves"]
+    names = list(curves)
+    lines = [
         "# Coupled-sweep benchmark", "",
         f"Machine: {r['machine']}. The DC motor driving the mechanism (examples/dc_motor: the "
         "motor's torque to M_m, omega1 back; the built-in motor law off, the paper's load "
-        "law, c4 = 0.5), 10 s at H = 1 ms, tol 1e-8, one worker, engines side by side in one run.", "",
+        "law, c4 = 0.5), tol 1e-8, one worker, engines side by side in one run.", "",
+        "## Engines at H = 1 ms", "",
+        "10 s per point.", "",
         "| engine (one worker) | points/s | against the SSP path |", "| --- | --- | --- |",
-        f"| native: a [system] as one container FMU in the runner, compiled motor | {rates['native']:.1f} | "
-        f"{rates['native'] / rates['ssp']:.0f}× |",
+        *[f"| [system], engine {n} | {rates[n]:.1f} | {rates[n] / rates['ssp']:.0f}× |" for n in names],
         f"| an FMPy master loop of FMPy's calls, compiled motor | {rates['master_loop']:.2f} | "
         f"{rates['master_loop'] / rates['ssp']:.1f}× |",
         f"| FMPy's SSP support through fmusweep, Python-written motor | {rates['ssp']:.2f} | 1× |", "",
-        "Coupling error of the native engine (inputs held over each step: the container passes no "
-        "input derivatives) against the monolithic reference (motor and mechanism as one ODE, "
-        "scipy's DOP853 at rtol 1e-11), worst over φ1..φ4, ω1..ω4 and the current at every "
-        "communication point of 2 s, in units of each one's scale max(1, max |y|):", "",
-        "| H | error |", "| --- | --- |",
-        *[f"| {float(s) * 1000:g} ms | {e[s]:.2e} |" for s in steps], "",
-        "Observed order between successive steps: " + ", ".join(f"{o:.2f}" for o in orders) + ".", ""])
+        "## Coupling error and speed by communication step", "",
+        "Error against the monolithic reference (motor and mechanism as one ODE, scipy's "
+        "DOP853 at rtol 1e-11), worst over φ1..φ4, ω1..ω4 and the current at every "
+        "communication point of 2 s, in units of each one's scale max(1, max |y|); points/s "
+        "of 10 s runs at that step. The native engine passes the motor's torque derivatives "
+        "to the mechanism and the mechanism's speed derivatives to the motor up to the order "
+        "given; the container holds inputs over a step.", "",
+        "| engine | " + " | ".join(f"H = {h * 1000:g} ms: error, points/s" for h in STEPS) + " | observed order |",
+        "| --- | " + " | ".join("---" for _ in STEPS) + " | --- |"]
+    for n in names:
+        c = curves[n]
+        orders = [np.log(b[1] / a[1]) / np.log(b[0] / a[0]) for a, b in zip(c, c[1:])]
+        lines.append(f"| {n} | " + " | ".join(f"{e:.2e}, {rate:.0f}" for _, e, rate in c)
+                     + " | " + ", ".join(f"{o:.2f}" for o in orders) + " |")
+    lines += ["", "Points/s at equal coupling error (log-log interpolation between the measured "
+                  "steps; ≥ where the longest step measured is already more accurate, – where the "
+                  "shortest is not accurate enough):", "",
+              "| engine | " + " | ".join(f"error {t:g}" for t in r["targets"]) + " |",
+              "| --- | " + " | ".join("---" for _ in r["targets"]) + " |"]
+    for n in names:
+        lines.append(f"| {n} | " + " | ".join(rate_at_error(curves[n], t) for t in r["targets"]) + " |")
+    lines += ["", "![points/s against coupling error](curves.png)", ""]
+    return "\n".join(lines)
+
+
+def plot(r, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for n, c in r["curves"].items():
+        errors = [e for _, e, _ in c]
+        rates = [rate for _, _, rate in c]
+        ax.loglog(errors, rates, "o-", label=n)
+        for h, e, rate in c:
+            ax.annotate(f"{h * 1000:g} ms", (e, rate), textcoords="offset points", xytext=(4, 4),
+                        fontsize=7)
+    ax.set_xlabel("coupling error against the monolithic reference (scaled, worst point)")
+    ax.set_ylabel("points/s, one worker (10 s runs)")
+    ax.set_title("Coupled DC motor and mechanism: speed against coupling error")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def main():
     fmu, motor, out = (pathlib.Path(a) for a in sys.argv[1:4])
     quick = "--quick" in sys.argv
     out.mkdir(parents=True, exist_ok=True)
-    r = {"machine": machine(), "quick": quick, "rates": {}}
+    r = {"machine": machine(), "quick": quick, "rates": {}, "curves": {},
+         "targets": [3e-2, 1e-2, 1e-3, 1e-4]}
+    points = 20 if quick else 100
     with tempfile.TemporaryDirectory() as tmp:
         print("bench-coupled-sweep: engines", flush=True)
-        r["rates"]["native"] = native_rate(fmu, motor, 20 if quick else 100, tmp)
+        for engine in ENGINES:
+            r["rates"][engine_name(*engine)] = system_rate(fmu, motor, points, tmp, engine)
         r["rates"]["master_loop"] = master_loop_rate(fmu, motor, 2 if quick else 5)
         r["rates"]["ssp"] = ssp_rate(fmu, 2 if quick else 4, stop=10.0)["points_per_s"]
-        print("bench-coupled-sweep: coupling error", flush=True)
-        r["errors"] = {str(k): v for k, v in coupling_errors(fmu, motor, tmp).items()}
+        print("bench-coupled-sweep: coupling error and speed by step", flush=True)
+        for engine in ENGINES:
+            errors = coupling_errors(fmu, motor, tmp, engine)
+            name = engine_name(*engine)
+            r["curves"][name] = [
+                (step, errors[step],
+                 r["rates"][name] if step == 1e-3 else system_rate(fmu, motor, points, tmp, engine, step))
+                for step in STEPS]
     write_results(out, r, report(r))
+    plot(r, out / "curves.png")
 
 
 if __name__ == "__main__":

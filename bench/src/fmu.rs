@@ -47,7 +47,7 @@ impl Fmu {
     /// One simulation: instantiate, initialise, step with H to the stop time reading the
     /// eight states after every step and keeping them, as a master does.
     pub fn run(&self, scenario: &Scenario, h: f64, tol: f64) -> Option<Run> {
-        let mut instance = Instance::new(&self.library)
+        let mut instance = Instance::new(&self.library, c"bench")
             .map_err(|e| eprintln!("{e}"))
             .ok()?;
         let outputs: Vec<u32> = [

@@ -5,13 +5,27 @@ FMUs) and connections from an output of one to an input of another::
     components = { motor = "DcMotor.fmu", mechanism = "CyclicMechanism.fmu" }
     connections = [["motor.torque", "mechanism.M_m"], ["mechanism.omega1", "motor.omega"]]
 
-The system runs as one FMU in the native runner, like any other: a container FMU
-(fmu-manipulation-toolbox's, whose compiled master steps the components at the
-scenario's communication step, holding each input over the step) built once per sweep.
+    engine = "native"          # default; or "container"
+    input_derivatives = 2      # native only: 0 holds inputs over a step
+
+The system runs in the native runner, with no Python per communication step, by one of
+two engines:
+
+- ``native`` (the default): the runner loads every component and steps them together.
+  At each communication step it passes each connection's output to its input, then steps
+  every component over the step (Jacobi). Where the source gives output derivatives and
+  the target interpolates inputs, it also passes the derivatives up to order
+  ``input_derivatives``: the target then moves its input along the source's Taylor
+  polynomial over the step instead of holding it, and the coupling error falls as H^(k+1)
+  instead of H.
+- ``container``: a container FMU (fmu-manipulation-toolbox's, whose compiled master holds
+  each input over the step) built once per sweep and run as one FMU.
+
 Every parameter of a component is ``component.parameter``, every output
 ``component.output``, every input left unconnected ``component.input``; the sweep's
-designs, metrics and series address them so. Everything is checked before anything runs:
-names, files, each connection's ends and types, inputs fed twice, algebraic loops.
+designs, metrics and series address them so (the native engine also shows the
+components' other variables). Everything is checked before anything runs: names, files,
+each connection's ends and types, inputs fed twice, algebraic loops.
 """
 
 from __future__ import annotations
@@ -48,19 +62,34 @@ class Connection:
         return f"{self.source}.{self.output} → {self.target}.{self.input}"
 
 
+ENGINES = ("native", "container")
+
+
 @dataclass
 class System:
     components: dict[str, pathlib.Path]
     connections: list[Connection]
+    engine: str = "native"
+    input_derivatives: int = 2
 
     # --- the spec's fields ---------------------------------------------------------------
     @staticmethod
     def of(table, base_dir: pathlib.Path) -> "System":
         if not isinstance(table, dict):
             raise SpecError("system", "must be a table with components and connections")
-        unknown = sorted(set(table) - {"components", "connections"})
+        fields = {"components", "connections", "engine", "input_derivatives"}
+        unknown = sorted(set(table) - fields)
         if unknown:
-            raise SpecError(f"system.{unknown[0]}", "unknown field; expected components, connections")
+            raise SpecError(f"system.{unknown[0]}", "unknown field; expected " + ", ".join(sorted(fields)))
+        engine = table.get("engine", "native")
+        if engine not in ENGINES:
+            raise SpecError("system.engine", f"must be one of {', '.join(ENGINES)}, got {engine!r}")
+        derivatives = table.get("input_derivatives", 2 if engine == "native" else 0)
+        if isinstance(derivatives, bool) or derivatives not in (0, 1, 2):
+            raise SpecError("system.input_derivatives", f"must be 0, 1 or 2, got {derivatives!r}")
+        if engine == "container" and derivatives != 0:
+            raise SpecError("system.input_derivatives", "the container holds inputs over a step: "
+                                                        "only 0 with engine = \"container\"")
         components = table.get("components")
         if not isinstance(components, dict) or not components:
             raise SpecError("system.components", "must name at least one component: name = \"file.fmu\"")
@@ -78,7 +107,7 @@ class System:
             raise SpecError("system.connections", "must be a list of [\"component.output\", "
                                                   "\"component.input\"] pairs")
         parsed = [_connection(i, c, paths) for i, c in enumerate(connections)]
-        return System(paths, parsed)
+        return System(paths, parsed, engine, derivatives)
 
     # --- checks against the components -------------------------------------------------
     def check(self) -> dict:
@@ -108,19 +137,45 @@ class System:
         return descriptions
 
     def digest(self) -> str:
-        """A hash of the components' contents and the connections: what decides the runs."""
+        """A hash of the components' contents, the connections and the engine: what decides
+        the runs."""
         h = hashlib.sha256()
         for name in sorted(self.components):
             h.update(name.encode() + b"\0" + hashlib.sha256(self.components[name].read_bytes()).digest())
         h.update(json.dumps([str(c) for c in self.connections]).encode())
+        h.update(f"{self.engine}|{self.input_derivatives}".encode())
         return h.hexdigest()
 
-    # --- the container ---------------------------------------------------------------------
     def build(self, step: float) -> Archive:
-        """The container FMU of the system at communication step `step`. Its checksum is
-        the system's digest (with the step), so that a rebuild of the same system resumes
-        the same sweep."""
+        """What the runner loads for the system at communication step `step`: the
+        components and connections (native), or the container FMU. Its checksum is the
+        system's digest (with the step), so that a rebuild of the same system resumes the
+        same sweep."""
         descriptions = self.check()
+        archive = (self._native(descriptions) if self.engine == "native"
+                   else self._container(descriptions, step))
+        archive.sha256 = hashlib.sha256(f"{self.digest()}|{step!r}".encode()).hexdigest()
+        return archive
+
+    # --- the engines -------------------------------------------------------------------------
+    def _native(self, descriptions: dict) -> Archive:
+        """system.json and the components' files, zipped (stored: they are zips already)."""
+        order = _feed_order(self.connections, descriptions)
+        layout = {
+            "components": [{"name": name, "file": f"components/{name}.fmu"}
+                           for name in self.components],
+            "connections": [{"from": f"{c.source}.{c.output}", "to": f"{c.target}.{c.input}"}
+                            for c in order],
+            "input_derivatives": self.input_derivatives,
+        }
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w", zipfile.ZIP_STORED) as archive:
+            archive.writestr("system.json", json.dumps(layout, indent=1))
+            for name, path in self.components.items():
+                archive.writestr(f"components/{name}.fmu", path.read_bytes())
+        return Archive(buffer.getvalue(), "system.zip")
+
+    def _container(self, descriptions: dict, step: float) -> Archive:
         from fmu_manipulation_toolbox.assembly import AssemblyNode
         with tempfile.TemporaryDirectory(prefix="fmusweep-system-") as tmp:
             directory = pathlib.Path(tmp)
@@ -143,9 +198,7 @@ class System:
             except Exception as e:  # the toolbox's own refusal, in its words
                 raise SpecError("system", f"the container could not be built: {e}") from None
             data = (directory / "system.fmu").read_bytes()
-        archive = Archive(data, "system.fmu")
-        archive.sha256 = hashlib.sha256(f"{self.digest()}|{step!r}".encode()).hexdigest()
-        return archive
+        return Archive(data, "system.fmu")
 
 
 @contextlib.contextmanager
@@ -204,10 +257,29 @@ def _variable(description, component: str, name: str, where: str):
     raise SpecError(where, f"component {component} has no variable {name!r}")
 
 
-def _algebraic_loop(connections: list[Connection], descriptions: dict) -> list[str] | None:
-    """A cycle through the connections and the components' direct dependencies of outputs
-    on inputs (their ModelStructure; an output without a dependency list depends on every
-    input, as the standard says), as the names along it; None when there is none."""
+def _feed_order(connections: list[Connection], descriptions: dict) -> list[Connection]:
+    """The connections in an order that passes an output only after the connections that
+    feed the inputs it depends on directly (there is no algebraic loop: the order exists)."""
+    edges = _dependencies(connections, descriptions)
+    fed = {f"{c.target}.{c.input}" for c in connections}
+
+    def needs(c: Connection) -> set[str]:
+        output = f"{c.source}.{c.output}"
+        return {node for node, targets in edges.items() if output in targets} & fed
+
+    placed, done, pending = [], set(), list(connections)
+    while pending:
+        ready = next((c for c in pending if needs(c) <= done), pending[0])
+        placed.append(ready)
+        done.add(f"{ready.target}.{ready.input}")
+        pending.remove(ready)
+    return placed
+
+
+def _dependencies(connections: list[Connection], descriptions: dict) -> dict[str, set[str]]:
+    """Edges from each variable to those that depend on it directly: a connection's output
+    to its input, and a component's input to its outputs (their ModelStructure; an output
+    without a dependency list depends on every input, as the standard says)."""
     edges: dict[str, set[str]] = {}
     for c in connections:
         edges.setdefault(f"{c.source}.{c.output}", set()).add(f"{c.target}.{c.input}")
@@ -218,6 +290,13 @@ def _algebraic_loop(connections: list[Connection], descriptions: dict) -> list[s
                        else {d.name for d in unknown.dependencies} & inputs)
             for input_ in depends:
                 edges.setdefault(f"{name}.{input_}", set()).add(f"{name}.{unknown.variable.name}")
+    return edges
+
+
+def _algebraic_loop(connections: list[Connection], descriptions: dict) -> list[str] | None:
+    """A cycle through the connections and the components' direct dependencies of outputs
+    on inputs, as the names along it; None when there is none."""
+    edges = _dependencies(connections, descriptions)
     state: dict[str, int] = {}
 
     def visit(node, trail):
@@ -242,8 +321,8 @@ def _algebraic_loop(connections: list[Connection], descriptions: dict) -> list[s
 
 
 def load_system(target: Archive):
-    """The runner of a coupled system's container and its description; a system that
-    does not load (a component the container cannot load, say) is refused as a whole."""
+    """The runner of a coupled system and its description; a system that does not load (a
+    component that cannot be loaded, say) is refused as a whole."""
     try:
         local = local_runner(target)
         local.configure({"start": 0.0, "stop": 1.0, "step": 1.0, "tolerance": None, "fixed": {},

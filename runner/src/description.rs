@@ -41,6 +41,10 @@ pub struct Description {
     /// `None` when the FMU has no `<CoSimulation>` element.
     pub model_identifier: Option<String>,
     pub can_handle_variable_step: bool,
+    /// Whether the FMU takes input derivatives (fmi2SetRealInputDerivatives).
+    pub can_interpolate_inputs: bool,
+    /// The highest order of fmi2GetRealOutputDerivatives (0: none).
+    pub max_output_derivative_order: u32,
     pub variables: Vec<Variable>,
 }
 
@@ -59,6 +63,8 @@ impl Description {
             guid: String::new(),
             model_identifier: None,
             can_handle_variable_step: false,
+            can_interpolate_inputs: false,
+            max_output_derivative_order: 0,
             variables: Vec::new(),
         };
         // The <ScalarVariable> being read: its type comes from the child element.
@@ -80,6 +86,12 @@ impl Description {
                             description.can_handle_variable_step =
                                 attribute(e, "canHandleVariableCommunicationStepSize")?
                                     .is_some_and(|v| v == "true");
+                            description.can_interpolate_inputs =
+                                attribute(e, "canInterpolateInputs")?.is_some_and(|v| v == "true");
+                            description.max_output_derivative_order =
+                                attribute(e, "maxOutputDerivativeOrder")?
+                                    .map_or(Ok(0), |v| v.parse())
+                                    .map_err(|_| "maxOutputDerivativeOrder is not a whole number")?;
                         }
                         b"ScalarVariable" => {
                             let variable = scalar_variable(e)?;
@@ -170,7 +182,8 @@ mod tests {
 
     const XML: &str = r#"<?xml version="1.0"?>
 <fmiModelDescription fmiVersion="2.0" modelName="M" guid="{g}">
-  <CoSimulation modelIdentifier="Mid" canHandleVariableCommunicationStepSize="true"/>
+  <CoSimulation modelIdentifier="Mid" canHandleVariableCommunicationStepSize="true"
+    canInterpolateInputs="true" maxOutputDerivativeOrder="2"/>
   <ModelVariables>
     <ScalarVariable name="x" valueReference="3" causality="parameter" variability="fixed">
       <Real start="1.5" min="0"/>
@@ -187,7 +200,8 @@ mod tests {
             (d.guid.as_str(), d.model_identifier.as_deref()),
             ("{g}", Some("Mid"))
         );
-        assert!(d.can_handle_variable_step);
+        assert!(d.can_handle_variable_step && d.can_interpolate_inputs);
+        assert_eq!(d.max_output_derivative_order, 2);
         let x = d.variable("x").unwrap();
         assert_eq!((x.value_reference, x.base_type), (3, BaseType::Real));
         assert_eq!(

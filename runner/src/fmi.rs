@@ -183,7 +183,8 @@ pub struct Instance {
 }
 
 impl Instance {
-    pub fn new(library: &Rc<Library>) -> Result<Instance, String> {
+    /// An instance named `name` (the name the FMU's messages carry).
+    pub fn new(library: &Rc<Library>, name: &std::ffi::CStr) -> Result<Instance, String> {
         let callbacks = Box::new(fmi2CallbackFunctions {
             logger: Some(fmi2::logger::callback_logger_handler),
             allocateMemory: Some(libc::calloc),
@@ -194,7 +195,7 @@ impl Instance {
         // SAFETY: every pointer is valid for the call; the callbacks outlive the instance.
         let component = unsafe {
             library.binding.fmi2Instantiate(
-                c"sweep".as_ptr(),
+                name.as_ptr(),
                 fmi2Type_fmi2CoSimulation,
                 library.guid.as_ptr(),
                 library.resource_uri.as_ptr(),
@@ -247,6 +248,44 @@ impl Instance {
     getter!(get_real, fmi2GetReal, f64);
     getter!(get_integer, fmi2GetInteger, i32);
     getter!(get_boolean, fmi2GetBoolean, i32);
+
+    /// fmi2GetRealOutputDerivatives of output `vr`, orders 1 to `values.len()` (at most 2);
+    /// Error when the FMU does not export the function.
+    pub fn get_output_derivatives(&mut self, vr: u32, values: &mut [f64]) -> Status {
+        let Ok(get) = self.b().fmi2GetRealOutputDerivatives.as_ref() else {
+            return Status::Error;
+        };
+        let n = values.len().min(2);
+        // SAFETY: the arrays hold n ≤ 2 elements; a live component of this binding.
+        Status::from_raw(unsafe {
+            get(
+                self.component,
+                [vr; 2].as_ptr(),
+                n,
+                [1, 2].as_ptr(),
+                values.as_mut_ptr(),
+            )
+        })
+    }
+
+    /// fmi2SetRealInputDerivatives of input `vr`, orders 1 to `values.len()` (at most 2);
+    /// Error when the FMU does not export the function.
+    pub fn set_input_derivatives(&mut self, vr: u32, values: &[f64]) -> Status {
+        let Ok(set) = self.b().fmi2SetRealInputDerivatives.as_ref() else {
+            return Status::Error;
+        };
+        let n = values.len().min(2);
+        // SAFETY: the arrays hold n ≤ 2 elements; a live component of this binding.
+        Status::from_raw(unsafe {
+            set(
+                self.component,
+                [vr; 2].as_ptr(),
+                n,
+                [1, 2].as_ptr(),
+                values.as_ptr(),
+            )
+        })
+    }
 
     pub fn do_step(&mut self, time: f64, step: f64) -> Status {
         // SAFETY: a live component; plain values.

@@ -1,6 +1,7 @@
 //! The one place in the project that loads an FMI 2.0 co-simulation FMU: unpack the
 //! archive ([`archive`]), read its description with quick-xml ([`description`]), load its
-//! binary and own its instances, freed on drop ([`fmi`]). The `fmu-runner` binary serves
+//! binary and own its instances, freed on drop ([`fmi`]); a coupled system of such FMUs
+//! is stepped as one unit ([`system`], [`unit`]). The `fmu-runner` binary serves
 //! sweep points over it ([`protocol`], [`plan`], [`point`], [`metrics`]); the benchmark
 //! harness drives the packed FMU through the same types.
 
@@ -13,3 +14,5 @@ pub mod plan;
 pub mod point;
 pub mod protocol;
 pub mod stdio;
+pub mod system;
+pub mod unit;

@@ -2,13 +2,13 @@
 //! time, measure. The instance is made once and reset between points; after an error it
 //! is freed and made again (the library itself stays loaded).
 
-use std::rc::Rc;
 use std::time::Instant;
 
 use crate::description::Description;
-use crate::fmi::{Instance, Library, Status};
+use crate::fmi::Status;
 use crate::messages;
 use crate::plan::{type_group, ByType, Plan};
+use crate::unit::{Target, Unit};
 
 /// How a point ended, as the results table spells it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -139,7 +139,7 @@ impl Assignments {
         Ok(())
     }
 
-    fn apply(&mut self, instance: &mut Instance) -> Status {
+    fn apply(&mut self, instance: &mut dyn Unit) -> Status {
         let s = instance.set_real(&self.vr.real, &self.real);
         if !s.proceeds() {
             return s;
@@ -152,10 +152,10 @@ impl Assignments {
     }
 }
 
-/// The loaded FMU and its one instance, kept across points and requests.
+/// The loaded FMU (or system) and its one instance, kept across points and requests.
 pub struct Runner {
-    library: Rc<Library>,
-    instance: Option<Instance>,
+    target: Target,
+    instance: Option<Box<dyn Unit>>,
     reals: Vec<f64>,
     integers: Vec<i32>,
     booleans: Vec<i32>,
@@ -175,9 +175,9 @@ fn failed(call: &str, status: Status) -> Stop {
 }
 
 impl Runner {
-    pub fn new(library: Rc<Library>) -> Self {
+    pub fn new(target: Target) -> Self {
         Runner {
-            library,
+            target,
             instance: None,
             reals: Vec::new(),
             integers: Vec::new(),
@@ -187,15 +187,18 @@ impl Runner {
     }
 
     /// A fresh instance for a new point: the kept one reset, or a new one.
-    fn fresh_instance(&mut self) -> Result<&mut Instance, Stop> {
+    fn fresh_instance(&mut self) -> Result<&mut dyn Unit, Stop> {
         if let Some(instance) = self.instance.as_mut() {
             if instance.reset().proceeds() {
-                return Ok(self.instance.as_mut().expect("kept above"));
+                return Ok(self.instance.as_deref_mut().expect("kept above"));
             }
             self.instance = None;
         }
-        let instance = Instance::new(&self.library).map_err(|m| Stop(Outcome::Error, m))?;
-        Ok(self.instance.insert(instance))
+        let instance = self
+            .target
+            .instantiate()
+            .map_err(|m| Stop(Outcome::Error, m))?;
+        Ok(self.instance.insert(instance).as_mut())
     }
 
     /// Reset, set up, set the point's values and inputs at the start; with `initialise`,

@@ -17,6 +17,8 @@ use serde_json::{json, Value};
 
 use crate::description::Description;
 use crate::fmi::Library;
+use crate::system::{is_system, SystemLibrary};
+use crate::unit::Target;
 use crate::plan::{Plan, PlanSpec};
 use crate::point::{Assignments, Runner};
 
@@ -56,12 +58,19 @@ pub struct Session {
 }
 
 impl Session {
+    /// Serve the FMU unpacked in `dir`, or the coupled system it holds.
     pub fn open(dir: &Path) -> Result<Self, String> {
-        let description = Description::read(dir)?;
-        let library = Library::load(dir, &description)?;
+        let (description, target) = if is_system(dir) {
+            let (description, system) = SystemLibrary::load(dir)?;
+            (description, Target::System(system))
+        } else {
+            let description = Description::read(dir)?;
+            let library = Library::load(dir, &description)?;
+            (description, Target::Fmu(library))
+        };
         Ok(Session {
             description,
-            runner: Runner::new(library),
+            runner: Runner::new(target),
             plan: None,
         })
     }

@@ -1,7 +1,10 @@
 """Coupled systems swept natively: a [system] of the compiled DC motor and the mechanism
-runs as one FMU in the runner, gives an FMPy master loop's run, addresses its variables as
-component.variable, and is refused by field when a name, a file, a connection or a loop is
-wrong; a component that crashes is one row, and a worker killed mid-sweep loses no point."""
+runs in the runner (its own engine, or a container FMU), gives an FMPy master loop's run
+bit for bit (with input derivatives, the loop that passes them), addresses its variables
+as component.variable, and is refused by field when a name, a file, a connection or a
+loop is wrong; a component that crashes is one row, a worker killed mid-sweep loses no
+point, and the coupling error against the monolithic reference falls with the order the
+input derivatives give."""
 
 import pathlib
 import zipfile
@@ -22,7 +25,7 @@ def motor_path():
     return packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
 
 
-def system_spec(fmu_path, motor_path, stop=2.0, design=None, series=False):
+def system_spec(fmu_path, motor_path, stop=2.0, design=None, series=False, engine=None):
     spec = {
         "system": {"components": {"motor": str(motor_path), "mechanism": str(fmu_path)},
                    "connections": [["motor.torque", "mechanism.M_m"],
@@ -36,12 +39,18 @@ def system_spec(fmu_path, motor_path, stop=2.0, design=None, series=False):
     }
     if series:
         spec["outputs"]["series"] = {"variables": ["mechanism.omega1", "motor.current"]}
+    if engine is not None:
+        spec["system"]["engine"], spec["system"]["input_derivatives"] = engine
     return spec
 
 
-def fmpy_master_loop(fmu_path, motor_path, voltage, d34, stop, step=0.001):
+def fmpy_master_loop(fmu_path, motor_path, voltage, d34, stop, step=0.001, derivatives=0,
+                     grid=False):
     """examples/dc_motor/coupling.py's loop (Jacobi: both step from the previous outputs),
-    returning omega1 and the current after every step."""
+    returning omega1 and the current after every step. With `derivatives` k, each
+    connection in turn passes its value and then its output derivatives of orders 1..k.
+    With `grid`, step k goes from k·H to (k + 1)·H, as the runner's own master steps (its
+    size is not always H to the last bit); else by H, as the container's master does."""
     import sys
     sys.path.insert(0, str(ROOT / "bench"))
     from bench_coupled_step import load
@@ -57,26 +66,41 @@ def fmpy_master_loop(fmu_path, motor_path, voltage, d34, stop, step=0.001):
     for slave in (motor, mech):
         slave.exitInitializationMode()
     rows = []
+    orders = list(range(1, derivatives + 1))
     for k in range(round(stop / step)):
-        omega1 = mech.getReal([xv["omega1"]])[0]
-        torque = motor.getReal([mv["torque"]])[0]
-        motor.setReal([mv["omega"]], [omega1])
-        mech.setReal([xv["M_m"]], [torque])
-        motor.doStep(k * step, step)
-        mech.doStep(k * step, step)
+        if derivatives:
+            for source, out, target, into in ((motor, mv["torque"], mech, xv["M_m"]),
+                                              (mech, xv["omega1"], motor, mv["omega"])):
+                target.setReal([into], source.getReal([out]))
+                rates = source.getRealOutputDerivatives([out] * derivatives, orders)
+                target.setRealInputDerivatives([into] * derivatives, orders, rates)
+        else:
+            omega1 = mech.getReal([xv["omega1"]])[0]
+            torque = motor.getReal([mv["torque"]])[0]
+            motor.setReal([mv["omega"]], [omega1])
+            mech.setReal([xv["M_m"]], [torque])
+        h = (k + 1) * step - k * step if grid else step
+        motor.doStep(k * step, h)
+        mech.doStep(k * step, h)
         rows.append([mech.getReal([xv["omega1"]])[0], motor.getReal([mv["current"]])[0]])
     return np.array(rows)
 
 
-def test_a_coupled_system_sweeps_natively_as_an_fmpy_master_loop_runs_it(fmu_path, motor_path, tmp_path):
-    results = run_sweep(system_spec(fmu_path, motor_path, series=True), out=tmp_path / "out",
-                        serial=True, progress=False, plots=False)
+ENGINES = [("native", 2), ("native", 1), ("native", 0), ("container", 0)]
+
+
+@pytest.mark.parametrize("engine", ENGINES, ids=lambda e: f"{e[0]}-{e[1]}")
+def test_a_coupled_system_sweeps_natively_as_an_fmpy_master_loop_runs_it(
+        fmu_path, motor_path, tmp_path, engine):
+    spec = system_spec(fmu_path, motor_path, series=True, engine=engine)
+    results = run_sweep(spec, out=tmp_path / "out", serial=True, progress=False, plots=False)
     points = results.points
     assert list(points["status"]) == ["ok", "ok"]
     assert {"motor.voltage", "mechanism.d34"} <= set(points.columns)
     series = results.series()
     for point, (voltage, d34) in enumerate([(24.0, 1.0), (30.0, 0.5)]):
-        expected = fmpy_master_loop(fmu_path, motor_path, voltage, d34, 2.0)
+        expected = fmpy_master_loop(fmu_path, motor_path, voltage, d34, 2.0, derivatives=engine[1],
+                                    grid=engine[0] == "native")
         mine = series[series["point"] == point]
         omega1 = mine[mine["variable"] == "mechanism.omega1"].sort_values("time")["value"].to_numpy()[1:]
         current = mine[mine["variable"] == "motor.current"].sort_values("time")["value"].to_numpy()[1:]
@@ -143,8 +167,15 @@ def _bad_systems(fmu_path, motor_path, tmp):
         "a bare name": ("design.parameters.d34", lambda s: s["design"].update(
             parameters={"d34": {"values": [1.0]}})),
         "an FMU and a system": ("system", lambda s: s.update(fmu=str(fmu_path))),
-        "a component the container cannot load": (
+        "a component that cannot be loaded": (
             "system", lambda s: components(gain=str(gain_fmu(tmp, "gain_a")))(s)),
+        "an unknown engine": ("system.engine", lambda s: s["system"].update(engine="ssp")),
+        "input derivatives beyond 2": ("system.input_derivatives",
+                                       lambda s: s["system"].update(input_derivatives=3)),
+        "input derivatives for the container": (
+            "system.input_derivatives",
+            lambda s: s["system"].update(engine="container", input_derivatives=1)),
+        "an unknown field": ("system.solver", lambda s: s["system"].update(solver="rk4")),
     }
 
 
@@ -162,12 +193,13 @@ def test_a_bad_system_is_refused_by_field_before_anything_runs(fmu_path, motor_p
     assert not (tmp_path / "out").exists()
 
 
-def test_a_component_that_crashes_is_one_row(fmu_path, motor_path, tmp_path):
+@pytest.mark.parametrize("engine", ["native", "container"])
+def test_a_component_that_crashes_is_one_row(fmu_path, motor_path, tmp_path, engine):
     """The faulty FMU beside the motor: at x = 13 it dereferences NULL, which takes the
-    container and its runner down; that point is `crashed`, the others finish."""
+    runner down; that point is `crashed`, the others finish."""
     faulty = faulty_fmu(tmp_path)
     spec = {"system": {"components": {"faulty": str(faulty), "motor": str(motor_path)},
-                       "connections": []},
+                       "connections": [], "engine": engine},
             "scenario": {"stop": 0.2, "step": 0.01},
             "design": {"kind": "list", "parameters": {"faulty.x": {"values": [1.0, 2.0, 13.0, 4.0, 6.0]}}},
             "outputs": {"metrics": {"y": {"variable": "faulty.y", "kind": "final"},
@@ -200,16 +232,26 @@ def test_a_worker_killed_mid_coupled_sweep_loses_no_point(fmu_path, motor_path, 
     assert (points["status"] == "ok").all()
 
 
-def test_the_coupling_error_against_the_monolithic_reference_is_first_order(fmu_path, motor_path, tmp_path):
+# (engine, input derivatives, the observed order's range, the most error at H = 1 ms).
+ORDERS = [("container", 0, (0.8, 1.3), 2e-2), ("native", 0, (0.8, 1.3), 2e-2),
+          ("native", 1, (1.7, 2.4), 5e-4), ("native", 2, (2.6, 3.6), 1e-5)]
+
+
+@pytest.mark.parametrize("engine, derivatives, orders, most", ORDERS,
+                         ids=[f"{e}-{k}" for e, k, _, _ in ORDERS])
+def test_the_coupling_error_against_the_monolithic_reference_has_the_engines_order(
+        fmu_path, motor_path, tmp_path, engine, derivatives, orders, most):
     """Motor and mechanism as one ODE (tests/python/reference.py, scipy at rtol 1e-11) against
-    the coupled sweep at H = 1 and 2 ms over 1 s: the engine holds inputs over a step, so the
-    error halves with the step (order 1), and at 1 ms it is about a hundredth of the scale."""
+    the coupled sweep at H = 1 and 2 ms over 1 s: holding inputs over a step the error
+    halves with the step (order 1); passing the output derivatives of orders 1..k as input
+    derivatives, it falls as H^(k+1)."""
     import reference
     p = reference.Params(**MECHANISM, d34=1.0)
     names = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4"]
     errors = []
     for step in (1e-3, 2e-3):
-        spec = system_spec(fmu_path, motor_path, stop=1.0, design={"mechanism.d34": {"values": [1.0]}})
+        spec = system_spec(fmu_path, motor_path, stop=1.0, design={"mechanism.d34": {"values": [1.0]}},
+                           engine=(engine, derivatives))
         spec["scenario"]["step"] = step
         spec["outputs"]["series"] = {"variables": [f"mechanism.{n}" for n in names] + ["motor.current"]}
         series = run_sweep(spec, out=tmp_path / f"out{step}", serial=True, progress=False,
@@ -221,5 +263,5 @@ def test_the_coupling_error_against_the_monolithic_reference_is_first_order(fmu_
         exact = reference.solve_with_motor(p, reference.Motor(), times, rtol=1e-11)
         errors.append(float((np.abs(mine - exact) / np.maximum(1.0, np.abs(exact).max(axis=0))).max()))
     order = np.log2(errors[1] / errors[0])
-    assert 0.8 < order < 1.3, errors
-    assert errors[0] < 2e-2, errors
+    assert orders[0] < order < orders[1], errors
+    assert errors[0] < most, errors

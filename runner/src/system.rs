@@ -1,0 +1,405 @@
+//! A coupled system of FMI 2.0 co-simulation FMUs, stepped here as one unit: the folder the
+//! runner serves holds `system.json` and the components' `.fmu` files,
+//!
+//! ```json
+//! {"components": [{"name": "motor", "file": "motor.fmu"}, …],
+//!  "connections": [{"from": "motor.torque", "to": "mechanism.M_m"}, …],
+//!  "input_derivatives": 2}
+//! ```
+//!
+//! Every variable of a component is `component.variable`, except the inputs that
+//! connections feed. A communication step passes each connection's output at the step's
+//! start to its input, in the order listed (the caller lists a connection after those
+//! feeding the inputs its output depends on directly), then steps every component over
+//! the same interval (Jacobi). With `input_derivatives` k > 0, a Real connection whose
+//! source gives output derivatives and whose target interpolates inputs also passes the
+//! derivatives of orders 1 to k (at most the source's maximum): the target then moves its
+//! input along the source's Taylor polynomial over the step instead of holding it, which
+//! raises the coupling's order of accuracy from 1 to k + 1.
+
+use std::ffi::CString;
+use std::path::Path;
+use std::rc::Rc;
+
+use serde::Deserialize;
+
+use crate::archive::Unpacked;
+use crate::description::{Description, Variable};
+use crate::fmi::{Instance, Library, Status};
+use crate::plan::type_group;
+use crate::unit::Unit;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SystemFile {
+    components: Vec<ComponentFile>,
+    connections: Vec<ConnectionFile>,
+    #[serde(default)]
+    input_derivatives: usize,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ComponentFile {
+    name: String,
+    file: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConnectionFile {
+    from: String,
+    to: String,
+}
+
+struct Component {
+    name: CString,
+    library: Rc<Library>,
+    // Removed when the system is dropped; the library stays loaded (see `Library`).
+    _unpacked: Unpacked,
+}
+
+/// Where a variable of the system lives: its component, value reference there, and FMI
+/// type group (0 Real, 1 Integer, 2 Boolean).
+#[derive(Clone, Copy, Debug)]
+struct Route {
+    component: usize,
+    vr: u32,
+    group: usize,
+}
+
+/// A connection: the output `from` passed to the input `to`, with derivatives of orders 1
+/// to `derivatives`.
+#[derive(Clone, Copy, Debug)]
+struct Link {
+    from: Route,
+    to: Route,
+    derivatives: usize,
+}
+
+/// The system's components, loaded once; [`SystemInstance`]s step them.
+pub struct SystemLibrary {
+    components: Vec<Component>,
+    /// By the system's value reference (the index).
+    routes: Vec<Route>,
+    links: Vec<Link>,
+}
+
+impl SystemLibrary {
+    /// The route of the system's value reference `vr` if it has type group `group`.
+    fn route(&self, vr: u32, group: usize) -> Option<Route> {
+        self.routes
+            .get(vr as usize)
+            .copied()
+            .filter(|r| r.group == group)
+    }
+}
+
+/// Whether `dir` holds a system rather than an unpacked FMU.
+pub fn is_system(dir: &Path) -> bool {
+    dir.join("system.json").is_file()
+}
+
+impl SystemLibrary {
+    /// Load the system in `dir`, with the description of its variables as one FMU's.
+    pub fn load(dir: &Path) -> Result<(Description, Rc<SystemLibrary>), String> {
+        let path = dir.join("system.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let file: SystemFile =
+            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut components = Vec::new();
+        let mut descriptions = Vec::new();
+        for c in &file.components {
+            let unpacked = Unpacked::new(&dir.join(&c.file))?;
+            let description = Description::read(unpacked.dir())
+                .map_err(|e| format!("component {}: {e}", c.name))?;
+            let library = Library::load(unpacked.dir(), &description)
+                .map_err(|e| format!("component {}: {e}", c.name))?;
+            components.push(Component {
+                name: CString::new(c.name.as_str()).map_err(|e| e.to_string())?,
+                library,
+                _unpacked: unpacked,
+            });
+            descriptions.push(description);
+        }
+        let names: Vec<&str> = file.components.iter().map(|c| c.name.as_str()).collect();
+        let find = |end: &str| find_variable(end, &names, &descriptions);
+        let mut links = Vec::new();
+        let mut fed = Vec::new();
+        for c in &file.connections {
+            let (from, output) = find(&c.from)?;
+            let (to, input) = find(&c.to)?;
+            links.push(link(
+                (from, output, &descriptions[from]),
+                (to, input, &descriptions[to]),
+                file.input_derivatives,
+            )?);
+            fed.push((to, input.value_reference));
+        }
+        let mut variables = Vec::new();
+        let mut routes = Vec::new();
+        for (component, description) in descriptions.iter().enumerate() {
+            for v in &description.variables {
+                let connected = fed.contains(&(component, v.value_reference));
+                if (v.causality == "input" && connected) || v.causality == "independent" {
+                    continue;
+                }
+                let Ok(group) = type_group(v) else { continue };
+                routes.push(Route {
+                    component,
+                    vr: v.value_reference,
+                    group,
+                });
+                variables.push(Variable {
+                    name: format!("{}.{}", names[component], v.name),
+                    value_reference: (routes.len() - 1) as u32,
+                    ..v.clone()
+                });
+            }
+        }
+        let description = Description {
+            fmi_version: "2.0".into(),
+            model_name: "system".into(),
+            guid: String::new(),
+            model_identifier: Some("system".into()),
+            can_handle_variable_step: descriptions.iter().all(|d| d.can_handle_variable_step),
+            can_interpolate_inputs: false,
+            max_output_derivative_order: 0,
+            variables,
+        };
+        let system = SystemLibrary {
+            components,
+            routes,
+            links,
+        };
+        Ok((description, Rc::new(system)))
+    }
+}
+
+/// The component and variable that `end` ("component.variable") names.
+fn find_variable<'a>(
+    end: &str,
+    names: &[&str],
+    descriptions: &'a [Description],
+) -> Result<(usize, &'a Variable), String> {
+    let (component, variable) = end
+        .split_once('.')
+        .ok_or_else(|| format!("connection end {end:?} is not component.variable"))?;
+    let index = names
+        .iter()
+        .position(|n| *n == component)
+        .ok_or_else(|| format!("connection end {end:?}: no component {component:?}"))?;
+    let v = descriptions[index]
+        .variable(variable)
+        .map_err(|e| format!("connection end {end:?}: {e}"))?;
+    Ok((index, v))
+}
+
+/// The link from output `from` to input `to`, checked, with the derivative orders both
+/// ends support up to `wanted`.
+fn link(
+    (source, output, source_description): (usize, &Variable, &Description),
+    (target, input, target_description): (usize, &Variable, &Description),
+    wanted: usize,
+) -> Result<Link, String> {
+    let what = format!("connection {} → {}", output.name, input.name);
+    if output.causality != "output" || input.causality != "input" {
+        return Err(format!(
+            "{what}: a connection goes from an output to an input (these are {} and {})",
+            output.causality, input.causality
+        ));
+    }
+    if output.base_type != input.base_type {
+        return Err(format!("{what}: the two ends have different types"));
+    }
+    let group = type_group(output)?;
+    let derivatives = if group == 0 && target_description.can_interpolate_inputs {
+        wanted.min(source_description.max_output_derivative_order as usize)
+    } else {
+        0
+    };
+    Ok(Link {
+        from: Route {
+            component: source,
+            vr: output.value_reference,
+            group,
+        },
+        to: Route {
+            component: target,
+            vr: input.value_reference,
+            group,
+        },
+        derivatives: derivatives.min(2),
+    })
+}
+
+/// One instance of each component.
+pub struct SystemInstance {
+    system: Rc<SystemLibrary>,
+    instances: Vec<Instance>,
+}
+
+/// The first status that stops a run, else the worst; `calls` run in order until one stops.
+fn in_turn(calls: impl IntoIterator<Item = Status>) -> Status {
+    let mut worst = Status::Ok;
+    for status in calls {
+        if !status.proceeds() {
+            return status;
+        }
+        worst = worst.max(status);
+    }
+    worst
+}
+
+impl SystemInstance {
+    pub fn new(system: &Rc<SystemLibrary>) -> Result<Self, String> {
+        let instances = system
+            .components
+            .iter()
+            .map(|c| {
+                Instance::new(&c.library, &c.name)
+                    .map_err(|e| format!("component {}: {e}", c.name.to_string_lossy()))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Self {
+            system: Rc::clone(system),
+            instances,
+        })
+    }
+
+    /// One value per call, each to its component; an unknown reference is an error.
+    fn set<T: Copy>(
+        &mut self,
+        (vr, values, group): (&[u32], &[T], usize),
+        call: fn(&mut Instance, &[u32], &[T]) -> Status,
+    ) -> Status {
+        let system = Rc::clone(&self.system);
+        in_turn(vr.iter().zip(values).map(|(&v, value)| {
+            match system.route(v, group) {
+                Some(r) => call(&mut self.instances[r.component], &[r.vr], &[*value]),
+                None => Status::Error,
+            }
+        }))
+    }
+
+    fn get<T: Copy>(
+        &mut self,
+        (vr, values, group): (&[u32], &mut [T], usize),
+        call: fn(&mut Instance, &[u32], &mut [T]) -> Status,
+    ) -> Status {
+        let system = Rc::clone(&self.system);
+        in_turn(vr.iter().zip(values).map(|(&v, value)| {
+            match system.route(v, group) {
+                Some(r) => call(
+                    &mut self.instances[r.component],
+                    &[r.vr],
+                    std::slice::from_mut(value),
+                ),
+                None => Status::Error,
+            }
+        }))
+    }
+
+    /// Pass the value (and derivatives) of one connection's output to its input.
+    fn pass(&mut self, link: Link) -> Status {
+        let (from, to) = (link.from, link.to);
+        let value = match from.group {
+            0 => {
+                let mut x = [0.0];
+                let s = self.instances[from.component].get_real(&[from.vr], &mut x);
+                if !s.proceeds() {
+                    return s;
+                }
+                self.instances[to.component].set_real(&[to.vr], &x)
+            }
+            _ => {
+                let mut x = [0];
+                let source = &mut self.instances[from.component];
+                let s = if from.group == 1 {
+                    source.get_integer(&[from.vr], &mut x)
+                } else {
+                    source.get_boolean(&[from.vr], &mut x)
+                };
+                if !s.proceeds() {
+                    return s;
+                }
+                let target = &mut self.instances[to.component];
+                if to.group == 1 {
+                    target.set_integer(&[to.vr], &x)
+                } else {
+                    target.set_boolean(&[to.vr], &x)
+                }
+            }
+        };
+        if !value.proceeds() || link.derivatives == 0 {
+            return value;
+        }
+        let mut rates = [0.0; 2];
+        let rates = &mut rates[..link.derivatives];
+        let s = self.instances[from.component].get_output_derivatives(from.vr, rates);
+        if !s.proceeds() {
+            return s;
+        }
+        in_turn([
+            value,
+            s,
+            self.instances[to.component].set_input_derivatives(to.vr, rates),
+        ])
+    }
+
+    fn each(&mut self, call: impl FnMut(&mut Instance) -> Status) -> Status {
+        in_turn(self.instances.iter_mut().map(call))
+    }
+}
+
+impl Unit for SystemInstance {
+    fn reset(&mut self) -> Status {
+        self.each(Instance::reset)
+    }
+
+    fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Status {
+        self.each(|i| i.setup_experiment(tolerance, start, stop))
+    }
+
+    fn enter_initialization_mode(&mut self) -> Status {
+        self.each(Instance::enter_initialization_mode)
+    }
+
+    fn exit_initialization_mode(&mut self) -> Status {
+        self.each(Instance::exit_initialization_mode)
+    }
+
+    fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
+        self.set((vr, values, 0), Instance::set_real)
+    }
+
+    fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Status {
+        self.set((vr, values, 1), Instance::set_integer)
+    }
+
+    fn set_boolean(&mut self, vr: &[u32], values: &[i32]) -> Status {
+        self.set((vr, values, 2), Instance::set_boolean)
+    }
+
+    fn get_real(&mut self, vr: &[u32], values: &mut [f64]) -> Status {
+        self.get((vr, values, 0), Instance::get_real)
+    }
+
+    fn get_integer(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
+        self.get((vr, values, 1), Instance::get_integer)
+    }
+
+    fn get_boolean(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
+        self.get((vr, values, 2), Instance::get_boolean)
+    }
+
+    /// Pass every connection at `time`, then step every component to `time + step`.
+    fn do_step(&mut self, time: f64, step: f64) -> Status {
+        let links = Rc::clone(&self.system);
+        let passed = in_turn(links.links.iter().map(|&link| self.pass(link)));
+        if !passed.proceeds() {
+            return passed;
+        }
+        in_turn([passed, self.each(|i| i.do_step(time, step))])
+    }
+}
