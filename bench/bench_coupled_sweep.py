@@ -10,7 +10,7 @@ Engines: a [system] of the compiled motor and the mechanism run by the runner it
 (`native`, with input derivatives of order 0, 1 or 2) or as one container FMU
 (`container`); FMPy's SSP support through fmusweep (the Python-written motor, as the SSP
 example packs it); and an FMPy master loop of FMPy's calls (the compiled motor).
-Writes results.json, results.md and curves.png.
+Writes results.json, results.md and coupled_sweep_curves.png.
 """
 
 import pathlib
@@ -142,7 +142,7 @@ def report(r) -> str:
               "| --- | " + " | ".join("---" for _ in r["targets"]) + " |"]
     for n in names:
         lines.append(f"| {n} | " + " | ".join(rate_at_error(curves[n], t) for t in r["targets"]) + " |")
-    lines += ["", "![points/s against coupling error](curves.png)", ""]
+    lines += ["", "![points/s against coupling error](coupled_sweep_curves.png)", ""]
     return "\n".join(lines)
 
 
@@ -190,7 +190,7 @@ def main():
                  r["rates"][name] if step == 1e-3 else system_rate(fmu, motor, points, tmp, engine, step))
                 for step in STEPS]
     write_results(out, r, report(r))
-    plot(r, out / "curves.png")
+    plot(r, out / "coupled_sweep_curves.png")
 
 
 if __name__ == "__main__":
