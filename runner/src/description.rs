@@ -91,7 +91,9 @@ impl Description {
                             description.max_output_derivative_order =
                                 attribute(e, "maxOutputDerivativeOrder")?
                                     .map_or(Ok(0), |v| v.parse())
-                                    .map_err(|_| "maxOutputDerivativeOrder is not a whole number")?;
+                                    .map_err(|_| {
+                                        "maxOutputDerivativeOrder is not a whole number"
+                                    })?;
                         }
                         b"ScalarVariable" => {
                             let variable = scalar_variable(e)?;

@@ -17,10 +17,10 @@ use serde_json::{json, Value};
 
 use crate::description::Description;
 use crate::fmi::Library;
-use crate::system::{is_system, SystemLibrary};
-use crate::unit::Target;
 use crate::plan::{Plan, PlanSpec};
 use crate::point::{Assignments, Runner};
+use crate::system::{is_system, SystemLibrary};
+use crate::unit::Target;
 
 /// The longest a finished point's reply waits in the buffer.
 const FLUSH_EVERY: Duration = Duration::from_millis(20);

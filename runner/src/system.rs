@@ -104,7 +104,8 @@ impl SystemLibrary {
     /// Load the system in `dir`, with the description of its variables as one FMU's.
     pub fn load(dir: &Path) -> Result<(Description, Rc<SystemLibrary>), String> {
         let path = dir.join("system.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text =
+            std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
         let file: SystemFile =
             serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
         let mut components = Vec::new();
@@ -274,12 +275,14 @@ impl SystemInstance {
         call: fn(&mut Instance, &[u32], &[T]) -> Status,
     ) -> Status {
         let system = Rc::clone(&self.system);
-        in_turn(vr.iter().zip(values).map(|(&v, value)| {
-            match system.route(v, group) {
-                Some(r) => call(&mut self.instances[r.component], &[r.vr], &[*value]),
-                None => Status::Error,
-            }
-        }))
+        in_turn(
+            vr.iter()
+                .zip(values)
+                .map(|(&v, value)| match system.route(v, group) {
+                    Some(r) => call(&mut self.instances[r.component], &[r.vr], &[*value]),
+                    None => Status::Error,
+                }),
+        )
     }
 
     fn get<T: Copy>(
@@ -288,16 +291,18 @@ impl SystemInstance {
         call: fn(&mut Instance, &[u32], &mut [T]) -> Status,
     ) -> Status {
         let system = Rc::clone(&self.system);
-        in_turn(vr.iter().zip(values).map(|(&v, value)| {
-            match system.route(v, group) {
-                Some(r) => call(
-                    &mut self.instances[r.component],
-                    &[r.vr],
-                    std::slice::from_mut(value),
-                ),
-                None => Status::Error,
-            }
-        }))
+        in_turn(
+            vr.iter()
+                .zip(values)
+                .map(|(&v, value)| match system.route(v, group) {
+                    Some(r) => call(
+                        &mut self.instances[r.component],
+                        &[r.vr],
+                        std::slice::from_mut(value),
+                    ),
+                    None => Status::Error,
+                }),
+        )
     }
 
     /// Pass the value (and derivatives) of one connection's output to its input.
