@@ -268,21 +268,35 @@ impl SystemInstance {
         })
     }
 
-    /// One value per call, each to its component; an unknown reference is an error.
+    /// `call` for each of the first `n` references in `vr` in turn, with its instance, its
+    /// value reference there and its index; an unknown reference is an error.
+    fn each_routed(
+        &mut self,
+        (vr, n, group): (&[u32], usize, usize),
+        mut call: impl FnMut(&mut Instance, u32, usize) -> Status,
+    ) -> Status {
+        let system = Rc::clone(&self.system);
+        in_turn(
+            vr[..n]
+                .iter()
+                .enumerate()
+                .map(|(k, &v)| match system.route(v, group) {
+                    Some(r) => call(&mut self.instances[r.component], r.vr, k),
+                    None => Status::Error,
+                }),
+        )
+    }
+
+    /// One value per call, each to its component.
     fn set<T: Copy>(
         &mut self,
         (vr, values, group): (&[u32], &[T], usize),
         call: fn(&mut Instance, &[u32], &[T]) -> Status,
     ) -> Status {
-        let system = Rc::clone(&self.system);
-        in_turn(
-            vr.iter()
-                .zip(values)
-                .map(|(&v, value)| match system.route(v, group) {
-                    Some(r) => call(&mut self.instances[r.component], &[r.vr], &[*value]),
-                    None => Status::Error,
-                }),
-        )
+        let n = vr.len().min(values.len());
+        self.each_routed((vr, n, group), |instance, r, k| {
+            call(instance, &[r], &values[k..=k])
+        })
     }
 
     fn get<T: Copy>(
@@ -290,19 +304,10 @@ impl SystemInstance {
         (vr, values, group): (&[u32], &mut [T], usize),
         call: fn(&mut Instance, &[u32], &mut [T]) -> Status,
     ) -> Status {
-        let system = Rc::clone(&self.system);
-        in_turn(
-            vr.iter()
-                .zip(values)
-                .map(|(&v, value)| match system.route(v, group) {
-                    Some(r) => call(
-                        &mut self.instances[r.component],
-                        &[r.vr],
-                        std::slice::from_mut(value),
-                    ),
-                    None => Status::Error,
-                }),
-        )
+        let n = vr.len().min(values.len());
+        self.each_routed((vr, n, group), |instance, r, k| {
+            call(instance, &[r], &mut values[k..=k])
+        })
     }
 
     /// Pass the value (and derivatives) of one connection's output to its input.
