@@ -182,11 +182,10 @@ impl CoSimulation {
         }
         // The last short steps' f at the end holds while the integrator stands on the
         // communication point and only inputs changed since.
-        let carried = self
-            .carried
-            .take()
-            .filter(|_| !(restarting || changed || reconsidered))
-            .filter(|_| self.integrator_time == plant.time());
+        // (Looked at in place: a run without short steps only reads that there is none.)
+        let carried = self.carried.is_some()
+            && !(restarting || changed || reconsidered)
+            && self.integrator_time == plant.time();
         if !plant.input_derivatives().is_zero() {
             // The input polynomials are anchored at this step's start: a new right-hand side.
             self.restart = true;
@@ -197,7 +196,7 @@ impl CoSimulation {
         }
         // Whether the integrator starts this step afresh from the communication point.
         let fresh = if self.restart {
-            if carried.is_none() {
+            if !carried {
                 self.integrator_time = plant.time();
                 self.integrator_state = *plant.state();
             }
@@ -219,22 +218,24 @@ impl CoSimulation {
             false
         };
         let short = fresh && self.solver.suits_short_step(t_end - plant.time());
-        let carried = carried.filter(|_| short);
-        let (y, at) = self.integrate_to(plant, t_end, experiment, (short, carried))?;
+        if !(carried && short) && self.carried.is_some() {
+            self.carried = None;
+        }
+        let (y, at) = self.integrate_to(plant, t_end, experiment, short)?;
         plant.accept_point(t_end, y, &at);
         Ok(())
     }
 
     /// The integrator taken to (or past) `t_end`, and the state there, projected; with
     /// `short`, by short steps that end on `t_end` ([`Integrator::integrate_short`]), the
-    /// first from the `carried` stage if any.
+    /// first from the carried stage if one is kept.
     #[inline(always)]
     fn integrate_to(
         &mut self,
         plant: &Plant,
         t_end: f64,
         experiment: &Experiment,
-        (short, carried): (bool, Option<CarriedStage>),
+        short: bool,
     ) -> Result<(State, Projected), SolverError> {
         let system = Driven::new(plant, &self.integrator_inputs, experiment.tolerance);
         let limit = experiment.limit().max(t_end);
@@ -251,10 +252,11 @@ impl CoSimulation {
                 }
                 self.integrator_time = t_end;
                 self.solver.invalidate();
+                self.carried = None;
             } else {
                 let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
                 let stepped = if short {
-                    let first = carried.map(|stage| {
+                    let first = self.carried.take().map(|stage| {
                         let mut f = stage.f;
                         model::shift_inputs(
                             system.params,
