@@ -254,27 +254,11 @@ impl CoSimulation {
                 self.solver.invalidate();
                 self.carried = None;
             } else {
-                let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
                 let stepped = if short {
-                    let first = self.carried.take().map(|stage| {
-                        let mut f = stage.f;
-                        model::shift_inputs(
-                            system.params,
-                            &mut f,
-                            &stage.inputs,
-                            &system.inputs_at(*t),
-                        );
-                        f
-                    });
-                    self.solver
-                        .integrate_short(&system, (t, y), t_end, first)
-                        .map(|end| {
-                            self.carried = end.map(|f| CarriedStage {
-                                f,
-                                inputs: system.inputs_at(t_end),
-                            })
-                        })
+                    let point = (&mut self.integrator_time, &mut self.integrator_state);
+                    step_short(&mut self.solver, &mut self.carried, point, &system, t_end)
                 } else {
+                    let (t, y) = (&mut self.integrator_time, &mut self.integrator_state);
                     self.solver.integrate(&system, t, y, t_end, limit)
                 };
                 if let Err(error) = stepped {
@@ -438,6 +422,31 @@ impl CoSimulation {
         }
         Ok(())
     }
+}
+
+/// Short steps from the integrator's point to `t_end` ([`Integrator::integrate_short`]),
+/// the first from the `carried` stage if one is kept, keeping f at the end for the next.
+/// Out of line: a run without input changes never comes here, and its communication
+/// points stay lean.
+#[inline(never)]
+fn step_short(
+    solver: &mut Integrator<STATE_SIZE>,
+    carried: &mut Option<CarriedStage>,
+    (t, y): (&mut f64, &mut State),
+    system: &Driven,
+    t_end: f64,
+) -> Result<(), SolverError> {
+    let first = carried.take().map(|stage| {
+        let mut f = stage.f;
+        model::shift_inputs(system.params, &mut f, &stage.inputs, &system.inputs_at(*t));
+        f
+    });
+    let end = solver.integrate_short(system, (t, y), t_end, first)?;
+    *carried = end.map(|f| CarriedStage {
+        f,
+        inputs: system.inputs_at(t_end),
+    });
+    Ok(())
 }
 
 /// The state at communication point `t_end` from the integrator (at `time` with `state`,
