@@ -194,20 +194,34 @@ def test_a_bad_system_is_refused_by_field_before_anything_runs(fmu_path, motor_p
 
 
 @pytest.mark.parametrize("engine", ["native", "container"])
-def test_a_component_that_crashes_is_one_row(fmu_path, motor_path, tmp_path, engine):
+def test_a_component_that_fails_crashes_or_hangs_is_one_row(fmu_path, motor_path, tmp_path, engine,
+                                                            monkeypatch):
     """The faulty FMU beside the motor: at x = 13 it dereferences NULL, which takes the
-    runner down; that point is `crashed`, the others finish."""
+    runner down (`crashed`); at x = 5 it discards a step (`discard`, and the FMU's message
+    says why, with the native engine); at x = 3 it is slow past the
+    point's budget and at x = 7 it hangs in a step (both `timeout`, the hung one killed).
+    The others finish, with the right values."""
+    from fmusweep import native
+    monkeypatch.setattr(native, "HARD_DEADLINE_GRACE_S", 0.5)
     faulty = faulty_fmu(tmp_path)
+    xs = [1.0, 13.0, 2.0, 5.0, 3.0, 7.0, 4.0, 6.0]
     spec = {"system": {"components": {"faulty": str(faulty), "motor": str(motor_path)},
                        "connections": [], "engine": engine},
-            "scenario": {"stop": 0.2, "step": 0.01},
-            "design": {"kind": "list", "parameters": {"faulty.x": {"values": [1.0, 2.0, 13.0, 4.0, 6.0]}}},
+            "scenario": {"stop": 1.0, "step": 0.01, "timeout": 0.05},
+            "design": {"kind": "list", "parameters": {"faulty.x": {"values": xs}}},
             "outputs": {"metrics": {"y": {"variable": "faulty.y", "kind": "final"},
                                     "i": {"variable": "motor.current", "kind": "final"}}}}
     points = run_sweep(spec, out=tmp_path / "out", serial=True, progress=False, plots=False).points
-    assert list(points["status"]) == ["ok", "ok", "crashed", "ok", "ok"]
+    # The container reports its component's discard as an error of its own.
+    discarded = "discard" if engine == "native" else "error"
+    assert list(points["status"]) == ["ok", "crashed", "ok", discarded, "timeout", "timeout",
+                                      "ok", "ok"]
+    by_x = points.set_index("faulty.x")
+    assert "SIGSEGV" in by_x.loc[13.0, "message"] and "killed" in by_x.loc[7.0, "message"]
+    if engine == "native":
+        assert "x = 5 cannot pass t = 0.5" in by_x.loc[5.0, "message"]
     ok = points[points["status"] == "ok"]
-    np.testing.assert_allclose(ok["y"], 0.2 * ok["faulty.x"], rtol=1e-12)  # y = x·t
+    np.testing.assert_allclose(ok["y"], ok["faulty.x"], rtol=1e-12)  # y = x·t at t = 1
 
 
 def test_a_worker_killed_mid_coupled_sweep_loses_no_point(fmu_path, motor_path, tmp_path):
