@@ -111,7 +111,8 @@ impl SystemLibrary {
         let mut components = Vec::new();
         let mut descriptions = Vec::new();
         for c in &file.components {
-            let unpacked = Unpacked::new(&dir.join(&c.file))?;
+            // Inside the served folder, which the caller removes even if this process dies.
+            let unpacked = Unpacked::within(&dir.join(&c.file), dir)?;
             let description = Description::read(unpacked.dir())
                 .map_err(|e| format!("component {}: {e}", c.name))?;
             let library = Library::load(unpacked.dir(), &description)
@@ -411,5 +412,81 @@ impl Unit for SystemInstance {
             return passed;
         }
         in_turn([passed, self.each(|i| i.do_step(time, step))])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn description(can_interpolate: bool, max_order: u32, variables: &str) -> Description {
+        Description::parse(&format!(
+            r#"<?xml version="1.0"?>
+<fmiModelDescription fmiVersion="2.0" modelName="m" guid="{{g}}">
+  <CoSimulation modelIdentifier="m" canInterpolateInputs="{can_interpolate}"
+    maxOutputDerivativeOrder="{max_order}"/>
+  <ModelVariables>{variables}</ModelVariables>
+</fmiModelDescription>"#
+        ))
+        .unwrap()
+    }
+
+    const MOTOR: &str = r#"
+    <ScalarVariable name="omega" valueReference="4" causality="input"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="torque" valueReference="6" causality="output"><Real/></ScalarVariable>
+    <ScalarVariable name="mode" valueReference="7" causality="output"><Integer/></ScalarVariable>"#;
+    const MECHANISM: &str = r#"
+    <ScalarVariable name="M_m" valueReference="1" causality="input"><Real start="0"/></ScalarVariable>
+    <ScalarVariable name="omega1" valueReference="9" causality="output"><Real/></ScalarVariable>"#;
+
+    fn pair(wanted: usize, interpolates: bool) -> Result<Link, String> {
+        let motor = description(true, 1, MOTOR);
+        let mechanism = description(interpolates, 2, MECHANISM);
+        let descriptions = [motor, mechanism];
+        let names = ["motor", "mechanism"];
+        let (from, output) = find_variable("motor.torque", &names, &descriptions)?;
+        let (to, input) = find_variable("mechanism.M_m", &names, &descriptions)?;
+        link(
+            (from, output, &descriptions[from]),
+            (to, input, &descriptions[to]),
+            wanted,
+        )
+    }
+
+    /// Derivatives up to what was asked, what the source gives and what the target takes.
+    #[test]
+    fn a_link_passes_the_derivatives_both_ends_support() {
+        let orders = |wanted, interpolates| pair(wanted, interpolates).unwrap().derivatives;
+        assert_eq!(orders(2, true), 1); // the motor gives only the first
+        assert_eq!(orders(0, true), 0);
+        assert_eq!(orders(2, false), 0); // the mechanism would not take them
+        let link = pair(2, true).unwrap();
+        assert_eq!((link.from.vr, link.to.vr, link.from.group), (6, 1, 0));
+    }
+
+    #[test]
+    fn a_wrong_connection_is_refused_with_its_ends_named() {
+        let descriptions = [description(true, 1, MOTOR), description(true, 2, MECHANISM)];
+        let names = ["motor", "mechanism"];
+        let refusal = |from: &str, to: &str| {
+            let (a, output) = find_variable(from, &names, &descriptions)?;
+            let (b, input) = find_variable(to, &names, &descriptions)?;
+            link(
+                (a, output, &descriptions[a]),
+                (b, input, &descriptions[b]),
+                2,
+            )
+            .map(|_| ())
+        };
+        let said = refusal("motor.omega", "mechanism.M_m").unwrap_err();
+        assert!(said.contains("from an output to an input"), "{said}");
+        let said = refusal("motor.mode", "mechanism.M_m").unwrap_err();
+        assert!(said.contains("different types"), "{said}");
+        let said = refusal("pump.torque", "mechanism.M_m").unwrap_err();
+        assert!(said.contains("no component \"pump\""), "{said}");
+        let said = refusal("motor.speed", "mechanism.M_m").unwrap_err();
+        assert!(said.contains("\"speed\""), "{said}");
+        let said = refusal("torque", "mechanism.M_m").unwrap_err();
+        assert!(said.contains("not component.variable"), "{said}");
     }
 }
