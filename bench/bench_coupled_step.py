@@ -1,6 +1,6 @@
 """The cost of a coupled communication step: the mechanism driven by the compiled DC motor
 (examples/dc_motor: the motor's torque to M_m, omega1 back, Jacobi coupling through FMPy's
-low-level calls, 10 s), its right-hand sides per communication step at H = 1 and 10 ms and
+low-level calls, 10 s), its right-hand sides per communication step at H = 1, 2, 5 and 10 ms and
 tol 1e-6, 1e-8 and 1e-10, and the worst error of any output at any communication point
 against the same coupled run at tol 1e-12, in units of tol and of each output's scale
 max(1, max |y|).
@@ -29,7 +29,7 @@ MECHANISM = {"Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0, "Mr_b0": 20.0, "Mr_b1": -
 OUTPUTS = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4",
            "rod_force", "energy"]
 STOP = 10.0
-STEPS = (1e-3, 1e-2)
+STEPS = (1e-3, 2e-3, 5e-3, 1e-2)
 TOLERANCES = (1e-6, 1e-8, 1e-10)
 
 
