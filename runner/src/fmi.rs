@@ -109,6 +109,17 @@ impl Library {
     }
 }
 
+impl Library {
+    /// Whether the binary exports fmi2GetRealOutputDerivatives, and
+    /// fmi2SetRealInputDerivatives (whatever its description declares).
+    pub fn exports_derivatives(&self) -> (bool, bool) {
+        (
+            self.binding.fmi2GetRealOutputDerivatives.is_ok(),
+            self.binding.fmi2SetRealInputDerivatives.is_ok(),
+        )
+    }
+}
+
 /// The functions a co-simulation run calls; the others may be absent.
 fn missing_functions(b: &Fmi2Binding) -> Vec<&'static str> {
     let present = [

@@ -131,11 +131,20 @@ impl SystemLibrary {
         for c in &file.connections {
             let (from, output) = find(&c.from)?;
             let (to, input) = find(&c.to)?;
-            links.push(link(
+            let mut link = link(
                 (from, output, &descriptions[from]),
                 (to, input, &descriptions[to]),
                 file.input_derivatives,
-            )?);
+            )?;
+            // A description may promise derivatives its binary does not export.
+            let (gives, takes) = (
+                components[from].library.exports_derivatives().0,
+                components[to].library.exports_derivatives().1,
+            );
+            if !(gives && takes) {
+                link.derivatives = 0;
+            }
+            links.push(link);
             fed.push((to, input.value_reference));
         }
         let mut variables = Vec::new();
@@ -274,6 +283,7 @@ impl SystemInstance {
     fn each_routed(
         &mut self,
         (vr, n, group): (&[u32], usize, usize),
+        name: &str,
         mut call: impl FnMut(&mut Instance, u32, usize) -> Status,
     ) -> Status {
         let system = Rc::clone(&self.system);
@@ -282,7 +292,12 @@ impl SystemInstance {
                 .iter()
                 .enumerate()
                 .map(|(k, &v)| match system.route(v, group) {
-                    Some(r) => call(&mut self.instances[r.component], r.vr, k),
+                    Some(r) => blame(
+                        &system,
+                        r.component,
+                        name,
+                        call(&mut self.instances[r.component], r.vr, k),
+                    ),
                     None => Status::Error,
                 }),
         )
@@ -295,7 +310,8 @@ impl SystemInstance {
         call: fn(&mut Instance, &[u32], &[T]) -> Status,
     ) -> Status {
         let n = vr.len().min(values.len());
-        self.each_routed((vr, n, group), |instance, r, k| {
+        let name = ["fmi2SetReal", "fmi2SetInteger", "fmi2SetBoolean"][group];
+        self.each_routed((vr, n, group), name, |instance, r, k| {
             call(instance, &[r], &values[k..=k])
         })
     }
@@ -306,7 +322,8 @@ impl SystemInstance {
         call: fn(&mut Instance, &[u32], &mut [T]) -> Status,
     ) -> Status {
         let n = vr.len().min(values.len());
-        self.each_routed((vr, n, group), |instance, r, k| {
+        let name = ["fmi2GetReal", "fmi2GetInteger", "fmi2GetBoolean"][group];
+        self.each_routed((vr, n, group), name, |instance, r, k| {
             call(instance, &[r], &mut values[k..=k])
         })
     }
@@ -314,70 +331,96 @@ impl SystemInstance {
     /// Pass the value (and derivatives) of one connection's output to its input.
     fn pass(&mut self, link: Link) -> Status {
         let (from, to) = (link.from, link.to);
-        let value = match from.group {
-            0 => {
-                let mut x = [0.0];
-                let s = self.instances[from.component].get_real(&[from.vr], &mut x);
-                if !s.proceeds() {
-                    return s;
-                }
-                self.instances[to.component].set_real(&[to.vr], &x)
-            }
-            _ => {
-                let mut x = [0];
-                let source = &mut self.instances[from.component];
-                let s = if from.group == 1 {
-                    source.get_integer(&[from.vr], &mut x)
-                } else {
-                    source.get_boolean(&[from.vr], &mut x)
-                };
-                if !s.proceeds() {
-                    return s;
-                }
-                let target = &mut self.instances[to.component];
-                if to.group == 1 {
-                    target.set_integer(&[to.vr], &x)
-                } else {
-                    target.set_boolean(&[to.vr], &x)
-                }
-            }
+        let (mut real, mut whole) = ([0.0], [0]);
+        let source = &mut self.instances[from.component];
+        let (read, call) = match from.group {
+            0 => (source.get_real(&[from.vr], &mut real), "fmi2GetReal"),
+            1 => (source.get_integer(&[from.vr], &mut whole), "fmi2GetInteger"),
+            _ => (source.get_boolean(&[from.vr], &mut whole), "fmi2GetBoolean"),
         };
-        if !value.proceeds() || link.derivatives == 0 {
-            return value;
+        let read = self.blame(from.component, call, read);
+        if !read.proceeds() {
+            return read;
+        }
+        let target = &mut self.instances[to.component];
+        let (written, call) = match to.group {
+            0 => (target.set_real(&[to.vr], &real), "fmi2SetReal"),
+            1 => (target.set_integer(&[to.vr], &whole), "fmi2SetInteger"),
+            _ => (target.set_boolean(&[to.vr], &whole), "fmi2SetBoolean"),
+        };
+        let written = self.blame(to.component, call, written);
+        if !written.proceeds() || link.derivatives == 0 {
+            return in_turn([read, written]);
         }
         let mut rates = [0.0; 2];
         let rates = &mut rates[..link.derivatives];
-        let s = self.instances[from.component].get_output_derivatives(from.vr, rates);
-        if !s.proceeds() {
-            return s;
+        let got = self.instances[from.component].get_output_derivatives(from.vr, rates);
+        let got = self.blame(from.component, "fmi2GetRealOutputDerivatives", got);
+        if !got.proceeds() {
+            return got;
         }
-        in_turn([
-            value,
-            s,
-            self.instances[to.component].set_input_derivatives(to.vr, rates),
-        ])
+        let set = self.instances[to.component].set_input_derivatives(to.vr, rates);
+        let set = self.blame(to.component, "fmi2SetRealInputDerivatives", set);
+        in_turn([read, written, got, set])
     }
 
-    fn each(&mut self, call: impl FnMut(&mut Instance) -> Status) -> Status {
-        in_turn(self.instances.iter_mut().map(call))
+    /// `call` on every component in turn, until one stops the run.
+    fn each(&mut self, name: &str, mut call: impl FnMut(&mut Instance) -> Status) -> Status {
+        let mut worst = Status::Ok;
+        for component in 0..self.instances.len() {
+            let status = call(&mut self.instances[component]);
+            let status = self.blame(component, name, status);
+            if !status.proceeds() {
+                return status;
+            }
+            worst = worst.max(status);
+        }
+        worst
     }
+
+    fn blame(&self, component: usize, call: &str, status: Status) -> Status {
+        blame(&self.system, component, call, status)
+    }
+}
+
+/// `status`, which `call` of `component` returned; when it stops the run, a message names
+/// the component (the FMU's own message does not).
+fn blame(system: &SystemLibrary, component: usize, call: &str, status: Status) -> Status {
+    if !status.proceeds() {
+        let name = system.components[component].name.to_string_lossy();
+        let level = if status == Status::Discard {
+            log::Level::Trace
+        } else {
+            log::Level::Error
+        };
+        log::log!(level, "component {name}: {call} returned {status:?}");
+    }
+    status
 }
 
 impl Unit for SystemInstance {
     fn reset(&mut self) -> Status {
-        self.each(Instance::reset)
+        self.each("fmi2Reset", Instance::reset)
     }
 
     fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Status {
-        self.each(|i| i.setup_experiment(tolerance, start, stop))
+        self.each("fmi2SetupExperiment", |i| {
+            i.setup_experiment(tolerance, start, stop)
+        })
     }
 
     fn enter_initialization_mode(&mut self) -> Status {
-        self.each(Instance::enter_initialization_mode)
+        self.each(
+            "fmi2EnterInitializationMode",
+            Instance::enter_initialization_mode,
+        )
     }
 
     fn exit_initialization_mode(&mut self) -> Status {
-        self.each(Instance::exit_initialization_mode)
+        self.each(
+            "fmi2ExitInitializationMode",
+            Instance::exit_initialization_mode,
+        )
     }
 
     fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
@@ -411,7 +454,7 @@ impl Unit for SystemInstance {
         if !passed.proceeds() {
             return passed;
         }
-        in_turn([passed, self.each(|i| i.do_step(time, step))])
+        in_turn([passed, self.each("fmi2DoStep", |i| i.do_step(time, step))])
     }
 }
 

@@ -218,8 +218,9 @@ def test_a_component_that_fails_crashes_or_hangs_is_one_row(fmu_path, motor_path
                                       "ok", "ok"]
     by_x = points.set_index("faulty.x")
     assert "SIGSEGV" in by_x.loc[13.0, "message"] and "killed" in by_x.loc[7.0, "message"]
-    if engine == "native":
+    if engine == "native":  # the FMU's message, and which component said it
         assert "x = 5 cannot pass t = 0.5" in by_x.loc[5.0, "message"]
+        assert "component faulty: fmi2DoStep returned Discard" in by_x.loc[5.0, "message"]
     ok = points[points["status"] == "ok"]
     np.testing.assert_allclose(ok["y"], ok["faulty.x"], rtol=1e-12)  # y = x·t at t = 1
 
