@@ -26,6 +26,14 @@ fn running_instance() -> (fmi2Component, Vec<u8>) {
             assert_eq!(fmi2DoStep(c, t, 0.01, 1), fmi2Status_fmi2OK);
             t += 0.01;
         }
+    }
+    (c, serialized(c))
+}
+
+/// The instance's state, serialized.
+fn serialized(c: fmi2Component) -> Vec<u8> {
+    // SAFETY: a live instance; the state and buffer are this test's own.
+    unsafe {
         let mut state: fmi2FMUstate = null_mut();
         assert_eq!(fmi2GetFMUstate(c, &mut state), fmi2Status_fmi2OK);
         let mut size = 0;
@@ -39,7 +47,23 @@ fn running_instance() -> (fmi2Component, Vec<u8>) {
             fmi2Status_fmi2OK
         );
         fmi2FreeFMUstate(c, &mut state);
-        (c, bytes.iter().map(|b| *b as u8).collect())
+        bytes.iter().map(|b| *b as u8).collect()
+    }
+}
+
+/// Deserialize `bytes` and set the instance to it; false when refused.
+fn set_state(c: fmi2Component, bytes: &[u8]) -> bool {
+    // SAFETY: a live instance; the buffer and state are this test's own.
+    unsafe {
+        let mut state: fmi2FMUstate = null_mut();
+        let chars: Vec<c_char> = bytes.iter().map(|b| *b as c_char).collect();
+        if fmi2DeSerializeFMUstate(c, chars.as_ptr(), chars.len(), &mut state) != fmi2Status_fmi2OK
+        {
+            return false;
+        }
+        assert_eq!(fmi2SetFMUstate(c, state), fmi2Status_fmi2OK);
+        fmi2FreeFMUstate(c, &mut state);
+        true
     }
 }
 
@@ -58,16 +82,11 @@ fn restore(c: fmi2Component, bytes: &[u8]) -> Option<Vec<f64>> {
         .map(|(vr, _)| vr)
         .collect();
     let mut values = vec![0.0; real.len()];
+    if !set_state(c, bytes) {
+        return None;
+    }
     // SAFETY: a live instance, buffers of the stated sizes.
     unsafe {
-        let mut state: fmi2FMUstate = null_mut();
-        let chars: Vec<c_char> = bytes.iter().map(|b| *b as c_char).collect();
-        if fmi2DeSerializeFMUstate(c, chars.as_ptr(), chars.len(), &mut state) != fmi2Status_fmi2OK
-        {
-            return None;
-        }
-        assert_eq!(fmi2SetFMUstate(c, state), fmi2Status_fmi2OK);
-        fmi2FreeFMUstate(c, &mut state);
         let mut seen = Vec::new();
         let mut read = |values: &mut Vec<f64>| {
             let s = fmi2GetReal(c, real.as_ptr(), real.len(), values.as_mut_ptr());
@@ -176,5 +195,101 @@ fn a_state_off_the_constraint_or_out_of_range_is_refused() {
         None,
         "the load law changed under the integrator's memory"
     );
+    unsafe { fmi2FreeInstance(c) };
+}
+
+/// A master that sets M_m before every step of 1 ms, as a coupled one does: the FMU takes
+/// short steps, each starting from the last one's f shifted to the new torque (the
+/// carried stage, part of the state). Restored, the run goes on bit for bit, at four
+/// evaluations for some steps (a step without the carried stage costs five); with any f64
+/// of the payload forged (NaN, ±inf), the state is refused or runs like the original.
+#[test]
+fn a_state_mid_coupled_run_round_trips_and_refuses_forgeries() {
+    let c = common::instantiate(c"coupled");
+    // The DC-motor example's mechanism: the motor (here a torque signal) replaces the law.
+    let example = [
+        ("Mm_a0", 0.0),
+        ("Mm_a1", 0.0),
+        ("Mm_a2", 0.0),
+        ("Mr_b0", 20.0),
+        ("Mr_b1", -0.05),
+        ("c4", 0.5),
+        ("d34", 1.0),
+    ];
+    common::initialise(c, 1e-8, None, &example);
+    let torque = value_reference("M_m").unwrap();
+    let reals: Vec<u32> = ["phi1", "phi2", "omega1", "omega3", "rod_force"]
+        .iter()
+        .map(|n| value_reference(n).unwrap())
+        .collect();
+    let rhs = value_reference("n_rhs").unwrap();
+    // Steps k0..k1, each after a new torque: every Real read and the evaluations per
+    // step, as bits; None when a step fails.
+    let run = |c: fmi2Component, (k0, k1): (usize, usize)| -> Option<(Vec<u64>, Vec<i32>)> {
+        let (mut seen, mut costs, mut values, mut count) =
+            (Vec::new(), Vec::new(), vec![0.0; 5], 0);
+        // SAFETY: a live instance, buffers of the stated sizes.
+        unsafe {
+            fmi2GetInteger(c, &rhs, 1, &mut count);
+            for k in k0..k1 {
+                let m = 40.0 + 5.0 * (k as f64 * 0.37).sin();
+                if fmi2SetReal(c, &torque, 1, &m) != fmi2Status_fmi2OK
+                    || fmi2DoStep(c, k as f64 * 1e-3, 1e-3, 1) != fmi2Status_fmi2OK
+                    || fmi2GetReal(c, reals.as_ptr(), 5, values.as_mut_ptr()) != fmi2Status_fmi2OK
+                {
+                    return None;
+                }
+                seen.extend(bits(&values));
+                let before = count;
+                fmi2GetInteger(c, &rhs, 1, &mut count);
+                costs.push(count - before);
+            }
+        }
+        Some((seen, costs))
+    };
+    run(c, (0, 100)).expect("the coupled run");
+    let bytes = serialized(c);
+    let (original, costs) = run(c, (100, 110)).unwrap();
+    assert!(
+        costs.contains(&4),
+        "no step started from a carried stage: {costs:?}"
+    );
+    assert!(set_state(c, &bytes));
+    assert_eq!(run(c, (100, 110)), Some((original.clone(), costs)));
+    for at in HEADER..bytes.len() - 16 {
+        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            let mut forged = bytes.clone();
+            forged[at..at + 8].copy_from_slice(&bad.to_le_bytes());
+            if !set_state(c, &with_checksum(forged)) {
+                continue;
+            }
+            let (values, _) = run(c, (100, 110)).expect("a restored forgery runs");
+            let worst = values
+                .iter()
+                .zip(&original)
+                .map(|(a, b)| {
+                    let (a, b) = (f64::from_bits(*a), f64::from_bits(*b));
+                    (a - b).abs() / b.abs().max(1.0)
+                })
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= 1e-7,
+                "offset {at}: a forgery restored and moved the run by {worst:e}"
+            );
+        }
+    }
+    // The carried stage ends the payload: f (8 numbers), then the inputs it was evaluated
+    // with (2), before the checksum. Any finite change to one of them is refused.
+    let carried = bytes.len() - 8 - 10 * 8;
+    for slot in 0..10 {
+        let at = carried + 8 * slot;
+        let value = f64::from_le_bytes(bytes[at..at + 8].try_into().unwrap());
+        let mut forged = bytes.clone();
+        forged[at..at + 8].copy_from_slice(&(value * (1.0 + 1e-12) + 1e-9).to_le_bytes());
+        assert!(
+            !set_state(c, &with_checksum(forged)),
+            "a carried stage changed in slot {slot} was restored"
+        );
+    }
     unsafe { fmi2FreeInstance(c) };
 }

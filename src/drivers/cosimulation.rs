@@ -103,7 +103,10 @@ impl OdeSystem<STATE_SIZE> for Driven<'_> {
 /// f at the integrator's point after short steps that ended on the communication point,
 /// with the inputs it was evaluated with. While nothing but the inputs changes, the next
 /// short step starts from it, shifted to the new inputs ([`model::shift_inputs`]), and
-/// evaluates no f of its own at the start.
+/// evaluates no f of its own at the start. Kept only while it holds: the integrator stands
+/// on the plant's communication point, no restart is pending from a failure, and the
+/// parameters and state are the ones it was evaluated with (a change drops it, as does a
+/// step taken otherwise).
 #[derive(Clone, Copy, Debug)]
 struct CarriedStage {
     f: State,
@@ -170,22 +173,15 @@ impl CoSimulation {
         t_end: f64,
         experiment: &Experiment,
     ) -> Result<(), SolverError> {
-        let restarting = self.restart;
-        let changed = plant.take_changed();
-        if changed {
+        if plant.take_changed() {
             self.restart = true;
+            // f at the integrator's point no longer holds for the new parameters or state.
+            self.carried = None;
         }
-        let reconsidered = self.solver.reconsider(t_end - plant.time());
-        if reconsidered {
+        if self.solver.reconsider(t_end - plant.time()) {
             // `auto` changed method: the new one starts from the communication point.
             self.restart = true;
         }
-        // The last short steps' f at the end holds while the integrator stands on the
-        // communication point and only inputs changed since.
-        // (Looked at in place: a run without short steps only reads that there is none.)
-        let carried = self.carried.is_some()
-            && !(restarting || changed || reconsidered)
-            && self.integrator_time == plant.time();
         if !plant.input_derivatives().is_zero() {
             // The input polynomials are anchored at this step's start: a new right-hand side.
             self.restart = true;
@@ -196,7 +192,9 @@ impl CoSimulation {
         }
         // Whether the integrator starts this step afresh from the communication point.
         let fresh = if self.restart {
-            if !carried {
+            // With a carried stage the integrator stands on the communication point already
+            // (see `CarriedStage`), and starts from its own state there.
+            if self.carried.is_none() {
                 self.integrator_time = plant.time();
                 self.integrator_state = *plant.state();
             }
@@ -218,7 +216,7 @@ impl CoSimulation {
             false
         };
         let short = fresh && self.solver.suits_short_step(t_end - plant.time());
-        if !(carried && short) && self.carried.is_some() {
+        if !short && self.carried.is_some() {
             self.carried = None;
         }
         let (y, at) = self.integrate_to(plant, t_end, experiment, short)?;
@@ -369,6 +367,14 @@ impl CoSimulation {
     /// give (that memory is used only while nothing restarts it).
     fn check_restored(&self, plant: &Plant, experiment: &Experiment) -> Result<(), String> {
         check_inputs(&self.integrator_inputs, " (integrator's)")?;
+        if self.carried.is_some() {
+            if self.restart {
+                return Err("a carried first stage with a restart pending".into());
+            }
+            if self.integrator_time != plant.time() {
+                return Err("a carried first stage off the communication point".into());
+            }
+        }
         if self.restarts(plant) {
             return Ok(());
         }
