@@ -126,6 +126,20 @@ class Scenario:
                 "metrics": metrics, "series": series, "timeout_s": self.timeout}
 
 
+def what_runs(raw: dict, base_dir: pathlib.Path) -> tuple[str | None, str | None, System | None]:
+    """The spec's FMU path, SSP path or [system], at most one of them (each checked)."""
+    fmu, ssp = raw.get("fmu"), raw.get("ssp")
+    for key, value in (("fmu", fmu), ("ssp", ssp)):
+        if value is not None and not isinstance(value, str):
+            raise SpecError(key, "must be a path (a string)")
+    named = [key for key in ("fmu", "ssp", "system") if raw.get(key) is not None]
+    if len(named) > 1:
+        raise SpecError(named[1], f"a spec names one of an FMU, an SSP system or a [system], "
+                                  f"not {' and '.join(named)}")
+    system = System.of(raw["system"], base_dir) if "system" in raw else None
+    return fmu, ssp, system
+
+
 @dataclass
 class Spec:
     raw: dict
@@ -164,15 +178,7 @@ class Spec:
         raw = copy.deepcopy(raw)
         base_dir = pathlib.Path(base_dir)
         _only(raw, "spec", {"fmu", "ssp", "system", "scenario", "design", "outputs"})
-        fmu, ssp = raw.get("fmu"), raw.get("ssp")
-        for key, value in (("fmu", fmu), ("ssp", ssp)):
-            if value is not None and not isinstance(value, str):
-                raise SpecError(key, "must be a path (a string)")
-        named = [key for key in ("fmu", "ssp", "system") if raw.get(key) is not None]
-        if len(named) > 1:
-            raise SpecError(named[1], f"a spec names one of an FMU, an SSP system or a [system], "
-                                      f"not {' and '.join(named)}")
-        system = System.of(raw["system"], base_dir) if "system" in raw else None
+        fmu, ssp, system = what_runs(raw, base_dir)
         scenario = Scenario.of(raw)
         design = _table(raw, "design", "spec", required=True)
         kind = design.get("kind", "grid")

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import SpecError
 from ..fields import finite, low_high, only, table, whole
-from ..spec import Scenario, read_source
+from ..spec import Scenario, read_source, what_runs
 from ..system import System
 from .data import Data
 
@@ -98,12 +98,7 @@ class FitSpec:
         raw = copy.deepcopy(raw)
         base_dir = pathlib.Path(base_dir)
         only(raw, "spec", {"fmu", "system", "scenario", "data", "fit"})
-        fmu = raw.get("fmu")
-        if fmu is not None and not isinstance(fmu, str):
-            raise SpecError("fmu", "must be a path (a string)")
-        if fmu is not None and raw.get("system") is not None:
-            raise SpecError("system", "a fit names an FMU or a [system], not both")
-        system = System.of(raw["system"], base_dir) if "system" in raw else None
+        fmu, _, system = what_runs(raw, base_dir)
         scenario = Scenario.of(raw)
         data = Data.of(table(raw, "data", "spec", required=True), base_dir, scenario)
         fit = table(raw, "fit", "spec", required=True)
