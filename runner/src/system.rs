@@ -366,16 +366,13 @@ impl SystemInstance {
 
     /// `call` on every component in turn, until one stops the run.
     fn each(&mut self, name: &str, mut call: impl FnMut(&mut Instance) -> Status) -> Status {
-        let mut worst = Status::Ok;
-        for component in 0..self.instances.len() {
-            let status = call(&mut self.instances[component]);
-            let status = self.blame(component, name, status);
-            if !status.proceeds() {
-                return status;
-            }
-            worst = worst.max(status);
-        }
-        worst
+        let system = &self.system;
+        in_turn(
+            self.instances
+                .iter_mut()
+                .enumerate()
+                .map(|(component, instance)| blame(system, component, name, call(instance))),
+        )
     }
 
     fn blame(&self, component: usize, call: &str, status: Status) -> Status {
