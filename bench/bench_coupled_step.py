@@ -13,7 +13,6 @@ Writes results.json and results.md.
 """
 
 import argparse
-import json
 import pathlib
 import tempfile
 

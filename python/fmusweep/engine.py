@@ -17,7 +17,7 @@ import pyarrow as pa
 
 from . import design as design_module
 from .check import check_against_fmu
-from .fmu import Archive, local_runner, open_for_checks
+from .fmu import Archive, open_for_checks
 from .pool import Pool, without_message_log
 from .spec import Spec, SpecError
 from .ssp import check_ssp, describe_ssp, prepare_ssp_worker, run_ssp_batch

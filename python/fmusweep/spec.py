@@ -42,7 +42,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-import math
 import pathlib
 import tomllib
 from dataclasses import dataclass, field

@@ -2,7 +2,6 @@
 processes started here on loopback, give the serial results bit for bit; a sweep whose
 client is killed half-way resumes without redoing finished batches."""
 
-import json
 import os
 import pathlib
 import signal

@@ -2,13 +2,11 @@
 and give what each promises."""
 
 import json
-import os
 import pathlib
 import subprocess
 import sys
 
 import pyarrow.parquet as pq
-import pytest
 
 from conftest import packed
 from sweep_helpers import environment_for_workers
