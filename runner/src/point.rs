@@ -8,7 +8,7 @@ use crate::description::Description;
 use crate::fmi::Status;
 use crate::messages;
 use crate::plan::{type_group, ByType, Plan};
-use crate::unit::{Target, Unit};
+use crate::unit::{Running, Target, Unit};
 
 /// How a point ended, as the results table spells it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -139,7 +139,7 @@ impl Assignments {
         Ok(())
     }
 
-    fn apply(&mut self, instance: &mut dyn Unit) -> Status {
+    fn apply(&mut self, instance: &mut Running) -> Status {
         let s = instance.set_real(&self.vr.real, &self.real);
         if !s.proceeds() {
             return s;
@@ -155,7 +155,7 @@ impl Assignments {
 /// The loaded FMU (or system) and its one instance, kept across points and requests.
 pub struct Runner {
     target: Target,
-    instance: Option<Box<dyn Unit>>,
+    instance: Option<Running>,
     reals: Vec<f64>,
     integers: Vec<i32>,
     booleans: Vec<i32>,
@@ -187,10 +187,10 @@ impl Runner {
     }
 
     /// A fresh instance for a new point: the kept one reset, or a new one.
-    fn fresh_instance(&mut self) -> Result<&mut dyn Unit, Stop> {
+    fn fresh_instance(&mut self) -> Result<&mut Running, Stop> {
         if let Some(instance) = self.instance.as_mut() {
             if instance.reset().proceeds() {
-                return Ok(self.instance.as_deref_mut().expect("kept above"));
+                return Ok(self.instance.as_mut().expect("kept above"));
             }
             self.instance = None;
         }
@@ -198,7 +198,7 @@ impl Runner {
             .target
             .instantiate()
             .map_err(|m| Stop(Outcome::Error, m))?;
-        Ok(self.instance.insert(instance).as_mut())
+        Ok(self.instance.insert(instance))
     }
 
     /// Reset, set up, set the point's values and inputs at the start; with `initialise`,

@@ -56,10 +56,46 @@ pub enum Target {
 
 impl Target {
     /// A new instance of the target.
-    pub fn instantiate(&self) -> Result<Box<dyn Unit>, String> {
+    pub fn instantiate(&self) -> Result<Running, String> {
         Ok(match self {
-            Target::Fmu(library) => Box::new(Instance::new(library, c"sweep")?),
-            Target::System(system) => Box::new(SystemInstance::new(system)?),
+            Target::Fmu(library) => Running::Fmu(Instance::new(library, c"sweep")?),
+            Target::System(system) => Running::System(SystemInstance::new(system)?),
         })
     }
+}
+
+/// An instance of a [`Target`]. Dispatched by a match, not a virtual call: a single FMU's
+/// calls on the runner's per-step path stay direct (and inlinable), as without systems.
+pub enum Running {
+    Fmu(Instance),
+    System(SystemInstance),
+}
+
+/// Each call goes to the variant's method of the same name.
+macro_rules! dispatch {
+    ($($name:ident($($arg:ident: $t:ty),*)),* $(,)?) => {
+        $(#[inline]
+        fn $name(&mut self, $($arg: $t),*) -> Status {
+            match self {
+                Running::Fmu(unit) => Unit::$name(unit, $($arg),*),
+                Running::System(unit) => Unit::$name(unit, $($arg),*),
+            }
+        })*
+    };
+}
+
+impl Unit for Running {
+    dispatch!(
+        reset(),
+        setup_experiment(tolerance: Option<f64>, start: f64, stop: f64),
+        enter_initialization_mode(),
+        exit_initialization_mode(),
+        set_real(vr: &[u32], values: &[f64]),
+        set_integer(vr: &[u32], values: &[i32]),
+        set_boolean(vr: &[u32], values: &[i32]),
+        get_real(vr: &[u32], values: &mut [f64]),
+        get_integer(vr: &[u32], values: &mut [i32]),
+        get_boolean(vr: &[u32], values: &mut [i32]),
+        do_step(time: f64, step: f64),
+    );
 }
