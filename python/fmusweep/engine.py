@@ -17,11 +17,11 @@ import pyarrow as pa
 
 from . import design as design_module
 from .check import check_against_fmu
-from .fmu import Archive, open_for_checks
+from .fmu import Archive
 from .pool import Pool, without_message_log
 from .spec import Spec, SpecError
 from .ssp import check_ssp, describe_ssp, prepare_ssp_worker, run_ssp_batch
-from .system import load_system
+from .system import open_target
 from .store import FORMAT, ResultStore, versions
 from .worker import prepare_worker, run_batch
 
@@ -156,13 +156,11 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         identity = {"ssp_name": target.name, "ssp_sha256": target.sha256}
         batch_function, prepare_function = run_ssp_batch, prepare_ssp_worker
     else:
+        target, local, description = open_target(spec.system, fmu, spec.fmu, spec.step)
         if spec.system is not None and fmu is None:
-            target = spec.system.build(spec.step)
-            local, description = load_system(target)
             identity = {"system": {name: str(path) for name, path in spec.system.components.items()},
                         "connections": [str(c) for c in spec.system.connections]}
         else:
-            target, local, description = open_for_checks(fmu, spec.fmu)
             identity = {"fmu_name": target.name, "fmu_guid": description["guid"]}
         check_against_fmu(spec, design, description, local)
         local.configure(plan)

@@ -43,7 +43,7 @@ import zipfile
 from dataclasses import dataclass
 
 from .errors import SpecError
-from .fmu import Archive, local_runner
+from .fmu import Archive, local_runner, open_for_checks
 from .native import RunnerError
 
 __all__ = ["System", "load_system"]
@@ -318,6 +318,16 @@ def _algebraic_loop(connections: list[Connection], descriptions: dict) -> list[s
             if found:
                 return found
     return None
+
+
+def open_target(system: System | None, fmu, spec_fmu, step: float):
+    """What a sweep or a fit runs, for the checks before anything runs: the FMU the caller
+    names, else the spec's [system] (built for communication step `step`), else the spec's
+    FMU or $FMUSWEEP_FMU. Its bytes, this process's runner for it, and its description."""
+    if system is not None and fmu is None:
+        target = system.build(step)
+        return (target, *load_system(target))
+    return open_for_checks(fmu, spec_fmu)
 
 
 def load_system(target: Archive):

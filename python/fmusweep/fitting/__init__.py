@@ -18,8 +18,7 @@ import time
 
 import numpy as np
 
-from ..fmu import open_for_checks
-from ..system import load_system
+from ..system import open_target
 from ..pool import Pool, without_message_log
 from ..store import FORMAT, ResultStore, atomic_write_text, versions
 from ..worker import prepare_worker, run_batch
@@ -70,11 +69,7 @@ def fit(spec, *, fmu=None, out=None, workers: int | None = None, scheduler: str 
     """
     started = time.perf_counter()
     spec = FitSpec.load(spec)
-    if spec.system is not None and fmu is None:
-        target = spec.system.build(spec.scenario.step)
-        local, description = load_system(target)
-    else:
-        target, local, description = open_for_checks(fmu, spec.fmu)
+    target, local, description = open_target(spec.system, fmu, spec.fmu, spec.scenario.step)
     check_fit_against_fmu(spec, description, local)
     plan = spec.plan()
     local.configure(plan)
