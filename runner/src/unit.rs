@@ -22,6 +22,25 @@ pub trait Unit {
     fn do_step(&mut self, time: f64, step: f64) -> Status;
 }
 
+/// `$implement!` over every call of [`Unit`], written once here.
+macro_rules! each_call {
+    ($implement:ident) => {
+        $implement!(
+            reset(),
+            setup_experiment(tolerance: Option<f64>, start: f64, stop: f64),
+            enter_initialization_mode(),
+            exit_initialization_mode(),
+            set_real(vr: &[u32], values: &[f64]),
+            set_integer(vr: &[u32], values: &[i32]),
+            set_boolean(vr: &[u32], values: &[i32]),
+            get_real(vr: &[u32], values: &mut [f64]),
+            get_integer(vr: &[u32], values: &mut [i32]),
+            get_boolean(vr: &[u32], values: &mut [i32]),
+            do_step(time: f64, step: f64),
+        );
+    };
+}
+
 /// Each call goes to the instance's method of the same name.
 macro_rules! delegate {
     ($($name:ident($($arg:ident: $t:ty),*)),* $(,)?) => {
@@ -32,19 +51,7 @@ macro_rules! delegate {
 }
 
 impl Unit for Instance {
-    delegate!(
-        reset(),
-        setup_experiment(tolerance: Option<f64>, start: f64, stop: f64),
-        enter_initialization_mode(),
-        exit_initialization_mode(),
-        set_real(vr: &[u32], values: &[f64]),
-        set_integer(vr: &[u32], values: &[i32]),
-        set_boolean(vr: &[u32], values: &[i32]),
-        get_real(vr: &[u32], values: &mut [f64]),
-        get_integer(vr: &[u32], values: &mut [i32]),
-        get_boolean(vr: &[u32], values: &mut [i32]),
-        do_step(time: f64, step: f64),
-    );
+    each_call!(delegate);
 }
 
 /// What the runner loaded: one FMU's library, or a system's.
@@ -85,17 +92,5 @@ macro_rules! dispatch {
 }
 
 impl Unit for Running {
-    dispatch!(
-        reset(),
-        setup_experiment(tolerance: Option<f64>, start: f64, stop: f64),
-        enter_initialization_mode(),
-        exit_initialization_mode(),
-        set_real(vr: &[u32], values: &[f64]),
-        set_integer(vr: &[u32], values: &[i32]),
-        set_boolean(vr: &[u32], values: &[i32]),
-        get_real(vr: &[u32], values: &mut [f64]),
-        get_integer(vr: &[u32], values: &mut [i32]),
-        get_boolean(vr: &[u32], values: &mut [i32]),
-        do_step(time: f64, step: f64),
-    );
+    each_call!(dispatch);
 }
