@@ -4,12 +4,12 @@
 fn main() {
     let os = std::env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
     if os == "linux" {
-        let map = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/fmi2/exports.map");
+        let map = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/exports.map");
         println!(
             "cargo:rustc-cdylib-link-arg=-Wl,--version-script={}",
             map.display()
         );
-        println!("cargo:rerun-if-changed=src/fmi2/exports.map");
+        println!("cargo:rerun-if-changed=src/exports.map");
     } else if os == "windows" {
         // No time of day in the DLL's header: the same sources give the same bytes.
         println!("cargo:rustc-cdylib-link-arg=-Wl,--no-insert-timestamp");

@@ -1,8 +1,10 @@
 //! An FMI 2.0 unit (Co-Simulation and Model Exchange) for the cyclic mechanism of `docs/model.md`.
 //! ARCHITECTURE.md at the repository's root tells how the parts fit; from the top down:
 //!
-//! - [`fmi2`]: the C ABI, the only `unsafe` code in the crate (with the runner's loader);
-//! - [`fmi3`]: FMI 3.0's model description (its functions are not exported yet);
+//! - [`fmi2`]: the FMI 2.0 C ABI; with `fmi3` and `abi` the only `unsafe` code in the crate
+//!   (with the runner's loader);
+//! - [`fmi3`]: the FMI 3.0 C ABI over the same instance, and its model description;
+//! - [`instance`]: one instance of either version: its restorable state, states and logger;
 //! - [`drivers`]: the co-simulation driver (the FMU's own integrator) and the Model Exchange
 //!   adapter (the master's integrator), each over the plant;
 //! - [`plant`]: the mechanism as a master sees it: variables, checks, outputs, derivatives;
@@ -11,9 +13,11 @@
 //! - [`model`]: the mechanism alone (physics, constraint, projection, energy);
 //! - [`solver`]: integrators that know nothing of the mechanism.
 
+mod abi;
 pub mod drivers;
 pub mod fmi2;
 pub mod fmi3;
+pub mod instance;
 pub mod model;
 pub mod plant;
 pub mod snapshot;

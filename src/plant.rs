@@ -522,7 +522,7 @@ impl Plant {
         }
         let fixed = || {
             AccessError::NotAllowed(format!(
-                "{} is a fixed parameter: it can only be set before fmi2ExitInitializationMode",
+                "{} is a fixed parameter: it can only be set before initialisation ends (ExitInitializationMode)",
                 var.name
             ))
         };
@@ -550,7 +550,7 @@ impl Plant {
             (Slot::BuiltinLaws, Value::Boolean(_)) => {}
             _ => {
                 let what = if var.causality() == crate::variables::Causality::Local {
-                    "a Model Exchange state or derivative, set through fmi2SetContinuousStates"
+                    "a Model Exchange state or derivative, set through SetContinuousStates"
                 } else {
                     "an output"
                 };

@@ -10,9 +10,8 @@ use std::ptr::{null, null_mut};
 
 mod common;
 
-use cyclic_mechanism::fmi2::instance::FmuState;
-use cyclic_mechanism::fmi2::state_machine::State;
 use cyclic_mechanism::fmi2::*;
+use cyclic_mechanism::instance::{FmuState, State, Version};
 use cyclic_mechanism::snapshot::fnv1a_64;
 use cyclic_mechanism::variables::{count, variable, VarType};
 use fmi_sys::fmi2::*;
@@ -625,7 +624,7 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
         let states: Vec<String> = round_trips
             .iter()
             .map(|(code, n)| {
-                let name = State::from_code(*code).map_or("?", State::describe);
+                let name = State::from_code(*code).map_or("?", |s| s.describe(Version::Fmi2));
                 format!("\"{name}\": {n}")
             })
             .collect();

@@ -7,10 +7,9 @@ use std::ptr::null_mut;
 
 use fmi_sys::fmi2::*;
 
-use super::instance::{send_log, Failure, FmuState, Instance, Outcome};
 use super::model_description::guid;
-use super::state_machine::Interface;
 use super::{export, null_argument, slice, slice_mut};
+use crate::instance::{Failure, FmuState, Instance, Interface, Logger, Outcome, Status, Version};
 use crate::plant::Value;
 
 #[no_mangle]
@@ -53,8 +52,13 @@ unsafe fn instantiate(
 ) -> fmi2Component {
     // SAFETY: NULL or valid, by the FMI contract.
     let functions = unsafe { functions.as_ref() };
-    let logger = functions.and_then(|f| f.logger);
     let environment = functions.map_or(null_mut(), |f| f.componentEnvironment);
+    let logger = functions
+        .and_then(|f| f.logger)
+        .map(|callback| Logger::Fmi2 {
+            callback,
+            environment,
+        });
     let name = if instance_name.is_null() {
         CString::default()
     } else {
@@ -63,14 +67,8 @@ unsafe fn instantiate(
     };
     let fail = |message: String| {
         if let Some(logger) = logger {
-            send_log(
-                logger,
-                environment,
-                &name,
-                fmi2Status_fmi2Error,
-                "logStatusError",
-                &format!("fmi2Instantiate: {message}"),
-            );
+            let message = format!("fmi2Instantiate: {message}");
+            logger.send(&name, Status::Error, "logStatusError", &message);
         }
         null_mut()
     };
@@ -104,9 +102,9 @@ unsafe fn instantiate(
     }
     Box::into_raw(Box::new(Instance::new(
         interface,
+        Version::Fmi2,
         name,
         logger,
-        environment,
         logging_on,
     )))
     .cast()

@@ -2,8 +2,8 @@
 
 use fmi_sys::fmi2::*;
 
-use super::instance::Failure;
 use super::{export, null_argument, slice, slice_mut};
+use crate::instance::Failure;
 
 export! {
     /// # Safety

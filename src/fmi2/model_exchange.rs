@@ -3,8 +3,8 @@
 
 use fmi_sys::fmi2::*;
 
-use super::instance::Instance;
 use super::{export, null_argument, slice, slice_mut};
+use crate::instance::Instance;
 
 export! {
     /// # Safety

@@ -2,114 +2,19 @@
 //! Exchange (section 3.2.3), in one place.
 //!
 //! Every exported function that takes an instance is a [`Function`], and
-//! [`Function::allowed`] is the standard's table of the states it may be called in. An argument error leaves the state unchanged (the
-//! instance keeps working, nothing having been applied); only a panic (a bug) moves the
-//! instance to `Fatal`, where nothing but fmi2FreeInstance is allowed.
+//! [`Function::allowed`] is the standard's table of the states it may be called in. An
+//! argument error leaves the state unchanged (the instance keeps working, nothing having been
+//! applied); only a panic (a bug) moves the instance to `Fatal`, where nothing but
+//! fmi2FreeInstance is allowed.
 
-/// States of a co-simulation slave.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum State {
-    Instantiated,
-    InitializationMode,
-    /// Initialised, the last doStep (if any) completed: the standard's "stepComplete".
-    StepComplete,
-    /// The last doStep returned fmi2Discard: outputs are at the last good point.
-    StepFailed,
-    Terminated,
-    Fatal,
-    /// Model Exchange: events are handled (after initialisation, or fmi2EnterEventMode).
-    EventMode,
-    /// Model Exchange: the master integrates.
-    ContinuousTimeMode,
-}
+use crate::instance::state::{functions, BOTH, CS, ME};
+pub use crate::instance::state::{Belongs, Interface, Mask, State};
 
-/// Which interface an instance was created for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Interface {
-    ModelExchange = 0,
-    CoSimulation = 1,
-}
-
-impl Interface {
-    pub fn name(self) -> &'static str {
-        match self {
-            Interface::ModelExchange => "Model Exchange",
-            Interface::CoSimulation => "Co-Simulation",
-        }
-    }
-}
-
-/// A set of [`State`]s, one bit per state code.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Mask(u16);
-
-impl Mask {
-    pub const fn of(states: &[State]) -> Mask {
-        let mut bits = 0;
-        let mut i = 0;
-        while i < states.len() {
-            bits |= 1 << states[i] as u16;
-            i += 1;
-        }
-        Mask(bits)
-    }
-
-    pub const fn contains(self, state: State) -> bool {
-        self.0 & (1 << state as u16) != 0
-    }
-}
-
-/// Which interfaces a function belongs to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Belongs {
-    Both,
-    Only(Interface),
-}
-
-/// The functions that take an instance, each with the states the FMI 2.0.4 tables allow it
-/// in (Model Exchange section 3.2.3, Co-Simulation section 4.2.4), written once here. The
-/// standard's StepInProgress and StepCanceled never occur (this FMU never returns
-/// fmi2Pending), and neither does its Error state: a refused argument leaves the instance
-/// where it was, nothing having been applied. A cell that holds only such states is empty.
-macro_rules! functions {
-    ($($name:ident: $belongs:expr => [$($state:ident),*],)*) => {
-        /// One exported function that takes an instance; the variant is its C name.
-        #[allow(non_camel_case_types)]
-        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-        pub enum Function {
-            $($name,)*
-        }
-
-        impl Function {
-            pub const ALL: &'static [Function] = &[$(Function::$name,)*];
-
-            pub const fn name(self) -> &'static str {
-                match self {
-                    $(Function::$name => stringify!($name),)*
-                }
-            }
-
-            pub const fn belongs(self) -> Belongs {
-                match self {
-                    $(Function::$name => $belongs,)*
-                }
-            }
-
-            pub const fn allowed(self) -> Mask {
-                match self {
-                    $(Function::$name => Mask::of(&[$(State::$state),*]),)*
-                }
-            }
-        }
-    };
-}
-
-const BOTH: Belongs = Belongs::Both;
-const CS: Belongs = Belongs::Only(Interface::CoSimulation);
-const ME: Belongs = Belongs::Only(Interface::ModelExchange);
-
+// The functions that take an instance, each with the states the FMI 2.0.4 tables allow it
+// in (Model Exchange section 3.2.3, Co-Simulation section 4.2.4), written once here. The
+// standard's StepInProgress and StepCanceled never occur (this FMU never returns
+// fmi2Pending), and neither does its Error state: a refused argument leaves the instance
+// where it was, nothing having been applied. A cell that holds only such states is empty.
 functions! {
     fmi2SetDebugLogging: BOTH => [Instantiated, InitializationMode, EventMode, ContinuousTimeMode,
         StepComplete, StepFailed, Terminated],
@@ -167,47 +72,6 @@ functions! {
     fmi2GetIntegerStatus: CS => [StepComplete, StepFailed, Terminated],
     fmi2GetBooleanStatus: CS => [StepComplete, StepFailed, Terminated],
     fmi2GetStringStatus: CS => [StepComplete, StepFailed, Terminated],
-}
-
-impl State {
-    /// A byte for serialized FMU states.
-    pub fn code(self) -> u8 {
-        self as u8
-    }
-
-    /// The state with [`State::code`] `code`; Fatal is never restored.
-    pub fn from_code(code: u8) -> Option<State> {
-        use State::*;
-        [
-            Instantiated,
-            InitializationMode,
-            StepComplete,
-            StepFailed,
-            Terminated,
-            EventMode,
-            ContinuousTimeMode,
-        ]
-        .into_iter()
-        .find(|s| s.code() == code)
-    }
-
-    /// Parameters of variability "fixed" may change only before initialisation ends.
-    pub fn parameters_writable(self) -> bool {
-        matches!(self, State::Instantiated | State::InitializationMode)
-    }
-
-    pub fn describe(self) -> &'static str {
-        match self {
-            State::Instantiated => "instantiated",
-            State::InitializationMode => "initialization mode",
-            State::StepComplete => "step complete",
-            State::StepFailed => "step failed (after fmi2Discard)",
-            State::Terminated => "terminated",
-            State::Fatal => "fatal (after an internal error)",
-            State::EventMode => "event mode",
-            State::ContinuousTimeMode => "continuous-time mode",
-        }
-    }
 }
 
 #[cfg(test)]

@@ -19,20 +19,24 @@ pub(crate) fn job(parsed: &Parsed) -> Result {
         println!("xtask: {line}");
     }
     println!("FMU: {}", packed.fmu.display());
+    println!("FMU (FMI 3.0): {}", packed.fmu3.display());
     Ok(())
 }
 
-/// A packed FMU: the archive, the linux64 library in it, and the cross builds' checks.
+/// The packed FMUs: the FMI 2.0 and FMI 3.0 archives, the linux64 library in both, and
+/// the cross builds' checks.
 pub(crate) struct Packed {
     pub(crate) fmu: PathBuf,
+    pub(crate) fmu3: PathBuf,
     pub(crate) linux64: PathBuf,
     pub(crate) report: Vec<String>,
 }
 
-/// Build the library (against the glibc baseline), generate the model description and
-/// documentation from the variable table, and pack `target/fmu/CyclicMechanism.fmu`; with
-/// `all_platforms`, the win64 and darwin64 binaries too (and aarch64 Linux's, for the
-/// tests). Every binary is checked first: a failed check writes no archive.
+/// Build the library (against the glibc baseline), generate the model descriptions and
+/// documentation from the variable table, and pack `target/fmu/CyclicMechanism.fmu` (FMI
+/// 2.0) and `target/fmu/CyclicMechanism-fmi3.fmu` (FMI 3.0) from the same library; with
+/// `all_platforms`, the Windows, macOS and aarch64 Linux binaries too (FMI 2.0 has no
+/// folder for the latter). Every binary is checked first: a failed check writes no archive.
 pub(crate) fn build_fmu(all_platforms: bool) -> Result<Packed> {
     ensure_libclang()?;
     let root = root();
@@ -45,6 +49,21 @@ pub(crate) fn build_fmu(all_platforms: bool) -> Result<Packed> {
         .args(["run", "--release", "--quiet", "--bin", "fmu-assets", "--"])
         .arg(&assets))?;
     let fmu = root.join(format!("target/fmu/{MODEL_IDENTIFIER}.fmu"));
+    let fmu3 = root.join(format!("target/fmu/{MODEL_IDENTIFIER}-fmi3.fmu"));
+    let mut files3 = vec![
+        (
+            "modelDescription.xml".to_string(),
+            assets.join("fmi3/modelDescription.xml"),
+        ),
+        (
+            format!("binaries/x86_64-linux/{MODEL_IDENTIFIER}.so"),
+            library.clone(),
+        ),
+        (
+            "documentation/index.html".to_string(),
+            assets.join("index.html"),
+        ),
+    ];
     let mut files = vec![
         (
             "modelDescription.xml".to_string(),
@@ -67,17 +86,22 @@ pub(crate) fn build_fmu(all_platforms: bool) -> Result<Packed> {
     if all_platforms {
         let zig = platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
         let (binaries, checks) = platforms::build_all(&zig, &root.join(PLATFORM_BINARIES))?;
-        files.extend(binaries);
+        files.extend(binaries.fmi2_files());
+        files3.extend(binaries.fmi3_files());
         report.extend(checks);
     }
     pack(&fmu, &files)?;
-    report.push(format!(
-        "{}: {} bytes",
-        fmu.display(),
-        platforms::size(&fmu)?
-    ));
+    pack(&fmu3, &files3)?;
+    for archive in [&fmu, &fmu3] {
+        report.push(format!(
+            "{}: {} bytes",
+            archive.display(),
+            platforms::size(archive)?
+        ));
+    }
     Ok(Packed {
         fmu,
+        fmu3,
         linux64: library,
         report,
     })

@@ -38,13 +38,97 @@ const DEBIAN_RUSTC: &str = "/usr/bin/rustc";
 pub const LLVM_BIN: &str = "/usr/lib/llvm-14/bin";
 pub const MINGW_GCC: &str = "x86_64-w64-mingw32-gcc";
 
+/// The 75 functions of the FMI 3.0 C API (all of `fmi3Functions.h`: FMPy resolves every one
+/// when it loads a binary), exported beside FMI 2.0's.
+pub const FMI3_FUNCTIONS: [&str; 75] = [
+    "fmi3GetVersion",
+    "fmi3SetDebugLogging",
+    "fmi3InstantiateModelExchange",
+    "fmi3InstantiateCoSimulation",
+    "fmi3InstantiateScheduledExecution",
+    "fmi3FreeInstance",
+    "fmi3EnterInitializationMode",
+    "fmi3ExitInitializationMode",
+    "fmi3EnterEventMode",
+    "fmi3Terminate",
+    "fmi3Reset",
+    "fmi3GetFloat32",
+    "fmi3GetFloat64",
+    "fmi3GetInt8",
+    "fmi3GetUInt8",
+    "fmi3GetInt16",
+    "fmi3GetUInt16",
+    "fmi3GetInt32",
+    "fmi3GetUInt32",
+    "fmi3GetInt64",
+    "fmi3GetUInt64",
+    "fmi3GetBoolean",
+    "fmi3GetString",
+    "fmi3GetBinary",
+    "fmi3GetClock",
+    "fmi3SetFloat32",
+    "fmi3SetFloat64",
+    "fmi3SetInt8",
+    "fmi3SetUInt8",
+    "fmi3SetInt16",
+    "fmi3SetUInt16",
+    "fmi3SetInt32",
+    "fmi3SetUInt32",
+    "fmi3SetInt64",
+    "fmi3SetUInt64",
+    "fmi3SetBoolean",
+    "fmi3SetString",
+    "fmi3SetBinary",
+    "fmi3SetClock",
+    "fmi3GetNumberOfVariableDependencies",
+    "fmi3GetVariableDependencies",
+    "fmi3GetFMUState",
+    "fmi3SetFMUState",
+    "fmi3FreeFMUState",
+    "fmi3SerializedFMUStateSize",
+    "fmi3SerializeFMUState",
+    "fmi3DeserializeFMUState",
+    "fmi3GetDirectionalDerivative",
+    "fmi3GetAdjointDerivative",
+    "fmi3EnterConfigurationMode",
+    "fmi3ExitConfigurationMode",
+    "fmi3GetIntervalDecimal",
+    "fmi3GetIntervalFraction",
+    "fmi3GetShiftDecimal",
+    "fmi3GetShiftFraction",
+    "fmi3SetIntervalDecimal",
+    "fmi3SetIntervalFraction",
+    "fmi3SetShiftDecimal",
+    "fmi3SetShiftFraction",
+    "fmi3EvaluateDiscreteStates",
+    "fmi3UpdateDiscreteStates",
+    "fmi3EnterContinuousTimeMode",
+    "fmi3CompletedIntegratorStep",
+    "fmi3SetTime",
+    "fmi3SetContinuousStates",
+    "fmi3GetContinuousStateDerivatives",
+    "fmi3GetEventIndicators",
+    "fmi3GetContinuousStates",
+    "fmi3GetNominalsOfContinuousStates",
+    "fmi3GetNumberOfEventIndicators",
+    "fmi3GetNumberOfContinuousStates",
+    "fmi3EnterStepMode",
+    "fmi3GetOutputDerivatives",
+    "fmi3DoStep",
+    "fmi3ActivateModelPartition",
+];
+
+/// Every function a binary exports, and all that it exports.
+fn fmi_functions() -> impl Iterator<Item = &'static str> {
+    FMI2_FUNCTIONS.iter().chain(FMI3_FUNCTIONS.iter()).copied()
+}
+
 /// The minimum macOS of each darwin slice: what a Dymola or Simulink user on an older Mac
 /// still has (High Sierra on Intel; Big Sur, the first for Apple silicon).
 const MACOS_X86_64: &str = "10.13";
 const MACOS_ARM64: &str = "11.0";
 
-/// The 44 functions of the FMI 2.0 C API (Co-Simulation and Model Exchange), what every
-/// binary exports and all that it exports.
+/// The 44 functions of the FMI 2.0 C API (Co-Simulation and Model Exchange).
 pub const FMI2_FUNCTIONS: [&str; 44] = [
     "fmi2GetTypesPlatform",
     "fmi2GetVersion",
@@ -399,11 +483,58 @@ pub fn build(target: Target, zig: &Zig) -> Result<Built> {
     })
 }
 
-/// The binaries for win64 and darwin64 (universal), built (stripped by their linkers),
-/// checked, and copied to `dir` under their FMI 2.0 platform folders; with the
-/// aarch64 Linux library (checked, kept for the tests: FMI 2.0 has no folder for it).
-/// Returns the files to pack as (path in the FMU, file) and a line per binary for the report.
-pub fn build_all(zig: &Zig, dir: &Path) -> Result<(Files, Vec<String>)> {
+/// The cross-built binaries, checked, under `dir`.
+pub struct Binaries {
+    pub win64: PathBuf,
+    /// x86_64 and arm64 joined: FMI 2.0's darwin64 folder holds one file for both.
+    pub darwin_universal: PathBuf,
+    pub darwin_x86_64: PathBuf,
+    pub darwin_arm64: PathBuf,
+    pub linux_aarch64: PathBuf,
+}
+
+impl Binaries {
+    /// The files of the FMI 2.0 archive: its platform folders (aarch64 Linux has none).
+    pub fn fmi2_files(&self) -> Files {
+        vec![
+            (
+                format!("binaries/win64/{MODEL_IDENTIFIER}.dll"),
+                self.win64.clone(),
+            ),
+            (
+                format!("binaries/darwin64/{MODEL_IDENTIFIER}.dylib"),
+                self.darwin_universal.clone(),
+            ),
+        ]
+    }
+
+    /// The files of the FMI 3.0 archive, under its platform tuples.
+    pub fn fmi3_files(&self) -> Files {
+        vec![
+            (
+                format!("binaries/x86_64-windows/{MODEL_IDENTIFIER}.dll"),
+                self.win64.clone(),
+            ),
+            (
+                format!("binaries/x86_64-darwin/{MODEL_IDENTIFIER}.dylib"),
+                self.darwin_x86_64.clone(),
+            ),
+            (
+                format!("binaries/aarch64-darwin/{MODEL_IDENTIFIER}.dylib"),
+                self.darwin_arm64.clone(),
+            ),
+            (
+                format!("binaries/aarch64-linux/{MODEL_IDENTIFIER}.so"),
+                self.linux_aarch64.clone(),
+            ),
+        ]
+    }
+}
+
+/// The binaries for win64, darwin (each architecture, and both joined into a universal
+/// Mach-O) and aarch64 Linux, built (stripped by their linkers), checked, and copied to
+/// `dir`. Returns them with a line per binary for the report.
+pub fn build_all(zig: &Zig, dir: &Path) -> Result<(Binaries, Vec<String>)> {
     ensure_packages(BUILD_PACKAGES)?;
     let built: Vec<Built> = Target::ALL
         .iter()
@@ -411,41 +542,44 @@ pub fn build_all(zig: &Zig, dir: &Path) -> Result<(Files, Vec<String>)> {
         .collect::<Result<_>>()?;
     let by = |target: Target| &built[Target::ALL.iter().position(|t| *t == target).unwrap()];
     let _ = fs::remove_dir_all(dir);
-    let win64 = dir.join(format!("win64/{MODEL_IDENTIFIER}.dll"));
-    let darwin64 = dir.join(format!("darwin64/{MODEL_IDENTIFIER}.dylib"));
-    let aarch64 = dir.join(format!("aarch64-linux/{MODEL_IDENTIFIER}.so"));
-    for file in [&win64, &darwin64, &aarch64] {
+    let binaries = Binaries {
+        win64: dir.join(format!("win64/{MODEL_IDENTIFIER}.dll")),
+        darwin_universal: dir.join(format!("darwin64/{MODEL_IDENTIFIER}.dylib")),
+        darwin_x86_64: dir.join(format!("x86_64-darwin/{MODEL_IDENTIFIER}.dylib")),
+        darwin_arm64: dir.join(format!("aarch64-darwin/{MODEL_IDENTIFIER}.dylib")),
+        linux_aarch64: dir.join(format!("aarch64-linux/{MODEL_IDENTIFIER}.so")),
+    };
+    let copies = [
+        (Target::Win64, &binaries.win64),
+        (Target::DarwinX86_64, &binaries.darwin_x86_64),
+        (Target::DarwinArm64, &binaries.darwin_arm64),
+        (Target::LinuxAarch64, &binaries.linux_aarch64),
+    ];
+    for (target, file) in copies {
         fs::create_dir_all(file.parent().unwrap()).map_err(|e| e.to_string())?;
+        fs::copy(&by(target).library, file).map_err(|e| e.to_string())?;
     }
-    fs::copy(&by(Target::Win64).library, &win64).map_err(|e| e.to_string())?;
+    fs::create_dir_all(binaries.darwin_universal.parent().unwrap()).map_err(|e| e.to_string())?;
     run(Command::new(Path::new(LLVM_BIN).join("llvm-lipo"))
         .arg("-create")
-        .arg(&by(Target::DarwinX86_64).library)
-        .arg(&by(Target::DarwinArm64).library)
+        .arg(&binaries.darwin_x86_64)
+        .arg(&binaries.darwin_arm64)
         .arg("-output")
-        .arg(&darwin64))?;
-    fs::copy(&by(Target::LinuxAarch64).library, &aarch64).map_err(|e| e.to_string())?;
+        .arg(&binaries.darwin_universal))?;
     let mut report = vec![
-        check_pe(&win64)?,
-        check_macho(&darwin64)?,
-        check_aarch64_elf(&aarch64)?,
+        check_pe(&binaries.win64)?,
+        check_macho(&binaries.darwin_universal)?,
+        check_aarch64_elf(&binaries.linux_aarch64)?,
     ];
     for b in &built {
         report.push(format!(
-            "{}: built in {:.0} s, {} bytes before joining",
+            "{}: built in {:.0} s, {} bytes",
             b.target.triple(),
             b.seconds,
             size(&b.library)?
         ));
     }
-    let files = vec![
-        (format!("binaries/win64/{MODEL_IDENTIFIER}.dll"), win64),
-        (
-            format!("binaries/darwin64/{MODEL_IDENTIFIER}.dylib"),
-            darwin64,
-        ),
-    ];
-    Ok((files, report))
+    Ok((binaries, report))
 }
 
 pub fn size(path: &Path) -> Result<u64> {
@@ -458,34 +592,35 @@ fn llvm(tool: &str) -> Command {
     Command::new(Path::new(LLVM_BIN).join(tool))
 }
 
-/// The exports must be the 44 FMI functions, plus at most the linker's `allowed` extras.
+/// The exports must be the FMI 2.0 and 3.0 functions, plus at most the linker's
+/// extras.
 fn check_exports(binary: &Path, exported: &[String], allowed: &[&str]) -> Result<String> {
-    let missing: Vec<&str> = FMI2_FUNCTIONS
+    let expected: Vec<&str> = fmi_functions().collect();
+    let missing: Vec<&str> = expected
         .iter()
         .copied()
         .filter(|f| !exported.iter().any(|e| e == f))
         .collect();
     let unexpected: Vec<&String> = exported
         .iter()
-        .filter(|e| !FMI2_FUNCTIONS.contains(&e.as_str()) && !allowed.contains(&e.as_str()))
+        .filter(|e| !expected.contains(&e.as_str()) && !allowed.contains(&e.as_str()))
         .collect();
     if !missing.is_empty() || !unexpected.is_empty() {
         return Err(format!(
-            "{}: exports must be the {} FMI 2.0 functions; missing {missing:?}, unexpected \
-             {} such as {:?}",
+            "{}: exports must be the {} FMI 2.0 and 3.0 functions; missing {missing:?},              unexpected {} such as {:?}",
             binary.display(),
-            FMI2_FUNCTIONS.len(),
+            expected.len(),
             unexpected.len(),
             unexpected.iter().take(5).collect::<Vec<_>>()
         ));
     }
     let extras: Vec<&String> = exported
         .iter()
-        .filter(|e| !FMI2_FUNCTIONS.contains(&e.as_str()))
+        .filter(|e| !expected.contains(&e.as_str()))
         .collect();
     Ok(format!(
         "{} FMI functions exported{}",
-        FMI2_FUNCTIONS.len(),
+        expected.len(),
         if extras.is_empty() {
             String::new()
         } else {

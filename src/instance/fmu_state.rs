@@ -3,10 +3,10 @@
 //! fmi2Reset starts a new one, and serialization writes and reads its fields in one order,
 //! each part checking its values again on reading.
 
-use super::instance::Failure;
-use super::model_description::{guid, DEFAULT_EXPERIMENT};
-use super::state_machine::{Interface, State};
+use super::state::{Interface, State, Version};
+use super::Failure;
 use crate::drivers::{CoSimulation, Exchange, Experiment};
+use crate::fmi2::model_description::{guid, DEFAULT_EXPERIMENT};
 use crate::plant::{Activity, Plant};
 use crate::snapshot::{fnv1a_64, FormatError, Reader, Writer};
 
@@ -56,6 +56,8 @@ impl Driver {
 #[derive(Clone, Debug)]
 pub struct FmuState {
     pub state: State,
+    /// The version of the standard whose functions drive this instance.
+    pub version: Version,
     pub(super) experiment: Experiment,
     pub(super) plant: Plant,
     pub(super) driver: Driver,
@@ -63,11 +65,12 @@ pub struct FmuState {
 
 impl FmuState {
     /// Just after fmi2Instantiate: every variable at its start value.
-    pub(super) fn new(interface: Interface) -> Self {
+    pub(super) fn new(interface: Interface, version: Version) -> Self {
         let mut plant = Plant::new();
         plant.set_time(DEFAULT_EXPERIMENT.0);
         Self {
             state: State::Instantiated,
+            version,
             experiment: Experiment::new(DEFAULT_EXPERIMENT.0),
             plant,
             driver: Driver::new(interface),
@@ -94,6 +97,7 @@ impl FmuState {
     pub fn serialize(&self) -> Vec<u8> {
         let mut w = Writer::default();
         w.u8(self.interface() as u8);
+        w.u8(self.version as u8);
         w.u8(self.state.code());
         let e = &self.experiment;
         w.f64s(&[e.tolerance, e.start]);
@@ -121,6 +125,11 @@ impl FmuState {
             1 => Interface::CoSimulation,
             other => return Err(invalid(format!("interface {other}"))),
         };
+        let version = match r.u8()? {
+            2 => Version::Fmi2,
+            3 => Version::Fmi3,
+            other => return Err(invalid(format!("FMI version {other}"))),
+        };
         let code = r.u8()?;
         let state =
             State::from_code(code).ok_or_else(|| invalid(format!("FMI state code {code}")))?;
@@ -147,6 +156,7 @@ impl FmuState {
         r.finish()?;
         let restored = Self {
             state,
+            version,
             experiment,
             plant,
             driver,
@@ -158,18 +168,24 @@ impl FmuState {
     /// The parts of a restored state agree with each other and with its FMI state.
     fn check(&self) -> Result<(), String> {
         let state = self.state;
-        let exchange_states = matches!(state, State::EventMode | State::ContinuousTimeMode);
+        // FMI 3.0 Co-Simulation has an event mode too.
+        let exchange_states = match (self.interface(), self.version) {
+            (Interface::CoSimulation, Version::Fmi3) => state == State::ContinuousTimeMode,
+            _ => matches!(state, State::EventMode | State::ContinuousTimeMode),
+        };
         let cs_states = matches!(state, State::StepComplete | State::StepFailed);
         let initialised = !matches!(state, State::Instantiated | State::InitializationMode);
         let started = self.driver.is_started();
         let consistent = match self.interface() {
             Interface::ModelExchange => !cs_states && (started || !exchange_states),
-            Interface::CoSimulation => !exchange_states && (started || !cs_states),
+            Interface::CoSimulation => {
+                !exchange_states && (started || !(cs_states || state == State::EventMode))
+            }
         };
         if !consistent {
             return Err(format!(
                 "{} in a {} instance",
-                state.describe(),
+                state.describe(self.version),
                 self.interface().name()
             ));
         }

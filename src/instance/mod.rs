@@ -1,23 +1,39 @@
-//! One FMU instance: its restorable state ([`FmuState`], in `fmu_state.rs`), the master's
-//! callbacks and the logging settings, and the operations of the FMI functions on them. Everything here
-//! is safe Rust on slices; the function files turn C pointers into these calls.
+//! One FMU instance, whichever version of the standard created it: its restorable state
+//! ([`FmuState`]), the master's logger and the logging settings, and the operations of the
+//! FMI functions on them. Everything here is safe Rust on slices; the two C ABIs (`fmi2`,
+//! `fmi3`) turn C pointers into these calls.
+
+pub mod fmu_state;
+mod handles;
+pub mod isa;
+pub mod logger;
+pub mod state;
 
 use std::ffi::CString;
 
-use fmi_sys::fmi2::{
-    fmi2CallbackLogger, fmi2ComponentEnvironment, fmi2Status, fmi2Status_fmi2Discard,
-    fmi2Status_fmi2Error, fmi2Status_fmi2Fatal, fmi2Status_fmi2OK, fmi2Status_fmi2Warning,
-};
+pub use fmu_state::{Driver, FmuState};
+use handles::StateHandles;
+pub use logger::Logger;
+pub use state::{Interface, State, Version};
 
-pub use super::fmu_state::{Driver, FmuState};
-use super::model_description::LOG_CATEGORIES;
-use super::state_machine::{Interface, State};
 use crate::drivers::model_exchange::STATES;
 use crate::drivers::{CoSimulation, Exchange, Experiment};
+use crate::fmi2::model_description::LOG_CATEGORIES;
 use crate::plant::{AccessError, Plant, Value};
 use crate::solver::SolverError;
 use crate::text::number;
 use crate::variables::{variable, Input, Slot, VarType, STATE_REFERENCES};
+
+/// A function's status, with the numbers FMI 2.0 and 3.0 both give it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Status {
+    Ok = 0,
+    Warning = 1,
+    Discard = 2,
+    Error = 3,
+    Fatal = 4,
+}
 
 /// Log categories, by their position in [`LOG_CATEGORIES`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -33,21 +49,21 @@ pub enum Category {
 /// Why a call failed: the status to return and the message to log.
 #[derive(Debug)]
 pub struct Failure {
-    pub status: fmi2Status,
+    pub status: Status,
     pub message: String,
 }
 
 impl Failure {
     pub fn error(message: impl Into<String>) -> Self {
         Self {
-            status: fmi2Status_fmi2Error,
+            status: Status::Error,
             message: message.into(),
         }
     }
 
     pub fn discard(message: impl Into<String>) -> Self {
         Self {
-            status: fmi2Status_fmi2Discard,
+            status: Status::Discard,
             message: message.into(),
         }
     }
@@ -61,20 +77,34 @@ impl From<AccessError> for Failure {
 
 pub type Outcome = Result<(), Failure>;
 
+/// How an FMI 3.0 step ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepEnd {
+    /// At the step's end time.
+    Complete,
+    /// Early, at a change point, for the master to handle in event mode.
+    ChangePointEvent,
+    /// Early, at a change point, the instance having no event mode.
+    ChangePointStop,
+}
+
 /// Relative mismatch accepted between the master's communication point and the FMU's time.
 const TIME_MATCH: f64 = 1e-12;
 
 pub struct Instance {
     name: CString,
-    logger: fmi2CallbackLogger,
-    environment: fmi2ComponentEnvironment,
+    logger: Option<Logger>,
+    /// FMI 3.0 Co-Simulation: whether the master handles events in Event Mode, and whether
+    /// a step may end before its end time.
+    pub event_mode_used: bool,
+    pub early_return_allowed: bool,
     /// fmi2SetDebugLogging's switch, and the debug categories it enabled.
     debug_logging: bool,
     enabled: [bool; LOG_CATEGORIES.len()],
     /// Everything fmi2SetFMUstate restores.
     pub current: FmuState,
     /// Addresses of the FMU states this instance has handed out and not yet freed.
-    issued_states: Vec<usize>,
+    issued_states: StateHandles,
     /// Whether this run has warned that `solver = dop853` is limited by stability.
     warned_stability: bool,
 }
@@ -92,19 +122,20 @@ fn check_state_count(name: &str, n: usize) -> Outcome {
 impl Instance {
     pub fn new(
         interface: Interface,
+        version: Version,
         name: CString,
-        logger: fmi2CallbackLogger,
-        environment: fmi2ComponentEnvironment,
+        logger: Option<Logger>,
         debug_logging: bool,
     ) -> Self {
         Self {
             name,
             logger,
-            environment,
+            event_mode_used: false,
+            early_return_allowed: false,
             debug_logging,
             enabled: [true; LOG_CATEGORIES.len()],
-            current: FmuState::new(interface),
-            issued_states: Vec::new(),
+            current: FmuState::new(interface, version),
+            issued_states: StateHandles::default(),
             warned_stability: false,
         }
     }
@@ -125,26 +156,19 @@ impl Instance {
     }
 
     /// Send a message to the master's logger, if it gave one.
-    pub fn log(&self, status: fmi2Status, category: Category, message: &str) {
-        if let Some(logger) = self.logger {
+    pub fn log(&self, status: Status, category: Category, message: &str) {
+        if let Some(logger) = &self.logger {
             let category = LOG_CATEGORIES[category as usize].0;
-            send_log(
-                logger,
-                self.environment,
-                &self.name,
-                status,
-                category,
-                message,
-            );
+            logger.send(&self.name, status, category, message);
         }
     }
 
     pub fn report(&self, failure: &Failure, function: &str) {
         let category = match failure.status {
-            s if s == fmi2Status_fmi2Discard => Category::Discard,
-            s if s == fmi2Status_fmi2Warning => Category::Warning,
-            s if s == fmi2Status_fmi2Fatal => Category::Fatal,
-            _ => Category::Error,
+            Status::Discard => Category::Discard,
+            Status::Warning => Category::Warning,
+            Status::Fatal => Category::Fatal,
+            Status::Ok | Status::Error => Category::Error,
         };
         self.log(
             failure.status,
@@ -222,6 +246,11 @@ impl Instance {
         Ok(())
     }
 
+    /// The version of the standard the instance was created through.
+    pub fn version(&self) -> Version {
+        self.current.version
+    }
+
     /// The interface the instance was created for.
     pub fn interface(&self) -> Interface {
         self.current.interface()
@@ -230,6 +259,7 @@ impl Instance {
     pub fn exit_initialization_mode(&mut self) -> Outcome {
         self.initialise_plant()?;
         self.current.state = match self.interface() {
+            Interface::CoSimulation if self.event_mode_used => State::EventMode,
             Interface::CoSimulation => State::StepComplete,
             Interface::ModelExchange => State::EventMode,
         };
@@ -243,9 +273,9 @@ impl Instance {
     fn log_linkage_class(&self) {
         let class = crate::model::classify(self.current.plant.params());
         let (status, category) = if class == crate::model::LinkageClass::ChangePoint {
-            (fmi2Status_fmi2Warning, Category::Warning)
+            (Status::Warning, Category::Warning)
         } else {
-            (fmi2Status_fmi2OK, Category::Solver)
+            (Status::Ok, Category::Solver)
         };
         if self.log_enabled(category) {
             let message = format!("the linkage is a {}: {}", class.name(), class.description());
@@ -335,7 +365,7 @@ impl Instance {
     }
 
     pub fn get_event_indicators(&mut self, z: &mut [f64]) -> Outcome {
-        let expected = super::model_description::EVENT_INDICATORS;
+        let expected = crate::fmi2::model_description::EVENT_INDICATORS;
         if z.len() != expected {
             return Err(Failure::error(format!(
                 "ni = {}: this FMU has {expected} event indicator",
@@ -354,8 +384,29 @@ impl Instance {
     }
 
     pub fn enter_event_mode(&mut self) -> Outcome {
+        if self.interface() == Interface::CoSimulation && !self.event_mode_used {
+            return Err(Failure::error(
+                "eventModeUsed was false at instantiation: this Co-Simulation instance has no \
+                 event mode",
+            ));
+        }
         self.current.state = State::EventMode;
         Ok(())
+    }
+
+    /// FMI 3.0 Co-Simulation: from event mode back to stepping.
+    pub fn enter_step_mode(&mut self) -> Outcome {
+        self.current.state = State::StepMode;
+        Ok(())
+    }
+
+    /// fmi3UpdateDiscreteStates: in Model Exchange the chart's handover; in Co-Simulation
+    /// nothing changes at an event. Returns whether the continuous states changed.
+    pub fn update_discrete_states(&mut self) -> Result<bool, Failure> {
+        match self.interface() {
+            Interface::ModelExchange => self.new_discrete_states(),
+            Interface::CoSimulation => Ok(false),
+        }
     }
 
     pub fn enter_continuous_time_mode(&mut self) -> Outcome {
@@ -377,7 +428,7 @@ impl Instance {
                 plant.time(),
                 plant.chart() as i32
             );
-            self.log(fmi2Status_fmi2OK, Category::Solver, &message);
+            self.log(Status::Ok, Category::Solver, &message);
         }
         Ok(changed)
     }
@@ -428,6 +479,31 @@ impl Instance {
             .plant
             .directional_derivatives(states, input_seed, unknowns, sensitivity)
             .map_err(Failure::from)
+    }
+
+    /// fmi3GetAdjointDerivative: `sensitivity` = Jᵀ·`seed`, J being the Jacobian of the
+    /// unknowns by the knowns, column by column from the directional derivative.
+    pub fn adjoint_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Outcome {
+        if let Some(s) = seed.iter().find(|s| !s.is_finite()) {
+            return Err(Failure::error(format!("a seed of {s}: must be finite")));
+        }
+        let mut column = vec![0.0; unknowns.len()];
+        for (known, out) in knowns.iter().zip(sensitivity.iter_mut()) {
+            self.directional_derivative(
+                unknowns,
+                std::slice::from_ref(known),
+                &[1.0],
+                &mut column,
+            )?;
+            *out = column.iter().zip(seed).map(|(j, s)| j * s).sum();
+        }
+        Ok(())
     }
 
     /// fmi2CompletedIntegratorStep: asks for an event where the indicator has crossed (for
@@ -528,6 +604,11 @@ impl Instance {
         Ok(())
     }
 
+    /// fmi3DoStep: as fmi2DoStep, and how the step ended.
+    pub fn do_step_fmi3(&mut self, current: f64, step: f64) -> Result<StepEnd, Failure> {
+        self.do_step(current, step).map(|()| StepEnd::Complete)
+    }
+
     #[inline(always)]
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
         let now = self.current.plant.time();
@@ -541,7 +622,7 @@ impl Instance {
         else {
             return Err(Failure::error("the integrator starts at initialisation"));
         };
-        if let Err(error) = super::isa::advance(driver, plant, target, experiment) {
+        if let Err(error) = isa::advance(driver, plant, target, experiment) {
             return Err(self.step_failed(now, target, error));
         }
         let stability_limited = !self.warned_stability && driver.dop853_is_stability_limited();
@@ -611,7 +692,7 @@ impl Instance {
                      estimate does not see; on stiff problems solver = auto (1) or implicit (3) \
                      is accurate with far fewer evaluations (logged once)"
                 );
-                self.log(fmi2Status_fmi2Warning, Category::Warning, &message);
+                self.log(Status::Warning, Category::Warning, &message);
             }
         }
         if self.log_enabled(Category::Solver) {
@@ -620,7 +701,7 @@ impl Instance {
                 "t = {target}: {} steps, {} rejected, {} right-hand sides so far",
                 s.n_steps, s.n_rejected, s.n_rhs
             );
-            self.log(fmi2Status_fmi2OK, Category::Solver, &message);
+            self.log(Status::Ok, Category::Solver, &message);
         }
     }
 
@@ -631,7 +712,7 @@ impl Instance {
 
     /// Back to the state just after fmi2Instantiate, every variable at its start value.
     pub fn reset(&mut self) -> Outcome {
-        self.current = FmuState::new(self.interface());
+        self.current = FmuState::new(self.interface(), self.version());
         Ok(())
     }
 
@@ -644,6 +725,13 @@ impl Instance {
     }
 
     pub fn restore(&mut self, saved: &FmuState) -> Outcome {
+        if saved.version != self.version() {
+            return Err(Failure::error(format!(
+                "the FMU state was saved by an {} instance; this one is {}",
+                saved.version.name(),
+                self.version().name()
+            )));
+        }
         if saved.interface() != self.interface() {
             return Err(Failure::error(format!(
                 "the FMU state was saved by a {} instance; this one is {}",
@@ -657,9 +745,7 @@ impl Instance {
 
     /// Hand out `saved` as a new FMU state pointer.
     pub fn issue_state(&mut self, saved: FmuState) -> *mut FmuState {
-        let pointer = Box::into_raw(Box::new(saved));
-        self.issued_states.push(pointer as usize);
-        pointer
+        self.issued_states.issue(saved)
     }
 
     /// The state behind `pointer`, if this instance issued it and has not freed it.
@@ -667,74 +753,11 @@ impl Instance {
         &mut self,
         pointer: *mut std::ffi::c_void,
     ) -> Result<&mut FmuState, Failure> {
-        if pointer.is_null() {
-            return Err(Failure::error("the FMU state is NULL"));
-        }
-        if !self.issued_states.contains(&(pointer as usize)) {
-            return Err(Failure::error(
-                "the FMU state was not created by this instance, or was freed already",
-            ));
-        }
-        // SAFETY: the pointer came from Box::into_raw in issue_state and is still owned
-        // by this instance (it is in the registry).
-        Ok(unsafe { &mut *pointer.cast::<FmuState>() })
+        self.issued_states.get(pointer)
     }
 
     /// Free a state this instance issued.
     pub fn free_state(&mut self, pointer: *mut std::ffi::c_void) -> Outcome {
-        self.issued_state(pointer)?;
-        self.issued_states.retain(|p| *p != pointer as usize);
-        // SAFETY: issued by issue_state (checked above) and now removed from the registry.
-        drop(unsafe { Box::from_raw(pointer.cast::<FmuState>()) });
-        Ok(())
+        self.issued_states.free(pointer)
     }
-}
-
-impl Drop for Instance {
-    /// States the master did not free go with their instance.
-    fn drop(&mut self) {
-        for pointer in self.issued_states.drain(..) {
-            // SAFETY: every registered address came from Box::into_raw and is freed once.
-            drop(unsafe { Box::from_raw(pointer as *mut FmuState) });
-        }
-    }
-}
-
-/// Call the master's logger. The message is passed as the format string with `%` and
-/// `#` escaped (FMI 2.0 gives both a meaning there), so masters that format it and
-/// masters that print it as it is both show it readably.
-pub(crate) fn send_log(
-    logger: unsafe extern "C" fn(
-        fmi2ComponentEnvironment,
-        *const std::ffi::c_char,
-        fmi2Status,
-        *const std::ffi::c_char,
-        *const std::ffi::c_char,
-        ...
-    ),
-    environment: fmi2ComponentEnvironment,
-    name: &CString,
-    status: fmi2Status,
-    category: &str,
-    message: &str,
-) {
-    let escaped = message
-        .replace('%', "%%")
-        .replace('#', "##")
-        .replace('\0', " ");
-    let (Ok(category), Ok(text)) = (CString::new(category), CString::new(escaped)) else {
-        return;
-    };
-    // SAFETY: the master supplied `logger` for this purpose; every pointer passed is a
-    // valid NUL-terminated string that outlives the call, and no variadic arguments are
-    // read because the escaped message contains no conversion specification.
-    unsafe {
-        logger(
-            environment,
-            name.as_ptr(),
-            status,
-            category.as_ptr(),
-            text.as_ptr(),
-        )
-    };
 }

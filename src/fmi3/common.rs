@@ -1,0 +1,766 @@
+//! The functions both interfaces share: version, instantiation, modes, values, FMU states,
+//! directional and adjoint derivatives, discrete states, and the families of functions
+//! this FMU has no variables or features for, each refused with its reason.
+
+use std::ffi::{c_char, CStr, CString};
+use std::panic::catch_unwind;
+use std::ptr::null_mut;
+
+use fmi_sys::fmi3::*;
+
+use super::model_description::instantiation_token;
+use super::{check_value_count, export, references, table_reference, table_references, Accessor};
+use crate::abi::{null_argument, slice, slice_mut};
+use crate::instance::{Failure, FmuState, Instance, Interface, Logger, Outcome, Status, Version};
+use crate::plant::Value;
+
+#[no_mangle]
+pub extern "C" fn fmi3GetVersion() -> *const c_char {
+    fmi3Version.as_ptr().cast()
+}
+
+/// What the three instantiation functions share: the name and token checked, the logger
+/// kept. `None` (after logging why) when the instance cannot be made.
+///
+/// # Safety
+/// `instance_name` and `token` must be NULL or valid C strings.
+unsafe fn new_instance(
+    function: &str,
+    interface: Option<Interface>,
+    instance_name: fmi3String,
+    token: fmi3String,
+    environment: fmi3InstanceEnvironment,
+    log_message: fmi3LogMessageCallback,
+    logging_on: bool,
+) -> Option<Instance> {
+    let logger = log_message.map(|callback| Logger::Fmi3 {
+        callback,
+        environment,
+    });
+    let name = if instance_name.is_null() {
+        CString::default()
+    } else {
+        // SAFETY: non-null C string by the FMI contract.
+        unsafe { CStr::from_ptr(instance_name) }.to_owned()
+    };
+    let fail = |message: String| {
+        if let Some(logger) = logger {
+            let message = format!("{function}: {message}");
+            logger.send(&name, Status::Error, "logStatusError", &message);
+        }
+        None
+    };
+    let Some(interface) = interface else {
+        return fail(
+            "this FMU provides Model Exchange and Co-Simulation, not Scheduled Execution".into(),
+        );
+    };
+    if name.as_bytes().iter().all(u8::is_ascii_whitespace) {
+        return fail("instanceName must be a non-empty string".into());
+    }
+    let expected = instantiation_token();
+    // SAFETY: non-null C string by the FMI contract.
+    let given = (!token.is_null()).then(|| {
+        unsafe { CStr::from_ptr(token) }
+            .to_string_lossy()
+            .into_owned()
+    });
+    if given.as_deref() != Some(expected) {
+        return fail(format!(
+            "instantiationToken {} does not match this binary's {expected}: modelDescription.xml \
+             and binary are from different builds",
+            given.as_deref().unwrap_or("NULL")
+        ));
+    }
+    Some(Instance::new(
+        interface,
+        Version::Fmi3,
+        name,
+        logger,
+        logging_on,
+    ))
+}
+
+fn into_handle(instance: Option<Instance>) -> fmi3Instance {
+    instance.map_or(null_mut(), |i| Box::into_raw(Box::new(i)).cast())
+}
+
+/// # Safety
+/// String arguments must be NULL or valid C strings.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3InstantiateModelExchange(
+    instanceName: fmi3String,
+    instantiationToken: fmi3String,
+    _resourcePath: fmi3String,
+    _visible: fmi3Boolean,
+    loggingOn: fmi3Boolean,
+    instanceEnvironment: fmi3InstanceEnvironment,
+    logMessage: fmi3LogMessageCallback,
+) -> fmi3Instance {
+    // SAFETY: FMI contract on the arguments, checked for NULL inside.
+    catch_unwind(|| unsafe {
+        into_handle(new_instance(
+            "fmi3InstantiateModelExchange",
+            Some(Interface::ModelExchange),
+            instanceName,
+            instantiationToken,
+            instanceEnvironment,
+            logMessage,
+            loggingOn,
+        ))
+    })
+    .unwrap_or(null_mut())
+}
+
+/// # Safety
+/// String arguments must be NULL or valid C strings; `requiredIntermediateVariables` must
+/// hold `nRequiredIntermediateVariables` elements.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
+    instanceName: fmi3String,
+    instantiationToken: fmi3String,
+    _resourcePath: fmi3String,
+    _visible: fmi3Boolean,
+    loggingOn: fmi3Boolean,
+    eventModeUsed: fmi3Boolean,
+    earlyReturnAllowed: fmi3Boolean,
+    _requiredIntermediateVariables: *const fmi3ValueReference,
+    nRequiredIntermediateVariables: usize,
+    instanceEnvironment: fmi3InstanceEnvironment,
+    logMessage: fmi3LogMessageCallback,
+    _intermediateUpdate: fmi3IntermediateUpdateCallback,
+) -> fmi3Instance {
+    // SAFETY: FMI contract on the arguments, checked for NULL inside.
+    catch_unwind(|| unsafe {
+        let mut instance = new_instance(
+            "fmi3InstantiateCoSimulation",
+            Some(Interface::CoSimulation),
+            instanceName,
+            instantiationToken,
+            instanceEnvironment,
+            logMessage,
+            loggingOn,
+        );
+        if nRequiredIntermediateVariables > 0 {
+            if let Some(instance) = instance.take() {
+                let message = format!(
+                    "fmi3InstantiateCoSimulation: nRequiredIntermediateVariables = \
+                     {nRequiredIntermediateVariables}: this FMU provides no intermediate update \
+                     (providesIntermediateUpdate is false)"
+                );
+                instance.log(Status::Error, crate::instance::Category::Error, &message);
+            }
+        }
+        if let Some(instance) = instance.as_mut() {
+            instance.event_mode_used = eventModeUsed;
+            instance.early_return_allowed = earlyReturnAllowed;
+        }
+        into_handle(instance)
+    })
+    .unwrap_or(null_mut())
+}
+
+/// # Safety
+/// String arguments must be NULL or valid C strings.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
+    instanceName: fmi3String,
+    instantiationToken: fmi3String,
+    _resourcePath: fmi3String,
+    _visible: fmi3Boolean,
+    loggingOn: fmi3Boolean,
+    instanceEnvironment: fmi3InstanceEnvironment,
+    logMessage: fmi3LogMessageCallback,
+    _clockUpdate: fmi3ClockUpdateCallback,
+    _lockPreemption: fmi3LockPreemptionCallback,
+    _unlockPreemption: fmi3UnlockPreemptionCallback,
+) -> fmi3Instance {
+    // SAFETY: FMI contract on the arguments, checked for NULL inside.
+    catch_unwind(|| unsafe {
+        into_handle(new_instance(
+            "fmi3InstantiateScheduledExecution",
+            None,
+            instanceName,
+            instantiationToken,
+            instanceEnvironment,
+            logMessage,
+            loggingOn,
+        ))
+    })
+    .unwrap_or(null_mut())
+}
+
+/// # Safety
+/// `instance` must be NULL or a pointer from an fmi3Instantiate function, not used
+/// afterwards.
+#[no_mangle]
+pub unsafe extern "C" fn fmi3FreeInstance(instance: fmi3Instance) {
+    if !instance.is_null() {
+        // SAFETY: created by Box::into_raw at instantiation; the master frees it once.
+        let _ = catch_unwind(|| drop(unsafe { Box::from_raw(instance.cast::<Instance>()) }));
+    }
+}
+
+const _: () = {
+    let _: fmi3GetVersionTYPE = Some(fmi3GetVersion);
+    let _: fmi3InstantiateModelExchangeTYPE = Some(fmi3InstantiateModelExchange);
+    let _: fmi3InstantiateCoSimulationTYPE = Some(fmi3InstantiateCoSimulation);
+    let _: fmi3InstantiateScheduledExecutionTYPE = Some(fmi3InstantiateScheduledExecution);
+    let _: fmi3FreeInstanceTYPE = Some(fmi3FreeInstance);
+};
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; `categories` must hold `nCategories` valid C strings.
+    fn fmi3SetDebugLogging(
+        instance,
+        loggingOn: fmi3Boolean,
+        nCategories: usize,
+        categories: *const fmi3String,
+    ): fmi3SetDebugLoggingTYPE = |instance| {
+        // SAFETY: FMI contract on `categories`.
+        let pointers = unsafe { slice(categories, nCategories) }
+            .ok_or_else(|| null_argument("categories", nCategories))?;
+        let mut names = Vec::with_capacity(pointers.len());
+        for &pointer in pointers {
+            if pointer.is_null() {
+                return Err(Failure::error("a category name is NULL"));
+            }
+            // SAFETY: non-null, NUL-terminated by the FMI contract.
+            let name = unsafe { CStr::from_ptr(pointer) }
+                .to_str()
+                .map_err(|_| Failure::error("a category name is not UTF-8"))?;
+            names.push(name);
+        }
+        instance.set_debug_logging(loggingOn, &names)
+    };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance.
+    fn fmi3EnterInitializationMode(
+        instance,
+        toleranceDefined: fmi3Boolean,
+        tolerance: fmi3Float64,
+        startTime: fmi3Float64,
+        stopTimeDefined: fmi3Boolean,
+        stopTime: fmi3Float64,
+    ): fmi3EnterInitializationModeTYPE = |instance| {
+        let tolerance = toleranceDefined.then_some(tolerance);
+        let stop = stopTimeDefined.then_some(stopTime);
+        instance.setup_experiment(tolerance, startTime, stop)?;
+        instance.enter_initialization_mode()
+    };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance.
+    fn fmi3ExitInitializationMode(instance): fmi3ExitInitializationModeTYPE =
+        Instance::exit_initialization_mode;
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance.
+    fn fmi3EnterEventMode(instance): fmi3EnterEventModeTYPE = Instance::enter_event_mode;
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance.
+    fn fmi3Terminate(instance): fmi3TerminateTYPE = Instance::terminate;
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance.
+    fn fmi3Reset(instance): fmi3ResetTYPE = Instance::reset;
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; `valueReferences` and `values` must hold
+    /// `nValueReferences` elements.
+    fn fmi3GetFloat64(
+        instance,
+        valueReferences: *const fmi3ValueReference,
+        nValueReferences: usize,
+        values: *mut fmi3Float64,
+        nValues: usize,
+    ): fmi3GetFloat64TYPE = |instance| {
+        check_value_count(nValueReferences, nValues)?;
+        // SAFETY: FMI contract on the arrays.
+        let vrs = unsafe { references(valueReferences, nValueReferences) }?;
+        // SAFETY: FMI contract on the arrays.
+        let values = unsafe { slice_mut(values, nValues) }
+            .ok_or_else(|| null_argument("values", nValues))?;
+        for (&vr, value) in vrs.iter().zip(values.iter_mut()) {
+            match table_reference(vr, Accessor::Float64)? {
+                None => *value = instance.last_successful_time(),
+                Some(table) => instance.get_real(&[table], std::slice::from_mut(value))?,
+            }
+        }
+        Ok(())
+    };
+}
+
+/// A getter of FMI 3.0's Int32, Int64 (enumerations) or Boolean: the table's Integer or
+/// Boolean values, converted to the C type.
+macro_rules! whole_getter {
+    ($name:ident: $check:ident, $ctype:ty, $accessor:ident, $read:ident) => {
+        export! {
+            /// # Safety
+            /// `instance` is an instance; `valueReferences` and `values` must hold
+            /// `nValueReferences` elements.
+            fn $name(
+                instance,
+                valueReferences: *const fmi3ValueReference,
+                nValueReferences: usize,
+                values: *mut $ctype,
+                nValues: usize,
+            ): $check = |instance| {
+                check_value_count(nValueReferences, nValues)?;
+                // SAFETY: FMI contract on the arrays.
+                let vrs = unsafe { references(valueReferences, nValueReferences) }?;
+                // SAFETY: FMI contract on the arrays.
+                let values = unsafe { slice_mut(values, nValues) }
+                    .ok_or_else(|| null_argument("values", nValues))?;
+                let table = table_references(vrs, Accessor::$accessor)?;
+                let mut read = vec![0; table.len()];
+                instance.$read(&table, &mut read)?;
+                for (value, whole) in values.iter_mut().zip(read) {
+                    *value = whole.try_into().unwrap_or_default();
+                }
+                Ok(())
+            };
+        }
+    };
+}
+
+whole_getter!(fmi3GetInt32: fmi3GetInt32TYPE, fmi3Int32, Int32, get_integer);
+whole_getter!(fmi3GetInt64: fmi3GetInt64TYPE, fmi3Int64, Int64, get_integer);
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; `valueReferences` and `values` must hold
+    /// `nValueReferences` elements.
+    fn fmi3GetBoolean(
+        instance,
+        valueReferences: *const fmi3ValueReference,
+        nValueReferences: usize,
+        values: *mut fmi3Boolean,
+        nValues: usize,
+    ): fmi3GetBooleanTYPE = |instance| {
+        check_value_count(nValueReferences, nValues)?;
+        // SAFETY: FMI contract on the arrays.
+        let vrs = unsafe { references(valueReferences, nValueReferences) }?;
+        // SAFETY: FMI contract on the arrays.
+        let values = unsafe { slice_mut(values, nValues) }
+            .ok_or_else(|| null_argument("values", nValues))?;
+        let table = table_references(vrs, Accessor::Boolean)?;
+        let mut read = vec![0; table.len()];
+        instance.get_boolean(&table, &mut read)?;
+        for (value, whole) in values.iter_mut().zip(read) {
+            *value = whole != 0;
+        }
+        Ok(())
+    };
+}
+
+/// A setter of FMI 3.0's Float64, Int32, Int64 (enumerations) or Boolean: each C value
+/// becomes a [`Value`] through `$value`, which may refuse it.
+macro_rules! setter {
+    ($name:ident: $check:ident, $ctype:ty, $accessor:ident, $value:expr) => {
+        export! {
+            /// # Safety
+            /// `instance` is an instance; `valueReferences` and `values` must hold
+            /// `nValueReferences` elements.
+            fn $name(
+                instance,
+                valueReferences: *const fmi3ValueReference,
+                nValueReferences: usize,
+                values: *const $ctype,
+                nValues: usize,
+            ): $check = |instance| {
+                check_value_count(nValueReferences, nValues)?;
+                // SAFETY: FMI contract on the arrays.
+                let vrs = unsafe { references(valueReferences, nValueReferences) }?;
+                // SAFETY: FMI contract on the arrays.
+                let values = unsafe { slice(values, nValues) }
+                    .ok_or_else(|| null_argument("values", nValues))?;
+                let table = table_references(vrs, Accessor::$accessor)?;
+                let converted = values
+                    .iter()
+                    .zip(vrs)
+                    .map(|(v, vr)| $value(*v, *vr))
+                    .collect::<Result<Vec<Value>, Failure>>()?;
+                instance.set_values(&table, converted.into_iter())
+            };
+        }
+    };
+}
+
+setter!(fmi3SetFloat64: fmi3SetFloat64TYPE, fmi3Float64, Float64, |v, _| Ok(Value::Real(v)));
+setter!(fmi3SetInt32: fmi3SetInt32TYPE, fmi3Int32, Int32, |v, _| Ok(Value::Integer(v)));
+setter!(fmi3SetInt64: fmi3SetInt64TYPE, fmi3Int64, Int64, |v: i64, vr| {
+    i32::try_from(v).map(Value::Integer).map_err(|_| {
+        Failure::error(format!("value reference {vr} = {v}: not an item of its enumeration"))
+    })
+});
+setter!(fmi3SetBoolean: fmi3SetBooleanTYPE, fmi3Boolean, Boolean, |v, _| Ok(Value::Boolean(v)));
+
+/// An access of a type no variable of this FMU has: any value reference is unknown; an
+/// empty request succeeds.
+fn no_variables_of(type_name: &str, vrs: &[u32]) -> Outcome {
+    match vrs.first() {
+        None => Ok(()),
+        Some(vr) => Err(Failure::error(format!(
+            "no {type_name} variable has value reference {vr} (this FMU's variables are \
+             Float64, Int32, Boolean and Enumerations, read and written as Int64)"
+        ))),
+    }
+}
+
+/// Getters and setters of the types this FMU has no variables of.
+macro_rules! no_variables {
+    ($($name:ident: $check:ident, $type_name:literal, ($($arg:ident: $ty:ty),*);)*) => {
+        $(export! {
+            /// # Safety
+            /// `instance` is an instance; `valueReferences` must hold `nValueReferences`
+            /// elements.
+            fn $name(
+                instance,
+                valueReferences: *const fmi3ValueReference,
+                nValueReferences: usize,
+                $($arg: $ty),*
+            ): $check = |_| {
+                // SAFETY: FMI contract on the array.
+                let vrs = unsafe { references(valueReferences, nValueReferences) }?;
+                no_variables_of($type_name, vrs)
+            };
+        })*
+    };
+}
+
+no_variables! {
+    fmi3GetFloat32: fmi3GetFloat32TYPE, "Float32", (_values: *mut fmi3Float32, _nValues: usize);
+    fmi3GetInt8: fmi3GetInt8TYPE, "Int8", (_values: *mut fmi3Int8, _nValues: usize);
+    fmi3GetUInt8: fmi3GetUInt8TYPE, "UInt8", (_values: *mut fmi3UInt8, _nValues: usize);
+    fmi3GetInt16: fmi3GetInt16TYPE, "Int16", (_values: *mut fmi3Int16, _nValues: usize);
+    fmi3GetUInt16: fmi3GetUInt16TYPE, "UInt16", (_values: *mut fmi3UInt16, _nValues: usize);
+    fmi3GetUInt32: fmi3GetUInt32TYPE, "UInt32", (_values: *mut fmi3UInt32, _nValues: usize);
+    fmi3GetUInt64: fmi3GetUInt64TYPE, "UInt64", (_values: *mut fmi3UInt64, _nValues: usize);
+    fmi3GetString: fmi3GetStringTYPE, "String", (_values: *mut fmi3String, _nValues: usize);
+    fmi3GetBinary: fmi3GetBinaryTYPE, "Binary",
+        (_valueSizes: *mut usize, _values: *mut fmi3Binary, _nValues: usize);
+    fmi3GetClock: fmi3GetClockTYPE, "Clock", (_values: *mut fmi3Clock);
+    fmi3SetFloat32: fmi3SetFloat32TYPE, "Float32", (_values: *const fmi3Float32, _nValues: usize);
+    fmi3SetInt8: fmi3SetInt8TYPE, "Int8", (_values: *const fmi3Int8, _nValues: usize);
+    fmi3SetUInt8: fmi3SetUInt8TYPE, "UInt8", (_values: *const fmi3UInt8, _nValues: usize);
+    fmi3SetInt16: fmi3SetInt16TYPE, "Int16", (_values: *const fmi3Int16, _nValues: usize);
+    fmi3SetUInt16: fmi3SetUInt16TYPE, "UInt16", (_values: *const fmi3UInt16, _nValues: usize);
+    fmi3SetUInt32: fmi3SetUInt32TYPE, "UInt32", (_values: *const fmi3UInt32, _nValues: usize);
+    fmi3SetUInt64: fmi3SetUInt64TYPE, "UInt64", (_values: *const fmi3UInt64, _nValues: usize);
+    fmi3SetString: fmi3SetStringTYPE, "String", (_values: *const fmi3String, _nValues: usize);
+    fmi3SetBinary: fmi3SetBinaryTYPE, "Binary",
+        (_valueSizes: *const usize, _values: *const fmi3Binary, _nValues: usize);
+    fmi3SetClock: fmi3SetClockTYPE, "Clock", (_values: *const fmi3Clock);
+    fmi3GetIntervalDecimal: fmi3GetIntervalDecimalTYPE, "Clock",
+        (_intervals: *mut fmi3Float64, _qualifiers: *mut fmi3IntervalQualifier);
+    fmi3GetIntervalFraction: fmi3GetIntervalFractionTYPE, "Clock",
+        (_counters: *mut fmi3UInt64, _resolutions: *mut fmi3UInt64,
+         _qualifiers: *mut fmi3IntervalQualifier);
+    fmi3GetShiftDecimal: fmi3GetShiftDecimalTYPE, "Clock", (_shifts: *mut fmi3Float64);
+    fmi3GetShiftFraction: fmi3GetShiftFractionTYPE, "Clock",
+        (_counters: *mut fmi3UInt64, _resolutions: *mut fmi3UInt64);
+    fmi3SetIntervalDecimal: fmi3SetIntervalDecimalTYPE, "Clock", (_intervals: *const fmi3Float64);
+    fmi3SetIntervalFraction: fmi3SetIntervalFractionTYPE, "Clock",
+        (_counters: *const fmi3UInt64, _resolutions: *const fmi3UInt64);
+    fmi3SetShiftDecimal: fmi3SetShiftDecimalTYPE, "Clock", (_shifts: *const fmi3Float64);
+    fmi3SetShiftFraction: fmi3SetShiftFractionTYPE, "Clock",
+        (_counters: *const fmi3UInt64, _resolutions: *const fmi3UInt64);
+}
+
+/// Functions of features the FMU does not declare, refused with the flag or reason.
+macro_rules! refused {
+    ($($name:ident: $check:ident, ($($arg:ident: $ty:ty),*) => $reason:literal;)*) => {
+        $(export! {
+            /// # Safety
+            /// `instance` is an instance (no other argument is read).
+            fn $name(instance $(, $arg: $ty)*): $check = |_| Err(Failure::error($reason));
+        })*
+    };
+}
+
+refused! {
+    fmi3GetNumberOfVariableDependencies: fmi3GetNumberOfVariableDependenciesTYPE,
+        (_valueReference: fmi3ValueReference, _nDependencies: *mut usize) =>
+        "providesPerElementDependencies is false: the dependencies are those of \
+         modelDescription.xml's ModelStructure";
+    fmi3GetVariableDependencies: fmi3GetVariableDependenciesTYPE,
+        (_dependent: fmi3ValueReference, _elementIndicesOfDependent: *mut usize,
+         _independents: *mut fmi3ValueReference, _elementIndicesOfIndependents: *mut usize,
+         _dependencyKinds: *mut fmi3DependencyKind, _nDependencies: usize) =>
+        "providesPerElementDependencies is false: the dependencies are those of \
+         modelDescription.xml's ModelStructure";
+    fmi3EnterConfigurationMode: fmi3EnterConfigurationModeTYPE, () =>
+        "this FMU has no structural parameters, so no configuration mode";
+    fmi3ExitConfigurationMode: fmi3ExitConfigurationModeTYPE, () =>
+        "this FMU has no structural parameters, so no configuration mode";
+    fmi3EvaluateDiscreteStates: fmi3EvaluateDiscreteStatesTYPE, () =>
+        "providesEvaluateDiscreteStates is false: this FMU has no clocked discrete states";
+    fmi3ActivateModelPartition: fmi3ActivateModelPartitionTYPE,
+        (_clockReference: fmi3ValueReference, _activationTime: fmi3Float64) =>
+        "this FMU provides Model Exchange and Co-Simulation, not Scheduled Execution";
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; the flags must be NULL or writable.
+    fn fmi3UpdateDiscreteStates(
+        instance,
+        discreteStatesNeedUpdate: *mut fmi3Boolean,
+        terminateSimulation: *mut fmi3Boolean,
+        nominalsOfContinuousStatesChanged: *mut fmi3Boolean,
+        valuesOfContinuousStatesChanged: *mut fmi3Boolean,
+        nextEventTimeDefined: *mut fmi3Boolean,
+        nextEventTime: *mut fmi3Float64,
+    ): fmi3UpdateDiscreteStatesTYPE = |instance| {
+        let changed = instance.update_discrete_states()?;
+        // SAFETY: NULL or writable by the FMI contract; a NULL flag is not wanted.
+        unsafe {
+            let flags = [
+                (discreteStatesNeedUpdate, false),
+                (terminateSimulation, false),
+                (nominalsOfContinuousStatesChanged, false),
+                (valuesOfContinuousStatesChanged, changed),
+                (nextEventTimeDefined, false),
+            ];
+            for (pointer, value) in flags {
+                if let Some(flag) = pointer.as_mut() {
+                    *flag = value;
+                }
+            }
+            if let Some(time) = nextEventTime.as_mut() {
+                *time = 0.0;
+            }
+        }
+        Ok(())
+    };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; `FMUState` must be NULL or point to a writable pointer
+    /// (NULL, or a state of `instance`).
+    fn fmi3GetFMUState(instance, FMUState: *mut fmi3FMUState): fmi3GetFMUStateTYPE =
+        |instance| {
+            // SAFETY: NULL or writable by the FMI contract.
+            let slot =
+                unsafe { FMUState.as_mut() }.ok_or_else(|| null_argument("FMUState", 1))?;
+            let saved = instance.save();
+            if slot.is_null() {
+                *slot = instance.issue_state(saved).cast();
+            } else {
+                *instance.issued_state(*slot)? = saved;
+            }
+            Ok(())
+        };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance.
+    fn fmi3SetFMUState(instance, FMUState: fmi3FMUState): fmi3SetFMUStateTYPE = |instance| {
+        let saved = instance.issued_state(FMUState)?.clone();
+        instance.restore(&saved)
+    };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; `FMUState` must be NULL or point to a writable pointer.
+    fn fmi3FreeFMUState(instance, FMUState: *mut fmi3FMUState): fmi3FreeFMUStateTYPE =
+        |instance| {
+            // SAFETY: NULL or writable by the FMI contract.
+            let Some(slot) = (unsafe { FMUState.as_mut() }) else {
+                return Ok(());
+            };
+            if !slot.is_null() {
+                instance.free_state(*slot)?;
+                *slot = null_mut();
+            }
+            Ok(())
+        };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; `size` must be NULL or writable.
+    fn fmi3SerializedFMUStateSize(instance, FMUState: fmi3FMUState, size: *mut usize):
+        fmi3SerializedFMUStateSizeTYPE = |instance| {
+        let length = instance.issued_state(FMUState)?.serialize().len();
+        // SAFETY: NULL or writable by the FMI contract.
+        *unsafe { size.as_mut() }.ok_or_else(|| null_argument("size", 1))? = length;
+        Ok(())
+    };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; `serializedState` must hold `size` writable bytes.
+    fn fmi3SerializeFMUState(
+        instance,
+        FMUState: fmi3FMUState,
+        serializedState: *mut fmi3Byte,
+        size: usize,
+    ): fmi3SerializeFMUStateTYPE = |instance| {
+        let bytes = instance.issued_state(FMUState)?.serialize();
+        if size < bytes.len() {
+            return Err(Failure::error(format!(
+                "size = {size} is too small: the state needs {} bytes (fmi3SerializedFMUStateSize)",
+                bytes.len()
+            )));
+        }
+        // SAFETY: FMI contract on the buffer.
+        let target = unsafe { slice_mut(serializedState, size) }
+            .ok_or_else(|| null_argument("serializedState", size))?;
+        target[..bytes.len()].copy_from_slice(&bytes);
+        Ok(())
+    };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; `serializedState` must hold `size` readable bytes;
+    /// `FMUState` must be NULL or point to a writable pointer (NULL, or a state of
+    /// `instance`).
+    fn fmi3DeserializeFMUState(
+        instance,
+        serializedState: *const fmi3Byte,
+        size: usize,
+        FMUState: *mut fmi3FMUState,
+    ): fmi3DeserializeFMUStateTYPE = |instance| {
+        // SAFETY: FMI contract on the buffer.
+        let bytes = unsafe { slice(serializedState, size) }
+            .ok_or_else(|| null_argument("serializedState", size))?;
+        let restored = FmuState::deserialize(bytes)?;
+        // SAFETY: NULL or writable by the FMI contract.
+        let slot = unsafe { FMUState.as_mut() }.ok_or_else(|| null_argument("FMUState", 1))?;
+        if slot.is_null() {
+            *slot = instance.issue_state(restored).cast();
+        } else {
+            *instance.issued_state(*slot)? = restored;
+        }
+        Ok(())
+    };
+}
+
+/// The arrays of fmi3GetDirectionalDerivative and fmi3GetAdjointDerivative, the references
+/// translated to the variable table's.
+struct DerivativeArrays<'a> {
+    unknowns: Vec<u32>,
+    knowns: Vec<u32>,
+    seed: &'a [f64],
+    sensitivity: &'a mut [f64],
+}
+
+/// The arrays of fmi3GetDirectionalDerivative and fmi3GetAdjointDerivative as slices, the
+/// references translated.
+///
+/// # Safety
+/// FMI contract on the four arrays with their lengths.
+#[allow(clippy::too_many_arguments)]
+unsafe fn derivative_arrays<'a>(
+    unknowns: *const fmi3ValueReference,
+    n_unknowns: usize,
+    knowns: *const fmi3ValueReference,
+    n_knowns: usize,
+    seed: *const fmi3Float64,
+    n_seed: usize,
+    sensitivity: *mut fmi3Float64,
+    n_sensitivity: usize,
+) -> Result<DerivativeArrays<'a>, Failure> {
+    // SAFETY: FMI contract on the arrays.
+    let (u, k, s, d) = unsafe {
+        (
+            slice(unknowns, n_unknowns),
+            slice(knowns, n_knowns),
+            slice(seed, n_seed),
+            slice_mut(sensitivity, n_sensitivity),
+        )
+    };
+    let u = u.ok_or_else(|| null_argument("unknowns", n_unknowns))?;
+    let k = k.ok_or_else(|| null_argument("knowns", n_knowns))?;
+    let s = s.ok_or_else(|| null_argument("seed", n_seed))?;
+    let d = d.ok_or_else(|| null_argument("sensitivity", n_sensitivity))?;
+    Ok(DerivativeArrays {
+        unknowns: table_references(u, Accessor::Float64)?,
+        knowns: table_references(k, Accessor::Float64)?,
+        seed: s,
+        sensitivity: d,
+    })
+}
+
+fn check_lengths(what: &str, n: usize, of: &str, expected: usize) -> Outcome {
+    if n != expected {
+        return Err(Failure::error(format!(
+            "{what} = {n} must equal {of} = {expected} (this FMU has no array variables)"
+        )));
+    }
+    Ok(())
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; the arrays must hold the numbers of elements given.
+    fn fmi3GetDirectionalDerivative(
+        instance,
+        unknowns: *const fmi3ValueReference,
+        nUnknowns: usize,
+        knowns: *const fmi3ValueReference,
+        nKnowns: usize,
+        seed: *const fmi3Float64,
+        nSeed: usize,
+        sensitivity: *mut fmi3Float64,
+        nSensitivity: usize,
+    ): fmi3GetDirectionalDerivativeTYPE = |instance| {
+        check_lengths("nSeed", nSeed, "nKnowns", nKnowns)?;
+        check_lengths("nSensitivity", nSensitivity, "nUnknowns", nUnknowns)?;
+        // SAFETY: FMI contract on the arrays.
+        let a = unsafe {
+            derivative_arrays(
+                unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity,
+            )
+        }?;
+        instance.directional_derivative(&a.unknowns, &a.knowns, a.seed, a.sensitivity)
+    };
+}
+
+export! {
+    /// # Safety
+    /// `instance` is an instance; the arrays must hold the numbers of elements given.
+    fn fmi3GetAdjointDerivative(
+        instance,
+        unknowns: *const fmi3ValueReference,
+        nUnknowns: usize,
+        knowns: *const fmi3ValueReference,
+        nKnowns: usize,
+        seed: *const fmi3Float64,
+        nSeed: usize,
+        sensitivity: *mut fmi3Float64,
+        nSensitivity: usize,
+    ): fmi3GetAdjointDerivativeTYPE = |instance| {
+        check_lengths("nSeed", nSeed, "nUnknowns", nUnknowns)?;
+        check_lengths("nSensitivity", nSensitivity, "nKnowns", nKnowns)?;
+        // SAFETY: FMI contract on the arrays.
+        let a = unsafe {
+            derivative_arrays(
+                unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity,
+            )
+        }?;
+        instance.adjoint_derivative(&a.unknowns, &a.knowns, a.seed, a.sensitivity)
+    };
+}
