@@ -18,7 +18,8 @@ use crate::model::{
 use crate::snapshot::{FormatError, Reader, Writer};
 use crate::solver::{Choice, Method, Statistics};
 use crate::variables::{
-    build_table, variable, Input, Local, Output, Slot, Statistic, VarType, Variable, SOLVER_ITEMS,
+    build_table, variable, Branch, Input, Local, Output, Slot, Statistic, VarType, Variable,
+    SOLVER_ITEMS,
 };
 
 /// Time steps (s) of the central differences along the flow used for output derivatives
@@ -123,6 +124,8 @@ pub struct Plant {
     input_derivatives: InputDerivatives,
     /// The `solver` parameter: which integrator the co-simulation driver runs.
     solver_kind: SolverKind,
+    /// The `change_point_branch` parameter: where a change-point linkage goes on.
+    branch: Branch,
     time: f64,
     /// The full state, on the constraint.
     state: State,
@@ -150,6 +153,7 @@ impl Plant {
             inputs: Inputs::default(),
             input_derivatives: InputDerivatives::default(),
             solver_kind: SolverKind::Auto,
+            branch: Branch::Straight,
             time: 0.0,
             state: [0.0; STATE_SIZE],
             residual: 0.0,
@@ -180,6 +184,10 @@ impl Plant {
 
     pub fn input_derivatives(&self) -> &InputDerivatives {
         &self.input_derivatives
+    }
+
+    pub fn branch(&self) -> Branch {
+        self.branch
     }
 
     pub fn solver_kind(&self) -> SolverKind {
@@ -241,6 +249,18 @@ impl Plant {
         self.state = state;
         self.chart = chart;
         self.residual = model::length_residual(&self.params, state[1], state[2]);
+        self.changed = true;
+    }
+
+    /// A driver's new point after crossing a change point (docs/model.md §7): `state` is
+    /// on the constraint, and the loop angle whose chart is regular there leads.
+    pub fn jump(&mut self, time: f64, state: State) {
+        self.time = time;
+        self.state = state;
+        self.residual = model::length_residual(&self.params, state[1], state[2]);
+        let (_, b1, c1) =
+            model::kinematics::closure_with_gradient(&self.params, state[1], state[2]);
+        self.chart = preferred_chart(&self.params, b1, c1);
         self.changed = true;
     }
 
@@ -443,7 +463,8 @@ impl Plant {
             | Slot::SolverChoice
             | Slot::LinkageClass
             | Slot::LoopChart
-            | Slot::BuiltinLaws => None,
+            | Slot::BuiltinLaws
+            | Slot::ChangePointBranch => None,
         }
     }
 
@@ -464,6 +485,7 @@ impl Plant {
             Slot::LinkageClass => Value::Integer(model::classify(&self.params) as i32),
             Slot::LoopChart => Value::Integer(self.chart as i32),
             Slot::BuiltinLaws => Value::Boolean(self.params.builtin_laws),
+            Slot::ChangePointBranch => Value::Integer(self.branch as i32),
             Slot::Output(_) | Slot::Input(_) | Slot::Parameter(_) | Slot::Local(_) => {
                 unreachable!("Real slots")
             }
@@ -492,11 +514,15 @@ impl Plant {
                 self.solver_kind = solver_kind(v).expect("checked")
             }
             (Slot::BuiltinLaws, Value::Boolean(on)) => self.params.builtin_laws = on,
+            (Slot::ChangePointBranch, Value::Integer(v)) => {
+                self.branch = Branch::from_value(v).expect("checked")
+            }
             _ => unreachable!("check_set admits only writable slots of the right type"),
         }
         // The right-hand side changed. (An input is left to the driver: whether a change
-        // matters depends on how far its integrator has gone.)
-        if !matches!(slot, Slot::Input(_)) {
+        // matters depends on how far its integrator has gone; the branch matters only at a
+        // change point.)
+        if !matches!(slot, Slot::Input(_) | Slot::ChangePointBranch) {
             self.changed = true;
         }
         Ok(())
@@ -548,6 +574,13 @@ impl Plant {
                 }
             }
             (Slot::BuiltinLaws, Value::Boolean(_)) => {}
+            (Slot::ChangePointBranch, Value::Integer(v)) => {
+                if Branch::from_value(v).is_none() {
+                    return Err(AccessError::NotAllowed(format!(
+                        "change_point_branch = {v}: must be 1 (straight) or 2 (turn)"
+                    )));
+                }
+            }
             _ => {
                 let what = if var.causality() == crate::variables::Causality::Local {
                     "a Model Exchange state or derivative, set through SetContinuousStates"
@@ -716,6 +749,7 @@ impl Plant {
         w.f64s(&self.input_derivatives.load_torque);
         w.bool(self.params.builtin_laws);
         w.u8(self.solver_kind as u8);
+        w.u8(self.branch as u8);
         w.f64(self.time);
         w.f64s(&self.state);
         w.f64(self.residual);
@@ -742,6 +776,9 @@ impl Plant {
         let kind = r.u8()?;
         let solver_kind =
             solver_kind(kind as i32).ok_or_else(|| invalid(format!("solver = {kind}")))?;
+        let code = r.u8()?;
+        let branch = Branch::from_value(code as i32)
+            .ok_or_else(|| invalid(format!("change_point_branch = {code}")))?;
         let time = r.f64()?;
         let state = r.f64s()?;
         let residual = r.f64()?;
@@ -757,6 +794,7 @@ impl Plant {
             },
             input_derivatives,
             solver_kind,
+            branch,
             time,
             state,
             residual,

@@ -86,6 +86,9 @@ pub enum Slot {
     LoopChart,
     /// Whether the built-in torque laws apply (a Boolean parameter).
     BuiltinLaws,
+    /// The branch taken at a change point, one of [`BRANCHES`] (a tunable Enumeration
+    /// parameter).
+    ChangePointBranch,
 }
 
 /// FMI base types used here.
@@ -130,6 +133,9 @@ pub const SOLVER_ITEMS: [(&str, i32, &str); 3] = [
 pub const SOLVER_TYPE: &str = "SolverKind";
 /// The name of the linkage classes' type in the XML (items: [`LINKAGE_CLASSES`]).
 pub const LINKAGE_TYPE: &str = "LinkageClass";
+/// The name of the change-point branches' type in the XML (items: [`BRANCHES`]).
+pub const BRANCH_TYPE: &str = "ChangePointBranch";
+pub use crate::model::change_point::{Branch, BRANCHES};
 
 /// One FMI variable.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -146,6 +152,7 @@ impl Variable {
             Slot::Input(_) => Causality::Input,
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => Causality::Output,
             Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => Causality::Parameter,
+            Slot::ChangePointBranch => Causality::Parameter,
             Slot::Local(_) | Slot::LoopChart => Causality::Local,
         }
     }
@@ -155,15 +162,18 @@ impl Variable {
             Slot::Statistic(Statistic::ActiveSolver) => VarType::Enumeration,
             Slot::Statistic(_) | Slot::LoopChart => VarType::Integer,
             Slot::SolverChoice | Slot::LinkageClass => VarType::Enumeration,
+            Slot::ChangePointBranch => VarType::Enumeration,
             Slot::BuiltinLaws => VarType::Boolean,
             _ => VarType::Real,
         }
     }
 
-    /// FMI variability: parameters are fixed (settable before initialisation ends).
+    /// FMI variability: parameters are fixed (settable before initialisation ends), but
+    /// for the branch at a change point, which a master may choose at every event.
     pub fn variability(&self) -> &'static str {
         match self.slot {
             Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => "fixed",
+            Slot::ChangePointBranch => "tunable",
             Slot::Statistic(_) | Slot::LinkageClass | Slot::LoopChart => "discrete",
             _ => "continuous",
         }
@@ -184,6 +194,7 @@ impl Variable {
             Slot::Parameter(i) => Some(PARAMETERS[i].rule.range()),
             Slot::Input(_) => Some(INPUT_RULE.range()),
             Slot::SolverChoice => Some((SOLVER_ITEMS[0].1 as f64, SOLVER_ITEMS[2].1 as f64)),
+            Slot::ChangePointBranch => Some((BRANCHES[0].1 as f64, BRANCHES[1].1 as f64)),
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
             Slot::Local(_) | Slot::LoopChart | Slot::BuiltinLaws => None,
         }
@@ -202,6 +213,7 @@ impl Variable {
         match self.slot {
             Slot::SolverChoice | Slot::Statistic(Statistic::ActiveSolver) => Some(SOLVER_TYPE),
             Slot::LinkageClass => Some(LINKAGE_TYPE),
+            Slot::ChangePointBranch => Some(BRANCH_TYPE),
             _ => None,
         }
     }
@@ -216,6 +228,7 @@ impl Variable {
             Slot::Parameter(i) => Some(PARAMETERS[i].default),
             Slot::SolverChoice => Some(SOLVER_ITEMS[0].1 as f64),
             Slot::BuiltinLaws => Some(f64::from(u8::from(Parameters::default().builtin_laws))),
+            Slot::ChangePointBranch => Some(Branch::Straight as i32 as f64),
         }
     }
 }
@@ -396,7 +409,7 @@ const EXCHANGE_VARIABLES: [Variable; 9] = [
 
 /// Variables added after the first release, last so that every earlier value reference
 /// keeps its number.
-const LATER_VARIABLES: [Variable; 2] = [
+const LATER_VARIABLES: [Variable; 3] = [
     Variable {
         name: "builtin_laws",
         unit: "",
@@ -409,6 +422,12 @@ const LATER_VARIABLES: [Variable; 2] = [
         "Model Exchange's event indicator: positive while loop_angle determines the loop, crossing zero where the other angle should lead (docs/model.md §6)",
         Local::HandoverIndicator,
     ),
+    Variable {
+        name: "change_point_branch",
+        unit: "",
+        description: "The branch a change-point linkage takes where crank, rod and rocker fall collinear: straight (1) or turn (2); used by FMI 3.0 Co-Simulation in event mode, where the step returns early at the change point (docs/model.md §7)",
+        slot: Slot::ChangePointBranch,
+    },
 ];
 
 /// Number of variables (and one past the largest value reference).
@@ -621,6 +640,7 @@ fn running_dependencies(slot: Slot) -> Vec<(&'static str, Kind)> {
         // Not unknowns while running.
         Slot::Local(_) | Slot::LoopChart => vec![],
         Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
+        Slot::ChangePointBranch => vec![],
     }
 }
 
@@ -694,6 +714,7 @@ fn initial_dependencies(slot: Slot) -> Vec<&'static str> {
         Slot::LoopChart => ASSEMBLY.to_vec(),
         // Not unknowns: knowns.
         Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
+        Slot::ChangePointBranch => vec![],
     }
 }
 

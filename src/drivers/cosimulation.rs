@@ -11,7 +11,8 @@
 //! shorter than the integrator's natural step is taken by short RK4 steps that end on it
 //! (a master coupling the FMU to another sets an input at every step).
 
-use crate::model::{self, Inputs, Parameters, Projected, State, STATE_SIZE};
+use crate::model::change_point::{self, Crossing};
+use crate::model::{self, Inputs, ModelError, Parameters, Projected, State, STATE_SIZE};
 use crate::plant::{check_inputs, Activity, InputDerivatives, Plant};
 use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 use crate::solver::{Integrator, OdeSystem, SolverError, Statistics, Tolerances};
@@ -127,6 +128,9 @@ pub struct CoSimulation {
     restart: bool,
     solver: Integrator<STATE_SIZE>,
     carried: Option<CarriedStage>,
+    /// The plant stands just before a change point, located by an FMI 3.0 step that
+    /// returned early there: the next step crosses it first ([`CoSimulation::cross`]).
+    crossing_pending: bool,
 }
 
 impl CoSimulation {
@@ -143,7 +147,34 @@ impl CoSimulation {
                 tolerances(experiment.tolerance),
             ),
             carried: None,
+            crossing_pending: false,
         }
+    }
+
+    /// Whether the next step starts by crossing a change point.
+    pub fn crossing_pending(&self) -> bool {
+        self.crossing_pending
+    }
+
+    /// The plant stands just before a change point: the next step crosses it first.
+    pub fn expect_crossing(&mut self) {
+        self.crossing_pending = true;
+    }
+
+    /// The crossing of the change point the plant stands before, onto its
+    /// `change_point_branch` (docs/model.md §7); nothing changes yet.
+    pub fn plan_crossing(&self, plant: &Plant) -> Result<Crossing, ModelError> {
+        let inputs = plant.inputs_at(plant.time());
+        change_point::cross(plant.params(), &inputs, plant.state(), plant.branch())
+    }
+
+    /// Make a planned crossing: the plant moves past the change point, and the integrator
+    /// starts afresh there.
+    pub fn cross(&mut self, plant: &mut Plant, crossing: &Crossing) {
+        plant.jump(plant.time() + crossing.duration, crossing.state);
+        self.crossing_pending = false;
+        self.restart = true;
+        self.carried = None;
     }
 
     pub fn statistics(&self) -> Statistics {
@@ -316,6 +347,7 @@ impl CoSimulation {
         });
         w.f64s(&carried.f);
         w.f64s(&[carried.inputs.motor_torque, carried.inputs.load_torque]);
+        w.bool(self.crossing_pending);
     }
 
     /// The driver written by [`CoSimulation::serialize_into`], checked against the plant
@@ -333,6 +365,7 @@ impl CoSimulation {
         let has_carried = r.bool()?;
         let f = r.f64s()?;
         let [motor_torque_then, load_torque_then] = r.f64s()?;
+        let crossing_pending = r.bool()?;
         let carried = has_carried.then_some(CarriedStage {
             f,
             inputs: Inputs {
@@ -350,6 +383,7 @@ impl CoSimulation {
             restart,
             solver,
             carried,
+            crossing_pending,
         };
         driver
             .check_restored(plant, experiment)
@@ -367,6 +401,11 @@ impl CoSimulation {
     /// give (that memory is used only while nothing restarts it).
     fn check_restored(&self, plant: &Plant, experiment: &Experiment) -> Result<(), String> {
         check_inputs(&self.integrator_inputs, " (integrator's)")?;
+        if self.crossing_pending {
+            let y = plant.state();
+            change_point::locate_node(plant.params(), y[1], y[2])
+                .map_err(|e| format!("a change point to cross: {e}"))?;
+        }
         if self.carried.is_some() {
             if self.restart {
                 return Err("a carried first stage with a restart pending".into());

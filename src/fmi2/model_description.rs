@@ -13,6 +13,7 @@ use crate::variables::{
     dependencies, is_unknown, value_reference, variables, Causality, Unknowns, VarType, Variable,
     LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE, STATE_REFERENCES, UNITS,
 };
+use crate::variables::{BRANCHES, BRANCH_TYPE};
 
 pub const MODEL_IDENTIFIER: &str = "CyclicMechanism";
 pub const MODEL_NAME: &str = "CyclicMechanism";
@@ -244,9 +245,10 @@ pub(crate) fn write_units(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
 pub(crate) type Items = [(&'static str, i32, &'static str)];
 
 fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
-    let types: [(&str, &Items); 2] = [
+    let types: [(&str, &Items); 3] = [
         (SOLVER_TYPE, &SOLVER_ITEMS),
         (LINKAGE_TYPE, &LINKAGE_CLASSES),
+        (BRANCH_TYPE, &BRANCHES),
     ];
     w.create_element("TypeDefinitions")
         .write_inner_content(|w| {

@@ -59,12 +59,12 @@ export! {
         };
         // SAFETY: NULL or writable by the FMI contract.
         unsafe {
-            let early = end != StepEnd::Complete;
-            let event = end == StepEnd::ChangePointEvent;
+            let early = end == StepEnd::ChangePointEvent;
+            let event = end != StepEnd::Complete;
             for (pointer, value) in [
                 (eventHandlingNeeded, event),
                 (terminateSimulation, false),
-                (earlyReturn, early && outcome.is_ok()),
+                (earlyReturn, early),
             ] {
                 if let Some(flag) = pointer.as_mut() {
                     *flag = value;

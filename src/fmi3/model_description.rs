@@ -18,32 +18,39 @@ use crate::variables::{
     is_unknown, variables, Causality, Local, Slot, Unknowns, VarType, Variable, LINKAGE_TYPE,
     SOLVER_ITEMS, SOLVER_TYPE,
 };
+use crate::variables::{BRANCHES, BRANCH_TYPE};
 
 pub const FMI_VERSION: &str = "3.0";
 
 /// The value reference of the independent variable `time`.
 pub const TIME_REFERENCE: u32 = 0;
 
-/// Model Exchange capabilities, as declared: only what the FMU provides through FMI 2.0
-/// today (FMU states, serialization, directional derivatives).
+/// Model Exchange capabilities, as declared: FMU states and their serialization,
+/// directional and adjoint derivatives; no per-element dependencies and no evaluation of
+/// clocked discrete states.
 pub const EXCHANGE_CAPABILITIES: &[(&str, bool)] = &[
     ("needsExecutionTool", false),
     ("canBeInstantiatedOnlyOncePerProcess", false),
     ("canGetAndSetFMUState", true),
     ("canSerializeFMUState", true),
     ("providesDirectionalDerivatives", true),
+    ("providesAdjointDerivatives", true),
     ("needsCompletedIntegratorStep", false),
 ];
 
-/// Co-Simulation capabilities, as declared (as for Model Exchange; the output derivatives'
-/// order is written beside them).
+/// Co-Simulation capabilities, as declared (the output derivatives' order is written
+/// beside them): as for Model Exchange, with event mode, and a step that may return early
+/// (at a change point, docs/model.md §7); no intermediate update.
 pub const CAPABILITIES: &[(&str, bool)] = &[
     ("needsExecutionTool", false),
     ("canBeInstantiatedOnlyOncePerProcess", false),
     ("canGetAndSetFMUState", true),
     ("canSerializeFMUState", true),
     ("providesDirectionalDerivatives", true),
+    ("providesAdjointDerivatives", true),
     ("canHandleVariableCommunicationStepSize", true),
+    ("mightReturnEarlyFromDoStep", true),
+    ("hasEventMode", true),
 ];
 
 /// A variable's FMI 3.0 value reference.
@@ -100,9 +107,10 @@ fn write_model_description(w: &mut Writer<Vec<u8>>, token: &str) -> io::Result<(
 }
 
 fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
-    let types: [(&str, &Items); 2] = [
+    let types: [(&str, &Items); 3] = [
         (SOLVER_TYPE, &SOLVER_ITEMS),
         (LINKAGE_TYPE, &LINKAGE_CLASSES),
+        (BRANCH_TYPE, &BRANCHES),
     ];
     w.create_element("TypeDefinitions")
         .write_inner_content(|w| {

@@ -80,12 +80,13 @@ pub type Outcome = Result<(), Failure>;
 /// How an FMI 3.0 step ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StepEnd {
-    /// At the step's end time.
+    /// At the step's end time, with nothing to handle.
     Complete,
-    /// Early, at a change point, for the master to handle in event mode.
+    /// At the step's end time, a change point crossed on the way (early return not
+    /// allowed): the master may handle the event.
+    CompleteAfterEvent,
+    /// Early, just before a change point, for the master to handle in event mode.
     ChangePointEvent,
-    /// Early, at a change point, the instance having no event mode.
-    ChangePointStop,
 }
 
 /// Relative mismatch accepted between the master's communication point and the FMU's time.
@@ -604,9 +605,144 @@ impl Instance {
         Ok(())
     }
 
-    /// fmi3DoStep: as fmi2DoStep, and how the step ended.
+    /// fmi3DoStep: as fmi2DoStep, but a change point is an event (docs/model.md §7). The
+    /// step stops just before it, located to the tolerance in time; with event mode and
+    /// early return it returns there, the next step crossing it onto the branch
+    /// `change_point_branch` names then; with event mode alone it crosses at once and
+    /// completes the step; without event mode it ends there with Discard and the reason.
     pub fn do_step_fmi3(&mut self, current: f64, step: f64) -> Result<StepEnd, Failure> {
-        self.do_step(current, step).map(|()| StepEnd::Complete)
+        let now = self.current.plant.time();
+        let target = self.step_target(now, current, step)?;
+        let mut end = StepEnd::Complete;
+        loop {
+            self.cross_if_pending(target)?;
+            let warned = self.warned_stability;
+            let (plant, driver, experiment) = self.cosimulation()?;
+            let start = plant.time();
+            let Err(error) = isa::advance(driver, plant, target, experiment) else {
+                let stability_limited = !warned && driver.dop853_is_stability_limited();
+                self.report_step(target, stability_limited);
+                return Ok(end);
+            };
+            let Some(located) = self.locate_change_point(start, target) else {
+                return Err(self.step_failed(start, target, error));
+            };
+            if !self.event_mode_used {
+                self.current.state = State::StepDiscarded;
+                return Err(Failure::discard(format!(
+                    "step from t = {start} to {target} stopped at t = {located}, just before a \
+                     change point ({error}); without event mode the FMU does not choose a \
+                     branch: instantiate with eventModeUsed = true to go on (docs/model.md §7)"
+                )));
+            }
+            self.cosimulation()?.1.expect_crossing();
+            self.log_change_point(located);
+            if self.early_return_allowed {
+                return Ok(StepEnd::ChangePointEvent);
+            }
+            end = StepEnd::CompleteAfterEvent;
+        }
+    }
+
+    /// The co-simulation plant, driver and experiment, once initialised.
+    fn cosimulation(&mut self) -> Result<(&mut Plant, &mut CoSimulation, &Experiment), Failure> {
+        let FmuState {
+            plant,
+            driver: Driver::CoSimulation(Some(driver)),
+            experiment,
+            ..
+        } = &mut self.current
+        else {
+            return Err(Failure::error("the integrator starts at initialisation"));
+        };
+        Ok((plant, driver, experiment))
+    }
+
+    /// Cross the change point a step returned early before, if any, within a step to
+    /// `target`. A crossing that cannot be made is a Discard; one longer than the step is
+    /// refused with the length it needs.
+    fn cross_if_pending(&mut self, target: f64) -> Outcome {
+        let (plant, driver, _) = self.cosimulation()?;
+        if !driver.crossing_pending() {
+            return Ok(());
+        }
+        let start = plant.time();
+        let crossing = match driver.plan_crossing(plant) {
+            Ok(crossing) => crossing,
+            Err(e) => {
+                self.current.state = State::StepDiscarded;
+                return Err(Failure::discard(format!("at t = {start}: {e}")));
+            }
+        };
+        if start + crossing.duration > target {
+            return Err(Failure::error(format!(
+                "crossing the change point takes {} s, past the step's end t = {target}: take \
+                 a step of at least that length",
+                crossing.duration
+            )));
+        }
+        driver.cross(plant, &crossing);
+        if self.log_enabled(Category::Solver) {
+            let message = format!(
+                "t = {start}: the change point at phi2 = {}, phi3 = {} crossed onto the branch \
+                 {} in {} s",
+                crossing.node.0,
+                crossing.node.1,
+                self.current.plant.branch().name(),
+                crossing.duration
+            );
+            self.log(Status::Ok, Category::Solver, &message);
+        }
+        Ok(())
+    }
+
+    /// After a step that failed from `start` towards `target`: for a change-point
+    /// linkage, the last time before the change point to the tolerance, found by bisection
+    /// (the plant and driver left there), where the state stands next to a change point;
+    /// `None` for any other failure (nothing changed).
+    fn locate_change_point(&mut self, start: f64, target: f64) -> Option<f64> {
+        if crate::model::classify(self.current.plant.params())
+            != crate::model::LinkageClass::ChangePoint
+        {
+            return None;
+        }
+        let (plant, driver, experiment) = self.cosimulation().ok()?;
+        let resolution = experiment.tolerance * start.abs().max(1.0);
+        let (mut lo, mut hi) = (start, target);
+        let mut reached: Option<(Plant, CoSimulation)> = None;
+        while hi - lo > resolution {
+            let mid = 0.5 * (lo + hi);
+            let (mut p, mut d) = reached
+                .clone()
+                .unwrap_or_else(|| (plant.clone(), driver.clone()));
+            if isa::advance(&mut d, &mut p, mid, experiment).is_ok() {
+                lo = mid;
+                reached = Some((p, d));
+            } else {
+                hi = mid;
+            }
+        }
+        let (p, d) = reached.unwrap_or_else(|| (plant.clone(), driver.clone()));
+        let y = p.state();
+        crate::model::change_point::locate_node(p.params(), y[1], y[2]).ok()?;
+        *plant = p;
+        *driver = d;
+        Some(lo)
+    }
+
+    fn log_change_point(&self, located: f64) {
+        if self.log_enabled(Category::Solver) {
+            let plant = &self.current.plant;
+            let y = plant.state();
+            let message = format!(
+                "t = {located}: the linkage reaches a change point (phi2 = {}, phi3 = {}): an \
+                 event; the next step crosses it onto change_point_branch = {}",
+                y[1],
+                y[2],
+                plant.branch().name()
+            );
+            self.log(Status::Ok, Category::Solver, &message);
+        }
     }
 
     #[inline(always)]

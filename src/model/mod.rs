@@ -2,6 +2,7 @@
 //! projection, assembly and energy. Pure Rust; it knows nothing of FMI or of the solver
 //! that drives it.
 
+pub mod change_point;
 pub mod chart;
 pub mod dynamics;
 pub mod kinematics;

@@ -61,3 +61,18 @@ def report():
     path = pathlib.Path(os.environ.get("MEASUREMENTS", ROOT / "target/test-reports/measurements.json"))
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(figures, indent=2, sort_keys=True))
+
+
+@pytest.fixture(scope="session")
+def fmu3_path():
+    return packed("CYCLIC_MECHANISM_FMU3", "target/fmu/CyclicMechanism-fmi3.fmu", "fmu")
+
+
+@pytest.fixture(scope="session")
+def unzipped3(fmu3_path, tmp_path_factory):
+    return fmpy.extract(str(fmu3_path), unzipdir=str(tmp_path_factory.mktemp("fmu3")))
+
+
+@pytest.fixture(scope="session")
+def model_description3(unzipped3):
+    return fmpy.read_model_description(unzipped3)

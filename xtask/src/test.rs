@@ -20,7 +20,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .env("FUZZ_REPORT", reports.join("fuzz_api.json")))?;
     fuzz_under_valgrind()?;
     // The archive with every platform: the FMPy tests check it as a master would.
-    let fmu = test_platforms()?;
+    let (fmu, fmu3) = test_platforms()?;
     // The benchmark harness builds and drives the packed FMU (a smoke run, no timings
     // judged), so that `cargo xtask bench` keeps working from a fresh clone.
     let harness = crate::bench::build_bench_harness()?;
@@ -36,6 +36,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(root().join("tests/python"))
         .env("CYCLIC_MECHANISM_FMU", &fmu)
+        .env("CYCLIC_MECHANISM_FMU3", &fmu3)
         .env("DC_MOTOR_FMU", &motor)
         .current_dir(root()))?;
     // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
@@ -43,12 +44,13 @@ pub(crate) fn job(_: &Parsed) -> Result {
     // options below (in this file) alone.
     let mut inputs = vec![
         fmu.clone(),
+        fmu3.clone(),
         root().join("target/venv/requirements.installed"),
         root().join("xtask/src/test.rs"),
     ];
     inputs.extend(files_with_extension(&root().join("tests/python"), "py")?);
     unless_passed_before("valgrind memcheck of the FMPy suite", &inputs, || {
-        fmpy_under_valgrind(&python, &fmu)
+        fmpy_under_valgrind(&python, &fmu, &fmu3)
     })
 }
 
@@ -59,7 +61,8 @@ pub(crate) fn job_platforms(_: &Parsed) -> Result {
     test_platforms().map(drop)
 }
 
-pub(crate) fn test_platforms() -> Result<PathBuf> {
+/// Returns the FMI 2.0 and FMI 3.0 archives.
+pub(crate) fn test_platforms() -> Result<(PathBuf, PathBuf)> {
     ensure_libclang()?;
     let packed = fmu::build_fmu(true)?;
     let zig = platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
@@ -70,7 +73,7 @@ pub(crate) fn test_platforms() -> Result<PathBuf> {
         &packed.report,
         &zig,
     )?;
-    Ok(packed.fmu)
+    Ok((packed.fmu, packed.fmu3))
 }
 
 /// The FMPy tests of the C API (argument checks, state machine, FMU state, discards) under
@@ -78,7 +81,7 @@ pub(crate) fn test_platforms() -> Result<PathBuf> {
 /// only errors with a frame in the FMU's library count, including definite leaks allocated
 /// there. A positive control first shows that an overrun inside the library is caught and
 /// attributed (tests/python/valgrind_probe.py).
-pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path) -> Result {
+pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path, fmu3: &Path) -> Result {
     let out = root().join("target/valgrind");
     fs::create_dir_all(&out).map_err(|e| e.to_string())?;
     let memcheck = |xml: &Path| {
@@ -93,6 +96,7 @@ pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path) -> Result {
             .arg(python)
             .env("PYTHONMALLOC", "malloc")
             .env("CYCLIC_MECHANISM_FMU", fmu)
+            .env("CYCLIC_MECHANISM_FMU3", fmu3)
             .env("MEASUREMENTS", out.join("measurements.json"))
             .current_dir(root());
         command
@@ -121,6 +125,12 @@ pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path) -> Result {
         "test_model_exchange.py::test_derivatives_match_the_variables_and_states_round_trip",
         "test_model_exchange.py::test_directional_derivatives_are_exact",
         "test_model_exchange.py::test_cvode_hands_over_at_every_dead_point",
+        // FMI 3.0: the state machine, FMU states, early return at change points and the
+        // adjoint derivatives (not the runs against the reference, as above).
+        "test_fmi3.py::test_every_function_in_every_state",
+        "test_fmi3.py::test_fmu_state_round_trips_bit_for_bit",
+        "test_fmi3.py::test_change_point_returns_early_and_goes_on_on_the_chosen_branch",
+        "test_fmi3.py::test_adjoint_is_the_transpose_of_the_directional_derivative",
     ];
     run(memcheck(&suite)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])

@@ -1,0 +1,335 @@
+//! Crossing a change point (docs/model.md §7): where crank, rod and rocker fall collinear
+//! (B1 = C1 = 0) the constraint's gradient vanishes, the equations of motion do not
+//! determine the motion, and two branches of the loop's configuration curve cross. The
+//! integrator cannot step through that point; [`cross`] carries the state from just before
+//! it to just after it along the branch [`Branch`] names, keeping the energy balance.
+
+use super::dynamics::{energy, power, state_derivative};
+use super::kinematics::closure_with_gradient;
+use super::projection::{conditioning, project, MIN_CONDITIONING};
+use super::{Inputs, ModelError, Parameters, State};
+
+/// Which branch the linkage takes at a change point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(i32)]
+pub enum Branch {
+    /// Along the branch it arrives on: at the change point the rod can transmit no
+    /// impulse (the constraint's gradient is zero), so the velocity cannot jump.
+    Straight = 1,
+    /// Onto the other branch, with the kinetic energy of crank and rocker kept: the
+    /// idealisation of a guide, a stop or a spring that steers the linkage over.
+    Turn = 2,
+}
+
+/// The enumeration's items (name, value, description), for the model description.
+pub const BRANCHES: [(&str, i32, &str); 2] = [
+    (
+        "straight",
+        1,
+        "continue along the branch the linkage arrives on",
+    ),
+    (
+        "turn",
+        2,
+        "take the other branch, with the kinetic energy kept",
+    ),
+];
+
+impl Branch {
+    pub fn from_value(value: i32) -> Option<Branch> {
+        match value {
+            1 => Some(Branch::Straight),
+            2 => Some(Branch::Turn),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        BRANCHES[self as usize - 1].0
+    }
+}
+
+/// The state after a crossing, `duration` after the state it started from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Crossing {
+    pub duration: f64,
+    pub state: State,
+    /// The change point crossed (φ2, φ3), and when it was passed, after the start.
+    pub node: (f64, f64),
+    pub time_to_node: f64,
+}
+
+/// The farthest (rad, in φ2 + φ3) a state may stand from the change point it is to cross.
+const NEAR: f64 = 1e-2;
+
+/// Carry `y`, which approaches a change point, across it onto `branch`.
+///
+/// The crank and rocker move along straight lines in (φ2, φ3) to the change point (the
+/// time it takes at the arrival speed) and away from it along the chosen branch's tangent
+/// for as long again, or longer until the constraint is regular enough for the integrator
+/// (conditioning four times [`MIN_CONDITIONING`]). The springs' bodies move with their
+/// accelerations at `y`. Positions are then projected onto the loop, and the speeds of
+/// crank and rocker scaled so that the energy equals E(y) plus the power at `y` times the
+/// duration: the energy balance holds to second order in the (short) duration.
+pub fn cross(
+    p: &Parameters,
+    inputs: &Inputs,
+    y: &State,
+    branch: Branch,
+) -> Result<Crossing, ModelError> {
+    let node = locate_node(p, y[1], y[2])?;
+    let (incoming, other) = tangents(p, node)?;
+    let v = [y[5], y[6]];
+    let kinetic = |d: [f64; 2], w: [f64; 2]| p.J2 * d[0] * w[0] + p.J3 * d[1] * w[1];
+    let speed2 = kinetic(v, v);
+    if speed2 <= 0.0 {
+        return Err(ModelError::new(
+            "at the change point crank and rocker are at rest: no branch is taken",
+        ));
+    }
+    // The tangent the motion arrives along is the one nearest the velocity.
+    let cosine = |d: [f64; 2]| kinetic(d, v) / (kinetic(d, d) * speed2).sqrt();
+    let (arriving, leaving) = if cosine(incoming).abs() >= cosine(other).abs() {
+        (incoming, other)
+    } else {
+        (other, incoming)
+    };
+    let direction = match branch {
+        Branch::Straight => arriving,
+        Branch::Turn => leaving,
+    };
+    // Forward: an acute angle with the arrival velocity.
+    let sign = if kinetic(direction, v) >= 0.0 {
+        1.0
+    } else {
+        -1.0
+    };
+    let scale = (speed2 / kinetic(direction, direction)).sqrt() * sign;
+    let out = [direction[0] * scale, direction[1] * scale];
+    let offset = [y[1] - node.0, y[2] - node.1];
+    let time_to_node = -(offset[0] * v[0] + offset[1] * v[1]) / (v[0] * v[0] + v[1] * v[1]);
+    if time_to_node.is_nan() || time_to_node <= 0.0 {
+        return Err(ModelError::new(format!(
+            "the state at phi2 = {}, phi3 = {} moves away from the change point at phi2 = {}, \
+             phi3 = {}: nothing to cross",
+            y[1], y[2], node.0, node.1
+        )));
+    }
+    let mut after = time_to_node;
+    for _ in 0..40 {
+        let state = leave(p, inputs, y, node, out, time_to_node, after)?;
+        let (_, b1, c1) = closure_with_gradient(p, state[1], state[2]);
+        if conditioning(p, b1, c1) >= 4.0 * MIN_CONDITIONING {
+            return Ok(Crossing {
+                duration: time_to_node + after,
+                state,
+                node,
+                time_to_node,
+            });
+        }
+        after *= 1.5;
+    }
+    Err(ModelError::new(
+        "the linkage does not leave the change point's neighbourhood along the chosen branch",
+    ))
+}
+
+/// The state `after` past the change point `node`, reached `before` after `y`, moving with
+/// (ω2, ω3) = `out` away from it; projected, its energy balanced.
+fn leave(
+    p: &Parameters,
+    inputs: &Inputs,
+    y: &State,
+    node: (f64, f64),
+    out: [f64; 2],
+    before: f64,
+    after: f64,
+) -> Result<State, ModelError> {
+    let dt = before + after;
+    let mut f = [0.0; 8];
+    state_derivative(p, inputs, y, &mut f);
+    let mut z = *y;
+    z[0] += y[4] * dt + 0.5 * f[4] * dt * dt;
+    z[3] += y[7] * dt + 0.5 * f[7] * dt * dt;
+    z[4] += f[4] * dt;
+    z[7] += f[7] * dt;
+    z[1] = node.0 + out[0] * after;
+    z[2] = node.1 + out[1] * after;
+    z[5] = out[0];
+    z[6] = out[1];
+    project(p, &mut z, 0.0)?;
+    // Crank and rocker carry what the balance leaves them.
+    let target = energy(p, y) + power(p, inputs, y) * dt;
+    let rest = energy(p, &[z[0], z[1], z[2], z[3], z[4], 0.0, 0.0, z[7]]);
+    let kinetic = 0.5 * (p.J2 * z[5] * z[5] + p.J3 * z[6] * z[6]);
+    let left = target - rest;
+    if !(left > 0.0 && kinetic > 0.0) {
+        return Err(ModelError::new(
+            "the energy balance leaves crank and rocker no motion past the change point",
+        ));
+    }
+    let factor = (left / kinetic).sqrt();
+    z[5] *= factor;
+    z[6] *= factor;
+    Ok(z)
+}
+
+/// ∂(B1, C1)/∂(φ2, φ3) as rows (B1's, C1's): docs/model.md §2's B1 and C1 differentiated.
+fn gradient_jacobian(p: &Parameters, phi2: f64, phi3: f64) -> [[f64; 2]; 2] {
+    let c23 = (phi2 - phi3).cos();
+    [
+        [p.l2 * (p.l * phi2.cos() + p.l3 * c23), -p.l2 * p.l3 * c23],
+        [p.l3 * p.l2 * c23, p.l3 * (-p.l2 * c23 + p.l * phi3.cos())],
+    ]
+}
+
+/// The change point near (φ2, φ3): Newton's iteration on B1 = C1 = 0, checked to lie on
+/// the loop (g = 0).
+pub fn locate_node(p: &Parameters, phi2: f64, phi3: f64) -> Result<(f64, f64), ModelError> {
+    let (mut a, mut b) = (phi2, phi3);
+    let scale = p.l2 * (p.l + p.l3) + p.l3 * (p.l2 + p.l);
+    for _ in 0..30 {
+        let (_, b1, c1) = closure_with_gradient(p, a, b);
+        let [[j11, j12], [j21, j22]] = gradient_jacobian(p, a, b);
+        let det = j11 * j22 - j12 * j21;
+        if det == 0.0 || !det.is_finite() {
+            break;
+        }
+        let da = (b1 * j22 - c1 * j12) / det;
+        let db = (j11 * c1 - j21 * b1) / det;
+        a -= da;
+        b -= db;
+        if da.abs() + db.abs() <= 4.0 * f64::EPSILON * (1.0 + a.abs() + b.abs()) {
+            break;
+        }
+    }
+    let (g, b1, c1) = closure_with_gradient(p, a, b);
+    let near = (a - phi2).abs() + (b - phi3).abs() <= NEAR;
+    let on_loop = g.abs() <= 1e-9 * p.L * p.L;
+    let singular = b1.abs() + c1.abs() <= 1e-12 * scale;
+    if !(near && on_loop && singular) {
+        return Err(ModelError::new(format!(
+            "no change point near phi2 = {phi2}, phi3 = {phi3} (nearest candidate phi2 = {a}, \
+             phi3 = {b}, g = {g:e}): the linkage is not at a change point"
+        )));
+    }
+    Ok((a, b))
+}
+
+/// The two branches' tangents (in (φ2, φ3)) at the change point `node`: the directions d
+/// with dᵀ·H·d = 0, H the Hessian of g, which is indefinite where two branches cross.
+fn tangents(p: &Parameters, node: (f64, f64)) -> Result<([f64; 2], [f64; 2]), ModelError> {
+    // ∇g = (B1, −C1), so H's rows are B1's gradient and minus C1's.
+    let [[h11, h12], [h21, h22]] = gradient_jacobian(p, node.0, node.1);
+    let (a, b, c) = (h11, 0.5 * (h12 - h21), -h22);
+    let discriminant = b * b - a * c;
+    if discriminant.is_nan() || discriminant <= 0.0 {
+        return Err(ModelError::new(
+            "the change point is not a crossing of two branches (the closure's Hessian is \
+             not indefinite there)",
+        ));
+    }
+    let root = discriminant.sqrt();
+    // a·u² + 2b·u·w + c·w² = 0, solved for the ratio in the better conditioned way.
+    let pair = if a.abs() >= c.abs() {
+        ([(-b + root) / a, 1.0], [(-b - root) / a, 1.0])
+    } else {
+        ([1.0, (-b + root) / c], [1.0, (-b - root) / c])
+    };
+    let unit = |d: [f64; 2]| {
+        let n = d[0].hypot(d[1]);
+        [d[0] / n, d[1] / n]
+    };
+    Ok((unit(pair.0), unit(pair.1)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::kinematics::constraint_terms;
+
+    /// The change-point geometry l2 + L = l + l3, collinear at φ2 = φ3 = 0.
+    fn geometry() -> Parameters {
+        Parameters {
+            L: 0.95,
+            ..Parameters::default()
+        }
+    }
+
+    /// A state on the branch of slope `m` (dφ3/dφ2) at distance `s` in φ2 before the
+    /// change point, moving towards it at ω2 = 3, with the springs twisted.
+    fn approaching(p: &Parameters, m: f64, s: f64) -> State {
+        let mut y = [0.1, -s, -m * s, -m * s - 0.05, 2.0, 3.0, 3.0 * m, 1.0];
+        project(p, &mut y, 0.0).unwrap();
+        y
+    }
+
+    fn slopes(p: &Parameters) -> [f64; 2] {
+        let (d1, d2) = tangents(p, (0.0, 0.0)).unwrap();
+        [d1[1] / d1[0], d2[1] / d2[0]]
+    }
+
+    #[test]
+    fn the_node_and_its_two_branches() {
+        let p = geometry();
+        let node = locate_node(&p, 1e-3, -2e-3).unwrap();
+        assert!(node.0.abs() < 1e-12 && node.1.abs() < 1e-12, "{node:?}");
+        // By hand from g's second-order terms: a + 2b·m + c·m² = 0 with a = L·l2 + l2²,
+        // b = −l2·l3, c = l3² − L·l3.
+        let (a, b, c) = (
+            p.L * p.l2 + p.l2 * p.l2,
+            -p.l2 * p.l3,
+            p.l3 * p.l3 - p.L * p.l3,
+        );
+        for m in slopes(&p) {
+            assert!((a + 2.0 * b * m + c * m * m).abs() < 1e-12, "{m}");
+        }
+        assert!(locate_node(&Parameters::default(), 0.3, 1.4).is_err());
+    }
+
+    #[test]
+    fn straight_keeps_the_arrival_tangent_turn_takes_the_other_and_both_keep_the_energy() {
+        let p = geometry();
+        let inputs = Inputs::default();
+        for (i, m) in slopes(&p).into_iter().enumerate() {
+            let y = approaching(&p, m, 2e-4);
+            for branch in [Branch::Straight, Branch::Turn] {
+                let c = cross(&p, &inputs, &y, branch).unwrap();
+                let z = c.state;
+                let slope = z[6] / z[5];
+                let expected = if branch == Branch::Straight {
+                    m
+                } else {
+                    slopes(&p)[1 - i]
+                };
+                assert!(
+                    (slope - expected).abs() < 2e-3,
+                    "{branch:?}: {slope} vs {expected}"
+                );
+                assert!(z[5] > 0.0, "the crank keeps turning forwards");
+                assert!(z[1] > 0.0, "past the change point");
+                let e = energy(&p, &y) + power(&p, &inputs, &y) * c.duration;
+                assert!((energy(&p, &z) - e).abs() <= 1e-12 * e, "{branch:?}");
+                let t = constraint_terms(&p, z[1], z[2], z[5], z[6]);
+                assert!(
+                    (t.b1 * z[5] - t.c1 * z[6]).abs() < 1e-13,
+                    "velocity constraint"
+                );
+                let (g, b1, c1) = closure_with_gradient(&p, z[1], z[2]);
+                assert!(g.abs() < 1e-15, "on the loop");
+                assert!(conditioning(&p, b1, c1) >= 4.0 * MIN_CONDITIONING);
+            }
+        }
+    }
+
+    #[test]
+    fn a_state_moving_away_is_not_crossed() {
+        let p = geometry();
+        let m = slopes(&p)[0];
+        let mut y = approaching(&p, m, 2e-4);
+        y[5] = -y[5];
+        y[6] = -y[6];
+        let error = cross(&p, &Inputs::default(), &y, Branch::Straight).unwrap_err();
+        assert!(error.to_string().contains("moves away"), "{error}");
+    }
+}
