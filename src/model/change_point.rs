@@ -4,7 +4,7 @@
 //! integrator cannot step through that point; [`cross`] carries the state from just before
 //! it to just after it along the branch [`Branch`] names, keeping the energy balance.
 
-use super::dynamics::{energy, power, state_derivative};
+use super::dynamics::{accelerations, energy, power, state_derivative};
 use super::kinematics::closure_with_gradient;
 use super::projection::{conditioning, project, MIN_CONDITIONING};
 use super::{Inputs, ModelError, Parameters, State};
@@ -64,13 +64,17 @@ const NEAR: f64 = 1e-2;
 
 /// Carry `y`, which approaches a change point, across it onto `branch`.
 ///
-/// The crank and rocker move along straight lines in (φ2, φ3) to the change point (the
-/// time it takes at the arrival speed) and away from it along the chosen branch's tangent
-/// for as long again, or longer until the constraint is regular enough for the integrator
-/// (conditioning four times [`MIN_CONDITIONING`]). The springs' bodies move with their
-/// accelerations at `y`. Positions are then projected onto the loop, and the speeds of
-/// crank and rocker scaled so that the energy equals E(y) plus the power at `y` times the
-/// duration: the energy balance holds to second order in the (short) duration.
+/// Crank and rocker move in (φ2, φ3) to the change point, along their velocity, and away
+/// from it along the chosen branch's tangent by as far again, or farther until the
+/// constraint is regular enough for the integrator (conditioning four times
+/// [`MIN_CONDITIONING`]); the exit is projected onto the loop. The speed along the way
+/// follows from the energy: at the change point from the work of the generalised forces
+/// on crank and rocker over the approach, with the inertia along the tangent there (the
+/// speed carries over onto the straight branch; onto the other, the kinetic energy does);
+/// at the exit from the energy balance (E(y) plus the power at `y` times the duration).
+/// Each half's duration is its length over the mean of the inverse speeds at its ends (the
+/// trapezoidal rule), and the springs' bodies move with their accelerations at `y`: second
+/// order in the (short) duration, including the change of inertia along the curved path.
 pub fn cross(
     p: &Parameters,
     inputs: &Inputs,
@@ -78,74 +82,95 @@ pub fn cross(
     branch: Branch,
 ) -> Result<Crossing, ModelError> {
     let node = locate_node(p, y[1], y[2])?;
-    let (incoming, other) = tangents(p, node)?;
+    let (first, second) = tangents(p, node)?;
     let v = [y[5], y[6]];
-    let kinetic = |d: [f64; 2], w: [f64; 2]| p.J2 * d[0] * w[0] + p.J3 * d[1] * w[1];
-    let speed2 = kinetic(v, v);
-    if speed2 <= 0.0 {
+    let speed = v[0].hypot(v[1]);
+    if speed == 0.0 {
         return Err(ModelError::new(
             "at the change point crank and rocker are at rest: no branch is taken",
         ));
     }
+    let arrival = [v[0] / speed, v[1] / speed];
     // The tangent the motion arrives along is the one nearest the velocity.
-    let cosine = |d: [f64; 2]| kinetic(d, v) / (kinetic(d, d) * speed2).sqrt();
-    let (arriving, leaving) = if cosine(incoming).abs() >= cosine(other).abs() {
-        (incoming, other)
+    let along = |d: [f64; 2]| (d[0] * arrival[0] + d[1] * arrival[1]).abs();
+    let (arriving, other) = if along(first) >= along(second) {
+        (first, second)
     } else {
-        (other, incoming)
+        (second, first)
     };
-    let direction = match branch {
-        Branch::Straight => arriving,
-        Branch::Turn => leaving,
+    let inertia = |d: [f64; 2]| p.J2 * d[0] * d[0] + p.J3 * d[1] * d[1];
+    let forward = |d: [f64; 2]| {
+        // An acute angle with the arrival velocity in the kinetic metric.
+        let sign = if p.J2 * d[0] * v[0] + p.J3 * d[1] * v[1] >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        [d[0] * sign, d[1] * sign]
     };
-    // Forward: an acute angle with the arrival velocity.
-    let sign = if kinetic(direction, v) >= 0.0 {
-        1.0
-    } else {
-        -1.0
+    let (arriving, chosen) = match branch {
+        Branch::Straight => (forward(arriving), forward(arriving)),
+        Branch::Turn => (forward(arriving), forward(other)),
     };
-    let scale = (speed2 / kinetic(direction, direction)).sqrt() * sign;
-    let out = [direction[0] * scale, direction[1] * scale];
-    let offset = [y[1] - node.0, y[2] - node.1];
-    let time_to_node = -(offset[0] * v[0] + offset[1] * v[1]) / (v[0] * v[0] + v[1] * v[1]);
-    if time_to_node.is_nan() || time_to_node <= 0.0 {
+    let offset = [node.0 - y[1], node.1 - y[2]];
+    let distance = offset[0].hypot(offset[1]);
+    if offset[0] * arrival[0] + offset[1] * arrival[1] <= 0.0 {
         return Err(ModelError::new(format!(
             "the state at phi2 = {}, phi3 = {} moves away from the change point at phi2 = {}, \
              phi3 = {}: nothing to cross",
             y[1], y[2], node.0, node.1
         )));
     }
-    let mut after = time_to_node;
+    // The kinetic energy of crank and rocker at the change point: theirs at `y` and the
+    // work of their generalised forces on the way.
+    let forces = accelerations(p, inputs, y).forces;
+    let kinetic =
+        0.5 * inertia(arrival) * speed * speed + forces[1] * offset[0] + forces[2] * offset[1];
+    if kinetic.is_nan() || kinetic <= 0.0 {
+        return Err(ModelError::new(
+            "crank and rocker stop before the change point: nothing to cross",
+        ));
+    }
+    let speed_at_node = (2.0 * kinetic / inertia(arriving)).sqrt();
+    let time_to_node = 0.5 * distance * (1.0 / speed + 1.0 / speed_at_node);
+    let leaving_speed = (2.0 * kinetic / inertia(chosen)).sqrt();
+    let mut reach = distance;
     for _ in 0..40 {
-        let state = leave(p, inputs, y, node, out, time_to_node, after)?;
+        let exit = [node.0 + chosen[0] * reach, node.1 + chosen[1] * reach];
+        let velocity = [chosen[0] * leaving_speed, chosen[1] * leaving_speed];
+        // A first estimate of the duration, for the springs' bodies; the exit's own speed
+        // then gives the second half's duration.
+        let estimate = time_to_node + reach / leaving_speed;
+        let guess = leave(p, inputs, y, exit, velocity, estimate)?;
+        let exit_speed = guess[5].hypot(guess[6]);
+        let duration = time_to_node + 0.5 * reach * (1.0 / leaving_speed + 1.0 / exit_speed);
+        let state = leave(p, inputs, y, exit, velocity, duration)?;
         let (_, b1, c1) = closure_with_gradient(p, state[1], state[2]);
         if conditioning(p, b1, c1) >= 4.0 * MIN_CONDITIONING {
             return Ok(Crossing {
-                duration: time_to_node + after,
+                duration,
                 state,
                 node,
                 time_to_node,
             });
         }
-        after *= 1.5;
+        reach *= 1.5;
     }
     Err(ModelError::new(
         "the linkage does not leave the change point's neighbourhood along the chosen branch",
     ))
 }
 
-/// The state `after` past the change point `node`, reached `before` after `y`, moving with
-/// (ω2, ω3) = `out` away from it; projected, its energy balanced.
+/// The state `dt` after `y`, crank and rocker at `exit` with (ω2, ω3) = `velocity`, the
+/// springs' bodies moved with their accelerations at `y`; projected, its energy balanced.
 fn leave(
     p: &Parameters,
     inputs: &Inputs,
     y: &State,
-    node: (f64, f64),
-    out: [f64; 2],
-    before: f64,
-    after: f64,
+    exit: [f64; 2],
+    velocity: [f64; 2],
+    dt: f64,
 ) -> Result<State, ModelError> {
-    let dt = before + after;
     let mut f = [0.0; 8];
     state_derivative(p, inputs, y, &mut f);
     let mut z = *y;
@@ -153,17 +178,17 @@ fn leave(
     z[3] += y[7] * dt + 0.5 * f[7] * dt * dt;
     z[4] += f[4] * dt;
     z[7] += f[7] * dt;
-    z[1] = node.0 + out[0] * after;
-    z[2] = node.1 + out[1] * after;
-    z[5] = out[0];
-    z[6] = out[1];
+    z[1] = exit[0];
+    z[2] = exit[1];
+    z[5] = velocity[0];
+    z[6] = velocity[1];
     project(p, &mut z, 0.0)?;
     // Crank and rocker carry what the balance leaves them.
     let target = energy(p, y) + power(p, inputs, y) * dt;
     let rest = energy(p, &[z[0], z[1], z[2], z[3], z[4], 0.0, 0.0, z[7]]);
     let kinetic = 0.5 * (p.J2 * z[5] * z[5] + p.J3 * z[6] * z[6]);
     let left = target - rest;
-    if !(left > 0.0 && kinetic > 0.0) {
+    if left.is_nan() || left <= 0.0 || kinetic <= 0.0 {
         return Err(ModelError::new(
             "the energy balance leaves crank and rocker no motion past the change point",
         ));

@@ -79,8 +79,9 @@ def test_initial_unknowns_depend_on_exactly_their_declared_knowns(unzipped, mode
             fmu.slave.setBoolean([known.valueReference], [False])
             changed = moved(base, read(fmu, unknowns))
             fmu.slave.setBoolean([known.valueReference], [True])
-        else:  # solver: auto (1) -> implicit (3)
-            fmu.slave.setInteger([known.valueReference], [3])
+        else:  # solver: auto (1) -> implicit (3); change_point_branch: straight (1) -> turn (2)
+            other = 2 if known.name == "change_point_branch" else 3
+            fmu.slave.setInteger([known.valueReference], [other])
             changed = moved(base, read(fmu, unknowns))
             fmu.slave.setInteger([known.valueReference], [1])
         expected = {u for u, d in deps.items() if known.name in d}

@@ -1,5 +1,5 @@
-"""FMI 3.0's model description (generated from the variable table, not yet packed: the
-binary does not export the fmi3 functions) against FMPy's validation (the FMI 3.0 schema,
+"""FMI 3.0's model description (generated from the variable table, packed in
+CyclicMechanism-fmi3.fmu) against FMPy's validation (the FMI 3.0 schema,
 variable names, the model structure) and against the FMI 2.0 description of the FMU
 under test: the same variables with their value references plus one after `time`, the
 same attributes, the same dependencies."""
@@ -57,16 +57,19 @@ def test_the_model_structure_is_fmi2s(fmi3, model_description):
     assert model_description.numberOfEventIndicators == len(fmi3.eventIndicators)
 
 
-def test_capabilities_are_those_fmi2_provides(model_description):
-    """Declared: FMU states, their serialization, directional derivatives, variable steps and
-    output derivatives to order 2, as the FMI 2.0 binary provides; nothing FMI 3.0 adds
-    (event mode, early return, adjoint derivatives) until its functions exist."""
+def test_capabilities_are_those_provided(model_description):
+    """Declared: FMU states, their serialization, directional and adjoint derivatives,
+    variable steps and output derivatives to order 2; in Co-Simulation event mode and a
+    step that may return early (at a change point). Not declared, because not provided:
+    intermediate update, per-element dependencies, evaluation of discrete states."""
     root = ElementTree.parse(XML).getroot()
     common = {"needsExecutionTool": "false", "canBeInstantiatedOnlyOncePerProcess": "false",
               "canGetAndSetFMUState": "true", "canSerializeFMUState": "true",
-              "providesDirectionalDerivatives": "true", "modelIdentifier": "CyclicMechanism"}
+              "providesDirectionalDerivatives": "true", "providesAdjointDerivatives": "true",
+              "modelIdentifier": "CyclicMechanism"}
     assert root.find("ModelExchange").attrib == dict(common, needsCompletedIntegratorStep="false")
     assert root.find("CoSimulation").attrib == dict(
-        common, canHandleVariableCommunicationStepSize="true", maxOutputDerivativeOrder="2")
+        common, canHandleVariableCommunicationStepSize="true", maxOutputDerivativeOrder="2",
+        mightReturnEarlyFromDoStep="true", hasEventMode="true")
     assert model_description.coSimulation.providesDirectionalDerivative
     assert model_description.coSimulation.maxOutputDerivativeOrder == 2

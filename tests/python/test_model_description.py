@@ -34,8 +34,13 @@ EXCHANGE = {"loop_angle": ("rad", None), "loop_speed": ("rad/s", None), "loop_ch
 def test_interface_is_as_specified(model_description):
     variables = by_name(model_description)
     assert set(variables) == (set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS
-                              | {"solver", "linkage_class", "builtin_laws", "handover_indicator"}
+                              | {"solver", "linkage_class", "builtin_laws", "handover_indicator",
+                                 "change_point_branch"}
                               | set(EXCHANGE))
+    branch = variables["change_point_branch"]
+    assert (branch.causality, branch.variability, branch.type, branch.start) == (
+        "parameter", "tunable", "Enumeration", "1")
+    assert [item.name for item in branch.declaredType.items] == ["straight", "turn"]
     indicator = variables["handover_indicator"]
     assert (indicator.causality, indicator.variability, indicator.unit) == ("local", "continuous", None)
     for name, (unit, derivative_of) in EXCHANGE.items():

@@ -1,0 +1,330 @@
+"""The FMI 3.0 archive through FMPy, as users run it: validation, Co-Simulation and Model
+Exchange (CVODE) against the independent reference, Co-Simulation equal to FMI 2.0's bit
+for bit, the change point as an event (early return, the master's choice of branch, the
+run going on), FMU states, and adjoint derivatives against the directional ones."""
+
+import zipfile
+
+import fmpy
+import numpy as np
+import pytest
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi3 import FMU3Model, FMU3Slave
+from fmpy.validation import validate_fmu
+
+import reference
+from conftest import STATES, states
+
+CASES = {
+    "case1": dict(reference.PAPER_LAWS, k34=100.0),
+    "case2": dict(reference.PAPER_LAWS, k34=40.0),
+    "free": dict(reference.FREE_RUN),
+}
+PLATFORMS = {"x86_64-linux", "aarch64-linux", "x86_64-windows", "x86_64-darwin",
+             "aarch64-darwin"}
+# The change-point geometry l2 + L = l + l3 (collinear at φ2 = φ3 = 0 mod 2π), moving
+# freely: the energy is constant.
+CHANGE_POINT = dict(reference.NO_LAWS, L=0.95, phi2_0=np.pi / 2, omega2_0=4.0)
+WATCH = STATES + ["energy", "rod_force", "constraint_residual"]
+
+
+def run(path, fmi_type, values, tolerance=1e-10, **options):
+    return fmpy.simulate_fmu(str(path), fmi_type=fmi_type, start_values=values, stop_time=10.0,
+                             output_interval=0.01, relative_tolerance=tolerance, output=WATCH,
+                             record_events=False, **options)
+
+
+def scaled_error(result, expected):
+    scale = np.maximum(1.0, np.abs(expected).max(axis=0))
+    return np.abs(states(result) - expected) / scale
+
+
+@pytest.fixture(scope="module")
+def references():
+    times = np.linspace(0.0, 10.0, 1001)
+    return {case: reference.solve(reference.Params(**values), times)
+            for case, values in CASES.items()}
+
+
+@pytest.fixture(scope="module")
+def vr(model_description3):
+    return {v.name: v.valueReference for v in model_description3.modelVariables}
+
+
+def test_fmpy_validates_the_archive(fmu3_path, model_description3):
+    assert validate_fmu(str(fmu3_path)) == []
+    assert model_description3.fmiVersion == "3.0"
+    assert model_description3.coSimulation.hasEventMode
+    assert model_description3.coSimulation.mightReturnEarlyFromDoStep
+
+
+def test_both_archives_carry_the_same_binaries(fmu_path, fmu3_path):
+    """One library for both versions: the FMI 3.0 archive's platform tuples hold the files
+    of FMI 2.0's platform folders (its darwin64 file joins both darwin ones)."""
+    with zipfile.ZipFile(fmu_path) as two, zipfile.ZipFile(fmu3_path) as three:
+        folders = {n.split("/")[1] for n in three.namelist() if n.startswith("binaries/")}
+        assert folders in ({"x86_64-linux"}, PLATFORMS), folders
+        same = {"x86_64-linux": "linux64/CyclicMechanism.so",
+                "x86_64-windows": "win64/CyclicMechanism.dll"}
+        for folder, old in same.items():
+            if folder in folders:
+                new = [n for n in three.namelist() if n.startswith(f"binaries/{folder}/")]
+                assert three.read(new[0]) == two.read(f"binaries/{old}")
+        assert three.read("documentation/index.html") == two.read("documentation/index.html")
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_co_simulation_equals_fmi2_bit_for_bit(fmu_path, fmu3_path, case, references, report):
+    """The same integrator behind both interfaces: every value at every communication
+    point the same to the last bit; and within 1e-6 of the independent reference."""
+    two = run(fmu_path, "CoSimulation", CASES[case])
+    three = run(fmu3_path, "CoSimulation", CASES[case])
+    for name in ["time"] + WATCH:
+        assert np.array_equal(two[name], three[name]), name
+    error = scaled_error(three, references[case])
+    report[f"fmi3_cs_{case}_max_scaled_error"] = float(error.max())
+    assert error.max() < 1e-6, error.max(axis=0)
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_model_exchange_with_cvode_matches_the_reference(fmu3_path, case, references, report):
+    """CVODE's own error sets the figure: at rtol 1e-10 the free run misses 1e-6 by a
+    little (CVODE's, not the model's: it falls with the tolerance), at 1e-12 all pass."""
+    result = run(fmu3_path, "ModelExchange", CASES[case], tolerance=1e-12)
+    error = scaled_error(result, references[case])
+    report[f"fmi3_me_cvode_{case}_max_scaled_error"] = float(error.max())
+    assert error.max() < 1e-6, error.max(axis=0)
+    assert np.abs(result["constraint_residual"]).max() < 1e-14
+
+
+class Slave:
+    """A low-level FMI 3.0 Co-Simulation instance with its log."""
+
+    def __init__(self, unzipped3, md, event_mode, early_return, **values):
+        self.messages = []
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.fmu = FMU3Slave(guid=md.instantiationToken, unzipDirectory=unzipped3,
+                             modelIdentifier="CyclicMechanism", instanceName="fmi3")
+        self.fmu.instantiate(loggingOn=True, eventModeUsed=event_mode,
+                             earlyReturnAllowed=early_return,
+                             logMessage=lambda env, status, category, message:
+                             self.messages.append(message.decode()))
+        self.fmu.setDebugLogging(True, ["logSolver"])
+        booleans = {k: v for k, v in values.items() if isinstance(v, bool)}
+        reals = {k: v for k, v in values.items() if not isinstance(v, bool)}
+        self.fmu.setBoolean([self.vr[k] for k in booleans], list(booleans.values()))
+        self.fmu.setFloat64([self.vr[k] for k in reals], list(reals.values()))
+        self.fmu.enterInitializationMode(tolerance=1e-10, startTime=0.0, stopTime=10.0)
+        self.fmu.exitInitializationMode()
+        if event_mode:
+            self.fmu.updateDiscreteStates()
+            self.fmu.enterStepMode()
+
+    def get(self, *names):
+        return self.fmu.getFloat64([self.vr[n] for n in names])
+
+
+def change_point_run(unzipped3, md, branch, until=8.0, h=1e-3):
+    """Step by h with event mode and early return; at each event choose `branch`. Returns
+    the events (time, state, energy) and the instance."""
+    slave = Slave(unzipped3, md, True, True, **CHANGE_POINT)
+    t, events = 0.0, []
+    while t < until - 1e-9:
+        target = (np.floor(t / h + 1e-6) + 1) * h
+        event, terminate, early, last = slave.fmu.doStep(t, target - t)
+        assert not terminate
+        if early:
+            assert event and last < target
+            events.append((last, slave.get(*STATES), slave.get("energy")[0]))
+            slave.fmu.enterEventMode()
+            slave.fmu.setInt64([slave.vr["change_point_branch"]], [branch])
+            slave.fmu.updateDiscreteStates()
+            slave.fmu.enterStepMode()
+            t = last
+        else:
+            assert not event
+            t = target
+    return events, slave
+
+
+def test_change_point_returns_early_and_goes_on_on_the_chosen_branch(unzipped3,
+                                                                    model_description3,
+                                                                    report):
+    runs = {branch: change_point_run(unzipped3, model_description3, branch)
+            for branch in (1, 2)}
+    (events, straight), (turned_events, turned) = runs[1], runs[2]
+    assert events and turned_events
+    t_event, y, energy = events[0]
+    # Stopped just before crank, rod and rocker fall collinear (φ2 = φ3 = 0 mod 2π).
+    assert abs((y[1] + np.pi) % (2 * np.pi) - np.pi) < 1e-3 and abs(y[2]) < 1e-3, y
+    assert turned_events[0][0] == t_event
+    crossed = [m for m in straight.messages if "crossed onto the branch straight" in m]
+    assert crossed, straight.messages[-5:]
+    # Both go on, on different branches, the energy and the constraint holding.
+    for slave, name in ((straight, "straight"), (turned, "turn")):
+        e, residual = slave.get("energy", "constraint_residual")
+        drift = abs(e - energy) / energy
+        report[f"fmi3_change_point_{name}_energy_drift_after_event"] = float(drift)
+        assert drift < 1e-7 and abs(residual) < 1e-12, (name, drift, residual)
+    end_straight, end_turned = straight.get(*STATES), turned.get(*STATES)
+    assert np.abs(np.subtract(end_straight, end_turned)).max() > 0.1
+    report["fmi3_change_point_event_time"] = t_event
+    report["fmi3_change_point_events_straight"] = len(events)
+
+
+def test_the_branch_taken_is_the_tangent_chosen(unzipped3, model_description3):
+    """Just after the crossing the rocker-to-crank speed ratio is the slope of the branch:
+    the arrival one for straight, the other for turn (the two roots of the closure's
+    second-order terms: L·l2 + l2² − 2·l2·l3·m + (l3² − L·l3)·m² = 0)."""
+    l, l2, l3, L = 0.5, 0.05, 0.5, CHANGE_POINT["L"]
+    slopes = np.roots([l3 * l3 - L * l3, -2 * l2 * l3, L * l2 + l2 * l2])
+    for branch in (1, 2):
+        slave = Slave(unzipped3, model_description3, True, True, **CHANGE_POINT)
+        t = 0.0
+        while True:
+            event, _, early, last = slave.fmu.doStep(t, 1e-3)
+            if early:
+                break
+            t += 1e-3
+        w2, w3 = slave.get("omega2", "omega3")
+        arrival = w3 / w2
+        slave.fmu.enterEventMode()
+        slave.fmu.setInt64([slave.vr["change_point_branch"]], [branch])
+        slave.fmu.updateDiscreteStates()
+        slave.fmu.enterStepMode()
+        slave.fmu.doStep(last, 2e-3)
+        w2, w3 = slave.get("omega2", "omega3")
+        nearest = slopes[np.argmin(np.abs(slopes - w3 / w2))]
+        arrived = slopes[np.argmin(np.abs(slopes - arrival))]
+        assert abs(arrival - arrived) < 1e-2
+        assert (nearest == arrived) == (branch == 1), (branch, arrival, w3 / w2, slopes)
+        assert w2 > 0
+
+
+def test_the_run_after_the_event_agrees_across_tolerances(unzipped3, model_description3,
+                                                         report):
+    """No independent reference goes through a change point (the reference's ODE is
+    singular there: at rtol 1e-10 it turns back, at 1e-12 it takes the other branch), so
+    the straight run is compared with itself at tolerance 1e-12, 1 s after the event.
+    Before the event the runs agree to their tolerance; after it to about 1e-5, set by
+    where each stops before the change point (a few 1e-5 s apart), not by the tolerance."""
+    results = {}
+    for tolerance in (1e-8, 1e-10, 1e-12):
+        r = fmpy.simulate_fmu(str(unzipped3), fmi_type="CoSimulation", start_values=CHANGE_POINT,
+                              stop_time=5.2, output_interval=0.01,
+                              relative_tolerance=tolerance, use_event_mode=True,
+                              early_return_allowed=True, output=STATES, record_events=False)
+        at = [np.argmin(np.abs(r["time"] - t)) for t in (4.1, 5.2)]
+        results[tolerance] = states(r)[at]
+    before = [float(np.abs(results[t][0] - results[1e-12][0]).max()) for t in (1e-8, 1e-10)]
+    after = [float(np.abs(results[t][1] - results[1e-12][1]).max()) for t in (1e-8, 1e-10)]
+    report["fmi3_change_point_before_event_difference_tol_1e-8_1e-10_vs_1e-12"] = before
+    report["fmi3_change_point_after_event_difference_tol_1e-8_1e-10_vs_1e-12"] = after
+    assert before[0] < 1e-7 and before[1] < 1e-9, before
+    assert max(after) < 2e-5, after
+
+
+def test_without_event_mode_the_step_ends_at_the_change_point(unzipped3, model_description3):
+    slave = Slave(unzipped3, model_description3, False, False, **CHANGE_POINT)
+    t = 0.0
+    with pytest.raises(FMICallException) as refused:
+        while t < 8.0:
+            slave.fmu.doStep(t, 1e-3)
+            t += 1e-3
+    assert refused.value.status == 2  # fmi3Discard
+    message = slave.messages[-1]
+    assert "change point" in message and "eventModeUsed" in message, message
+    # Stopped there, not at the last communication point.
+    time = slave.fmu.getFloat64([0])[0]
+    assert t < time < t + 1e-3, (t, time)
+    # Event mode without early return: the step completes, and says an event happened.
+    slave = Slave(unzipped3, model_description3, True, False, **CHANGE_POINT)
+    t, flagged = 0.0, []
+    while t < 4.5:
+        event, _, early, _ = slave.fmu.doStep(t, 1e-3)
+        assert not early
+        if event:
+            flagged.append(t)
+            slave.fmu.enterEventMode()
+            slave.fmu.updateDiscreteStates()
+            slave.fmu.enterStepMode()
+        t += 1e-3
+    assert len(flagged) == 1 and 4.0 < flagged[0] < 4.2, flagged
+
+
+def test_fmu_state_round_trips_bit_for_bit(unzipped3, model_description3):
+    """Saved in the middle of a run, and just before a change point (a crossing pending),
+    serialized and restored in a fresh instance: the run goes on to the same bits."""
+    def go_on(slave, t, steps=300):
+        seen = []
+        for _ in range(steps):
+            event, _, early, last = slave.fmu.doStep(t, 1e-3)
+            if early:
+                slave.fmu.enterEventMode()
+                slave.fmu.updateDiscreteStates()
+                slave.fmu.enterStepMode()
+                t = last
+            else:
+                t += 1e-3
+            seen.append(list(slave.get(*WATCH)) + [t])
+        return seen
+
+    source = Slave(unzipped3, model_description3, True, True, **CHANGE_POINT)
+    t = 0.0
+    while True:
+        _, _, early, last = source.fmu.doStep(t, 1e-3)
+        if early:
+            t = last
+            break
+        t += 1e-3
+    state = source.fmu.getFMUState()
+    buffer = source.fmu.serializeFMUState(state)
+    source.fmu.enterEventMode()
+    source.fmu.updateDiscreteStates()
+    source.fmu.enterStepMode()
+    expected = go_on(source, t)
+    source.fmu.setFMUState(state)
+    source.fmu.enterEventMode()
+    source.fmu.updateDiscreteStates()
+    source.fmu.enterStepMode()
+    assert go_on(source, t) == expected
+    target = Slave(unzipped3, model_description3, True, True, **CHANGE_POINT)
+    target.fmu.setFMUState(target.fmu.deserializeFMUState(buffer))
+    target.fmu.enterEventMode()
+    target.fmu.updateDiscreteStates()
+    target.fmu.enterStepMode()
+    assert go_on(target, t) == expected
+
+
+def test_adjoint_is_the_transpose_of_the_directional_derivative(unzipped3, model_description3,
+                                                                vr):
+    """In Model Exchange, knowns = the continuous states and the inputs, unknowns = the
+    state derivatives and the Real outputs: for random seeds u and v, uᵀ·(J·v) = (Jᵀ·u)ᵀ·v,
+    and with unit seeds every entry agrees exactly."""
+    md = model_description3
+    model = FMU3Model(guid=md.instantiationToken, unzipDirectory=unzipped3,
+                      modelIdentifier="CyclicMechanism", instanceName="adjoint")
+    model.instantiate()
+    model.setFloat64([vr[k] for k in reference.PAPER_LAWS], list(reference.PAPER_LAWS.values()))
+    model.enterInitializationMode(startTime=0.0)
+    model.exitInitializationMode()
+    model.updateDiscreteStates()
+    model.enterContinuousTimeMode()
+    states_vr = [d.variable.derivative.valueReference for d in md.derivatives]
+    knowns = states_vr + [vr["M_m"], vr["M_r"]]
+    unknowns = [d.variable.valueReference for d in md.derivatives] + [
+        u.variable.valueReference for u in md.outputs if u.variable.type == "Float64"]
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        u, v = rng.normal(size=len(unknowns)), rng.normal(size=len(knowns))
+        jv = np.array(model.getDirectionalDerivative(unknowns, knowns, list(v)))
+        # FMPy sizes the sensitivity by the unknowns unless told: it has one entry per known.
+        jtu = np.array(model.getAdjointDerivative(unknowns, knowns, list(u), len(knowns)))
+        assert abs(u @ jv - jtu @ v) <= 1e-12 * max(1.0, abs(u @ jv)), (u @ jv, jtu @ v)
+    for i, known in enumerate(knowns):
+        column = model.getDirectionalDerivative(unknowns, [known], [1.0])
+        for j, unknown in enumerate(unknowns):
+            row = model.getAdjointDerivative([unknown], knowns, [1.0], len(knowns))
+            assert row[i] == column[j], (known, unknown)
+    model.terminate()
+    model.freeInstance()
