@@ -74,8 +74,10 @@ struct Fuzz {
     round_trips: BTreeMap<u8, u64>,
 }
 
-/// The serialized state's header: its FMI state code follows the interface's byte.
+/// The serialized state's header; the interface's byte follows it, then the version's,
+/// then the FMI state's code.
 const HEADER: usize = 28;
+const STATE_CODE: usize = HEADER + 2;
 
 /// Why the FMU refuses `bytes`, with the interface and FMI state they describe.
 fn refusal(bytes: &[c_char]) -> String {
@@ -83,8 +85,7 @@ fn refusal(bytes: &[c_char]) -> String {
     let why = FmuState::deserialize(&raw).err().map(|f| f.message);
     format!(
         "interface {}, state {}: {why:?}",
-        raw[HEADER],
-        raw[HEADER + 1]
+        raw[HEADER], raw[STATE_CODE]
     )
 }
 
@@ -520,7 +521,7 @@ impl Fuzz {
             for mut state in [taken, restored, again] {
                 self.check(fmi2FreeFMUstate(c, &mut state), "fmi2FreeFMUstate");
             }
-            *self.round_trips.entry(bytes[HEADER + 1] as u8).or_default() += 1;
+            *self.round_trips.entry(bytes[STATE_CODE] as u8).or_default() += 1;
         }
     }
 

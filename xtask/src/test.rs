@@ -17,7 +17,8 @@ pub(crate) fn job(_: &Parsed) -> Result {
     fs::create_dir_all(&reports).map_err(|e| e.to_string())?;
     run(cargo()
         .args(["test", "--release"])
-        .env("FUZZ_REPORT", reports.join("fuzz_api.json")))?;
+        .env("FUZZ_REPORT", reports.join("fuzz_api.json"))
+        .env("FUZZ_REPORT_FMI3", reports.join("fuzz_api_fmi3.json")))?;
     fuzz_under_valgrind()?;
     // The archive with every platform: the FMPy tests check it as a master would.
     let (fmu, fmu3) = test_platforms()?;
@@ -172,7 +173,7 @@ pub(crate) fn errors_in_fmu(xml: &Path) -> Result<Vec<String>> {
         .collect())
 }
 
-/// The fuzzed FMI call sequences again, under valgrind memcheck: no invalid access, no
+/// The fuzzed FMI 2.0 and 3.0 call sequences again, under valgrind memcheck: no invalid access, no
 /// use of uninitialised memory, no definite leak.
 pub(crate) fn fuzz_under_valgrind() -> Result {
     if Command::new("valgrind").arg("--version").output().is_err() {
@@ -183,6 +184,7 @@ pub(crate) fn fuzz_under_valgrind() -> Result {
                   --show-leak-kinds=definite --quiet";
     run(cargo()
         .args(["test", "--release", "--quiet", "--test", "fuzz_api"])
+        .args(["--test", "fuzz_api_fmi3"])
         .env("CARGO_TARGET_X86_64_UNKNOWN_LINUX_GNU_RUNNER", runner)
         .env("CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER", runner)
         .env("FUZZ_SEQUENCES", "300"))
