@@ -1,7 +1,9 @@
 """The paper's two scenarios through FMPy: CSV results, plots in the spirit of the paper's
-figures 2-5, and an animation of the linkage. Run by `cargo xtask demo`:
+figures 2-5, and an animation of the linkage; with the FMI 3.0 archive, a change-point
+linkage going on through its change point on either branch. Run by `cargo xtask demo`:
 
-    python examples/demo.py target/fmu/CyclicMechanism.fmu target/demo
+    python examples/demo.py target/fmu/CyclicMechanism.fmu target/demo \
+        target/fmu/CyclicMechanism-fmi3.fmu
 """
 
 import pathlib
@@ -144,7 +146,42 @@ def animate_linkage(result, path, title, duration=3.0, fps=25, l=0.5, l2=0.05, l
     plt.close(fig)
 
 
-def main(fmu, out):
+# A change-point linkage (l2 + L = l + l3: crank, rod and rocker collinear at φ2 = φ3 = 0),
+# moving freely from a push of the crank.
+CHANGE_POINT = dict(builtin_laws=False, L=0.95, phi2_0=np.pi / 2, omega2_0=4.0)
+
+
+def plot_change_point(fmu3, path, stop_time=10.0):
+    """FMI 3.0 Co-Simulation with event mode: the step returns early before each change
+    point, and the linkage goes on along the branch `change_point_branch` names."""
+    runs = {}
+    for branch, name in ((1, "straight"), (2, "turn")):
+        runs[name] = fmpy.simulate_fmu(
+            str(fmu3), fmi_type="CoSimulation", stop_time=stop_time, output_interval=1e-3,
+            relative_tolerance=1e-10, use_event_mode=True, early_return_allowed=True,
+            start_values=dict(CHANGE_POINT, change_point_branch=branch),
+            output=["phi2", "phi3", "energy"], record_events=False)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.5))
+    for (name, result), style in zip(runs.items(), ("-", "--")):
+        left.plot(result["time"], result["phi3"], style, label=f"φ3, branch {name}")
+        wrapped = (result["phi2"] + np.pi) % (2 * np.pi) - np.pi
+        right.plot(wrapped, result["phi3"], ".", markersize=1.5, label=f"branch {name}")
+        drift = np.abs(result["energy"] - result["energy"][0]).max() / result["energy"][0]
+        print(f"change point, branch {name}: energy drift {drift:.1e} over {stop_time:g} s")
+    left.set(xlabel="time (s)", ylabel="φ3 (rad)",
+             title="φ3 through the change points (the same until the first)")
+    right.set(xlabel="φ2, wrapped to (−π, π] (rad)", ylabel="φ3 (rad)",
+              title="The loop's configurations: two branches cross at (0, 0)")
+    for ax in (left, right):
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper left", markerscale=6)
+    fig.suptitle("A change-point linkage through FMI 3.0 with event mode (docs/model.md §7)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main(fmu, out, fmu3=None):
     out.mkdir(parents=True, exist_ok=True)
     written = []
     results = {}
@@ -175,12 +212,18 @@ def main(fmu, out):
     animate_linkage(swinging, swinging_gif, "A non-Grashof linkage, paper laws, first 4 s",
                     duration=4.0, **{k: NON_GRASHOF[k] for k in ("l", "l2", "l3")})
     written += [overview, gif, swinging_gif]
+    if fmu3 is not None:
+        branches = out / "change_point_branches.png"
+        plot_change_point(fmu3, branches)
+        written.append(branches)
     print("Written:")
     for path in written:
         print(f"  {path}")
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
-        sys.exit("usage: demo.py <CyclicMechanism.fmu> <output directory>")
-    main(pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2]))
+    if len(sys.argv) not in (3, 4):
+        sys.exit("usage: demo.py <CyclicMechanism.fmu> <output directory> "
+                 "[<CyclicMechanism-fmi3.fmu>]")
+    main(pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2]),
+         pathlib.Path(sys.argv[3]) if len(sys.argv) == 4 else None)

@@ -23,7 +23,7 @@ pub const LINKAGE_CLASSES: [(&str, i32, &str); 6] = [
     ("double_rocker", 3, "Grashof, the rod shortest: crank and rocker both swing; the rod turns fully relative to them"),
     ("rocker_crank", 4, "Grashof, the rocker shortest: the rocker turns fully, the crank swings"),
     ("triple_rocker", 5, "non-Grashof (s + g > p + q): no link turns fully; crank and rocker swing back at their dead points"),
-    ("change_point", 6, "s + g = p + q: crank, rod and rocker can fall collinear, where the motion is not determined (refused there)"),
+    ("change_point", 6, "s + g = p + q: crank, rod and rocker can fall collinear, where the motion is not determined (an event in FMI 3.0 Co-Simulation with event mode, where change_point_branch says how it goes on; refused otherwise)"),
 ];
 
 /// Sums of link lengths closer than this, relative to their size, are taken as equal.

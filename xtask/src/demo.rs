@@ -1,4 +1,5 @@
-//! `cargo xtask demo`: the paper's two cases through FMPy, with plots and an animation.
+//! `cargo xtask demo`: the paper's two cases through FMPy, with plots and an animation, and
+//! a change-point linkage through FMI 3.0's event mode.
 
 use std::process::Command;
 
@@ -7,11 +8,12 @@ use crate::setup::*;
 use crate::Result;
 
 pub(crate) fn job(_: &Parsed) -> Result {
-    let fmu = crate::fmu::build_fmu(false)?.fmu;
+    let packed = crate::fmu::build_fmu(false)?;
     let python = ensure_venv(Packages::Demo)?;
     let out = root().join("target/demo");
     run(Command::new(python)
         .arg(root().join("examples/demo.py"))
-        .arg(&fmu)
-        .arg(&out))
+        .arg(&packed.fmu)
+        .arg(&out)
+        .arg(&packed.fmu3))
 }
