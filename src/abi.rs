@@ -100,3 +100,114 @@ pub(crate) unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize) -> Option<&'a mut [
 pub(crate) fn null_argument(name: &str, n: usize) -> Failure {
     Failure::error(format!("{name} is NULL with {n} elements requested"))
 }
+
+/// The names one version gives the FMU state functions' arguments, for the messages.
+pub(crate) struct StateNames {
+    pub state: &'static str,
+    pub size_function: &'static str,
+}
+
+/// GetFMUState: a new state in `*slot`, or the state `*slot` names overwritten.
+///
+/// # Safety
+/// `slot` must be NULL or point to a writable pointer (NULL, or a state of `instance`).
+pub(crate) unsafe fn get_fmu_state(
+    instance: &mut Instance,
+    slot: *mut *mut c_void,
+    names: &StateNames,
+) -> Outcome {
+    // SAFETY: NULL or writable by the FMI contract.
+    let slot = unsafe { slot.as_mut() }.ok_or_else(|| null_argument(names.state, 1))?;
+    let saved = instance.save();
+    if slot.is_null() {
+        *slot = instance.issue_state(saved).cast();
+    } else {
+        // A non-NULL entry is a state to overwrite.
+        *instance.issued_state(*slot)? = saved;
+    }
+    Ok(())
+}
+
+/// FreeFMUState: the state `*slot` names freed and `*slot` set to NULL; NULL is no state.
+///
+/// # Safety
+/// `slot` must be NULL or point to a writable pointer.
+pub(crate) unsafe fn free_fmu_state(instance: &mut Instance, slot: *mut *mut c_void) -> Outcome {
+    // SAFETY: NULL or writable by the FMI contract.
+    let Some(slot) = (unsafe { slot.as_mut() }) else {
+        return Ok(());
+    };
+    if !slot.is_null() {
+        instance.free_state(*slot)?;
+        *slot = std::ptr::null_mut();
+    }
+    Ok(())
+}
+
+/// SerializedFMUStateSize.
+///
+/// # Safety
+/// `size` must be NULL or writable.
+pub(crate) unsafe fn serialized_size(
+    instance: &mut Instance,
+    state: *mut c_void,
+    size: *mut usize,
+) -> Outcome {
+    let length = instance.issued_state(state)?.serialize().len();
+    // SAFETY: NULL or writable by the FMI contract.
+    *unsafe { size.as_mut() }.ok_or_else(|| null_argument("size", 1))? = length;
+    Ok(())
+}
+
+/// SerializeFMUState into `buffer` of `size` bytes.
+///
+/// # Safety
+/// `buffer` must hold `size` writable bytes.
+pub(crate) unsafe fn serialize(
+    instance: &mut Instance,
+    state: *mut c_void,
+    buffer: *mut u8,
+    size: usize,
+    names: &StateNames,
+) -> Outcome {
+    let bytes = instance.issued_state(state)?.serialize();
+    if size < bytes.len() {
+        return Err(Failure::error(format!(
+            "size = {size} is too small: the state needs {} bytes ({})",
+            bytes.len(),
+            names.size_function
+        )));
+    }
+    // SAFETY: FMI contract on the buffer.
+    let target =
+        unsafe { slice_mut(buffer, size) }.ok_or_else(|| null_argument("serializedState", size))?;
+    target[..bytes.len()].copy_from_slice(&bytes);
+    Ok(())
+}
+
+/// DeserializeFMUState from `buffer` into a new state in `*slot`, or the state `*slot`
+/// names.
+///
+/// # Safety
+/// `buffer` must hold `size` readable bytes; `slot` must be NULL or point to a writable
+/// pointer (NULL, or a state of `instance`).
+pub(crate) unsafe fn deserialize(
+    instance: &mut Instance,
+    buffer: *const u8,
+    size: usize,
+    slot: *mut *mut c_void,
+    names: &StateNames,
+) -> Outcome {
+    // SAFETY: FMI contract on the buffer.
+    let bytes =
+        unsafe { slice(buffer, size) }.ok_or_else(|| null_argument("serializedState", size))?;
+    let restored = crate::instance::FmuState::deserialize(bytes)?;
+    // SAFETY: NULL or writable by the FMI contract.
+    let slot = unsafe { slot.as_mut() }.ok_or_else(|| null_argument(names.state, 1))?;
+    if slot.is_null() {
+        *slot = instance.issue_state(restored).cast();
+    } else {
+        *instance.issued_state(*slot)? = restored;
+    }
+    Ok(())
+}

@@ -9,8 +9,15 @@ use fmi_sys::fmi2::*;
 
 use super::model_description::guid;
 use super::{export, null_argument, slice, slice_mut};
-use crate::instance::{Failure, FmuState, Instance, Interface, Logger, Outcome, Status, Version};
+use crate::abi;
+use crate::instance::{Failure, Instance, Interface, Logger, Outcome, Status, Version};
 use crate::plant::Value;
+
+/// The FMU state functions' argument names, for the messages.
+const STATE_NAMES: abi::StateNames = abi::StateNames {
+    state: "FMUstate",
+    size_function: "fmi2SerializedFMUstateSize",
+};
 
 #[no_mangle]
 pub extern "C" fn fmi2GetTypesPlatform() -> *const c_char {
@@ -282,16 +289,8 @@ export! {
     /// `c` is an instance; `FMUstate` must be NULL or point to a writable pointer (NULL, or
     /// a state of `c`).
     fn fmi2GetFMUstate(c, FMUstate: *mut fmi2FMUstate): fmi2GetFMUstateTYPE = |instance| {
-        // SAFETY: NULL or writable by the FMI contract.
-        let slot = unsafe { FMUstate.as_mut() }.ok_or_else(|| null_argument("FMUstate", 1))?;
-        let saved = instance.save();
-        if slot.is_null() {
-            *slot = instance.issue_state(saved).cast();
-        } else {
-            // A non-NULL entry is a state to overwrite (FMI 2.0, 2.1.8).
-            *instance.issued_state(*slot)? = saved;
-        }
-        Ok(())
+        // SAFETY: FMI contract on the pointer.
+        unsafe { abi::get_fmu_state(instance, FMUstate, &STATE_NAMES) }
     };
 }
 
@@ -308,15 +307,8 @@ export! {
     /// # Safety
     /// `c` is an instance; `FMUstate` must be NULL or point to a writable pointer.
     fn fmi2FreeFMUstate(c, FMUstate: *mut fmi2FMUstate): fmi2FreeFMUstateTYPE = |instance| {
-        // SAFETY: NULL or writable by the FMI contract.
-        let Some(slot) = (unsafe { FMUstate.as_mut() }) else {
-            return Ok(());
-        };
-        if !slot.is_null() {
-            instance.free_state(*slot)?;
-            *slot = null_mut();
-        }
-        Ok(())
+        // SAFETY: FMI contract on the pointer.
+        unsafe { abi::free_fmu_state(instance, FMUstate) }
     };
 }
 
@@ -325,10 +317,8 @@ export! {
     /// `c` is an instance; `size` must be NULL or writable.
     fn fmi2SerializedFMUstateSize(c, FMUstate: fmi2FMUstate, size: *mut usize):
         fmi2SerializedFMUstateSizeTYPE = |instance| {
-        let length = instance.issued_state(FMUstate)?.serialize().len();
-        // SAFETY: NULL or writable by the FMI contract.
-        *unsafe { size.as_mut() }.ok_or_else(|| null_argument("size", 1))? = length;
-        Ok(())
+        // SAFETY: FMI contract on the pointer.
+        unsafe { abi::serialized_size(instance, FMUstate, size) }
     };
 }
 
@@ -341,18 +331,8 @@ export! {
         serializedState: *mut fmi2Byte,
         size: usize,
     ): fmi2SerializeFMUstateTYPE = |instance| {
-        let bytes = instance.issued_state(FMUstate)?.serialize();
-        if size < bytes.len() {
-            return Err(Failure::error(format!(
-                "size = {size} is too small: the state needs {} bytes (fmi2SerializedFMUstateSize)",
-                bytes.len()
-            )));
-        }
         // SAFETY: FMI contract on the buffer.
-        let target = unsafe { slice_mut(serializedState.cast::<u8>(), size) }
-            .ok_or_else(|| null_argument("serializedState", size))?;
-        target[..bytes.len()].copy_from_slice(&bytes);
-        Ok(())
+        unsafe { abi::serialize(instance, FMUstate, serializedState.cast(), size, &STATE_NAMES) }
     };
 }
 
@@ -366,18 +346,10 @@ export! {
         size: usize,
         FMUstate: *mut fmi2FMUstate,
     ): fmi2DeSerializeFMUstateTYPE = |instance| {
-        // SAFETY: FMI contract on the buffer.
-        let bytes = unsafe { slice(serializedState.cast::<u8>(), size) }
-            .ok_or_else(|| null_argument("serializedState", size))?;
-        let restored = FmuState::deserialize(bytes)?;
-        // SAFETY: NULL or writable by the FMI contract.
-        let slot = unsafe { FMUstate.as_mut() }.ok_or_else(|| null_argument("FMUstate", 1))?;
-        if slot.is_null() {
-            *slot = instance.issue_state(restored).cast();
-        } else {
-            *instance.issued_state(*slot)? = restored;
+        // SAFETY: FMI contract on the buffer and the pointer.
+        unsafe {
+            abi::deserialize(instance, serializedState.cast(), size, FMUstate, &STATE_NAMES)
         }
-        Ok(())
     };
 }
 

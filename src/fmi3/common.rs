@@ -10,9 +10,15 @@ use fmi_sys::fmi3::*;
 
 use super::model_description::instantiation_token;
 use super::{check_value_count, export, references, table_reference, table_references, Accessor};
-use crate::abi::{null_argument, slice, slice_mut};
-use crate::instance::{Failure, FmuState, Instance, Interface, Logger, Outcome, Status, Version};
+use crate::abi::{self, null_argument, slice, slice_mut};
+use crate::instance::{Failure, Instance, Interface, Logger, Outcome, Status, Version};
 use crate::plant::Value;
+
+/// The FMU state functions' argument names, for the messages.
+const STATE_NAMES: abi::StateNames = abi::StateNames {
+    state: "FMUState",
+    size_function: "fmi3SerializedFMUStateSize",
+};
 
 #[no_mangle]
 pub extern "C" fn fmi3GetVersion() -> *const c_char {
@@ -553,21 +559,12 @@ export! {
 
 export! {
     /// # Safety
-    /// `instance` is an instance; `FMUState` must be NULL or point to a writable pointer
-    /// (NULL, or a state of `instance`).
-    fn fmi3GetFMUState(instance, FMUState: *mut fmi3FMUState): fmi3GetFMUStateTYPE =
-        |instance| {
-            // SAFETY: NULL or writable by the FMI contract.
-            let slot =
-                unsafe { FMUState.as_mut() }.ok_or_else(|| null_argument("FMUState", 1))?;
-            let saved = instance.save();
-            if slot.is_null() {
-                *slot = instance.issue_state(saved).cast();
-            } else {
-                *instance.issued_state(*slot)? = saved;
-            }
-            Ok(())
-        };
+    /// `instance` is an instance; `FMUState` must be NULL or point to a writable pointer (NULL, or
+    /// a state of `instance`).
+    fn fmi3GetFMUState(instance, FMUState: *mut fmi3FMUState): fmi3GetFMUStateTYPE = |instance| {
+        // SAFETY: FMI contract on the pointer.
+        unsafe { abi::get_fmu_state(instance, FMUState, &STATE_NAMES) }
+    };
 }
 
 export! {
@@ -582,18 +579,10 @@ export! {
 export! {
     /// # Safety
     /// `instance` is an instance; `FMUState` must be NULL or point to a writable pointer.
-    fn fmi3FreeFMUState(instance, FMUState: *mut fmi3FMUState): fmi3FreeFMUStateTYPE =
-        |instance| {
-            // SAFETY: NULL or writable by the FMI contract.
-            let Some(slot) = (unsafe { FMUState.as_mut() }) else {
-                return Ok(());
-            };
-            if !slot.is_null() {
-                instance.free_state(*slot)?;
-                *slot = null_mut();
-            }
-            Ok(())
-        };
+    fn fmi3FreeFMUState(instance, FMUState: *mut fmi3FMUState): fmi3FreeFMUStateTYPE = |instance| {
+        // SAFETY: FMI contract on the pointer.
+        unsafe { abi::free_fmu_state(instance, FMUState) }
+    };
 }
 
 export! {
@@ -601,10 +590,8 @@ export! {
     /// `instance` is an instance; `size` must be NULL or writable.
     fn fmi3SerializedFMUStateSize(instance, FMUState: fmi3FMUState, size: *mut usize):
         fmi3SerializedFMUStateSizeTYPE = |instance| {
-        let length = instance.issued_state(FMUState)?.serialize().len();
-        // SAFETY: NULL or writable by the FMI contract.
-        *unsafe { size.as_mut() }.ok_or_else(|| null_argument("size", 1))? = length;
-        Ok(())
+        // SAFETY: FMI contract on the pointer.
+        unsafe { abi::serialized_size(instance, FMUState, size) }
     };
 }
 
@@ -617,44 +604,25 @@ export! {
         serializedState: *mut fmi3Byte,
         size: usize,
     ): fmi3SerializeFMUStateTYPE = |instance| {
-        let bytes = instance.issued_state(FMUState)?.serialize();
-        if size < bytes.len() {
-            return Err(Failure::error(format!(
-                "size = {size} is too small: the state needs {} bytes (fmi3SerializedFMUStateSize)",
-                bytes.len()
-            )));
-        }
         // SAFETY: FMI contract on the buffer.
-        let target = unsafe { slice_mut(serializedState, size) }
-            .ok_or_else(|| null_argument("serializedState", size))?;
-        target[..bytes.len()].copy_from_slice(&bytes);
-        Ok(())
+        unsafe { abi::serialize(instance, FMUState, serializedState.cast(), size, &STATE_NAMES) }
     };
 }
 
 export! {
     /// # Safety
-    /// `instance` is an instance; `serializedState` must hold `size` readable bytes;
-    /// `FMUState` must be NULL or point to a writable pointer (NULL, or a state of
-    /// `instance`).
+    /// `instance` is an instance; `serializedState` must hold `size` readable bytes; `FMUState`
+    /// must be NULL or point to a writable pointer (NULL, or a state of `instance`).
     fn fmi3DeserializeFMUState(
         instance,
         serializedState: *const fmi3Byte,
         size: usize,
         FMUState: *mut fmi3FMUState,
     ): fmi3DeserializeFMUStateTYPE = |instance| {
-        // SAFETY: FMI contract on the buffer.
-        let bytes = unsafe { slice(serializedState, size) }
-            .ok_or_else(|| null_argument("serializedState", size))?;
-        let restored = FmuState::deserialize(bytes)?;
-        // SAFETY: NULL or writable by the FMI contract.
-        let slot = unsafe { FMUState.as_mut() }.ok_or_else(|| null_argument("FMUState", 1))?;
-        if slot.is_null() {
-            *slot = instance.issue_state(restored).cast();
-        } else {
-            *instance.issued_state(*slot)? = restored;
+        // SAFETY: FMI contract on the buffer and the pointer.
+        unsafe {
+            abi::deserialize(instance, serializedState.cast(), size, FMUState, &STATE_NAMES)
         }
-        Ok(())
     };
 }
 

@@ -89,6 +89,10 @@ pub enum StepEnd {
     ChangePointEvent,
 }
 
+/// Change points one FMI 3.0 step may cross without early return: each crossing moves the
+/// linkage on by a whole passage, so more within one step means a step far too long.
+const MAX_CROSSINGS_PER_STEP: usize = 1000;
+
 /// Relative mismatch accepted between the master's communication point and the FMU's time.
 const TIME_MATCH: f64 = 1e-12;
 
@@ -614,7 +618,7 @@ impl Instance {
         let now = self.current.plant.time();
         let target = self.step_target(now, current, step)?;
         let mut end = StepEnd::Complete;
-        loop {
+        for _ in 0..MAX_CROSSINGS_PER_STEP {
             self.cross_if_pending(target)?;
             let warned = self.warned_stability;
             let (plant, driver, experiment) = self.cosimulation()?;
@@ -642,9 +646,15 @@ impl Instance {
             }
             end = StepEnd::CompleteAfterEvent;
         }
+        self.current.state = State::StepDiscarded;
+        Err(Failure::discard(format!(
+            "more than {MAX_CROSSINGS_PER_STEP} change points within the step from t = {now} \
+             to {target}: take shorter steps, or allow early return"
+        )))
     }
 
     /// The co-simulation plant, driver and experiment, once initialised.
+    #[inline(always)]
     fn cosimulation(&mut self) -> Result<(&mut Plant, &mut CoSimulation, &Experiment), Failure> {
         let FmuState {
             plant,
@@ -749,19 +759,12 @@ impl Instance {
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
         let now = self.current.plant.time();
         let target = self.step_target(now, current, step)?;
-        let FmuState {
-            plant,
-            driver: Driver::CoSimulation(Some(driver)),
-            experiment,
-            ..
-        } = &mut self.current
-        else {
-            return Err(Failure::error("the integrator starts at initialisation"));
-        };
+        let warned = self.warned_stability;
+        let (plant, driver, experiment) = self.cosimulation()?;
         if let Err(error) = isa::advance(driver, plant, target, experiment) {
             return Err(self.step_failed(now, target, error));
         }
-        let stability_limited = !self.warned_stability && driver.dop853_is_stability_limited();
+        let stability_limited = !warned && driver.dop853_is_stability_limited();
         self.report_step(target, stability_limited);
         Ok(())
     }
