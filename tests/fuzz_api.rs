@@ -10,55 +10,20 @@ use std::ptr::{null, null_mut};
 
 mod common;
 
+use common::Rng;
+
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::instance::{FmuState, State, Version};
 use cyclic_mechanism::snapshot::fnv1a_64;
 use cyclic_mechanism::variables::{count, variable, VarType};
 use fmi_sys::fmi2::*;
 
-/// xorshift64*: a small deterministic generator, enough for fuzzing.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545F4914F6CDD1D)
-    }
-    fn below(&mut self, n: u64) -> u64 {
-        self.next() % n
-    }
-    fn chance(&mut self, percent: u64) -> bool {
-        self.below(100) < percent
-    }
-    fn real(&mut self) -> f64 {
-        match self.below(12) {
-            0 => f64::NAN,
-            1 => f64::INFINITY,
-            2 => -1.0,
-            3 => 0.0,
-            4 => 1e9,
-            5 => self.extreme(),
-            _ => (self.below(2000) as f64 - 500.0) / 100.0,
-        }
-    }
-    /// Finite but extreme: huge, tiny, subnormal, of either sign.
-    fn extreme(&mut self) -> f64 {
-        const EXTREMES: [f64; 8] = [1e300, 1e200, 1e155, 1e-300, 5e-324, 2.2e-308, 1e100, 1e-20];
-        let x = EXTREMES[self.below(EXTREMES.len() as u64) as usize];
-        if self.chance(50) {
-            -x
-        } else {
-            x
-        }
-    }
-    fn vr(&mut self) -> u32 {
-        if self.chance(10) {
-            self.next() as u32
-        } else {
-            self.below(count() as u64 + 3) as u32
-        }
+/// A value reference: mostly the FMU's, some past them, some anything.
+fn vr(rng: &mut Rng) -> u32 {
+    if rng.chance(10) {
+        rng.next() as u32
+    } else {
+        rng.below(count() as u64 + 3) as u32
     }
 }
 
@@ -111,7 +76,7 @@ impl Fuzz {
 
     fn arrays(&mut self) -> (Vec<u32>, usize) {
         let n = self.rng.below(5) as usize;
-        ((0..n).map(|_| self.rng.vr()).collect(), n)
+        ((0..n).map(|_| vr(&mut self.rng)).collect(), n)
     }
 
     /// One random call.

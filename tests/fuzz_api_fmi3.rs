@@ -9,45 +9,21 @@
 use std::ffi::CString;
 use std::ptr::{null, null_mut};
 
+mod common;
+
+use common::Rng;
+
 use cyclic_mechanism::fmi3::model_description::{instantiation_token, reference};
 use cyclic_mechanism::fmi3::*;
 use cyclic_mechanism::variables::{count, value_reference};
 use fmi_sys::fmi3::*;
 
-/// xorshift64*: a small deterministic generator, enough for fuzzing.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545F4914F6CDD1D)
-    }
-    fn below(&mut self, n: u64) -> u64 {
-        self.next() % n
-    }
-    fn chance(&mut self, percent: u64) -> bool {
-        self.below(100) < percent
-    }
-    fn real(&mut self) -> f64 {
-        match self.below(10) {
-            0 => f64::NAN,
-            1 => f64::INFINITY,
-            2 => -1.0,
-            3 => 0.0,
-            4 => 1e300,
-            5 => 5e-324,
-            _ => (self.below(2000) as f64 - 500.0) / 100.0,
-        }
-    }
-    /// An FMI 3.0 value reference: mostly the FMU's (0 is `time`), some past them.
-    fn vr(&mut self) -> u32 {
-        if self.chance(5) {
-            self.next() as u32
-        } else {
-            self.below(count() as u64 + 4) as u32
-        }
+/// An FMI 3.0 value reference: mostly the FMU's (0 is `time`), some past them.
+fn vr(rng: &mut Rng) -> u32 {
+    if rng.chance(5) {
+        rng.next() as u32
+    } else {
+        rng.below(count() as u64 + 4) as u32
     }
 }
 
@@ -85,7 +61,7 @@ impl Fuzz {
 
     fn references(&mut self) -> Vec<u32> {
         let n = self.rng.below(4) as usize;
-        (0..n).map(|_| self.rng.vr()).collect()
+        (0..n).map(|_| vr(&mut self.rng)).collect()
     }
 
     /// A value count: mostly the references', sometimes another.

@@ -172,3 +172,42 @@ pub fn advance(run: &mut Run, t_end: f64, h: f64) {
         run.advance(k as f64 * h).unwrap();
     }
 }
+
+/// xorshift64*: a small deterministic generator, enough for fuzzing.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545F4914F6CDD1D)
+    }
+    pub fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+    pub fn chance(&mut self, percent: u64) -> bool {
+        self.below(100) < percent
+    }
+    pub fn real(&mut self) -> f64 {
+        match self.below(12) {
+            0 => f64::NAN,
+            1 => f64::INFINITY,
+            2 => -1.0,
+            3 => 0.0,
+            4 => 1e9,
+            5 => self.extreme(),
+            _ => (self.below(2000) as f64 - 500.0) / 100.0,
+        }
+    }
+    /// Finite but extreme: huge, tiny, subnormal, of either sign.
+    pub fn extreme(&mut self) -> f64 {
+        const EXTREMES: [f64; 8] = [1e300, 1e200, 1e155, 1e-300, 5e-324, 2.2e-308, 1e100, 1e-20];
+        let x = EXTREMES[self.below(EXTREMES.len() as u64) as usize];
+        if self.chance(50) {
+            -x
+        } else {
+            x
+        }
+    }
+}
