@@ -205,9 +205,10 @@ def test_the_run_after_the_event_agrees_across_tolerances(unzipped3, model_descr
                                                          report):
     """No independent reference goes through a change point (the reference's ODE is
     singular there: at rtol 1e-10 it turns back, at 1e-12 it takes the other branch), so
-    the straight run is compared with itself at tolerance 1e-12, 1 s after the event.
-    Before the event the runs agree to their tolerance; after it to about 1e-5, set by
-    where each stops before the change point (a few 1e-5 s apart), not by the tolerance."""
+    the straight run is compared with itself at tolerance 1e-12, 1 s after the event. Where
+    each run stops before the change point varies with the tolerance (by up to 4e-5 s, so
+    the crossings start 2.5e-4 to 4.3e-4 rad before it); the runs still agree after it to
+    about 1e-8: the crossing does not depend on where it starts, to that order."""
     results = {}
     for tolerance in (1e-8, 1e-10, 1e-12):
         r = fmpy.simulate_fmu(str(unzipped3), fmi_type="CoSimulation", start_values=CHANGE_POINT,
@@ -221,7 +222,7 @@ def test_the_run_after_the_event_agrees_across_tolerances(unzipped3, model_descr
     report["fmi3_change_point_before_event_difference_tol_1e-8_1e-10_vs_1e-12"] = before
     report["fmi3_change_point_after_event_difference_tol_1e-8_1e-10_vs_1e-12"] = after
     assert before[0] < 1e-7 and before[1] < 1e-9, before
-    assert max(after) < 2e-5, after
+    assert max(after) < 1e-7, after
 
 
 def test_without_event_mode_the_step_ends_at_the_change_point(unzipped3, model_description3):
