@@ -1,13 +1,15 @@
-/* A minimal FMI 2.0 co-simulation master in C, built for each platform the FMU ships
-   (native gcc, MinGW for win64, zig cc for aarch64 Linux) and run there (natively, under
-   Wine, under QEMU), so that every platform's binary is driven through its own C ABI by
-   the same code.
+/* A minimal FMI 2.0 and FMI 3.0 co-simulation master in C, built for each platform the
+   FMU ships (native gcc, MinGW for win64, zig cc for aarch64 Linux) and run there
+   (natively, under Wine, under QEMU), so that every platform's binary is driven through its
+   own C ABI by the same code.
 
    usage: master LIBRARY GUID TOLERANCE STEP STOP OUT [KIND:VR=VALUE ...] -- KIND:VR ...
 
-   KIND is R (Real), I (Integer or Enumeration) or B (Boolean). The settings before "--"
-   are applied in initialisation mode; after it come the variables to record, Reals and
-   Integers. OUT gets one line per communication point, starting with the initial one: the
+   With GUID written fmi3:TOKEN the master drives the library's FMI 3.0 functions with that
+   instantiation token, the value references still FMI 2.0's (FMI 3.0's are one more).
+   KIND is R (Real: Float64), I (Integer: Int32), E (Enumeration: Int64 in FMI 3.0) or B
+   (Boolean). The settings before "--" are applied in initialisation mode; after it come
+   the variables to record, Reals, Integers and Enumerations. OUT gets one line per communication point, starting with the initial one: the
    time and each recorded value in the order given, a Real as the 16 hex digits of its IEEE
    bits (so that no C library's printf rounds anything), an Integer in decimal. The time
    spent in the stepping loop goes to stderr. */
@@ -20,6 +22,7 @@
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "fmi3Functions.h"
 
 #ifdef _WIN32
 #include <windows.h>
@@ -79,7 +82,7 @@ static void check(fmi2Status status, const char *call) {
     }
 }
 
-/* One variable to record: its kind ('R' or 'I') and value reference. */
+/* One variable to record: its kind ('R', 'I' or 'E') and value reference. */
 typedef struct {
     char kind;
     fmi2ValueReference vr;
@@ -122,7 +125,7 @@ static void apply_setting(fmi2Component c, const char *setting, fmi2SetRealTYPE 
     if (setting[0] == 'R') {
         fmi2Real v = strtod(value, NULL);
         check(set_real(c, &vr, 1, &v), "fmi2SetReal");
-    } else if (setting[0] == 'I') {
+    } else if (setting[0] == 'I' || setting[0] == 'E') {
         fmi2Integer v = (fmi2Integer)strtol(value, NULL, 10);
         check(set_integer(c, &vr, 1, &v), "fmi2SetInteger");
     } else if (setting[0] == 'B') {
@@ -131,6 +134,141 @@ static void apply_setting(fmi2Component c, const char *setting, fmi2SetRealTYPE 
     } else {
         fail("a setting's KIND is R, I or B");
     }
+}
+
+/* Every point to OUT, and the arrays freed. */
+static void write_results(const char *path, double step, long points, fmi2Real *reals,
+                          fmi2Integer *integers, const Recorded *recorded, size_t n,
+                          size_t n_reals, size_t n_integers) {
+    long k;
+    FILE *out = fopen(path, "wb"); /* binary: the same bytes on Windows */
+    if (!out) fail("cannot write the output file");
+    for (k = 0; k <= points; k++)
+        write_point(out, (double)k * step, reals + (size_t)k * n_reals,
+                    integers + (size_t)k * n_integers, recorded, n);
+    if (fclose(out) != 0) fail("cannot write the output file");
+    free(reals);
+    free(integers);
+}
+
+/* ---- FMI 3.0: the same run through the fmi3 functions ---- */
+
+static void logger3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category,
+                    fmi3String message) {
+    (void)env;
+    fprintf(stderr, "[fmi3 %d %s] %s\n", (int)status, category, message);
+}
+
+static void check3(fmi3Status status, const char *call) {
+    if (status != fmi3OK) {
+        fprintf(stderr, "master: %s returned status %d\n", call, (int)status);
+        exit(1);
+    }
+}
+
+typedef struct {
+    fmi3SetFloat64TYPE *set_float64;
+    fmi3SetInt32TYPE *set_int32;
+    fmi3SetInt64TYPE *set_int64;
+    fmi3SetBooleanTYPE *set_boolean;
+    fmi3GetFloat64TYPE *get_float64;
+    fmi3GetInt32TYPE *get_int32;
+    fmi3GetInt64TYPE *get_int64;
+} Access3;
+
+static void apply_setting3(fmi3Instance c, const char *setting, const Access3 *a) {
+    char *end;
+    fmi3ValueReference vr = (fmi3ValueReference)strtoul(setting + 2, &end, 10) + 1;
+    const char *value = end + 1;
+    if (setting[1] != ':' || *end != '=') fail("a setting is KIND:VR=VALUE");
+    if (setting[0] == 'R') {
+        fmi3Float64 v = strtod(value, NULL);
+        check3(a->set_float64(c, &vr, 1, &v, 1), "fmi3SetFloat64");
+    } else if (setting[0] == 'I') {
+        fmi3Int32 v = (fmi3Int32)strtol(value, NULL, 10);
+        check3(a->set_int32(c, &vr, 1, &v, 1), "fmi3SetInt32");
+    } else if (setting[0] == 'E') {
+        fmi3Int64 v = (fmi3Int64)strtol(value, NULL, 10);
+        check3(a->set_int64(c, &vr, 1, &v, 1), "fmi3SetInt64");
+    } else if (setting[0] == 'B') {
+        fmi3Boolean v = strtol(value, NULL, 10) != 0;
+        check3(a->set_boolean(c, &vr, 1, &v, 1), "fmi3SetBoolean");
+    } else {
+        fail("a setting's KIND is R, I, E or B");
+    }
+}
+
+/* The recorded values at one point, as FMI 2.0's master keeps them: Reals, and Integers
+   and Enumerations together, each one by one (the FMI 3.0 types differ by kind). */
+static void read_point3(fmi3Instance c, const Access3 *a, const Recorded *recorded, size_t n,
+                        fmi3Float64 *reals, fmi2Integer *integers) {
+    size_t i, r = 0, k = 0;
+    for (i = 0; i < n; i++) {
+        fmi3ValueReference vr = recorded[i].vr + 1;
+        if (recorded[i].kind == 'R') {
+            check3(a->get_float64(c, &vr, 1, reals + r++, 1), "fmi3GetFloat64");
+        } else if (recorded[i].kind == 'E') {
+            fmi3Int64 v;
+            check3(a->get_int64(c, &vr, 1, &v, 1), "fmi3GetInt64");
+            integers[k++] = (fmi2Integer)v;
+        } else {
+            fmi3Int32 v;
+            check3(a->get_int32(c, &vr, 1, &v, 1), "fmi3GetInt32");
+            integers[k++] = (fmi2Integer)v;
+        }
+    }
+}
+
+/* Instantiate (no event mode), initialise with the settings, step to every point, and
+   fill the arrays as FMI 2.0's run does. Returns the stepping loop's time. */
+static double run_fmi3(Library lib, const char *token, double tolerance, double step,
+                       double stop, long points, char **settings, int n_settings,
+                       const Recorded *recorded, size_t n, size_t n_reals, size_t n_integers,
+                       fmi3Float64 *reals, fmi2Integer *integers) {
+    Access3 a;
+    double t = 0.0, started;
+    long k;
+    int i;
+    fmi3InstantiateCoSimulationTYPE *instantiate =
+        (fmi3InstantiateCoSimulationTYPE *)must(lib, "fmi3InstantiateCoSimulation");
+    fmi3EnterInitializationModeTYPE *enter =
+        (fmi3EnterInitializationModeTYPE *)must(lib, "fmi3EnterInitializationMode");
+    fmi3ExitInitializationModeTYPE *leave =
+        (fmi3ExitInitializationModeTYPE *)must(lib, "fmi3ExitInitializationMode");
+    fmi3DoStepTYPE *do_step = (fmi3DoStepTYPE *)must(lib, "fmi3DoStep");
+    fmi3TerminateTYPE *terminate = (fmi3TerminateTYPE *)must(lib, "fmi3Terminate");
+    fmi3FreeInstanceTYPE *free_instance = (fmi3FreeInstanceTYPE *)must(lib, "fmi3FreeInstance");
+    fmi3Instance c;
+    a.set_float64 = (fmi3SetFloat64TYPE *)must(lib, "fmi3SetFloat64");
+    a.set_int32 = (fmi3SetInt32TYPE *)must(lib, "fmi3SetInt32");
+    a.set_int64 = (fmi3SetInt64TYPE *)must(lib, "fmi3SetInt64");
+    a.set_boolean = (fmi3SetBooleanTYPE *)must(lib, "fmi3SetBoolean");
+    a.get_float64 = (fmi3GetFloat64TYPE *)must(lib, "fmi3GetFloat64");
+    a.get_int32 = (fmi3GetInt32TYPE *)must(lib, "fmi3GetInt32");
+    a.get_int64 = (fmi3GetInt64TYPE *)must(lib, "fmi3GetInt64");
+
+    c = instantiate("master", token, "", fmi3False, fmi3False, fmi3False, fmi3False, NULL, 0,
+                    NULL, logger3, NULL);
+    if (!c) fail("fmi3InstantiateCoSimulation returned NULL");
+    check3(enter(c, fmi3True, tolerance, 0.0, fmi3True, stop), "fmi3EnterInitializationMode");
+    for (i = 0; i < n_settings; i++) apply_setting3(c, settings[i], &a);
+    check3(leave(c), "fmi3ExitInitializationMode");
+    read_point3(c, &a, recorded, n, reals, integers);
+    started = seconds();
+    for (k = 1; k <= points; k++) {
+        double next = (double)k * step, last = 0.0;
+        fmi3Boolean event = fmi3False, terminate_now = fmi3False, early = fmi3False;
+        check3(do_step(c, t, next - t, fmi3True, &event, &terminate_now, &early, &last),
+               "fmi3DoStep");
+        if (early || event || terminate_now) fail("fmi3DoStep reported an event");
+        t = next;
+        read_point3(c, &a, recorded, n, reals + (size_t)k * n_reals,
+                    integers + (size_t)k * n_integers);
+    }
+    started = seconds() - started;
+    check3(terminate(c), "fmi3Terminate");
+    free_instance(c);
+    return started;
 }
 
 int main(int argc, char **argv) {
@@ -144,7 +282,6 @@ int main(int argc, char **argv) {
     fmi2Real *reals;
     fmi2Integer *integers;
     Library lib;
-    FILE *out;
     fmi2Component c;
 
     if (argc < 9) fail("usage: master LIBRARY GUID TOLERANCE STEP STOP OUT [KIND:VR=VALUE ...] -- KIND:VR ...");
@@ -155,8 +292,8 @@ int main(int argc, char **argv) {
         if (strcmp(argv[i], "--") == 0) separator = i;
     for (i = separator + 1; i < argc; i++) {
         if (n == MAX_RECORDED) fail("too many variables to record");
-        if ((argv[i][0] != 'R' && argv[i][0] != 'I') || argv[i][1] != ':')
-            fail("a recorded variable is R:VR or I:VR");
+        if ((argv[i][0] != 'R' && argv[i][0] != 'I' && argv[i][0] != 'E') || argv[i][1] != ':')
+            fail("a recorded variable is R:VR, I:VR or E:VR");
         recorded[n].kind = argv[i][0];
         recorded[n].vr = (fmi2ValueReference)strtoul(argv[i] + 2, NULL, 10);
         if (recorded[n].kind == 'R')
@@ -172,6 +309,17 @@ int main(int argc, char **argv) {
 
     lib = open_library(argv[1]);
     if (!lib) fail("cannot load the library");
+    reals = (fmi2Real *)malloc((size_t)(points + 1) * (n_reals + 1) * sizeof *reals);
+    integers = (fmi2Integer *)malloc((size_t)(points + 1) * (n_integers + 1) * sizeof *integers);
+    if (!reals || !integers) fail("out of memory");
+    if (strncmp(argv[2], "fmi3:", 5) == 0) {
+        elapsed = run_fmi3(lib, argv[2] + 5, tolerance, step, stop, points, argv + first_setting,
+                           separator - first_setting, recorded, n, n_reals, n_integers, reals,
+                           integers);
+        write_results(argv[6], step, points, reals, integers, recorded, n, n_reals, n_integers);
+        fprintf(stderr, "loop_seconds=%.9f\n", elapsed);
+        return 0;
+    }
     fmi2InstantiateTYPE *instantiate = (fmi2InstantiateTYPE *)must(lib, "fmi2Instantiate");
     fmi2SetupExperimentTYPE *setup = (fmi2SetupExperimentTYPE *)must(lib, "fmi2SetupExperiment");
     fmi2EnterInitializationModeTYPE *enter =
@@ -197,9 +345,6 @@ int main(int argc, char **argv) {
 
     /* Kept in memory and written after the loop, so that the time measured is the FMU's
        and not the C library's file output. */
-    reals = (fmi2Real *)malloc((size_t)(points + 1) * (n_reals + 1) * sizeof *reals);
-    integers = (fmi2Integer *)malloc((size_t)(points + 1) * (n_integers + 1) * sizeof *integers);
-    if (!reals || !integers) fail("out of memory");
     read_point(c, get_real, get_integer, real_vrs, n_reals, reals, integer_vrs, n_integers, integers);
     t = 0.0;
     started = seconds();
@@ -214,14 +359,7 @@ int main(int argc, char **argv) {
     check(terminate(c), "fmi2Terminate");
     free_instance(c);
 
-    out = fopen(argv[6], "wb"); /* binary: the same bytes on Windows */
-    if (!out) fail("cannot write the output file");
-    for (k = 0; k <= points; k++)
-        write_point(out, (double)k * step, reals + (size_t)k * n_reals,
-                    integers + (size_t)k * n_integers, recorded, n);
-    if (fclose(out) != 0) fail("cannot write the output file");
-    free(reals);
-    free(integers);
+    write_results(argv[6], step, points, reals, integers, recorded, n, n_reals, n_integers);
     fprintf(stderr, "loop_seconds=%.9f\n", elapsed);
     return 0;
 }

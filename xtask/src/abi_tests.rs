@@ -102,6 +102,8 @@ pub struct Variable {
 
 pub struct Description {
     pub guid: String,
+    /// The FMI 3.0 description's instantiation token, when the master runs FMI 3.0 too.
+    pub token: Option<String>,
     pub variables: BTreeMap<String, Variable>,
     /// The outputs, in the description's order.
     outputs: Vec<String>,
@@ -113,6 +115,7 @@ pub fn read_description(xml: &Path) -> Result<Description> {
     let mut reader = quick_xml::Reader::from_str(&text);
     let mut description = Description {
         guid: String::new(),
+        token: None,
         variables: BTreeMap::new(),
         outputs: Vec::new(),
     };
@@ -148,6 +151,7 @@ pub fn read_description(xml: &Path) -> Result<Description> {
                     let kind = match tag {
                         b"Real" => 'R',
                         b"Boolean" => 'B',
+                        b"Enumeration" => 'E',
                         _ => 'I',
                     };
                     if output {
@@ -163,6 +167,16 @@ pub fn read_description(xml: &Path) -> Result<Description> {
         return Err(format!("{}: no guid or no outputs", xml.display()));
     }
     Ok(description)
+}
+
+/// The instantiation token of an FMI 3.0 model description.
+fn read_token(xml: &Path) -> Result<String> {
+    let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
+    text.split("instantiationToken=\"")
+        .nth(1)
+        .and_then(|rest| rest.split('"').next())
+        .map(str::to_string)
+        .ok_or_else(|| format!("{}: no instantiationToken", xml.display()))
 }
 
 /// Where the tests' builds and runs go.
@@ -192,9 +206,17 @@ pub fn build_native_master(dir: &Path) -> Result<PathBuf> {
 /// Compile tests/platforms/master.c with `compiler` (its own options given) and the shared
 /// flags into `output`, linking `libraries`.
 fn compile_master(compiler: &mut Command, output: &Path, libraries: &[&str]) -> Result {
+    let fmi2 = fmi2_headers()?;
+    let fmi3 = fmi2
+        .parent()
+        .and_then(Path::parent)
+        .map(|fmi_sys| fmi_sys.join("fmi-standard3/headers"))
+        .ok_or("no folder above fmi-sys's FMI 2.0 headers")?;
     run(compiler
         .args(["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-I"])
-        .arg(fmi2_headers()?)
+        .arg(fmi2)
+        .arg("-I")
+        .arg(fmi3)
         .arg("-o")
         .arg(output)
         .arg(root().join("tests/platforms/master.c"))
@@ -249,7 +271,7 @@ fn run_master(
     output: &Path,
     scenario: &Scenario,
     description: &Description,
-    windows: bool,
+    (windows, fmi3): (bool, bool),
 ) -> Result<(Vec<String>, f64)> {
     let path = |p: &Path| {
         if windows {
@@ -258,8 +280,13 @@ fn run_master(
             p.display().to_string()
         }
     };
+    let instance_key = match (&description.token, fmi3) {
+        (Some(token), true) => format!("fmi3:{token}"),
+        (None, true) => return Err("an FMI 3.0 run without an instantiation token".into()),
+        (_, false) => description.guid.clone(),
+    };
     how.arg(path(library))
-        .arg(&description.guid)
+        .arg(instance_key)
         .arg(format!("{:e}", scenario.tolerance))
         .arg(format!("{}", scenario.step))
         .arg(format!("{}", scenario.stop))
@@ -386,26 +413,40 @@ fn compare_platforms(
             &out("linux64"),
             scenario,
             description,
-            false,
+            (false, false),
         )?;
-        let mut wine = Command::new(WINE);
-        wine_env(&mut wine)?.arg(windows_path(&windows));
-        let mut qemu = Command::new(QEMU);
-        qemu.args(["-L", AARCH64_SYSROOT]).arg(&arm);
+        let wine = || -> Result<Command> {
+            let mut wine = Command::new(WINE);
+            wine_env(&mut wine)?.arg(windows_path(&windows));
+            Ok(wine)
+        };
+        let qemu = || {
+            let mut qemu = Command::new(QEMU);
+            qemu.args(["-L", AARCH64_SYSROOT]).arg(&arm);
+            qemu
+        };
+        // Each binary through FMI 2.0 and FMI 3.0, all against linux64's FMI 2.0 run.
         let runs = [
-            ("win64 under Wine", wine, win64, true),
-            ("aarch64 under QEMU", qemu, aarch64, false),
+            ("win64 under Wine", wine()?, win64, (true, false)),
+            ("aarch64 under QEMU", qemu(), aarch64, (false, false)),
+            (
+                "linux64, FMI 3.0",
+                Command::new(&native),
+                linux64,
+                (false, true),
+            ),
+            ("win64 under Wine, FMI 3.0", wine()?, win64, (true, true)),
+            (
+                "aarch64 under QEMU, FMI 3.0",
+                qemu(),
+                aarch64,
+                (false, true),
+            ),
         ];
-        for (platform, mut command, library, is_windows) in runs {
-            let file = out(&platform.replace(' ', "-"));
-            let (recorded, seconds) = run_master(
-                &mut command,
-                library,
-                &file,
-                scenario,
-                description,
-                is_windows,
-            )?;
+        for (platform, mut command, library, version) in runs {
+            let file = out(&platform.replace([' ', ','], "-"));
+            let (recorded, seconds) =
+                run_master(&mut command, library, &file, scenario, description, version)?;
             let (compared, differing, largest, first) = compare(&reference, &recorded, description)
                 .map_err(|e| format!("{} on {platform}: {e}", scenario.name))?;
             report.push(format!(
@@ -466,7 +507,11 @@ pub fn test(
     zig: &Zig,
 ) -> Result {
     platforms::ensure_packages(platforms::RUN_PACKAGES)?;
-    let description = read_description(description_xml)?;
+    let mut description = read_description(description_xml)?;
+    let fmi3_xml = description_xml
+        .with_file_name("fmi3")
+        .join("modelDescription.xml");
+    description.token = Some(read_token(&fmi3_xml)?);
     let win64 = binaries.join(format!("win64/{}.dll", crate::MODEL_IDENTIFIER));
     let aarch64 = binaries.join(format!("aarch64-linux/{}.so", crate::MODEL_IDENTIFIER));
     rust_tests_under_wine(zig)?;
@@ -502,6 +547,7 @@ mod tests {
         ]);
         Description {
             guid: "{g}".into(),
+            token: None,
             variables,
             outputs: vec!["x".into(), "n".into()],
         }
