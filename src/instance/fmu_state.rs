@@ -1,7 +1,7 @@
-//! The restorable state of an instance, in one place: the FMI state, the experiment, the
-//! plant and its driver. fmi2GetFMUstate clones it, fmi2SetFMUstate puts a clone back,
-//! fmi2Reset starts a new one, and serialization writes and reads its fields in one order,
-//! each part checking its values again on reading.
+//! The restorable state of an instance, in one place: the FMI state and version, the
+//! experiment, the plant and its driver. GetFMUState clones it, SetFMUState puts a clone
+//! back, Reset starts a new one (in either version), and serialization writes and reads its
+//! fields in one order, each part checking its values again on reading.
 
 use super::state::{Interface, State, Version};
 use super::Failure;
@@ -50,8 +50,8 @@ impl Driver {
     }
 }
 
-/// The restorable state of an instance, in one place: what fmi2GetFMUstate saves,
-/// fmi2SetFMUstate restores, fmi2SerializeFMUstate writes and fmi2Reset starts again from.
+/// The restorable state of an instance, in one place: what GetFMUState saves,
+/// SetFMUState restores, SerializeFMUState writes and Reset starts again from.
 /// The logging settings belong to the instance, not here.
 #[derive(Clone, Debug)]
 pub struct FmuState {

@@ -103,10 +103,10 @@ pub struct Instance {
     /// a step may end before its end time.
     pub event_mode_used: bool,
     pub early_return_allowed: bool,
-    /// fmi2SetDebugLogging's switch, and the debug categories it enabled.
+    /// SetDebugLogging's switch, and the debug categories it enabled.
     debug_logging: bool,
     enabled: [bool; LOG_CATEGORIES.len()],
-    /// Everything fmi2SetFMUstate restores.
+    /// Everything SetFMUState restores.
     pub current: FmuState,
     /// Addresses of the FMU states this instance has handed out and not yet freed.
     issued_states: StateHandles,
@@ -419,7 +419,7 @@ impl Instance {
         Ok(())
     }
 
-    /// fmi2NewDiscreteStates: the chart's handover, if its indicator has crossed. Returns
+    /// NewDiscreteStates (FMI 2.0), UpdateDiscreteStates (3.0): the chart's handover, if its indicator has crossed. Returns
     /// whether the continuous states changed.
     pub fn new_discrete_states(&mut self) -> Result<bool, Failure> {
         let (exchange, plant) = self.exchange_and_plant()?;
@@ -438,7 +438,7 @@ impl Instance {
         Ok(changed)
     }
 
-    /// fmi2GetDirectionalDerivative: the knowns are the inputs, and in Model Exchange the
+    /// GetDirectionalDerivative: the knowns are the inputs, and in Model Exchange the
     /// continuous states; the unknowns any Real outputs and state derivatives.
     pub fn directional_derivative(
         &mut self,
@@ -511,7 +511,7 @@ impl Instance {
         Ok(())
     }
 
-    /// fmi2CompletedIntegratorStep: asks for an event where the indicator has crossed (for
+    /// CompletedIntegratorStep: asks for an event where the indicator has crossed (for
     /// masters that do not locate state events themselves).
     pub fn completed_integrator_step(&mut self) -> Result<bool, Failure> {
         Ok(Exchange::indicators(self.exchange_plant()?)[0] < 0.0)
@@ -849,7 +849,7 @@ impl Instance {
         Ok(())
     }
 
-    /// Back to the state just after fmi2Instantiate, every variable at its start value.
+    /// Back to the state just after instantiation, every variable at its start value.
     pub fn reset(&mut self) -> Outcome {
         self.current = FmuState::new(self.interface(), self.version());
         Ok(())
