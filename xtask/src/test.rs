@@ -128,7 +128,7 @@ pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path, fmu3: &Path) -> Res
         "test_model_exchange.py::test_cvode_hands_over_at_every_dead_point",
         // FMI 3.0: the state machine, FMU states, early return at change points and the
         // adjoint derivatives (not the runs against the reference, as above).
-        "test_fmi3.py::test_every_function_in_every_state",
+        "test_fmi3_conformance.py::test_every_function_in_every_state",
         "test_fmi3.py::test_fmu_state_round_trips_bit_for_bit",
         "test_fmi3.py::test_change_point_returns_early_and_goes_on_on_the_chosen_branch",
         "test_fmi3.py::test_adjoint_is_the_transpose_of_the_directional_derivative",
