@@ -77,8 +77,9 @@ pub const LOG_CATEGORIES: &[(&str, &str)] = &[
 /// process: every fmi2Instantiate and every serialized state checks it, and formatting the
 /// whole variable table costs as much as a short simulation.
 pub fn guid() -> &'static str {
-    static GUID: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    GUID.get_or_init(interface_guid)
+    static GUID: std::sync::OnceLock<UuidText> = std::sync::OnceLock::new();
+    GUID.get_or_init(|| UuidText::new(&interface_guid()))
+        .as_str()
 }
 
 fn interface_guid() -> String {
@@ -103,6 +104,25 @@ fn interface_guid() -> String {
 }
 
 /// A 128-bit hash written as a UUID in braces, as FMI tools show GUIDs.
+/// A UUID's text, "{8-4-4-4-12}", held without the heap: a master may unload the library
+/// (dlclose) while it keeps static data, and a heap block only a static pointed to would then
+/// be lost.
+pub(crate) struct UuidText([u8; 38]);
+
+impl UuidText {
+    pub(crate) fn new(text: &str) -> Self {
+        Self(
+            text.as_bytes()
+                .try_into()
+                .expect("a UUID's text has 38 characters"),
+        )
+    }
+
+    pub(crate) fn as_str(&self) -> &str {
+        std::str::from_utf8(&self.0).expect("a UUID's text is ASCII")
+    }
+}
+
 pub(crate) fn uuid_text(hash: u128) -> String {
     let hex = format!("{hash:032x}");
     format!(

@@ -10,7 +10,7 @@ use std::io;
 
 use crate::fmi2::model_description::{
     fnv1a_128, type_attributes, uuid_text, write_default_experiment, write_interface, write_items,
-    write_log_categories, write_units, write_unknown, Items, DESCRIPTION_ATTRIBUTES,
+    write_log_categories, write_units, write_unknown, Items, UuidText, DESCRIPTION_ATTRIBUTES,
     MAX_OUTPUT_DERIVATIVE_ORDER, MODEL_NAME,
 };
 use crate::model::LINKAGE_CLASSES;
@@ -61,8 +61,10 @@ pub fn reference(fmi2_reference: u32) -> u32 {
 /// The instantiation token: a hash of this description written without it, so that it
 /// changes whenever anything in the interface does.
 pub fn instantiation_token() -> &'static str {
-    static TOKEN: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    TOKEN.get_or_init(|| uuid_text(fnv1a_128(document("").as_bytes())))
+    static TOKEN: std::sync::OnceLock<UuidText> = std::sync::OnceLock::new();
+    TOKEN
+        .get_or_init(|| UuidText::new(&uuid_text(fnv1a_128(document("").as_bytes()))))
+        .as_str()
 }
 
 /// The complete FMI 3.0 `modelDescription.xml`.
