@@ -97,6 +97,42 @@ pub(crate) unsafe fn slice_mut<'a, T>(ptr: *mut T, n: usize) -> Option<&'a mut [
     }
 }
 
+/// SetDebugLogging's category names, checked: none NULL, all UTF-8.
+///
+/// # Safety
+/// `categories` must hold `n` pointers, each NULL or a NUL-terminated string.
+pub(crate) unsafe fn category_names<'a>(
+    categories: *const *const std::ffi::c_char,
+    n: usize,
+) -> Result<Vec<&'a str>, Failure> {
+    // SAFETY: guaranteed by the caller.
+    let pointers = unsafe { slice(categories, n) }.ok_or_else(|| null_argument("categories", n))?;
+    pointers
+        .iter()
+        .map(|&pointer| {
+            if pointer.is_null() {
+                return Err(Failure::error("a category name is NULL"));
+            }
+            // SAFETY: non-null, NUL-terminated by the caller's guarantee.
+            unsafe { std::ffi::CStr::from_ptr(pointer) }
+                .to_str()
+                .map_err(|_| Failure::error("a category name is not UTF-8"))
+        })
+        .collect()
+}
+
+/// FreeInstance of either version: NULL is no instance; a panic in a drop stays here.
+///
+/// # Safety
+/// `instance` must be NULL or a pointer an instantiation function returned, not used
+/// afterwards.
+pub(crate) unsafe fn free_instance(instance: *mut c_void) {
+    if !instance.is_null() {
+        // SAFETY: created by Box::into_raw at instantiation; the master frees it once.
+        let _ = catch_unwind(|| drop(unsafe { Box::from_raw(instance.cast::<Instance>()) }));
+    }
+}
+
 pub(crate) fn null_argument(name: &str, n: usize) -> Failure {
     Failure::error(format!("{name} is NULL with {n} elements requested"))
 }

@@ -121,10 +121,8 @@ unsafe fn instantiate(
 /// `c` must be NULL or a pointer from fmi2Instantiate, not used afterwards.
 #[no_mangle]
 pub unsafe extern "C" fn fmi2FreeInstance(c: fmi2Component) {
-    if !c.is_null() {
-        // SAFETY: created by Box::into_raw in fmi2Instantiate; the master frees it once.
-        let _ = catch_unwind(|| drop(unsafe { Box::from_raw(c.cast::<Instance>()) }));
-    }
+    // SAFETY: the master's obligation, as the function's.
+    unsafe { abi::free_instance(c) }
 }
 
 const _: () = {
@@ -144,19 +142,7 @@ export! {
         categories: *const fmi2String,
     ): fmi2SetDebugLoggingTYPE = |instance| {
         // SAFETY: FMI contract on `categories`.
-        let pointers = unsafe { slice(categories, nCategories) }
-            .ok_or_else(|| null_argument("categories", nCategories))?;
-        let mut names = Vec::with_capacity(pointers.len());
-        for &pointer in pointers {
-            if pointer.is_null() {
-                return Err(Failure::error("a category name is NULL"));
-            }
-            // SAFETY: non-null, NUL-terminated by the FMI contract.
-            let name = unsafe { CStr::from_ptr(pointer) }
-                .to_str()
-                .map_err(|_| Failure::error("a category name is not UTF-8"))?;
-            names.push(name);
-        }
+        let names = unsafe { abi::category_names(categories, nCategories) }?;
         instance.set_debug_logging(loggingOn != 0, &names)
     };
 }
@@ -298,8 +284,7 @@ export! {
     /// # Safety
     /// `c` is an instance.
     fn fmi2SetFMUstate(c, FMUstate: fmi2FMUstate): fmi2SetFMUstateTYPE = |instance| {
-        let saved = instance.issued_state(FMUstate)?.clone();
-        instance.restore(&saved)
+        instance.restore_issued(FMUstate)
     };
 }
 

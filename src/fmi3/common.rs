@@ -26,13 +26,14 @@ pub extern "C" fn fmi3GetVersion() -> *const c_char {
 }
 
 /// What the three instantiation functions share: the name and token checked, the logger
-/// kept. `None` (after logging why) when the instance cannot be made.
+/// kept. `None` (after logging why) when the instance cannot be made: also when
+/// `interface` is the reason the FMU does not provide what is asked for.
 ///
 /// # Safety
 /// `instance_name` and `token` must be NULL or valid C strings.
 unsafe fn new_instance(
     function: &str,
-    interface: Option<Interface>,
+    interface: Result<Interface, String>,
     instance_name: fmi3String,
     token: fmi3String,
     environment: fmi3InstanceEnvironment,
@@ -56,10 +57,9 @@ unsafe fn new_instance(
         }
         None
     };
-    let Some(interface) = interface else {
-        return fail(
-            "this FMU provides Model Exchange and Co-Simulation, not Scheduled Execution".into(),
-        );
+    let interface = match interface {
+        Ok(interface) => interface,
+        Err(reason) => return fail(reason),
     };
     if name.as_bytes().iter().all(u8::is_ascii_whitespace) {
         return fail("instanceName must be a non-empty string".into());
@@ -107,7 +107,7 @@ pub unsafe extern "C" fn fmi3InstantiateModelExchange(
     catch_unwind(|| unsafe {
         into_handle(new_instance(
             "fmi3InstantiateModelExchange",
-            Some(Interface::ModelExchange),
+            Ok(Interface::ModelExchange),
             instanceName,
             instantiationToken,
             instanceEnvironment,
@@ -138,25 +138,22 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
 ) -> fmi3Instance {
     // SAFETY: FMI contract on the arguments, checked for NULL inside.
     catch_unwind(|| unsafe {
+        let interface = match nRequiredIntermediateVariables {
+            0 => Ok(Interface::CoSimulation),
+            n => Err(format!(
+                "nRequiredIntermediateVariables = {n}: this FMU provides no intermediate update \
+                 (providesIntermediateUpdate is false)"
+            )),
+        };
         let mut instance = new_instance(
             "fmi3InstantiateCoSimulation",
-            Some(Interface::CoSimulation),
+            interface,
             instanceName,
             instantiationToken,
             instanceEnvironment,
             logMessage,
             loggingOn,
         );
-        if nRequiredIntermediateVariables > 0 {
-            if let Some(instance) = instance.take() {
-                let message = format!(
-                    "fmi3InstantiateCoSimulation: nRequiredIntermediateVariables = \
-                     {nRequiredIntermediateVariables}: this FMU provides no intermediate update \
-                     (providesIntermediateUpdate is false)"
-                );
-                instance.log(Status::Error, crate::instance::Category::Error, &message);
-            }
-        }
         if let Some(instance) = instance.as_mut() {
             instance.event_mode_used = eventModeUsed;
             instance.early_return_allowed = earlyReturnAllowed;
@@ -185,7 +182,10 @@ pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
     catch_unwind(|| unsafe {
         into_handle(new_instance(
             "fmi3InstantiateScheduledExecution",
-            None,
+            Err(
+                "this FMU provides Model Exchange and Co-Simulation, not Scheduled Execution"
+                    .into(),
+            ),
             instanceName,
             instantiationToken,
             instanceEnvironment,
@@ -201,10 +201,8 @@ pub unsafe extern "C" fn fmi3InstantiateScheduledExecution(
 /// afterwards.
 #[no_mangle]
 pub unsafe extern "C" fn fmi3FreeInstance(instance: fmi3Instance) {
-    if !instance.is_null() {
-        // SAFETY: created by Box::into_raw at instantiation; the master frees it once.
-        let _ = catch_unwind(|| drop(unsafe { Box::from_raw(instance.cast::<Instance>()) }));
-    }
+    // SAFETY: the master's obligation, as the function's.
+    unsafe { abi::free_instance(instance) }
 }
 
 const _: () = {
@@ -225,19 +223,7 @@ export! {
         categories: *const fmi3String,
     ): fmi3SetDebugLoggingTYPE = |instance| {
         // SAFETY: FMI contract on `categories`.
-        let pointers = unsafe { slice(categories, nCategories) }
-            .ok_or_else(|| null_argument("categories", nCategories))?;
-        let mut names = Vec::with_capacity(pointers.len());
-        for &pointer in pointers {
-            if pointer.is_null() {
-                return Err(Failure::error("a category name is NULL"));
-            }
-            // SAFETY: non-null, NUL-terminated by the FMI contract.
-            let name = unsafe { CStr::from_ptr(pointer) }
-                .to_str()
-                .map_err(|_| Failure::error("a category name is not UTF-8"))?;
-            names.push(name);
-        }
+        let names = unsafe { abi::category_names(categories, nCategories) }?;
         instance.set_debug_logging(loggingOn, &names)
     };
 }
@@ -571,8 +557,7 @@ export! {
     /// # Safety
     /// `instance` is an instance.
     fn fmi3SetFMUState(instance, FMUState: fmi3FMUState): fmi3SetFMUStateTYPE = |instance| {
-        let saved = instance.issued_state(FMUState)?.clone();
-        instance.restore(&saved)
+        instance.restore_issued(FMUState)
     };
 }
 
@@ -626,31 +611,33 @@ export! {
     };
 }
 
-/// The arrays of fmi3GetDirectionalDerivative and fmi3GetAdjointDerivative, the references
-/// translated to the variable table's.
-struct DerivativeArrays<'a> {
-    unknowns: Vec<u32>,
-    knowns: Vec<u32>,
-    seed: &'a [f64],
-    sensitivity: &'a mut [f64],
+/// Which product a derivative function gives: J·seed (directional; the seed per known, the
+/// sensitivity per unknown) or Jᵀ·seed (adjoint; the other way round).
+#[derive(Clone, Copy, PartialEq)]
+enum Product {
+    Directional,
+    Adjoint,
 }
 
-/// The arrays of fmi3GetDirectionalDerivative and fmi3GetAdjointDerivative as slices, the
-/// references translated.
+/// The four arrays of a derivative function, their lengths checked for `product`, the
+/// references translated to the variable table's, and the product computed.
 ///
 /// # Safety
 /// FMI contract on the four arrays with their lengths.
-#[allow(clippy::too_many_arguments)]
-unsafe fn derivative_arrays<'a>(
-    unknowns: *const fmi3ValueReference,
-    n_unknowns: usize,
-    knowns: *const fmi3ValueReference,
-    n_knowns: usize,
-    seed: *const fmi3Float64,
-    n_seed: usize,
-    sensitivity: *mut fmi3Float64,
-    n_sensitivity: usize,
-) -> Result<DerivativeArrays<'a>, Failure> {
+unsafe fn derivative(
+    instance: &mut Instance,
+    product: Product,
+    (unknowns, n_unknowns): (*const fmi3ValueReference, usize),
+    (knowns, n_knowns): (*const fmi3ValueReference, usize),
+    (seed, n_seed): (*const fmi3Float64, usize),
+    (sensitivity, n_sensitivity): (*mut fmi3Float64, usize),
+) -> Outcome {
+    let (per_seed, per_sensitivity) = match product {
+        Product::Directional => (("nKnowns", n_knowns), ("nUnknowns", n_unknowns)),
+        Product::Adjoint => (("nUnknowns", n_unknowns), ("nKnowns", n_knowns)),
+    };
+    check_lengths("nSeed", n_seed, per_seed)?;
+    check_lengths("nSensitivity", n_sensitivity, per_sensitivity)?;
     // SAFETY: FMI contract on the arrays.
     let (u, k, s, d) = unsafe {
         (
@@ -664,15 +651,17 @@ unsafe fn derivative_arrays<'a>(
     let k = k.ok_or_else(|| null_argument("knowns", n_knowns))?;
     let s = s.ok_or_else(|| null_argument("seed", n_seed))?;
     let d = d.ok_or_else(|| null_argument("sensitivity", n_sensitivity))?;
-    Ok(DerivativeArrays {
-        unknowns: table_references(u, Accessor::Float64)?,
-        knowns: table_references(k, Accessor::Float64)?,
-        seed: s,
-        sensitivity: d,
-    })
+    let (u, k) = (
+        table_references(u, Accessor::Float64)?,
+        table_references(k, Accessor::Float64)?,
+    );
+    match product {
+        Product::Directional => instance.directional_derivative(&u, &k, s, d),
+        Product::Adjoint => instance.adjoint_derivative(&u, &k, s, d),
+    }
 }
 
-fn check_lengths(what: &str, n: usize, of: &str, expected: usize) -> Outcome {
+fn check_lengths(what: &str, n: usize, (of, expected): (&str, usize)) -> Outcome {
     if n != expected {
         return Err(Failure::error(format!(
             "{what} = {n} must equal {of} = {expected} (this FMU has no array variables)"
@@ -681,54 +670,38 @@ fn check_lengths(what: &str, n: usize, of: &str, expected: usize) -> Outcome {
     Ok(())
 }
 
-export! {
-    /// # Safety
-    /// `instance` is an instance; the arrays must hold the numbers of elements given.
-    fn fmi3GetDirectionalDerivative(
-        instance,
-        unknowns: *const fmi3ValueReference,
-        nUnknowns: usize,
-        knowns: *const fmi3ValueReference,
-        nKnowns: usize,
-        seed: *const fmi3Float64,
-        nSeed: usize,
-        sensitivity: *mut fmi3Float64,
-        nSensitivity: usize,
-    ): fmi3GetDirectionalDerivativeTYPE = |instance| {
-        check_lengths("nSeed", nSeed, "nKnowns", nKnowns)?;
-        check_lengths("nSensitivity", nSensitivity, "nUnknowns", nUnknowns)?;
-        // SAFETY: FMI contract on the arrays.
-        let a = unsafe {
-            derivative_arrays(
-                unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity,
-            )
-        }?;
-        instance.directional_derivative(&a.unknowns, &a.knowns, a.seed, a.sensitivity)
+/// fmi3GetDirectionalDerivative and fmi3GetAdjointDerivative: one signature, two products.
+macro_rules! derivative_function {
+    ($name:ident: $check:ident, $product:ident) => {
+        export! {
+            /// # Safety
+            /// `instance` is an instance; the arrays must hold the numbers of elements given.
+            fn $name(
+                instance,
+                unknowns: *const fmi3ValueReference,
+                nUnknowns: usize,
+                knowns: *const fmi3ValueReference,
+                nKnowns: usize,
+                seed: *const fmi3Float64,
+                nSeed: usize,
+                sensitivity: *mut fmi3Float64,
+                nSensitivity: usize,
+            ): $check = |instance| {
+                // SAFETY: FMI contract on the arrays.
+                unsafe {
+                    derivative(
+                        instance,
+                        Product::$product,
+                        (unknowns, nUnknowns),
+                        (knowns, nKnowns),
+                        (seed, nSeed),
+                        (sensitivity, nSensitivity),
+                    )
+                }
+            };
+        }
     };
 }
 
-export! {
-    /// # Safety
-    /// `instance` is an instance; the arrays must hold the numbers of elements given.
-    fn fmi3GetAdjointDerivative(
-        instance,
-        unknowns: *const fmi3ValueReference,
-        nUnknowns: usize,
-        knowns: *const fmi3ValueReference,
-        nKnowns: usize,
-        seed: *const fmi3Float64,
-        nSeed: usize,
-        sensitivity: *mut fmi3Float64,
-        nSensitivity: usize,
-    ): fmi3GetAdjointDerivativeTYPE = |instance| {
-        check_lengths("nSeed", nSeed, "nUnknowns", nUnknowns)?;
-        check_lengths("nSensitivity", nSensitivity, "nKnowns", nKnowns)?;
-        // SAFETY: FMI contract on the arrays.
-        let a = unsafe {
-            derivative_arrays(
-                unknowns, nUnknowns, knowns, nKnowns, seed, nSeed, sensitivity, nSensitivity,
-            )
-        }?;
-        instance.adjoint_derivative(&a.unknowns, &a.knowns, a.seed, a.sensitivity)
-    };
-}
+derivative_function!(fmi3GetDirectionalDerivative: fmi3GetDirectionalDerivativeTYPE, Directional);
+derivative_function!(fmi3GetAdjointDerivative: fmi3GetAdjointDerivativeTYPE, Adjoint);

@@ -133,10 +133,10 @@ fn check_value_count(nvr: usize, n_values: usize) -> Result<(), Failure> {
     Ok(())
 }
 
-/// A value-reference array and its values as slices, after the count check.
+/// A value-reference array as a slice.
 ///
 /// # Safety
-/// As [`crate::abi::slice`] for both arrays.
+/// As [`crate::abi::slice`].
 unsafe fn references<'a>(vr: *const u32, nvr: usize) -> Result<&'a [u32], Failure> {
     // SAFETY: guaranteed by the caller.
     unsafe { crate::abi::slice(vr, nvr) }.ok_or_else(|| null_argument("valueReferences", nvr))

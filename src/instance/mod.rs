@@ -882,6 +882,12 @@ impl Instance {
         Ok(())
     }
 
+    /// SetFMUState: the state behind `pointer`, which this instance issued, put back.
+    pub fn restore_issued(&mut self, pointer: *mut std::ffi::c_void) -> Outcome {
+        let saved = self.issued_state(pointer)?.clone();
+        self.restore(&saved)
+    }
+
     /// Hand out `saved` as a new FMU state pointer.
     pub fn issue_state(&mut self, saved: FmuState) -> *mut FmuState {
         self.issued_states.issue(saved)
