@@ -110,3 +110,86 @@ fn run_counting(parameters: &[(&str, f64)], h: f64) -> [bool; 4] {
     unsafe { fmi2FreeInstance(c) };
     used
 }
+
+/// FMI 3.0's step, input setter, Float64 and Int64 getters and output derivatives do not
+/// allocate either: its value references are translated without a buffer.
+#[test]
+fn fmi3_stepping_and_exchanging_values_does_not_allocate() {
+    use cyclic_mechanism::fmi3::model_description::{instantiation_token, reference};
+    use cyclic_mechanism::fmi3::*;
+    let token = std::ffi::CString::new(instantiation_token()).unwrap();
+    let null = std::ptr::null();
+    // SAFETY: valid strings for the call; no callbacks.
+    let c = unsafe {
+        fmi3InstantiateCoSimulation(
+            c"probe".as_ptr(),
+            token.as_ptr(),
+            null,
+            false,
+            false,
+            false,
+            false,
+            std::ptr::null(),
+            0,
+            std::ptr::null_mut(),
+            None,
+            None,
+        )
+    };
+    assert!(!c.is_null());
+    let outputs: Vec<u32> = variables()
+        .filter(|(_, v)| v.causality() == Causality::Output && v.var_type() == VarType::Real)
+        .map(|(r, _)| reference(r))
+        .chain([0])
+        .collect();
+    let mut read = vec![0.0; outputs.len()];
+    let (torque, active) = (reference(vr("M_m")), reference(vr("active_solver")));
+    let omega1 = [reference(vr("omega1")); 2];
+    let h = 1e-3;
+    // SAFETY: `c` is a live instance; every array holds the count given.
+    unsafe {
+        assert_eq!(
+            fmi3EnterInitializationMode(c, true, 1e-8, 0.0, false, 0.0),
+            0
+        );
+        assert_eq!(fmi3ExitInitializationMode(c), 0);
+        COUNTING.with(|c| c.set(true));
+        for k in 0..1999 {
+            let t = k as f64 * h;
+            let input = [0.5 * ((k / 10) as f64).sin()];
+            assert_eq!(fmi3SetFloat64(c, &torque, 1, input.as_ptr(), 1), 0);
+            let (mut event, mut stop, mut early, mut last) = (false, false, false, 0.0);
+            let s = fmi3DoStep(c, t, h, true, &mut event, &mut stop, &mut early, &mut last);
+            assert_eq!(s, 0);
+            let n = outputs.len();
+            assert_eq!(
+                fmi3GetFloat64(c, outputs.as_ptr(), n, read.as_mut_ptr(), n),
+                0
+            );
+            let mut method = [0i64];
+            assert_eq!(fmi3GetInt64(c, &active, 1, method.as_mut_ptr(), 1), 0);
+            let mut derivatives = [0.0; 2];
+            let orders = [1, 2];
+            let s = fmi3GetOutputDerivatives(
+                c,
+                omega1.as_ptr(),
+                2,
+                orders.as_ptr(),
+                derivatives.as_mut_ptr(),
+                2,
+            );
+            assert_eq!(s, 0);
+        }
+        COUNTING.with(|c| c.set(false));
+        fmi3FreeInstance(c);
+    }
+    assert!(
+        read.iter().all(|v| v.is_finite()) && read[0] > 1.0,
+        "the run moved: {read:?}"
+    );
+    assert_eq!(
+        ALLOCATIONS.load(Ordering::SeqCst),
+        0,
+        "allocations during 1999 steps"
+    );
+}

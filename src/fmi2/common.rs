@@ -224,7 +224,7 @@ macro_rules! setter {
                     // SAFETY: FMI contract on the arrays.
                     let values =
                         unsafe { slice(value, nvr) }.ok_or_else(|| null_argument("value", nvr))?;
-                    instance.set_values(vrs, values.iter().map(|v| $value(*v)))
+                    instance.set_values(vrs.iter().copied().zip(values.iter().map(|v| $value(*v))))
                 };
         }
     };

@@ -42,7 +42,7 @@ export! {
         let vrs = vrs.ok_or_else(|| null_argument("vr", nvr))?;
         let orders = orders.ok_or_else(|| null_argument("order", nvr))?;
         let values = values.ok_or_else(|| null_argument("value", nvr))?;
-        instance.get_output_derivatives(vrs, orders, values)
+        instance.get_output_derivatives(vrs.iter().copied(), orders, values)
     };
 }
 

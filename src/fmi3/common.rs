@@ -13,6 +13,7 @@ use super::{check_value_count, export, references, table_reference, table_refere
 use crate::abi::{self, null_argument, slice, slice_mut};
 use crate::instance::{Failure, Instance, Interface, Logger, Outcome, Status, Version};
 use crate::plant::Value;
+use crate::variables::VarType;
 
 /// The FMU state functions' argument names, for the messages.
 const STATE_NAMES: abi::StateNames = abi::StateNames {
@@ -299,9 +300,9 @@ export! {
 }
 
 /// A getter of FMI 3.0's Int32, Int64 (enumerations) or Boolean: the table's Integer or
-/// Boolean values, converted to the C type.
+/// Boolean values, each converted to the C type by `$to`.
 macro_rules! whole_getter {
-    ($name:ident: $check:ident, $ctype:ty, $accessor:ident, $read:ident) => {
+    ($name:ident: $check:ident, $ctype:ty, $accessor:ident, $read:ident, $to:expr) => {
         export! {
             /// # Safety
             /// `instance` is an instance; `valueReferences` and `values` must hold
@@ -320,51 +321,21 @@ macro_rules! whole_getter {
                 let values = unsafe { slice_mut(values, nValues) }
                     .ok_or_else(|| null_argument("values", nValues))?;
                 let table = table_references(vrs, Accessor::$accessor)?;
-                let mut read = vec![0; table.len()];
-                instance.$read(&table, &mut read)?;
-                for (value, whole) in values.iter_mut().zip(read) {
-                    *value = whole.try_into().unwrap_or_default();
-                }
-                Ok(())
+                instance.get_whole(table, VarType::$read, |i, v| values[i] = $to(v))
             };
         }
     };
 }
 
-whole_getter!(fmi3GetInt32: fmi3GetInt32TYPE, fmi3Int32, Int32, get_integer);
-whole_getter!(fmi3GetInt64: fmi3GetInt64TYPE, fmi3Int64, Int64, get_integer);
-
-export! {
-    /// # Safety
-    /// `instance` is an instance; `valueReferences` and `values` must hold
-    /// `nValueReferences` elements.
-    fn fmi3GetBoolean(
-        instance,
-        valueReferences: *const fmi3ValueReference,
-        nValueReferences: usize,
-        values: *mut fmi3Boolean,
-        nValues: usize,
-    ): fmi3GetBooleanTYPE = |instance| {
-        check_value_count(nValueReferences, nValues)?;
-        // SAFETY: FMI contract on the arrays.
-        let vrs = unsafe { references(valueReferences, nValueReferences) }?;
-        // SAFETY: FMI contract on the arrays.
-        let values = unsafe { slice_mut(values, nValues) }
-            .ok_or_else(|| null_argument("values", nValues))?;
-        let table = table_references(vrs, Accessor::Boolean)?;
-        let mut read = vec![0; table.len()];
-        instance.get_boolean(&table, &mut read)?;
-        for (value, whole) in values.iter_mut().zip(read) {
-            *value = whole != 0;
-        }
-        Ok(())
-    };
-}
+whole_getter!(fmi3GetInt32: fmi3GetInt32TYPE, fmi3Int32, Int32, Integer, |v| v);
+whole_getter!(fmi3GetInt64: fmi3GetInt64TYPE, fmi3Int64, Int64, Integer, i64::from);
+whole_getter!(fmi3GetBoolean: fmi3GetBooleanTYPE, fmi3Boolean, Boolean, Boolean, |v| v != 0);
 
 /// A setter of FMI 3.0's Float64, Int32, Int64 (enumerations) or Boolean: each C value
-/// becomes a [`Value`] through `$value`, which may refuse it.
+/// becomes a [`Value`] through `$value`, after `$admit` has checked it (every value and
+/// reference is checked before any is set).
 macro_rules! setter {
-    ($name:ident: $check:ident, $ctype:ty, $accessor:ident, $value:expr) => {
+    ($name:ident: $check:ident, $ctype:ty, $accessor:ident, $admit:expr, $value:expr) => {
         export! {
             /// # Safety
             /// `instance` is an instance; `valueReferences` and `values` must hold
@@ -383,25 +354,36 @@ macro_rules! setter {
                 let values = unsafe { slice(values, nValues) }
                     .ok_or_else(|| null_argument("values", nValues))?;
                 let table = table_references(vrs, Accessor::$accessor)?;
-                let converted = values
-                    .iter()
-                    .zip(vrs)
-                    .map(|(v, vr)| $value(*v, *vr))
-                    .collect::<Result<Vec<Value>, Failure>>()?;
-                instance.set_values(&table, converted.into_iter())
+                for (v, vr) in values.iter().zip(vrs) {
+                    $admit(*v, *vr)?;
+                }
+                instance.set_values(table.zip(values.iter().map(|v| $value(*v))))
             };
         }
     };
 }
 
-setter!(fmi3SetFloat64: fmi3SetFloat64TYPE, fmi3Float64, Float64, |v, _| Ok(Value::Real(v)));
-setter!(fmi3SetInt32: fmi3SetInt32TYPE, fmi3Int32, Int32, |v, _| Ok(Value::Integer(v)));
-setter!(fmi3SetInt64: fmi3SetInt64TYPE, fmi3Int64, Int64, |v: i64, vr| {
-    i32::try_from(v).map(Value::Integer).map_err(|_| {
-        Failure::error(format!("value reference {vr} = {v}: not an item of its enumeration"))
+/// Every value of the type is one a variable may take a value of.
+fn any<T>(_: T, _: u32) -> Outcome {
+    Ok(())
+}
+
+/// An enumeration's value: the FMU's items are small whole numbers.
+fn enumeration_item(v: i64, vr: u32) -> Outcome {
+    i32::try_from(v).map(drop).map_err(|_| {
+        Failure::error(format!(
+            "value reference {vr} = {v}: not an item of its enumeration"
+        ))
     })
+}
+
+setter!(fmi3SetFloat64: fmi3SetFloat64TYPE, fmi3Float64, Float64, any, Value::Real);
+setter!(fmi3SetInt32: fmi3SetInt32TYPE, fmi3Int32, Int32, any, Value::Integer);
+// Admitted by `enumeration_item` first, so the conversion keeps the value.
+setter!(fmi3SetInt64: fmi3SetInt64TYPE, fmi3Int64, Int64, enumeration_item, |v: i64| {
+    Value::Integer(v as i32)
 });
-setter!(fmi3SetBoolean: fmi3SetBooleanTYPE, fmi3Boolean, Boolean, |v, _| Ok(Value::Boolean(v)));
+setter!(fmi3SetBoolean: fmi3SetBooleanTYPE, fmi3Boolean, Boolean, any, Value::Boolean);
 
 /// An access of a type no variable of this FMU has: any value reference is unknown; an
 /// empty request succeeds.
@@ -651,10 +633,8 @@ unsafe fn derivative(
     let k = k.ok_or_else(|| null_argument("knowns", n_knowns))?;
     let s = s.ok_or_else(|| null_argument("seed", n_seed))?;
     let d = d.ok_or_else(|| null_argument("sensitivity", n_sensitivity))?;
-    let (u, k) = (
-        table_references(u, Accessor::Float64)?,
-        table_references(k, Accessor::Float64)?,
-    );
+    let u: Vec<u32> = table_references(u, Accessor::Float64)?.collect();
+    let k: Vec<u32> = table_references(k, Accessor::Float64)?.collect();
     match product {
         Product::Directional => instance.directional_derivative(&u, &k, s, d),
         Product::Adjoint => instance.adjoint_derivative(&u, &k, s, d),

@@ -33,8 +33,7 @@ export! {
             unsafe { (slice(orders, nValueReferences), slice_mut(values, nValues)) };
         let orders = orders.ok_or_else(|| null_argument("orders", nValueReferences))?;
         let values = values.ok_or_else(|| null_argument("values", nValues))?;
-        let table = table_references(vrs, Accessor::Float64)?;
-        instance.get_output_derivatives(&table, orders, values)
+        instance.get_output_derivatives(table_references(vrs, Accessor::Float64)?, orders, values)
     };
 }
 

@@ -106,19 +106,22 @@ pub fn table_reference(vr: u32, accessor: Accessor) -> Result<Option<u32>, Failu
     Ok(Some(table))
 }
 
-/// The table references of `vrs` for a setter or any function but a Float64 getter:
-/// `time` is refused.
-pub fn table_references(vrs: &[u32], accessor: Accessor) -> Result<Vec<u32>, Failure> {
-    vrs.iter()
-        .map(|&vr| {
-            table_reference(vr, accessor)?.ok_or_else(|| {
-                Failure::error(
-                    "time (value reference 0) is the independent variable: Model Exchange \
-                     sets it with fmi3SetTime, Co-Simulation advances it with fmi3DoStep",
-                )
-            })
-        })
-        .collect()
+/// The table references of `vrs` for a setter or any function but a Float64 getter, all
+/// checked before the first is given (`time` is refused), and given without a buffer.
+pub fn table_references(
+    vrs: &[u32],
+    accessor: Accessor,
+) -> Result<impl Iterator<Item = u32> + Clone + '_, Failure> {
+    for &vr in vrs {
+        if table_reference(vr, accessor)?.is_none() {
+            return Err(Failure::error(
+                "time (value reference 0) is the independent variable: Model Exchange sets it \
+                 with fmi3SetTime, Co-Simulation advances it with fmi3DoStep",
+            ));
+        }
+    }
+    // Checked above: none is 0.
+    Ok(vrs.iter().map(|vr| vr - 1))
 }
 
 /// FMI 3.0 passes the number of values beside the number of value references; with no

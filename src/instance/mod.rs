@@ -530,40 +530,47 @@ impl Instance {
     }
 
     pub fn get_integer(&mut self, vrs: &[u32], values: &mut [i32]) -> Outcome {
-        self.get_whole(vrs, values, VarType::Integer)
+        self.get_whole(vrs.iter().copied(), VarType::Integer, |i, v| values[i] = v)
     }
 
     pub fn get_boolean(&mut self, vrs: &[u32], values: &mut [i32]) -> Outcome {
-        self.get_whole(vrs, values, VarType::Boolean)
+        self.get_whole(vrs.iter().copied(), VarType::Boolean, |i, v| values[i] = v)
     }
 
-    /// Integer (and Enumeration) or Boolean values, which C passes alike (1 for true).
-    fn get_whole(&mut self, vrs: &[u32], values: &mut [i32], accessor: VarType) -> Outcome {
+    /// Integer (and Enumeration) or Boolean values, which C passes alike (1 for true): the
+    /// i-th of `vrs` handed to `put` as (i, value), so that each version writes its own C
+    /// type without a buffer.
+    pub fn get_whole(
+        &mut self,
+        vrs: impl Iterator<Item = u32>,
+        accessor: VarType,
+        mut put: impl FnMut(usize, i32),
+    ) -> Outcome {
         self.assemble_if_needed()?;
         let activity = self.current.activity();
-        for (vr, value) in vrs.iter().zip(values.iter_mut()) {
-            *value = match self.current.plant.read(*vr, accessor, &activity)? {
-                Value::Integer(v) => v,
-                Value::Boolean(v) => i32::from(v),
-                Value::Real(_) => unreachable!("read checks the accessor's type"),
-            };
+        for (i, vr) in vrs.enumerate() {
+            put(
+                i,
+                match self.current.plant.read(vr, accessor, &activity)? {
+                    Value::Integer(v) => v,
+                    Value::Boolean(v) => i32::from(v),
+                    Value::Real(_) => unreachable!("read checks the accessor's type"),
+                },
+            );
         }
         Ok(())
     }
 
-    /// Validate every value first, then apply: a rejected batch changes nothing.
-    pub fn set_values(
-        &mut self,
-        vrs: &[u32],
-        values: impl Iterator<Item = Value> + Clone,
-    ) -> Outcome {
+    /// Validate every (value reference, value) first, then apply: a rejected batch changes
+    /// nothing.
+    pub fn set_values(&mut self, values: impl Iterator<Item = (u32, Value)> + Clone) -> Outcome {
         let current = &mut self.current;
         let writable = current.state.parameters_writable();
-        for (vr, value) in vrs.iter().zip(values.clone()) {
-            current.plant.check_set(*vr, value, writable)?;
+        for (vr, value) in values.clone() {
+            current.plant.check_set(vr, value, writable)?;
         }
-        for (vr, value) in vrs.iter().zip(values) {
-            current.plant.set(*vr, value, writable)?;
+        for (vr, value) in values {
+            current.plant.set(vr, value, writable)?;
         }
         if current.state == State::InitializationMode {
             // The assembly, and the driver started on it, are stale: the next read makes
@@ -592,16 +599,16 @@ impl Instance {
 
     pub fn get_output_derivatives(
         &mut self,
-        vrs: &[u32],
+        vrs: impl Iterator<Item = u32>,
         orders: &[i32],
         values: &mut [f64],
     ) -> Outcome {
         self.assemble_if_needed()?;
         let plant = &self.current.plant;
-        for ((vr, order), value) in vrs.iter().zip(orders).zip(values.iter_mut()) {
-            *value = plant.output_derivative(*vr, *order)?;
+        for ((vr, order), value) in vrs.zip(orders).zip(values.iter_mut()) {
+            *value = plant.output_derivative(vr, *order)?;
             if !value.is_finite() {
-                let name = variable(*vr).map_or("?", |v| v.name);
+                let name = variable(vr).map_or("?", |v| v.name);
                 let what = format!("the output derivative of order {order} of {name}");
                 return Err(plant.not_finite(&what, *value).into());
             }
