@@ -52,6 +52,9 @@ pub(crate) fn guarded(
 }
 
 /// Whether `function` may be called on `instance` now: its interface, then its state.
+/// Inlined into each export, where `function` is a constant and both checks fold to a test
+/// of one mask; left to itself the compiler called it on every step and read.
+#[inline(always)]
 fn admitted(instance: &Instance, function: impl Entry) -> Outcome {
     if let Belongs::Only(interface) = function.belongs() {
         if interface != instance.interface() {

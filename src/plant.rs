@@ -424,8 +424,9 @@ impl Plant {
     /// A Real variable's value: the hot path of fmi2GetReal. φ and ω take one subtraction
     /// and one comparison, and need no check (`advance` keeps the state finite; inputs and
     /// parameters are checked when set). The computed outputs are checked: none leaves the
-    /// FMU non-finite.
-    #[inline]
+    /// FMU non-finite. Inlined into both versions' getters: with two callers the compiler
+    /// kept it out of line, a call per value read.
+    #[inline(always)]
     pub fn read_real(&self, vr: u32) -> Result<f64, AccessError> {
         if let Some(y) = self.state.get(vr.wrapping_sub(FIRST_STATE_VR) as usize) {
             return Ok(*y);
