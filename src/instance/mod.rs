@@ -624,34 +624,72 @@ impl Instance {
     pub fn do_step_fmi3(&mut self, current: f64, step: f64) -> Result<StepEnd, Failure> {
         let now = self.current.plant.time();
         let target = self.step_target(now, current, step)?;
-        let mut end = StepEnd::Complete;
+        // The common case, a step that neither starts at nor meets a change point, as
+        // fmi2DoStep's.
+        let mut met = StepEnd::Complete;
+        if !self.cosimulation()?.1.crossing_pending() {
+            match self.advance_to(target)? {
+                Ok(()) => return Ok(StepEnd::Complete),
+                Err(error) => match self.after_failure(now, target, error)? {
+                    Some(end) => return Ok(end),
+                    None => met = StepEnd::CompleteAfterEvent,
+                },
+            }
+        }
+        self.step_across_change_points(now, target, met)
+    }
+
+    /// A step that failed from `start` towards `target`: `None` where it stopped before a
+    /// change point and is to cross it at once (event mode without early return);
+    /// otherwise how it ends.
+    #[cold]
+    fn after_failure(
+        &mut self,
+        start: f64,
+        target: f64,
+        error: SolverError,
+    ) -> Result<Option<StepEnd>, Failure> {
+        let Some(located) = self.locate_change_point(start, target) else {
+            return Err(self.step_failed(start, target, error));
+        };
+        if !self.event_mode_used {
+            self.current.state = State::StepDiscarded;
+            return Err(Failure::discard(format!(
+                "step from t = {start} to {target} stopped at t = {located}, just before a \
+                 change point ({error}); without event mode the FMU does not choose a branch: \
+                 instantiate with eventModeUsed = true to go on (docs/model.md §7)"
+            )));
+        }
+        self.cosimulation()?.1.expect_crossing();
+        self.log_change_point(located);
+        Ok(self
+            .early_return_allowed
+            .then_some(StepEnd::ChangePointEvent))
+    }
+
+    /// The rest of a step that starts at a change point, or stopped before one, to
+    /// `target`: each crossed, then on, until the step's end or an early return. `met` says
+    /// whether the step has met a change point of its own so far (one it started at was
+    /// the previous step's event).
+    #[cold]
+    fn step_across_change_points(
+        &mut self,
+        now: f64,
+        target: f64,
+        mut met: StepEnd,
+    ) -> Result<StepEnd, Failure> {
         for _ in 0..MAX_CROSSINGS_PER_STEP {
-            self.cross_if_pending(target)?;
-            let warned = self.warned_stability;
-            let (plant, driver, experiment) = self.cosimulation()?;
-            let start = plant.time();
-            let Err(error) = isa::advance(driver, plant, target, experiment) else {
-                let stability_limited = !warned && driver.dop853_is_stability_limited();
-                self.report_step(target, stability_limited);
+            if self.cosimulation()?.1.crossing_pending() {
+                self.cross(target)?;
+            }
+            let start = self.current.plant.time();
+            let Err(error) = self.advance_to(target)? else {
+                return Ok(met);
+            };
+            if let Some(end) = self.after_failure(start, target, error)? {
                 return Ok(end);
-            };
-            let Some(located) = self.locate_change_point(start, target) else {
-                return Err(self.step_failed(start, target, error));
-            };
-            if !self.event_mode_used {
-                self.current.state = State::StepDiscarded;
-                return Err(Failure::discard(format!(
-                    "step from t = {start} to {target} stopped at t = {located}, just before a \
-                     change point ({error}); without event mode the FMU does not choose a \
-                     branch: instantiate with eventModeUsed = true to go on (docs/model.md §7)"
-                )));
             }
-            self.cosimulation()?.1.expect_crossing();
-            self.log_change_point(located);
-            if self.early_return_allowed {
-                return Ok(StepEnd::ChangePointEvent);
-            }
-            end = StepEnd::CompleteAfterEvent;
+            met = StepEnd::CompleteAfterEvent;
         }
         self.current.state = State::StepDiscarded;
         Err(Failure::discard(format!(
@@ -675,14 +713,12 @@ impl Instance {
         Ok((plant, driver, experiment))
     }
 
-    /// Cross the change point a step returned early before, if any, within a step to
-    /// `target`. A crossing that cannot be made is a Discard; one longer than the step is
-    /// refused with the length it needs.
-    fn cross_if_pending(&mut self, target: f64) -> Outcome {
+    /// Cross the change point a step returned early before, within a step to `target`. A
+    /// crossing that cannot be made is a Discard; one longer than the step is refused with
+    /// the length it needs.
+    #[cold]
+    fn cross(&mut self, target: f64) -> Outcome {
         let (plant, driver, _) = self.cosimulation()?;
-        if !driver.crossing_pending() {
-            return Ok(());
-        }
         let start = plant.time();
         let crossing = match driver.plan_crossing(plant) {
             Ok(crossing) => crossing,
@@ -766,14 +802,25 @@ impl Instance {
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
         let now = self.current.plant.time();
         let target = self.step_target(now, current, step)?;
+        if let Err(error) = self.advance_to(target)? {
+            return Err(self.step_failed(now, target, error));
+        }
+        Ok(())
+    }
+
+    /// The plant advanced to `target` by the co-simulation driver and the step reported;
+    /// the outer error when there is no driver yet, the inner the solver's (the plant then
+    /// stays where it was).
+    #[inline(always)]
+    fn advance_to(&mut self, target: f64) -> Result<Result<(), SolverError>, Failure> {
         let warned = self.warned_stability;
         let (plant, driver, experiment) = self.cosimulation()?;
         if let Err(error) = isa::advance(driver, plant, target, experiment) {
-            return Err(self.step_failed(now, target, error));
+            return Ok(Err(error));
         }
         let stability_limited = !warned && driver.dop853_is_stability_limited();
         self.report_step(target, stability_limited);
-        Ok(())
+        Ok(Ok(()))
     }
 
     /// The step's end, once its arguments are checked against the FMU's time `now` and the
