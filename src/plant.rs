@@ -252,8 +252,9 @@ impl Plant {
         self.changed = true;
     }
 
-    /// A driver's new point after crossing a change point (docs/model.md §7): `state` is
-    /// on the constraint, and the loop angle whose chart is regular there leads.
+    /// A new point that no integrator step led to (the initial state, the end of a crossing
+    /// of a change point, docs/model.md §7): `state` is on the constraint, and the loop angle
+    /// whose chart is regular there leads.
     pub fn jump(&mut self, time: f64, state: State) {
         self.time = time;
         self.state = state;
@@ -266,13 +267,8 @@ impl Plant {
 
     /// The consistent initial state at `start_time` (docs/model.md §3).
     pub fn initialize(&mut self, start_time: f64) -> Result<(), ModelError> {
-        self.state = model::initial_state(&self.params)?;
-        self.residual = model::length_residual(&self.params, self.state[1], self.state[2]);
-        let (_, b1, c1) =
-            model::kinematics::closure_with_gradient(&self.params, self.state[1], self.state[2]);
-        self.chart = preferred_chart(&self.params, b1, c1);
-        self.time = start_time;
-        self.changed = true;
+        let state = model::initial_state(&self.params)?;
+        self.jump(start_time, state);
         Ok(())
     }
 

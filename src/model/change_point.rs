@@ -108,9 +108,10 @@ pub fn cross(
         };
         [d[0] * sign, d[1] * sign]
     };
-    let (arriving, chosen) = match branch {
-        Branch::Straight => (forward(arriving), forward(arriving)),
-        Branch::Turn => (forward(arriving), forward(other)),
+    let arriving = forward(arriving);
+    let chosen = match branch {
+        Branch::Straight => arriving,
+        Branch::Turn => forward(other),
     };
     let offset = [node.0 - y[1], node.1 - y[2]];
     let distance = offset[0].hypot(offset[1]);

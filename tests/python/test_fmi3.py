@@ -215,7 +215,7 @@ def test_the_run_after_the_event_agrees_across_tolerances(unzipped3, model_descr
     singular there: at rtol 1e-10 it turns back, at 1e-12 it takes the other branch), so
     the straight run is compared with itself at tolerance 1e-12, 1 s after the event. Where
     each run stops before the change point varies with the tolerance (by up to 4e-5 s, so
-    the crossings start 2.5e-4 to 4.3e-4 rad before it); the runs still agree after it to
+    the crossings start 2.9e-4 to 4.3e-4 rad before it); the runs still agree after it to
     about 1e-8: the crossing does not depend on where it starts, to that order."""
     results = {}
     for tolerance in (1e-8, 1e-10, 1e-12):

@@ -19,6 +19,8 @@ from ctypes import (CFUNCTYPE, POINTER, byref, c_bool, c_char, c_char_p, c_doubl
 
 import pytest
 
+from test_conformance import matrix
+
 OK, DISCARD, ERROR = 0, 2, 3
 LOG = CFUNCTYPE(None, c_void_p, c_uint, c_char_p, c_char_p)
 N_STATES = 6
@@ -181,15 +183,6 @@ UNDECLARED = {
 
 # A motor law with positive feedback: ω1 runs away within about 0.05 s, and a step fails.
 RUNAWAY = {"Mm_a2": 1.0, "omega1_0": 10.0}
-
-
-def matrix(table, columns):
-    cells = {}
-    for line in table.strip().splitlines():
-        name, *marks = line.split()
-        assert len(marks) == len(columns), line
-        cells[name] = {column for column, mark in zip(columns, marks) if mark == "x"}
-    return cells
 
 
 class Probe:
