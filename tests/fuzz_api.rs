@@ -1,17 +1,22 @@
 //! Random FMI call sequences with random, often invalid, arguments through the exported C
 //! functions of both interfaces (every other sequence is a Model Exchange instance, which
 //! also gets the Co-Simulation calls, and the reverse): never a crash, never fmi2Fatal (a caught panic, i.e. a bug),
-//! only documented statuses, and finite values whenever a read succeeds. Deterministic
-//! (a fixed seed), and run under valgrind memcheck by `cargo xtask test`.
+//! only documented statuses, finite values whenever a read succeeds, no step from a
+//! communication point other than the FMU's time, and no step doing more work than one
+//! call may (the longest is reported). Deterministic (a fixed seed), and run under
+//! valgrind memcheck by `cargo xtask test` (without the steps that spend a whole call's
+//! work).
 
 use std::collections::BTreeMap;
 use std::ffi::c_char;
 use std::ptr::{null, null_mut};
+use std::time::{Duration, Instant};
 
 mod common;
 
-use common::Rng;
+use common::{long_steps, Rng, RUNAWAY};
 
+use cyclic_mechanism::drivers::cosimulation::CALL_WORK;
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::instance::{FmuState, State, Version};
 use cyclic_mechanism::snapshot::fnv1a_64;
@@ -37,6 +42,11 @@ struct Fuzz {
     calls: u64,
     /// Exact round trips checked, by the code of the FMI state they were taken in.
     round_trips: BTreeMap<u8, u64>,
+    /// Whether steps that spend a whole call's work are tried.
+    long_steps: bool,
+    longest: (Duration, String),
+    /// Oracles broken: how often, and the first instance.
+    violations: BTreeMap<&'static str, (u64, String)>,
 }
 
 /// The serialized state's header; the interface's byte follows it, then the version's,
@@ -72,6 +82,19 @@ impl Fuzz {
             "{what} returned status {status} (never fmi2Fatal or undocumented)"
         );
         status
+    }
+
+    /// An oracle broken: counted, with its first instance, and failed at the end.
+    fn violated(&mut self, rule: &'static str, detail: String) {
+        self.violations.entry(rule).or_insert((0, detail)).0 += 1;
+    }
+
+    /// The right-hand sides counted so far, if the FMU reads them out now.
+    unsafe fn work(&mut self) -> Option<i64> {
+        let vr = [cyclic_mechanism::variables::value_reference("n_rhs").expect("n_rhs")];
+        let mut n = [0];
+        let s = unsafe { fmi2GetInteger(self.c, vr.as_ptr(), 1, n.as_mut_ptr()) };
+        (s == fmi2Status_fmi2OK).then_some(i64::from(n[0]))
     }
 
     fn arrays(&mut self) -> (Vec<u32>, usize) {
@@ -118,11 +141,32 @@ impl Fuzz {
                         2 => 1e-9,
                         // Legal steps shorter than the integrator resolves.
                         3 => [1e-300, 1e-20, 1e-15, 8.88e-16][r.below(4) as usize],
+                        // Now and then a step longer than one call's work.
+                        4 if self.long_steps && r.chance(5) => {
+                            [1e6, 1e12, 1e300][r.below(3) as usize]
+                        }
                         _ => 0.01,
                     };
                     let t = if r.chance(85) { self.time } else { r.real() };
+                    let work_before = self.work();
+                    let start = Instant::now();
                     let s = fmi2DoStep(c, t, h, 1);
+                    let took = start.elapsed();
+                    let what = format!("fmi2DoStep({t:e}, {h:e})");
+                    if took > self.longest.0 {
+                        self.longest = (took, what.clone());
+                    }
+                    if let (Some(a), Some(b)) = (work_before, self.work()) {
+                        if b - a > CALL_WORK as i64 + 1000 {
+                            let detail = format!("{what}: {} right-hand sides", b - a);
+                            self.violated("no call does more work than one call may", detail);
+                        }
+                    }
                     if self.check(s, "fmi2DoStep") == fmi2Status_fmi2OK {
+                        if (t - self.time).abs() > 1e-12 * t.abs().max(self.time.abs()) {
+                            let detail = format!("{what} accepted at the FMU's time {}", self.time);
+                            self.violated("a step starts at the FMU's time", detail);
+                        }
                         self.time = t + h;
                     }
                 }
@@ -544,6 +588,8 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
     let mut rng = Rng(0x9E3779B97F4A7C15);
     let mut total_calls = 0;
     let mut round_trips = BTreeMap::new();
+    let mut longest = (Duration::ZERO, String::new());
+    let mut violations: BTreeMap<&str, (u64, String)> = BTreeMap::new();
     for sequence in 0..sequences {
         let kind = if sequence % 2 == 0 {
             fmi2Type_fmi2CoSimulation
@@ -559,6 +605,9 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
             states: Vec::new(),
             calls: 0,
             round_trips: BTreeMap::new(),
+            long_steps: long_steps(),
+            longest: (Duration::ZERO, String::new()),
+            violations: BTreeMap::new(),
         };
         let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             for _ in 0..40 {
@@ -578,12 +627,31 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
             unsafe { fmi2FreeFMUstate(c, &mut state) };
         }
         total_calls += fuzz.calls;
+        if fuzz.longest.0 > longest.0 {
+            longest = (
+                fuzz.longest.0,
+                format!("sequence {sequence}: {}", fuzz.longest.1),
+            );
+        }
+        for (rule, (n, first)) in std::mem::take(&mut fuzz.violations) {
+            let entry = violations
+                .entry(rule)
+                .or_insert((0, format!("sequence {sequence}: {first}")));
+            entry.0 += n;
+        }
         for (state, n) in &fuzz.round_trips {
             *round_trips.entry(*state).or_insert(0u64) += n;
         }
         unsafe { fmi2FreeInstance(c) };
     }
-    eprintln!("fuzzed {sequences} sequences, {total_calls} calls");
+    eprintln!(
+        "fuzzed {sequences} sequences, {total_calls} calls; longest call {:.3} s ({})",
+        longest.0.as_secs_f64(),
+        longest.1
+    );
+    for (rule, (n, first)) in &violations {
+        eprintln!("broken {n} times: {rule}; first: {first}");
+    }
     eprintln!("exact round trips by FMI state code: {round_trips:?}");
     // `cargo xtask test` asks for the counts in its reports, which the docs quote.
     if let Some(report) = std::env::var_os("FUZZ_REPORT") {
@@ -596,11 +664,67 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
             .collect();
         let json = format!(
             "{{\"sequences\": {sequences}, \"calls\": {total_calls}, \
-             \"round_trips_by_state\": {{{}}}}}\n",
-            states.join(", ")
+             \"round_trips_by_state\": {{{}}}, \"longest_call_s\": {:.3}, \"broken\": {}}}\n",
+            states.join(", "),
+            longest.0.as_secs_f64(),
+            violations.values().map(|(n, _)| n).sum::<u64>()
         );
         std::fs::write(&report, json).expect("the fuzzer's report is writable");
     }
+    assert!(violations.is_empty(), "oracles broken: {violations:?}");
     assert!(total_calls > sequences * 30);
     assert!(!round_trips.is_empty(), "no round trip was checked");
+    common::assert_no_runaway(&longest);
+}
+
+/// A step longer than one call's work ends with Discard within that work, the FMU kept at
+/// its last communication point, which fmi2LastSuccessfulTime reports ("the end time of
+/// the last successfully completed communication step"); a step from another time than
+/// the FMU's is refused, however long.
+#[test]
+fn no_step_runs_away() {
+    if !long_steps() {
+        eprintln!("skipped: FUZZ_LONG_STEPS=0");
+        return;
+    }
+    let inputs = [
+        cyclic_mechanism::variables::value_reference("M_m").expect("M_m"),
+        cyclic_mechanism::variables::value_reference("M_r").expect("M_r"),
+    ];
+    for (name, h, torques) in [
+        ("paper case 1", 1e300, [0.0, 0.0]),
+        ("driven hard", 1e6, [17.0, -27.0]),
+    ] {
+        let c = common::instantiate(c"long");
+        common::initialise(c, 1e-8, None, &[]);
+        unsafe {
+            assert_eq!(fmi2DoStep(c, 0.0, 0.102, 1), fmi2Status_fmi2OK);
+            assert_eq!(
+                fmi2SetReal(c, inputs.as_ptr(), 2, torques.as_ptr()),
+                fmi2Status_fmi2OK
+            );
+            // The wrong communication point is refused before any work, however long the
+            // step.
+            assert_eq!(
+                fmi2DoStep(c, -0.001, 1e12, 1),
+                fmi2Status_fmi2Error,
+                "{name}"
+            );
+            let start = Instant::now();
+            let status = fmi2DoStep(c, 0.102, h, 1);
+            let took = start.elapsed();
+            let mut reached = f64::NAN;
+            let kind = fmi2StatusKind_fmi2LastSuccessfulTime;
+            assert_eq!(fmi2GetRealStatus(c, kind, &mut reached), fmi2Status_fmi2OK);
+            eprintln!(
+                "{name}: fmi2DoStep(0.102, {h:e}) -> status {status}, last successful time \
+                 {reached}, {:.3} s",
+                took.as_secs_f64()
+            );
+            assert_eq!(status, fmi2Status_fmi2Discard, "{name}");
+            assert_eq!(reached, 0.102, "{name}");
+            assert!(took < RUNAWAY, "{name}: {took:?}");
+            fmi2FreeInstance(c);
+        }
+    }
 }

@@ -3,16 +3,22 @@
 //! return, Model Exchange; each also gets the other's calls), over geometries with change
 //! points among others: never a crash, never fmi3Fatal (a caught panic, i.e. a bug), only
 //! documented statuses, finite values whenever a read succeeds, a step's flags consistent
-//! with its end, and exact FMU state round trips. Deterministic (a fixed seed), and run
-//! under valgrind memcheck by `cargo xtask test`.
+//! with its end, exact FMU state round trips, a Discarded step leaving the FMU as it was
+//! and in Step Mode, no call of the logger with logging off or in a category switched off,
+//! every `#` of a message escaped, and no call doing more work than one call may (the
+//! longest call is reported). Deterministic (a fixed seed), and run under valgrind
+//! memcheck by `cargo xtask test` (without the steps that spend a whole call's work).
 
-use std::ffi::CString;
+use std::cell::RefCell;
+use std::ffi::{c_char, c_void, CStr, CString};
 use std::ptr::{null, null_mut};
+use std::time::{Duration, Instant};
 
 mod common;
 
-use common::Rng;
+use common::{long_steps, Rng, RUNAWAY};
 
+use cyclic_mechanism::drivers::cosimulation::CALL_WORK;
 use cyclic_mechanism::fmi3::model_description::{instantiation_token, reference};
 use cyclic_mechanism::fmi3::*;
 use cyclic_mechanism::variables::{count, value_reference};
@@ -42,21 +48,127 @@ fn documented(status: fmi3Status) -> bool {
     .contains(&status)
 }
 
+/// The FMU's log categories, in the order of its model description.
+const CATEGORIES: [&str; 6] = [
+    "logStatusWarning",
+    "logStatusDiscard",
+    "logStatusError",
+    "logStatusFatal",
+    "logCalls",
+    "logSolver",
+];
+
+/// What the logger saw, and which categories the master has enabled, by FMI 3.0's rules:
+/// all as `loggingOn` at instantiation, then as fmi3SetDebugLogging sets them.
+struct Log {
+    enabled: [bool; 6],
+    messages: u64,
+    /// The last message of status Discard or worse.
+    last_problem: String,
+    /// Messages that broke a rule: the rule, and the message.
+    broken: Vec<(&'static str, String)>,
+}
+
+unsafe extern "C" fn log_message(
+    environment: *mut c_void,
+    status: fmi3Status,
+    category: *const c_char,
+    message: *const c_char,
+) {
+    // SAFETY: the environment is the fuzzer's `Log`; the strings are the FMU's, valid for
+    // the call.
+    let (log, category, message) = unsafe {
+        (
+            &*(environment as *const RefCell<Log>),
+            CStr::from_ptr(category).to_string_lossy().into_owned(),
+            CStr::from_ptr(message).to_string_lossy().into_owned(),
+        )
+    };
+    let mut log = log.borrow_mut();
+    log.messages += 1;
+    if status >= fmi3Status_fmi3Discard {
+        log.last_problem = message.clone();
+    }
+    let enabled = CATEGORIES
+        .iter()
+        .position(|c| *c == category)
+        .is_some_and(|i| log.enabled[i]);
+    if !enabled {
+        let rule = "no log call with logging off or in a category switched off";
+        log.broken.push((rule, format!("[{category}] {message}")));
+    }
+    if message.replace("##", "").contains('#') {
+        log.broken.push(("every # of a message escaped", message));
+    }
+}
+
 struct Fuzz {
     rng: Rng,
     c: fmi3Instance,
+    log: Box<RefCell<Log>>,
+    event_mode: bool,
+    /// Whether steps that spend a whole call's work are tried.
+    long_steps: bool,
+    longest: (Duration, String),
+    violations: std::collections::BTreeMap<&'static str, (u64, String)>,
     time: f64,
     states: Vec<fmi3FMUState>,
     calls: u64,
     round_trips: u64,
     early_returns: u64,
+    discarded: u64,
 }
 
 impl Fuzz {
     fn check(&mut self, status: fmi3Status, what: &str) -> fmi3Status {
         self.calls += 1;
         assert!(documented(status), "{what} returned status {status}");
+        self.judge_log(what);
         status
+    }
+
+    /// The messages logged since the last judgement, against the logging rules.
+    fn judge_log(&mut self, what: &str) {
+        let broken = std::mem::take(&mut self.log.borrow_mut().broken);
+        for (rule, message) in broken {
+            self.violated(rule, format!("after {what}: {message}"));
+        }
+    }
+
+    /// An oracle broken: counted, with its first instance, and failed at the end.
+    fn violated(&mut self, rule: &'static str, detail: String) {
+        let entry = self.violations.entry(rule).or_insert((0, detail));
+        entry.0 += 1;
+    }
+
+    /// Time a call, keeping the longest.
+    fn timed<T>(&mut self, what: &str, call: impl FnOnce() -> T) -> T {
+        let start = Instant::now();
+        let result = call();
+        let took = start.elapsed();
+        if took > self.longest.0 {
+            self.longest = (took, what.to_string());
+        }
+        result
+    }
+
+    /// Every Float64 value the FMU reads out now (time, states, outputs), `None` where a
+    /// read is refused.
+    unsafe fn values(&mut self) -> Vec<Option<u64>> {
+        (0..=count() as u32)
+            .map(|vr| {
+                let mut v = [0.0];
+                let s = unsafe { fmi3GetFloat64(self.c, [vr].as_ptr(), 1, v.as_mut_ptr(), 1) };
+                (s == fmi3Status_fmi3OK).then_some(v[0].to_bits())
+            })
+            .collect()
+    }
+
+    /// The right-hand sides counted so far, if the FMU reads them out now.
+    unsafe fn work(&mut self) -> Option<i64> {
+        let mut n = [0i32];
+        let s = unsafe { fmi3GetInt32(self.c, [vr3("n_rhs")].as_ptr(), 1, n.as_mut_ptr(), 1) };
+        (s == fmi3Status_fmi3OK).then_some(i64::from(n[0]))
     }
 
     fn references(&mut self) -> Vec<u32> {
@@ -275,9 +387,28 @@ impl Fuzz {
                     }
                 }
                 22 => {
-                    let names = [c"logSolver".as_ptr(), c"nonsense".as_ptr()];
-                    let n = self.rng.below(3) as usize;
-                    let s = fmi3SetDebugLogging(c, self.rng.chance(50), n, names.as_ptr());
+                    let names = [
+                        c"logSolver".as_ptr(),
+                        c"logStatusError".as_ptr(),
+                        c"non#sense#".as_ptr(),
+                    ];
+                    let n = self.rng.below(4) as usize;
+                    let first = self.rng.below(3) as usize;
+                    let names = &names[first.min(3 - n)..];
+                    let on = self.rng.chance(50);
+                    let s = fmi3SetDebugLogging(c, on, n, names.as_ptr());
+                    if s == fmi3Status_fmi3OK {
+                        let listed: Vec<String> = names[..n]
+                            .iter()
+                            .map(|p| CStr::from_ptr(*p).to_string_lossy().into_owned())
+                            .collect();
+                        let mut log = self.log.borrow_mut();
+                        for (category, enabled) in CATEGORIES.iter().zip(&mut log.enabled) {
+                            if n == 0 || listed.iter().any(|l| l == category) {
+                                *enabled = on;
+                            }
+                        }
+                    }
                     self.check(s, "fmi3SetDebugLogging");
                 }
                 _ => {
@@ -289,10 +420,17 @@ impl Fuzz {
     }
 
     /// A step of a random length from the FMU's time (or a wrong one); its flags must agree
-    /// with where it ended, and with event handling needed the master handles it.
+    /// with where it ended, a Discard must leave the FMU as it was and in Step Mode, and
+    /// no step may do more work than one call may. With event handling needed the master
+    /// handles it.
     unsafe fn step(&mut self) {
         let c = self.c;
-        let h = [1e-3, 0.01, 0.1, 0.5, 2.0, -1.0, f64::NAN][self.rng.below(7) as usize];
+        let lengths = [1e-3, 0.01, 0.1, 0.5, 2.0, -1.0, f64::NAN, 1e6, 1e300];
+        let kinds = if self.long_steps { 9 } else { 7 };
+        let mut h = lengths[self.rng.below(kinds) as usize];
+        if h > 2.0 && !self.rng.chance(10) {
+            h = 0.1;
+        }
         let from = if self.rng.chance(90) {
             self.time
         } else {
@@ -300,19 +438,27 @@ impl Fuzz {
         };
         let (mut event, mut stop, mut early, mut last) = (false, false, false, f64::NAN);
         unsafe {
-            let s = fmi3DoStep(
-                c, from, h, true, &mut event, &mut stop, &mut early, &mut last,
-            );
+            let (before, work_before) = (self.values(), self.work());
+            let s = self.timed(&format!("fmi3DoStep({from}, {h})"), || {
+                fmi3DoStep(
+                    c, from, h, true, &mut event, &mut stop, &mut early, &mut last,
+                )
+            });
             let status = self.check(s, "fmi3DoStep");
+            if let (Some(a), Some(b)) = (work_before, self.work()) {
+                if b - a > CALL_WORK as i64 + 1000 {
+                    let detail = format!("fmi3DoStep({from}, {h}): {} right-hand sides", b - a);
+                    self.violated("no call does more work than one call may", detail);
+                }
+            }
             if status == fmi3Status_fmi3OK {
                 assert!(!stop);
                 assert!(last.is_finite());
                 if early {
-                    assert!(
-                        event && last < from + h,
-                        "early at {last}, step {from} + {h}"
-                    );
-                    self.early_returns += 1;
+                    assert!(last < from + h, "early at {last}, step {from} + {h}");
+                    if event {
+                        self.early_returns += 1;
+                    }
                 } else {
                     assert!((last - (from + h)).abs() <= 1e-9 * (1.0 + last.abs()));
                 }
@@ -334,8 +480,38 @@ impl Fuzz {
                     );
                     self.check(fmi3EnterStepMode(c), "fmi3EnterStepMode");
                 }
-            } else if status == fmi3Status_fmi3Discard && last.is_finite() {
-                self.time = last;
+            } else if status == fmi3Status_fmi3Discard {
+                self.discarded += 1;
+                // "fmi3Discard: the call was not successful and the FMU is in the same state
+                // as before the call": the same values, and Step Mode's calls allowed.
+                let same = "a Discard leaves the FMU as before the call";
+                if self.values() != before {
+                    self.violated(same, format!("fmi3DoStep({from}, {h}) moved the values"));
+                }
+                let time_before = before[0].map(f64::from_bits);
+                if Some(last) != time_before {
+                    let detail = format!("fmi3DoStep({from}, {h}): lastSuccessfulTime {last}");
+                    self.violated(same, detail);
+                }
+                let legal = "Step Mode's calls allowed after a Discard";
+                let input = [vr3("M_m")];
+                let mut value = [0.0];
+                fmi3GetFloat64(c, input.as_ptr(), 1, value.as_mut_ptr(), 1);
+                if fmi3SetFloat64(c, input.as_ptr(), 1, value.as_ptr(), 1) != fmi3Status_fmi3OK {
+                    self.violated(
+                        legal,
+                        format!("fmi3SetFloat64 after fmi3DoStep({from}, {h})"),
+                    );
+                }
+                if self.event_mode {
+                    if fmi3EnterEventMode(c) == fmi3Status_fmi3OK {
+                        self.check(fmi3EnterStepMode(c), "fmi3EnterStepMode");
+                    } else {
+                        let detail = format!("fmi3EnterEventMode after fmi3DoStep({from}, {h})");
+                        self.violated(legal, detail);
+                    }
+                }
+                self.judge_log("the calls after a Discard");
             }
         }
     }
@@ -435,10 +611,17 @@ unsafe fn serialized(c: fmi3Instance, state: fmi3FMUState) -> Vec<u8> {
 }
 
 /// A fresh instance of kind `kind` (0: Model Exchange; 1: Co-Simulation; 2: with event
-/// mode; 3: with event mode and early return), its geometry a change-point one or not.
-unsafe fn instantiate(kind: u64, change_point: bool) -> fmi3Instance {
+/// mode; 3: with event mode and early return), its geometry a change-point one or not, its
+/// messages going to `log`; `#` in its name, which no message may leave unescaped.
+unsafe fn instantiate(
+    kind: u64,
+    change_point: bool,
+    logging_on: bool,
+    log: &RefCell<Log>,
+) -> fmi3Instance {
     let token = CString::new(instantiation_token()).expect("no NUL");
-    let name = c"fuzz3";
+    let name = c"fuzz#3#";
+    let environment = log as *const RefCell<Log> as *mut c_void;
     let c = unsafe {
         if kind == 0 {
             fmi3InstantiateModelExchange(
@@ -446,9 +629,9 @@ unsafe fn instantiate(kind: u64, change_point: bool) -> fmi3Instance {
                 token.as_ptr(),
                 null(),
                 false,
-                false,
-                null_mut(),
-                None,
+                logging_on,
+                environment,
+                Some(log_message),
             )
         } else {
             fmi3InstantiateCoSimulation(
@@ -456,13 +639,13 @@ unsafe fn instantiate(kind: u64, change_point: bool) -> fmi3Instance {
                 token.as_ptr(),
                 null(),
                 false,
-                false,
+                logging_on,
                 kind >= 2,
                 kind == 3,
                 null(),
                 0,
-                null_mut(),
-                None,
+                environment,
+                Some(log_message),
                 None,
             )
         }
@@ -493,17 +676,34 @@ fn random_fmi3_call_sequences_never_crash_and_return_only_documented_statuses() 
         .and_then(|s| s.parse().ok())
         .unwrap_or(3000u64);
     let mut rng = Rng(0xD1B54A32D192ED03);
-    let (mut calls, mut round_trips, mut early_returns) = (0, 0, 0);
+    let (mut calls, mut round_trips, mut early_returns, mut discarded) = (0, 0, 0, 0);
+    let mut messages = 0;
+    let mut longest = (Duration::ZERO, String::new());
+    let mut violations: std::collections::BTreeMap<&str, (u64, String)> = Default::default();
     for sequence in 0..sequences {
-        let c = unsafe { instantiate(sequence % 4, rng.chance(50)) };
+        let logging_on = rng.chance(50);
+        let log = Box::new(RefCell::new(Log {
+            enabled: [logging_on; 6],
+            messages: 0,
+            last_problem: String::new(),
+            broken: Vec::new(),
+        }));
+        let kind = sequence % 4;
+        let c = unsafe { instantiate(kind, rng.chance(50), logging_on, &log) };
         let mut fuzz = Fuzz {
             rng: Rng(rng.next() | 1),
             c,
+            log,
+            event_mode: kind >= 2,
+            long_steps: long_steps(),
+            longest: (Duration::ZERO, String::new()),
+            violations: Default::default(),
             time: 0.0,
             states: Vec::new(),
             calls: 0,
             round_trips: 0,
             early_returns: 0,
+            discarded: 0,
         };
         let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             // Mostly a proper start, so that the later calls reach the running states.
@@ -534,24 +734,237 @@ fn random_fmi3_call_sequences_never_crash_and_return_only_documented_statuses() 
         calls += fuzz.calls;
         round_trips += fuzz.round_trips;
         early_returns += fuzz.early_returns;
+        discarded += fuzz.discarded;
+        messages += fuzz.log.borrow().messages;
+        for (rule, (n, first)) in std::mem::take(&mut fuzz.violations) {
+            let entry = violations
+                .entry(rule)
+                .or_insert((0, format!("sequence {sequence}: {first}")));
+            entry.0 += n;
+        }
+        if fuzz.longest.0 > longest.0 {
+            longest = (
+                fuzz.longest.0,
+                format!("sequence {sequence}: {}", fuzz.longest.1),
+            );
+        }
         unsafe { fmi3FreeInstance(c) };
     }
     eprintln!(
         "fuzzed {sequences} FMI 3.0 sequences, {calls} calls, {round_trips} exact round trips, \
-         {early_returns} early returns at change points"
+         {early_returns} early returns at change points, {discarded} Discards, {messages} \
+         messages logged; longest call {:.3} s ({})",
+        longest.0.as_secs_f64(),
+        longest.1
     );
     // `cargo xtask test` asks for the counts in its reports, which the docs quote.
     if let Some(report) = std::env::var_os("FUZZ_REPORT_FMI3") {
         let json = format!(
             "{{\"sequences\": {sequences}, \"calls\": {calls}, \"round_trips\": {round_trips}, \
-             \"early_returns\": {early_returns}}}\n"
+             \"early_returns\": {early_returns}, \"discards\": {discarded}, \
+             \"messages\": {messages}, \"longest_call_s\": {:.3}, \"broken\": {}}}\n",
+            longest.0.as_secs_f64(),
+            violations.values().map(|(n, _)| n).sum::<u64>()
         );
         std::fs::write(&report, json).expect("the fuzzer's report is writable");
     }
+    for (rule, (n, first)) in &violations {
+        eprintln!("broken {n} times: {rule}; first: {first}");
+    }
+    assert!(violations.is_empty(), "oracles broken: {violations:?}");
     assert!(calls > sequences * 30);
     assert!(round_trips > 0, "no round trip was checked");
+    assert!(discarded > 0, "no step was discarded");
+    assert!(messages > 0, "nothing was logged");
     assert!(
         early_returns > 0,
         "no step returned early at a change point"
     );
+    common::assert_no_runaway(&longest);
+}
+
+/// A Co-Simulation instance with the given flags, logging on into `log`, initialised with
+/// `parameters` (by name; `builtin_laws` as 0 or 1), in Step Mode.
+unsafe fn started(
+    event_mode: bool,
+    early_return: bool,
+    parameters: &[(&str, f64)],
+    log: &RefCell<Log>,
+) -> fmi3Instance {
+    let kind = 1 + u64::from(event_mode) + u64::from(early_return);
+    let c = unsafe { instantiate(kind, false, true, log) };
+    unsafe {
+        assert_eq!(
+            fmi3EnterInitializationMode(c, true, 1e-8, 0.0, false, 0.0),
+            fmi3Status_fmi3OK
+        );
+        for (name, value) in parameters {
+            let vr = [vr3(name)];
+            let status = if *name == "builtin_laws" {
+                fmi3SetBoolean(c, vr.as_ptr(), 1, [*value != 0.0].as_ptr(), 1)
+            } else if *name == "solver" {
+                fmi3SetInt64(c, vr.as_ptr(), 1, [*value as i64].as_ptr(), 1)
+            } else {
+                fmi3SetFloat64(c, vr.as_ptr(), 1, [*value].as_ptr(), 1)
+            };
+            assert_eq!(status, fmi3Status_fmi3OK, "{name}");
+        }
+        assert_eq!(fmi3ExitInitializationMode(c), fmi3Status_fmi3OK);
+        if event_mode {
+            assert_eq!(fmi3EnterStepMode(c), fmi3Status_fmi3OK);
+        }
+    }
+    c
+}
+
+/// The change-point linkage whose one step crossed about 800 change points for a minute.
+const WANDERING: [(&str, f64); 3] = [("L", 0.95), ("phi2_0", 1.0742), ("omega2_0", -5.4821)];
+
+/// A run's name, its parameters, and whether event mode and early return are used.
+type Case<'a> = (&'a str, &'a [(&'a str, f64)], bool, bool);
+
+/// Steps of any length end within the work one call may do: where early return is
+/// allowed, early and OK where they got to, the run going on from there; otherwise a
+/// Discard that leaves the FMU as it was. Each call is timed (reported, and held far below
+/// the minutes they once took).
+#[test]
+fn no_step_runs_away() {
+    if !long_steps() {
+        eprintln!("skipped: FUZZ_LONG_STEPS=0");
+        return;
+    }
+    let cases: [Case; 5] = [
+        // Radau IIA's steps, the costliest per right-hand side.
+        (
+            "implicit, stiff springs",
+            &[("solver", 3.0), ("k12", 1e7), ("k34", 1e7)],
+            false,
+            false,
+        ),
+        ("change points, event mode", &WANDERING, true, false),
+        ("change points, early return", &WANDERING, true, true),
+        ("paper case 1, plain", &[], false, false),
+        ("paper case 1, early return", &[], true, true),
+    ];
+    for (name, parameters, event_mode, early_return) in cases {
+        let log = Box::new(RefCell::new(Log {
+            enabled: [true; 6],
+            messages: 0,
+            last_problem: String::new(),
+            broken: Vec::new(),
+        }));
+        let c = unsafe { started(event_mode, early_return, parameters, &log) };
+        let (mut event, mut stop, mut early, mut last) = (false, false, false, f64::NAN);
+        let start = Instant::now();
+        let status = unsafe {
+            fmi3DoStep(
+                c, 0.0, 1e300, true, &mut event, &mut stop, &mut early, &mut last,
+            )
+        };
+        let took = start.elapsed();
+        eprintln!(
+            "{name}: fmi3DoStep(0, 1e300) -> status {status}, early {early}, event {event}, \
+             lastSuccessfulTime {last}, {:.3} s {}",
+            took.as_secs_f64(),
+            log.borrow().last_problem
+        );
+        assert!(took < RUNAWAY, "{name}: {took:?}");
+        assert!(log.borrow().broken.is_empty(), "{:?}", log.borrow().broken);
+        if early_return {
+            assert_eq!(status, fmi3Status_fmi3OK, "{name}");
+            assert!(early && last > 0.0, "{name}: early {early} at {last}");
+            // The run goes on from where the step got to.
+            let mut again = (false, false, false, f64::NAN);
+            let status = unsafe {
+                fmi3DoStep(
+                    c,
+                    last,
+                    0.01,
+                    true,
+                    &mut again.0,
+                    &mut again.1,
+                    &mut again.2,
+                    &mut again.3,
+                )
+            };
+            assert!(
+                status == fmi3Status_fmi3OK || event,
+                "{name}: the next step: {status}"
+            );
+        } else {
+            assert_eq!(status, fmi3Status_fmi3Discard, "{name}");
+            assert_eq!(last, 0.0, "{name}: a Discard leaves the FMU at its time");
+            let mut t = [f64::NAN];
+            unsafe { fmi3GetFloat64(c, [0].as_ptr(), 1, t.as_mut_ptr(), 1) };
+            assert_eq!(t[0], 0.0, "{name}");
+        }
+        unsafe { fmi3FreeInstance(c) };
+    }
+}
+
+/// The parallelogram and the kite, whose change points the integrator can step over (on
+/// their parallelogram branch the constraint stays regular up to the node): with event
+/// mode and early return every change point is an early return, and a run goes on through
+/// all of them to its end.
+#[test]
+fn special_change_point_linkages_return_early_at_each_change_point() {
+    let lengths = |l, l2, l3, big_l| {
+        [
+            ("l", l),
+            ("l2", l2),
+            ("l3", l3),
+            ("L", big_l),
+            ("phi2_0", 1.0),
+            ("omega2_0", 3.0),
+            ("builtin_laws", 0.0),
+        ]
+    };
+    for (name, parameters) in [
+        ("parallelogram", lengths(0.5, 0.5, 0.5, 0.5)),
+        ("kite", lengths(0.5, 0.3, 0.5, 0.3)),
+    ] {
+        let log = Box::new(RefCell::new(Log {
+            enabled: [true; 6],
+            messages: 0,
+            last_problem: String::new(),
+            broken: Vec::new(),
+        }));
+        let c = unsafe { started(true, true, &parameters, &log) };
+        let (mut t, mut events) = (0.0, 0);
+        while t < 5.0 && events < 100 {
+            let (mut event, mut stop, mut early, mut last) = (false, false, false, f64::NAN);
+            let status = unsafe {
+                fmi3DoStep(
+                    c,
+                    t,
+                    5.0 - t,
+                    true,
+                    &mut event,
+                    &mut stop,
+                    &mut early,
+                    &mut last,
+                )
+            };
+            let problem = log.borrow().last_problem.clone();
+            assert_eq!(status, fmi3Status_fmi3OK, "{name} at t = {t}: {problem}");
+            assert_eq!(early, event, "{name}: an early return is a change point's");
+            t = last;
+            if event {
+                events += 1;
+                let mut flags = [false; 5];
+                let mut next = 0.0;
+                let [a, b, d, e, f] = &mut flags;
+                unsafe {
+                    assert_eq!(fmi3EnterEventMode(c), fmi3Status_fmi3OK);
+                    let s = fmi3UpdateDiscreteStates(c, a, b, d, e, f, &mut next);
+                    assert_eq!(s, fmi3Status_fmi3OK);
+                    assert_eq!(fmi3EnterStepMode(c), fmi3Status_fmi3OK);
+                }
+            }
+        }
+        eprintln!("{name}: {events} change points to t = 5");
+        assert_eq!(t, 5.0, "{name}");
+        assert!(events > 0, "{name}: no change point met");
+        unsafe { fmi3FreeInstance(c) };
+    }
 }

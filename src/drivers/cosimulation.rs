@@ -48,6 +48,17 @@ fn beyond_rounding(new: &Inputs, old: &Inputs) -> bool {
     moved(new.motor_torque, old.motor_torque) || moved(new.load_torque, old.load_torque)
 }
 
+/// The work one master's call may make the integrators do, in right-hand sides: the bound
+/// that keeps any call, whatever its arguments, to about a second of an ordinary
+/// processor (Radau IIA's right-hand sides, with its Jacobians and factorisations, are
+/// the costliest; the fuzzers time their longest call). Counted, not timed, so that a call
+/// ends at the same point on every machine and under every load.
+pub const CALL_WORK: u64 = 2_000_000;
+
+/// What crossing a change point costs, counted against [`CALL_WORK`] as this many right-hand
+/// sides (its Newton iterations and projections).
+pub const CROSSING_WORK: u64 = 2_000;
+
 /// A gap to the next communication point that the integrator does not resolve (it takes
 /// no step below 16·ε·|t|; see `solver::check_step_size`), with a margin.
 const UNRESOLVED_STEP: f64 = 64.0 * f64::EPSILON;
@@ -179,6 +190,48 @@ impl CoSimulation {
 
     pub fn statistics(&self) -> Statistics {
         self.solver.statistics()
+    }
+
+    /// Start a master's call: from now on the integrators may do `work` more right-hand
+    /// sides in it ([`CALL_WORK`]).
+    #[inline(always)]
+    pub fn allow_work(&mut self, work: u64) {
+        self.solver.allow_work(work);
+    }
+
+    /// Count `rhs` right-hand sides evaluated on the driver's behalf (on copies of it).
+    pub fn count_work(&mut self, rhs: u64) {
+        self.solver.count_work(rhs);
+    }
+
+    /// What is left of the work the call allows.
+    pub fn work_left(&self) -> u64 {
+        self.solver.work_left()
+    }
+
+    /// After a failed [`CoSimulation::advance`] towards `target`: the plant moved on to the
+    /// integrator's last accepted step, where it got to, if that lies between the plant's
+    /// point and `target` and its state is on the constraint. Returns whether it moved.
+    pub fn accept_reached(
+        &mut self,
+        plant: &mut Plant,
+        target: f64,
+        experiment: &Experiment,
+    ) -> bool {
+        if !(self.integrator_time > plant.time() && self.integrator_time < target) {
+            return false;
+        }
+        let mut y = self.integrator_state;
+        let accuracy = projection_accuracy(experiment.tolerance);
+        match model::project(plant.params(), &mut y, accuracy) {
+            Ok(at) if all_finite(&y) => {
+                plant.accept_point(self.integrator_time, y, &at);
+                self.restart = true;
+                self.carried = None;
+                true
+            }
+            _ => false,
+        }
     }
 
     /// What the statistics outputs show.

@@ -52,7 +52,8 @@ unsafe fn new_instance(
         unsafe { CStr::from_ptr(instance_name) }.to_owned()
     };
     let fail = |message: String| {
-        if let Some(logger) = logger {
+        // FMI 3.0: "If loggingOn = fmi3False, then any logging is disabled".
+        if let Some(logger) = logger.filter(|_| logging_on) {
             let message = format!("{function}: {message}");
             logger.send(&name, Status::Error, "logStatusError", &message);
         }

@@ -58,8 +58,8 @@ export! {
         };
         // SAFETY: NULL or writable by the FMI contract.
         unsafe {
-            let early = end == StepEnd::ChangePointEvent;
-            let event = end != StepEnd::Complete;
+            let early = matches!(end, StepEnd::ChangePointEvent | StepEnd::OutOfWork);
+            let event = matches!(end, StepEnd::ChangePointEvent | StepEnd::CompleteAfterEvent);
             for (pointer, value) in [
                 (eventHandlingNeeded, event),
                 (terminateSimulation, false),

@@ -45,11 +45,12 @@ const _: () = {
 impl Logger {
     /// Send one message. FMI 2.0's callback takes it as a format string: `%` and `#` are
     /// escaped there (FMI 2.0 gives both a meaning), so masters that format it and masters
-    /// that print it as it is both show it readably.
+    /// that print it as it is both show it readably. FMI 3.0 gives `#` alone a meaning (a
+    /// value reference between two, a literal one written `##`).
     pub fn send(&self, name: &CString, status: Status, category: &str, message: &str) {
         let text = match self {
             Logger::Fmi2 { .. } => message.replace('%', "%%").replace('#', "##"),
-            Logger::Fmi3 { .. } => message.to_string(),
+            Logger::Fmi3 { .. } => message.replace('#', "##"),
         };
         let (Ok(category), Ok(text)) = (
             CString::new(category),

@@ -16,6 +16,7 @@ use handles::StateHandles;
 pub use logger::Logger;
 pub use state::{Interface, State, Version};
 
+use crate::drivers::cosimulation::{CALL_WORK, CROSSING_WORK};
 use crate::drivers::model_exchange::STATES;
 use crate::drivers::{CoSimulation, Exchange, Experiment};
 use crate::fmi2::model_description::LOG_CATEGORIES;
@@ -87,11 +88,27 @@ pub enum StepEnd {
     CompleteAfterEvent,
     /// Early, just before a change point, for the master to handle in event mode.
     ChangePointEvent,
+    /// Early, where the work one call may do ran out: no event, the master steps on.
+    OutOfWork,
 }
 
-/// Change points one FMI 3.0 step may cross without early return: each crossing moves the
-/// linkage on by a whole passage, so more within one step means a step far too long.
-const MAX_CROSSINGS_PER_STEP: usize = 1000;
+/// Why the rest of an FMI 3.0 step stopped short of its end.
+enum Refusal {
+    /// The call's work is spent, at this time.
+    OutOfWork(f64),
+    /// The step cannot go on: a Discard, for this reason.
+    Discard(String),
+}
+
+/// Where a failed step of a change-point linkage stopped.
+enum Located {
+    /// Not at a change point: the failure is the step's.
+    NotAChangePoint,
+    /// Just before a change point, at this time.
+    At(f64),
+    /// The call's work ran out at this time before the change point was located.
+    OutOfWork(f64),
+}
 
 /// Relative mismatch accepted between the master's communication point and the FMU's time.
 const TIME_MATCH: f64 = 1e-12;
@@ -103,7 +120,8 @@ pub struct Instance {
     /// a step may end before its end time.
     pub event_mode_used: bool,
     pub early_return_allowed: bool,
-    /// SetDebugLogging's switch, and the debug categories it enabled.
+    /// FMI 2.0: SetDebugLogging's switch for the debug categories, which `enabled` then
+    /// selects. FMI 3.0: `enabled` alone says which categories are logged.
     debug_logging: bool,
     enabled: [bool; LOG_CATEGORIES.len()],
     /// Everything SetFMUState restores.
@@ -138,30 +156,38 @@ impl Instance {
             event_mode_used: false,
             early_return_allowed: false,
             debug_logging,
-            enabled: [true; LOG_CATEGORIES.len()],
+            // FMI 3.0's categories are each on or off, all as `loggingOn` says at first.
+            enabled: [version == Version::Fmi2 || debug_logging; LOG_CATEGORIES.len()],
             current: FmuState::new(interface, version),
             issued_states: StateHandles::default(),
             warned_stability: false,
         }
     }
 
-    /// Errors, discards, warnings and fatal errors are always reported; the debug
-    /// categories (calls, solver) only while debug logging is on for them. Nothing is
-    /// reported (or formatted) without a logger callback.
+    /// FMI 2.0: errors, discards, warnings and fatal errors are always reported (its
+    /// logger decides what to show when logging is off); the debug categories (calls,
+    /// solver) only while debug logging is on for them. FMI 3.0: only the categories
+    /// enabled now, none while logging is off ("If loggingOn = fmi3False, then any
+    /// logging is disabled"). Nothing is reported (or formatted) without a logger callback.
+    #[inline(always)]
     pub fn log_enabled(&self, category: Category) -> bool {
         if self.logger.is_none() {
             return false;
         }
-        match category {
-            Category::Calls | Category::Solver => {
+        match (self.version(), category) {
+            (Version::Fmi3, _) => self.enabled[category as usize],
+            (_, Category::Calls | Category::Solver) => {
                 self.debug_logging && self.enabled[category as usize]
             }
             _ => true,
         }
     }
 
-    /// Send a message to the master's logger, if it gave one.
+    /// Send a message to the master's logger, if it gave one and the category is enabled.
     pub fn log(&self, status: Status, category: Category, message: &str) {
+        if !self.log_enabled(category) {
+            return;
+        }
         if let Some(logger) = &self.logger {
             let category = LOG_CATEGORIES[category as usize].0;
             logger.send(&self.name, status, category, message);
@@ -175,15 +201,19 @@ impl Instance {
             Status::Fatal => Category::Fatal,
             Status::Ok | Status::Error => Category::Error,
         };
-        self.log(
-            failure.status,
-            category,
-            &format!("{function}: {}", failure.message),
-        );
+        if self.log_enabled(category) {
+            self.log(
+                failure.status,
+                category,
+                &format!("{function}: {}", failure.message),
+            );
+        }
     }
 
-    /// FMI 2.0 semantics: no categories switches debug logging on or off altogether;
-    /// with categories and `on`, exactly those are enabled; with `!on`, those are disabled.
+    /// FMI 2.0: no categories switches debug logging on or off altogether; with
+    /// categories and `on`, exactly those are enabled; with `!on`, those are disabled.
+    /// FMI 3.0: `on` applies to the categories listed, or to all where none is ("If
+    /// nCategories = 0, loggingOn applies to all log categories").
     pub fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> Outcome {
         let mut listed = [false; LOG_CATEGORIES.len()];
         for name in categories {
@@ -199,7 +229,14 @@ impl Instance {
                 })?;
             listed[index] = true;
         }
-        if categories.is_empty() {
+        if self.version() == Version::Fmi3 {
+            let all = categories.is_empty();
+            for (enabled, this) in self.enabled.iter_mut().zip(listed) {
+                if all || this {
+                    *enabled = on;
+                }
+            }
+        } else if categories.is_empty() {
             self.enabled = [true; LOG_CATEGORIES.len()];
             self.debug_logging = on;
         } else if on {
@@ -344,12 +381,22 @@ impl Instance {
         Ok(())
     }
 
+    /// A refused x changes nothing. Finite states the loop cannot close (the master's
+    /// integrator stepped too far) are a Discard, which both standards recommend there so
+    /// that the master retries with a smaller step; a non-finite one is an Error.
     pub fn set_continuous_states(&mut self, x: &[f64]) -> Outcome {
         check_state_count("nx", x.len())?;
+        let finite = x.iter().all(|v| v.is_finite());
         let (exchange, plant) = self.exchange_and_plant()?;
-        exchange
-            .set_states(plant, x)
-            .map_err(|e| Failure::error(e.to_string()))
+        exchange.set_states(plant, x).map_err(|e| {
+            if finite {
+                Failure::discard(format!(
+                    "{e}; the states are as before the call: retry with a smaller step"
+                ))
+            } else {
+                Failure::error(e.to_string())
+            }
+        })
     }
 
     pub fn get_continuous_states(&mut self, x: &mut [f64]) -> Outcome {
@@ -620,23 +667,125 @@ impl Instance {
     /// step stops just before it, located to the tolerance in time; with event mode and
     /// early return it returns there, the next step crossing it onto the branch
     /// `change_point_branch` names then; with event mode alone it crosses at once and
-    /// completes the step; without event mode it ends there with Discard and the reason.
+    /// completes the step; without event mode it ends with Discard. A Discard leaves the
+    /// FMU as it was before the call (FMI 3.0's Discard); a step whose work exceeds what one
+    /// call may do ([`CALL_WORK`]) returns early where it got to, where early return is
+    /// allowed, and is discarded otherwise.
     pub fn do_step_fmi3(&mut self, current: f64, step: f64) -> Result<StepEnd, Failure> {
         let now = self.current.plant.time();
         let target = self.step_target(now, current, step)?;
+        self.cosimulation()?.1.allow_work(CALL_WORK);
         // The common case, a step that neither starts at nor meets a change point, as
         // fmi2DoStep's.
-        let mut met = StepEnd::Complete;
-        if !self.cosimulation()?.1.crossing_pending() {
-            match self.advance_to(target)? {
-                Ok(()) => return Ok(StepEnd::Complete),
-                Err(error) => match self.after_failure(now, target, error)? {
-                    Some(end) => return Ok(end),
-                    None => met = StepEnd::CompleteAfterEvent,
-                },
+        if self.cosimulation()?.1.crossing_pending() {
+            let before = self.snapshot()?;
+            return self.finish_fmi3_step(before, now, target, None);
+        }
+        match self.advance_to(target)? {
+            Ok(()) => Ok(StepEnd::Complete),
+            Err(error) => {
+                // The plant stands where the step began: what a Discard restores.
+                let before = self.snapshot()?;
+                self.finish_fmi3_step(before, now, target, Some(error))
             }
         }
-        self.step_across_change_points(now, target, met)
+    }
+
+    /// The plant and driver as they are, for a Discard to put back.
+    #[cold]
+    fn snapshot(&mut self) -> Result<(Plant, CoSimulation), Failure> {
+        let (plant, driver, _) = self.cosimulation()?;
+        Ok((plant.clone(), driver.clone()))
+    }
+
+    /// The rest of an FMI 3.0 step from `now` to `target` that failed with `error`, or
+    /// starts at a change point (`error` is `None`): each change point located and crossed
+    /// as the instance's settings say, then on, until the step's end, an early return, or a
+    /// Discard, which puts `before` back.
+    #[cold]
+    fn finish_fmi3_step(
+        &mut self,
+        before: (Plant, CoSimulation),
+        now: f64,
+        target: f64,
+        mut error: Option<SolverError>,
+    ) -> Result<StepEnd, Failure> {
+        let mut met = StepEnd::Complete;
+        loop {
+            if let Some(failed) = error.take() {
+                let start = self.current.plant.time();
+                match self.after_failure(start, target, failed) {
+                    Ok(Some(end)) => return Ok(end),
+                    Ok(None) => met = StepEnd::CompleteAfterEvent,
+                    Err(Refusal::OutOfWork(at)) => {
+                        return self.out_of_work(before, now, target, at)
+                    }
+                    Err(Refusal::Discard(message)) => {
+                        return Err(self.discard_fmi3(before, message))
+                    }
+                }
+            }
+            if self.cosimulation()?.1.crossing_pending() {
+                match self.cross(target) {
+                    Ok(()) => {}
+                    Err(Refusal::OutOfWork(at)) => {
+                        return self.out_of_work(before, now, target, at)
+                    }
+                    Err(Refusal::Discard(message)) => {
+                        return Err(self.discard_fmi3(before, message))
+                    }
+                }
+            }
+            match self.advance_to(target)? {
+                Ok(()) => return Ok(met),
+                Err(failed) => error = Some(failed),
+            }
+        }
+    }
+
+    /// FMI 3.0's Discard: the FMU put back as it was before the call (`before`).
+    #[cold]
+    fn discard_fmi3(&mut self, before: (Plant, CoSimulation), message: String) -> Failure {
+        let (plant, driver) = before;
+        self.current.plant = plant;
+        if let Driver::CoSimulation(Some(d)) = &mut self.current.driver {
+            *d = driver;
+        }
+        Failure::discard(format!(
+            "{message}; the FMU is as before the call, at t = {}",
+            number(self.current.plant.time())
+        ))
+    }
+
+    /// A step that needs more work than one call may do, stopped at `at`: with early return
+    /// allowed it returns there (where it got past its start), otherwise a Discard.
+    #[cold]
+    fn out_of_work(
+        &mut self,
+        before: (Plant, CoSimulation),
+        now: f64,
+        target: f64,
+        at: f64,
+    ) -> Result<StepEnd, Failure> {
+        let reached = self.early_return_allowed && {
+            let (plant, driver, experiment) = self.cosimulation()?;
+            let experiment = *experiment;
+            driver.accept_reached(plant, target, &experiment) || plant.time() > now
+        };
+        if reached {
+            return Ok(StepEnd::OutOfWork);
+        }
+        let (now, target, at) = (number(now), number(target), number(at));
+        let message = format!(
+            "the step from t = {now} to {target} needs more work than one call may do \
+             ({CALL_WORK} right-hand sides); it got to t = {at}: take shorter steps{}",
+            if self.early_return_allowed {
+                ""
+            } else {
+                ", or allow early return"
+            }
+        );
+        Err(self.discard_fmi3(before, message))
     }
 
     /// A step that failed from `start` towards `target`: `None` where it stopped before a
@@ -648,54 +797,37 @@ impl Instance {
         start: f64,
         target: f64,
         error: SolverError,
-    ) -> Result<Option<StepEnd>, Failure> {
-        let Some(located) = self.locate_change_point(start, target) else {
-            return Err(self.step_failed(start, target, error));
+    ) -> Result<Option<StepEnd>, Refusal> {
+        if let SolverError::WorkLimit { t, .. } = error {
+            return Err(Refusal::OutOfWork(t));
+        }
+        let located = match self.locate_change_point(start, target, &error) {
+            Located::NotAChangePoint => {
+                return Err(Refusal::Discard(format!(
+                    "step from t = {} to {} failed: {error}",
+                    number(start),
+                    number(target)
+                )))
+            }
+            Located::OutOfWork(t) => return Err(Refusal::OutOfWork(t)),
+            Located::At(located) => located,
         };
         if !self.event_mode_used {
-            self.current.state = State::StepDiscarded;
-            return Err(Failure::discard(format!(
-                "step from t = {start} to {target} stopped at t = {located}, just before a \
-                 change point ({error}); without event mode the FMU does not choose a branch: \
-                 instantiate with eventModeUsed = true to go on (docs/model.md §7)"
+            let (start, target, located) = (number(start), number(target), number(located));
+            return Err(Refusal::Discard(format!(
+                "the step from t = {start} to {target} meets a change point at t = {located} \
+                 ({error}); without event mode the FMU does not choose a branch: instantiate \
+                 with eventModeUsed = true to go on (docs/model.md §7), or step to t = \
+                 {located} at most"
             )));
         }
-        self.cosimulation()?.1.expect_crossing();
+        if let Ok((_, driver, _)) = self.cosimulation() {
+            driver.expect_crossing();
+        }
         self.log_change_point(located);
         Ok(self
             .early_return_allowed
             .then_some(StepEnd::ChangePointEvent))
-    }
-
-    /// The rest of a step that starts at a change point, or stopped before one, to
-    /// `target`: each crossed, then on, until the step's end or an early return. `met` says
-    /// whether the step has met a change point of its own so far (one it started at was
-    /// the previous step's event).
-    #[cold]
-    fn step_across_change_points(
-        &mut self,
-        now: f64,
-        target: f64,
-        mut met: StepEnd,
-    ) -> Result<StepEnd, Failure> {
-        for _ in 0..MAX_CROSSINGS_PER_STEP {
-            if self.cosimulation()?.1.crossing_pending() {
-                self.cross(target)?;
-            }
-            let start = self.current.plant.time();
-            let Err(error) = self.advance_to(target)? else {
-                return Ok(met);
-            };
-            if let Some(end) = self.after_failure(start, target, error)? {
-                return Ok(end);
-            }
-            met = StepEnd::CompleteAfterEvent;
-        }
-        self.current.state = State::StepDiscarded;
-        Err(Failure::discard(format!(
-            "more than {MAX_CROSSINGS_PER_STEP} change points within the step from t = {now} \
-             to {target}: take shorter steps, or allow early return"
-        )))
     }
 
     /// The co-simulation plant, driver and experiment, once initialised.
@@ -713,22 +845,27 @@ impl Instance {
         Ok((plant, driver, experiment))
     }
 
-    /// Cross the change point a step returned early before, within a step to `target`. A
+    /// Cross the change point the plant stands before, within a step to `target`. A
     /// crossing that cannot be made is a Discard; one longer than the step is refused with
     /// the length it needs.
     #[cold]
-    fn cross(&mut self, target: f64) -> Outcome {
-        let (plant, driver, _) = self.cosimulation()?;
-        let start = plant.time();
-        let crossing = match driver.plan_crossing(plant) {
-            Ok(crossing) => crossing,
-            Err(e) => {
-                self.current.state = State::StepDiscarded;
-                return Err(Failure::discard(format!("at t = {start}: {e}")));
-            }
+    fn cross(&mut self, target: f64) -> Result<(), Refusal> {
+        let Ok((plant, driver, _)) = self.cosimulation() else {
+            return Err(Refusal::Discard(
+                "the integrator starts at initialisation".into(),
+            ));
         };
+        let start = plant.time();
+        let left = driver.work_left();
+        if left < CROSSING_WORK {
+            return Err(Refusal::OutOfWork(start));
+        }
+        driver.allow_work(left - CROSSING_WORK);
+        let crossing = driver
+            .plan_crossing(plant)
+            .map_err(|e| Refusal::Discard(format!("at t = {start}: {e}")))?;
         if start + crossing.duration > target {
-            return Err(Failure::error(format!(
+            return Err(Refusal::Discard(format!(
                 "crossing the change point takes {} s, past the step's end t = {target}: take \
                  a step of at least that length",
                 crossing.duration
@@ -749,38 +886,81 @@ impl Instance {
         Ok(())
     }
 
-    /// After a step that failed from `start` towards `target`: for a change-point
-    /// linkage, the last time before the change point to the tolerance, found by bisection
-    /// (the plant and driver left there), where the state stands next to a change point;
-    /// `None` for any other failure (nothing changed).
-    fn locate_change_point(&mut self, start: f64, target: f64) -> Option<f64> {
+    /// After a step that failed from `start` towards `target` with `error`: for a
+    /// change-point linkage, the last time before the change point to the tolerance, found
+    /// by bisection (the plant and driver left there), where the state stands next to a
+    /// change point. The bisection starts from the bracket the failure gives (the end of
+    /// the step that failed), and its work counts against the call's.
+    #[cold]
+    fn locate_change_point(&mut self, start: f64, target: f64, error: &SolverError) -> Located {
         if crate::model::classify(self.current.plant.params())
             != crate::model::LinkageClass::ChangePoint
         {
-            return None;
+            return Located::NotAChangePoint;
         }
-        let (plant, driver, experiment) = self.cosimulation().ok()?;
+        let Ok((plant, driver, experiment)) = self.cosimulation() else {
+            return Located::NotAChangePoint;
+        };
         let resolution = experiment.tolerance * start.abs().max(1.0);
-        let (mut lo, mut hi) = (start, target);
+        let failed_by = match *error {
+            SolverError::ProjectionFailed { t, .. } | SolverError::StepSizeTooSmall { t, .. } => {
+                t.clamp(start, target)
+            }
+            SolverError::WorkLimit { .. } => target,
+        };
+        // The first try is the failure's bracket; past it, the whole step.
+        let mut tries = [failed_by, target].into_iter();
+        let (mut lo, mut hi) = (start, tries.next().unwrap_or(target));
+        let (allowed, done_before) = (driver.work_left(), driver.statistics().n_rhs);
+        let mut spent = 0;
         let mut reached: Option<(Plant, CoSimulation)> = None;
-        while hi - lo > resolution {
-            let mid = 0.5 * (lo + hi);
+        let mut probe = Some(hi);
+        while hi - lo > resolution || probe.is_some() {
+            let mid = probe.take().unwrap_or(0.5 * (lo + hi));
             let (mut p, mut d) = reached
                 .clone()
                 .unwrap_or_else(|| (plant.clone(), driver.clone()));
-            if isa::advance(&mut d, &mut p, mid, experiment).is_ok() {
-                lo = mid;
-                reached = Some((p, d));
-            } else {
-                hi = mid;
+            d.allow_work(allowed.saturating_sub(spent));
+            let done = d.statistics().n_rhs;
+            // Every try lands on its time: an integrator step reaching past it could pass the
+            // change point and fail a try that stops before it.
+            let landing = Experiment {
+                stop: Some(mid),
+                ..*experiment
+            };
+            let result = isa::advance(&mut d, &mut p, mid, &landing);
+            spent += d.statistics().n_rhs - done;
+            match result {
+                Ok(()) => {
+                    lo = mid;
+                    reached = Some((p, d));
+                    if lo >= hi {
+                        // The bracket held no failure: the whole step's is next.
+                        match tries.next() {
+                            Some(next) if next > lo => {
+                                hi = next;
+                                probe = Some(hi);
+                            }
+                            _ => break,
+                        }
+                    }
+                }
+                Err(SolverError::WorkLimit { .. }) => return Located::OutOfWork(lo),
+                Err(_) => hi = mid,
             }
         }
-        let (p, d) = reached.unwrap_or_else(|| (plant.clone(), driver.clone()));
+        let (p, mut d) = reached.unwrap_or_else(|| (plant.clone(), driver.clone()));
         let y = p.state();
-        crate::model::change_point::locate_node(p.params(), y[1], y[2]).ok()?;
+        if crate::model::change_point::locate_node(p.params(), y[1], y[2]).is_err() {
+            return Located::NotAChangePoint;
+        }
+        // The statistics count every right-hand side the bisection evaluated, also on the
+        // tries it dropped; the call's allowance goes on from what is left.
+        d.count_work(done_before + spent - d.statistics().n_rhs);
+        d.allow_work(allowed.saturating_sub(spent));
         *plant = p;
         *driver = d;
-        Some(lo)
+        Located::At(lo)
     }
 
     fn log_change_point(&self, located: f64) {
@@ -802,6 +982,7 @@ impl Instance {
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
         let now = self.current.plant.time();
         let target = self.step_target(now, current, step)?;
+        self.cosimulation()?.1.allow_work(CALL_WORK);
         if let Err(error) = self.advance_to(target)? {
             return Err(self.step_failed(now, target, error));
         }
@@ -841,7 +1022,11 @@ impl Instance {
                 number(step)
             )));
         }
-        if !current_is_finite || (current - now).abs() > TIME_MATCH * larger(now.abs(), step) {
+        // The master's point and the FMU's time agree up to the rounding of the sum that
+        // made each: relative to their size, never to the step's.
+        if !current_is_finite
+            || (current - now).abs() > TIME_MATCH * larger(now.abs(), current.abs())
+        {
             return Err(Failure::error(format!(
                 "currentCommunicationPoint = {} does not match the FMU's time {}",
                 number(current),
@@ -850,7 +1035,7 @@ impl Instance {
         }
         let target = current + step;
         if let Some(stop) = self.current.experiment.stop {
-            if target > stop + TIME_MATCH * larger(stop.abs(), step) {
+            if target > stop + TIME_MATCH * larger(stop.abs(), current.abs()) {
                 return Err(Failure::error(format!(
                     "a step to t = {target} would pass stopTime = {stop}"
                 )));
@@ -859,16 +1044,30 @@ impl Instance {
         Ok(target)
     }
 
-    /// A step the driver could not complete: the instance is in StepFailed, its outputs at
-    /// the last good communication point, which the message gives.
+    /// An FMI 2.0 step the driver could not complete: the instance is in StepFailed, its
+    /// outputs at the last communication point, which fmi2LastSuccessfulTime reports ("the
+    /// end time of the last successfully completed communication step") and the message
+    /// gives.
     #[cold]
     fn step_failed(&mut self, now: f64, target: f64, error: SolverError) -> Failure {
         self.current.state = State::StepFailed;
         let y = self.current.plant.state();
+        let advice = match error {
+            SolverError::WorkLimit { .. } => {
+                format!(" (one call may do {CALL_WORK} right-hand sides): take shorter steps")
+            }
+            _ => String::new(),
+        };
         Failure::discard(format!(
-            "step from t = {now} to {target} failed: {error}; state kept at t = {now} \
-             (phi2 = {}, phi3 = {}, omega2 = {}, omega3 = {})",
-            y[1], y[2], y[5], y[6]
+            "step from t = {} to {} failed: {error}{advice}; state kept at t = {} (phi2 = {}, \
+             phi3 = {}, omega2 = {}, omega3 = {})",
+            number(now),
+            number(target),
+            number(now),
+            y[1],
+            y[2],
+            y[5],
+            y[6]
         ))
     }
 

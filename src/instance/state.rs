@@ -3,10 +3,10 @@
 //! `fmi3::state_machine`).
 //!
 //! The two versions name some states differently: FMI 3.0's Step Mode is FMI 2.0's
-//! "stepComplete" and its Step Discarded FMI 2.0's "stepFailed"; they are one state here,
-//! with both names ([`State::StepMode`], [`State::StepDiscarded`]). FMI 3.0's
-//! Configuration, Reconfiguration and Intermediate Update modes never occur: the FMU has no
-//! structural parameters and provides no intermediate update.
+//! "stepComplete", one state here with both names ([`State::StepMode`]). FMI 2.0's
+//! "stepFailed" has no FMI 3.0 counterpart: after a Discard an FMI 3.0 instance is as
+//! before the call. FMI 3.0's Configuration, Reconfiguration and Intermediate Update modes
+//! never occur: the FMU has no structural parameters and provides no intermediate update.
 
 /// The state of an instance.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -30,8 +30,6 @@ pub enum State {
 impl State {
     /// FMI 3.0's name of [`State::StepComplete`].
     pub const StepMode: State = State::StepComplete;
-    /// FMI 3.0's name of [`State::StepFailed`].
-    pub const StepDiscarded: State = State::StepFailed;
 
     /// A byte for serialized FMU states.
     pub fn code(self) -> u8 {
@@ -66,8 +64,7 @@ impl State {
             (State::InitializationMode, _) => "initialization mode",
             (State::StepComplete, Version::Fmi2) => "step complete",
             (State::StepComplete, Version::Fmi3) => "step mode",
-            (State::StepFailed, Version::Fmi2) => "step failed (after fmi2Discard)",
-            (State::StepFailed, Version::Fmi3) => "step discarded (after fmi3Discard)",
+            (State::StepFailed, _) => "step failed (after fmi2Discard)",
             (State::Terminated, _) => "terminated",
             (State::Fatal, _) => "fatal (after an internal error)",
             (State::EventMode, _) => "event mode",

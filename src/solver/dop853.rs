@@ -408,11 +408,9 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
         let first = (*t, &*y, &self.stages[NEXT_FIRST]);
         let mut h = first_step(&mut self.progress, system, first, target, 8);
         let mut last_rejected = false;
-        let mut taken = 0u64;
         let (mut y_new, mut last_stage) = ([0.0; N], [0.0; N]);
         while *t < target {
-            let (h_step, landing) = plan_step(*t, h, limit, taken)?;
-            taken += 1;
+            let (h_step, landing) = plan_step(*t, h, limit, &self.progress)?;
             self.last_step = None;
             self.dense = None;
             let error = self.attempt(system, *t, y, h_step, &mut y_new, &mut last_stage);

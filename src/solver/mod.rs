@@ -88,20 +88,15 @@ pub trait Stepper<const N: usize>: Clone + Sized {
     fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError>;
 }
 
-/// A runaway guard per `integrate` call: a legitimate long call needs far fewer steps (a
-/// 100 s step of a k = 1e7 spring takes about 2.5e5 explicit ones), while a runaway (a
-/// blow-up, a model made stiff beyond the explicit method) is stopped while a master
-/// still waits for the call, not after.
-const MAX_STEPS_PER_CALL: u64 = 1_000_000;
-
-/// The next step to try from `t` with proposed size `h`, the `taken`-th of this call: its
-/// size and whether it lands on `limit` (a step that would pass the limit, or leave less
-/// than a hundredth of a step before it, is cut or stretched to end exactly there).
-fn plan_step(t: f64, h: f64, limit: f64, taken: u64) -> Result<(f64, bool), SolverError> {
-    if taken >= MAX_STEPS_PER_CALL {
-        return Err(SolverError::TooManySteps {
+/// The next step to try from `t` with proposed size `h`: its size and whether it lands on
+/// `limit` (a step that would pass the limit, or leave less than a hundredth of a step
+/// before it, is cut or stretched to end exactly there). Refused once the method's work
+/// reaches its limit ([`Progress::work_limit`]).
+fn plan_step(t: f64, h: f64, limit: f64, progress: &Progress) -> Result<(f64, bool), SolverError> {
+    if progress.stats.n_rhs >= progress.work_limit {
+        return Err(SolverError::WorkLimit {
             t,
-            limit: MAX_STEPS_PER_CALL,
+            limit: progress.work_limit,
         });
     }
     let landing = t + 1.01 * h >= limit;
@@ -181,7 +176,15 @@ pub struct Progress {
     /// Proposed size of the next step; `None` until the first step is chosen.
     pub next_step: Option<f64>,
     pub stats: Statistics,
+    /// The count of right-hand sides (`stats.n_rhs`) at which stepping stops with
+    /// [`SolverError::WorkLimit`]: the caller's bound on one call's work, counted
+    /// deterministically rather than by a clock. Not part of the serialized state: each
+    /// call sets its own ([`NO_WORK_LIMIT`] until then).
+    pub work_limit: u64,
 }
+
+/// No bound on the work of a call.
+pub const NO_WORK_LIMIT: u64 = u64::MAX;
 
 impl Progress {
     pub fn new(tolerances: Tolerances) -> Self {
@@ -189,6 +192,7 @@ impl Progress {
             tolerances,
             next_step: None,
             stats: Statistics::default(),
+            work_limit: NO_WORK_LIMIT,
         }
     }
 
@@ -212,6 +216,7 @@ impl Progress {
                 .then_some(step)
                 .filter(|h| h.is_finite() && *h > 0.0),
             stats: Statistics::deserialize_from(r)?,
+            work_limit: NO_WORK_LIMIT,
         })
     }
 }
@@ -224,8 +229,9 @@ pub enum SolverError {
     StepSizeTooSmall { t: f64, h: f64 },
     /// The system refused an accepted state (could not project it, or it is singular).
     ProjectionFailed { t: f64, reason: String },
-    /// Too many steps in one call (a runaway).
-    TooManySteps { t: f64, limit: u64 },
+    /// The work limit of the call was reached ([`Progress::work_limit`]): the state is
+    /// good up to `t`, and the call asked for more work than it allows.
+    WorkLimit { t: f64, limit: u64 },
 }
 
 impl std::fmt::Display for SolverError {
@@ -241,10 +247,10 @@ impl std::fmt::Display for SolverError {
             SolverError::ProjectionFailed { t, reason } => {
                 write!(f, "at t = {}: {reason}", number(*t))
             }
-            SolverError::TooManySteps { t, limit } => {
+            SolverError::WorkLimit { t, .. } => {
                 write!(
                     f,
-                    "more than {limit} steps in one call, stopped at t = {}",
+                    "the work one call may do was spent at t = {}",
                     number(*t)
                 )
             }

@@ -553,11 +553,10 @@ impl<const N: usize> Stepper<N> for Radau5<N> {
             return Ok(());
         }
         let mut h = self.prepare(system, *t, y, target);
-        let (mut rejected, mut taken) = (false, 0u64);
+        let mut rejected = false;
         let mut z = [[0.0; N]; 3];
         while *t < target {
-            let (h_step, landing) = plan_step(*t, h, limit, taken)?;
-            taken += 1;
+            let (h_step, landing) = plan_step(*t, h, limit, &self.progress)?;
             let (error, iterations) = match self.attempt(system, *t, y, h_step, rejected, &mut z) {
                 Attempt::Converged { error, iterations } => (error, iterations),
                 Attempt::Diverged => {

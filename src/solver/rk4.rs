@@ -174,11 +174,10 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
             None => self.eval(system, *t, y),
         };
         let mut h = first_step(&mut self.progress, system, (*t, &*y, &k1), target, 4);
-        let (mut taken, mut last_rejected) = (0u64, false);
+        let mut last_rejected = false;
         let (mut y_new, mut f_new) = ([0.0; N], [0.0; N]);
         while *t < target {
-            let (h_step, landing) = plan_step(*t, h, limit, taken)?;
-            taken += 1;
+            let (h_step, landing) = plan_step(*t, h, limit, &self.progress)?;
             let attempted = self.attempt(system, (*t, y, &k1), h_step, &mut y_new, &mut f_new);
             let error = match attempted {
                 Ok(error) => error,

@@ -22,7 +22,9 @@
 //! master that sets an input at every step restarts the integrator at every step, and
 //! there four evaluations of RK4 do what twelve or more of DOP853 would.
 
-use super::{Dop853, OdeSystem, Radau5, Rk4, SolverError, Statistics, Stepper, Tolerances};
+use super::{
+    Dop853, OdeSystem, Progress, Radau5, Rk4, SolverError, Statistics, Stepper, Tolerances,
+};
 use crate::snapshot::{FormatError, Reader, Writer};
 
 /// Radau IIA ends a step on every communication point, so it can only beat a
@@ -152,6 +154,30 @@ impl<const N: usize> Integrator<N> {
         on_active!(&mut self.active, s => s.invalidate())
     }
 
+    /// Count `rhs` right-hand sides evaluated elsewhere (by copies of this integrator) in
+    /// the statistics.
+    pub fn count_work(&mut self, rhs: u64) {
+        on_active!(&mut self.active, s => s.progress_mut().stats.n_rhs += rhs)
+    }
+
+    /// What is left of the work allowed by [`Integrator::allow_work`].
+    pub fn work_left(&self) -> u64 {
+        on_active!(&self.active, s => {
+            let progress = s.progress();
+            progress.work_limit.saturating_sub(progress.stats.n_rhs)
+        })
+    }
+
+    /// Allow `work` more right-hand sides from now on, and no more, until set again: a
+    /// method that `auto` switches to keeps the same limit.
+    #[inline(always)]
+    pub fn allow_work(&mut self, work: u64) {
+        on_active!(&mut self.active, s => {
+            let progress = s.progress_mut();
+            progress.work_limit = progress.stats.n_rhs.saturating_add(work);
+        })
+    }
+
     /// See [`Stepper::integrate`] (Radau IIA ends on `target`).
     #[inline(always)]
     pub fn integrate<S: OdeSystem<N>>(
@@ -214,6 +240,10 @@ impl<const N: usize> Integrator<N> {
         if let Some(k1) = first {
             short.start_with(k1);
         }
+        let Progress {
+            stats, work_limit, ..
+        } = on_active!(&self.active, s => s.progress());
+        short.progress_mut().work_limit = work_limit.saturating_sub(stats.n_rhs);
         let span = t_end - *t;
         short.progress_mut().next_step = Some(self.short_step.map_or(span, |h| h.min(span)));
         let result = short.integrate(system, t, y, t_end, t_end);

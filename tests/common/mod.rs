@@ -211,3 +211,23 @@ impl Rng {
         }
     }
 }
+
+/// Far above the longest call the work bound allows on a loaded machine, far below the
+/// minutes a call ran before it.
+pub const RUNAWAY: std::time::Duration = std::time::Duration::from_secs(20);
+
+/// Whether the fuzzers try steps that spend a whole call's work (not under valgrind, where
+/// each would take minutes).
+pub fn long_steps() -> bool {
+    std::env::var("FUZZ_LONG_STEPS").map_or(true, |v| v != "0")
+}
+
+/// The longest call seen, and which: a hang guard, not a speed target (see [`RUNAWAY`]).
+pub fn assert_no_runaway(longest: &(std::time::Duration, String)) {
+    assert!(
+        longest.0 < RUNAWAY,
+        "a call took {:.1} s: {}",
+        longest.0.as_secs_f64(),
+        longest.1
+    );
+}

@@ -26,69 +26,72 @@ LOG = CFUNCTYPE(None, c_void_p, c_uint, c_char_p, c_char_p)
 N_STATES = 6
 
 # x: allowed, .: not allowed.
+# FMI 3.0 has no state after a Discard of its own (FMI 2.0's stepFailed): "fmi3Discard: the
+# call was not successful and the FMU is in the same state as before the call", Step Mode
+# for fmi3DoStep (test_a_discarded_step_leaves_step_mode).
 CO_SIMULATION_COLUMNS = ["Instantiated", "InitializationMode", "EventMode", "StepMode",
-                         "StepDiscarded", "Terminated"]
+                         "Terminated"]
 CO_SIMULATION = """
-fmi3SetDebugLogging                   x x x x x x
-fmi3EnterInitializationMode           x . . . . .
-fmi3ExitInitializationMode            . x . . . .
-fmi3EnterEventMode                    . . . x . .
-fmi3Terminate                         . . x x x .
-fmi3Reset                             x x x x x x
-fmi3GetFloat32                        . x x x x x
-fmi3GetFloat64                        . x x x x x
-fmi3GetInt8                           . x x x x x
-fmi3GetUInt8                          . x x x x x
-fmi3GetInt16                          . x x x x x
-fmi3GetUInt16                         . x x x x x
-fmi3GetInt32                          . x x x x x
-fmi3GetUInt32                         . x x x x x
-fmi3GetInt64                          . x x x x x
-fmi3GetUInt64                         . x x x x x
-fmi3GetBoolean                        . x x x x x
-fmi3GetString                         . x x x x x
-fmi3GetBinary                         . x x x x x
-fmi3GetClock                          . . x . . .
-fmi3SetFloat32                        x x x x . .
-fmi3SetFloat64                        x x x x . .
-fmi3SetInt8                           x x x x . .
-fmi3SetUInt8                          x x x x . .
-fmi3SetInt16                          x x x x . .
-fmi3SetUInt16                         x x x x . .
-fmi3SetInt32                          x x x x . .
-fmi3SetUInt32                         x x x x . .
-fmi3SetInt64                          x x x x . .
-fmi3SetUInt64                         x x x x . .
-fmi3SetBoolean                        x x x x . .
-fmi3SetString                         x x x x . .
-fmi3SetBinary                         x x x x . .
-fmi3SetClock                          . . x . . .
-fmi3GetNumberOfVariableDependencies   x x x x x x
-fmi3GetVariableDependencies           x x x x x x
-fmi3GetFMUState                       x x x x x x
-fmi3SetFMUState                       x x x x x x
-fmi3FreeFMUState                      x x x x x x
-fmi3SerializedFMUStateSize            x x x x x x
-fmi3SerializeFMUState                 x x x x x x
-fmi3DeserializeFMUState               x x x x x x
-fmi3GetDirectionalDerivative          . x x x x x
-fmi3GetAdjointDerivative              . x x x x x
-fmi3EnterConfigurationMode            x . x x . .
-fmi3ExitConfigurationMode             . . . . . .
-fmi3GetIntervalDecimal                . . x . . .
-fmi3GetIntervalFraction               . . x . . .
-fmi3GetShiftDecimal                   . . x . . .
-fmi3GetShiftFraction                  . . x . . .
-fmi3SetIntervalDecimal                x . x . . .
-fmi3SetIntervalFraction               x . x . . .
-fmi3SetShiftDecimal                   x . . . . .
-fmi3SetShiftFraction                  x . . . . .
-fmi3EvaluateDiscreteStates            . . x x . .
-fmi3UpdateDiscreteStates              . . x . . .
-fmi3EnterStepMode                     . . x . . .
-fmi3GetOutputDerivatives              . . x x x x
-fmi3DoStep                            . . . x . .
-fmi3ActivateModelPartition            . . . . . .
+fmi3SetDebugLogging                   x x x x x
+fmi3EnterInitializationMode           x . . . .
+fmi3ExitInitializationMode            . x . . .
+fmi3EnterEventMode                    . . . x .
+fmi3Terminate                         . . x x .
+fmi3Reset                             x x x x x
+fmi3GetFloat32                        . x x x x
+fmi3GetFloat64                        . x x x x
+fmi3GetInt8                           . x x x x
+fmi3GetUInt8                          . x x x x
+fmi3GetInt16                          . x x x x
+fmi3GetUInt16                         . x x x x
+fmi3GetInt32                          . x x x x
+fmi3GetUInt32                         . x x x x
+fmi3GetInt64                          . x x x x
+fmi3GetUInt64                         . x x x x
+fmi3GetBoolean                        . x x x x
+fmi3GetString                         . x x x x
+fmi3GetBinary                         . x x x x
+fmi3GetClock                          . . x . .
+fmi3SetFloat32                        x x x x .
+fmi3SetFloat64                        x x x x .
+fmi3SetInt8                           x x x x .
+fmi3SetUInt8                          x x x x .
+fmi3SetInt16                          x x x x .
+fmi3SetUInt16                         x x x x .
+fmi3SetInt32                          x x x x .
+fmi3SetUInt32                         x x x x .
+fmi3SetInt64                          x x x x .
+fmi3SetUInt64                         x x x x .
+fmi3SetBoolean                        x x x x .
+fmi3SetString                         x x x x .
+fmi3SetBinary                         x x x x .
+fmi3SetClock                          . . x . .
+fmi3GetNumberOfVariableDependencies   x x x x x
+fmi3GetVariableDependencies           x x x x x
+fmi3GetFMUState                       x x x x x
+fmi3SetFMUState                       x x x x x
+fmi3FreeFMUState                      x x x x x
+fmi3SerializedFMUStateSize            x x x x x
+fmi3SerializeFMUState                 x x x x x
+fmi3DeserializeFMUState               x x x x x
+fmi3GetDirectionalDerivative          . x x x x
+fmi3GetAdjointDerivative              . x x x x
+fmi3EnterConfigurationMode            x . x x .
+fmi3ExitConfigurationMode             . . . . .
+fmi3GetIntervalDecimal                . . x . .
+fmi3GetIntervalFraction               . . x . .
+fmi3GetShiftDecimal                   . . x . .
+fmi3GetShiftFraction                  . . x . .
+fmi3SetIntervalDecimal                x . x . .
+fmi3SetIntervalFraction               x . x . .
+fmi3SetShiftDecimal                   x . . . .
+fmi3SetShiftFraction                  x . . . .
+fmi3EvaluateDiscreteStates            . . x x .
+fmi3UpdateDiscreteStates              . . x . .
+fmi3EnterStepMode                     . . x . .
+fmi3GetOutputDerivatives              . . x x x
+fmi3DoStep                            . . . x .
+fmi3ActivateModelPartition            . . . . .
 """
 
 MODEL_EXCHANGE_COLUMNS = ["Instantiated", "InitializationMode", "EventMode",
@@ -157,7 +160,7 @@ fmi3SetContinuousStates               . . . x .
 fmi3GetContinuousStateDerivatives     . x x x x
 fmi3GetEventIndicators                . x x x x
 fmi3GetContinuousStates               . x x x x
-fmi3GetNominalsOfContinuousStates     x x x x x
+fmi3GetNominalsOfContinuousStates     . x x x x
 fmi3GetNumberOfEventIndicators        x x x x x
 fmi3GetNumberOfContinuousStates       x x x x x
 fmi3ActivateModelPartition            . . . . .
@@ -168,7 +171,6 @@ STATE_WORDS = {
     "InitializationMode": "initialization mode",
     "EventMode": "event mode",
     "StepMode": "step mode",
-    "StepDiscarded": "step discarded",
     "Terminated": "terminated",
     "ContinuousTimeMode": "continuous-time mode",
 }
@@ -197,14 +199,17 @@ class Probe:
         if interface == "CoSimulation":
             self.lib.fmi3InstantiateCoSimulation.restype = c_void_p
             self.c = c_void_p(self.lib.fmi3InstantiateCoSimulation(
-                b"conformance", token.encode(), b"", c_bool(False), c_bool(False),
+                b"conformance", token.encode(), b"", c_bool(False), c_bool(True),
                 c_bool(True), c_bool(True), None, c_size_t(0), None, self._log, None))
         else:
             self.lib.fmi3InstantiateModelExchange.restype = c_void_p
             self.c = c_void_p(self.lib.fmi3InstantiateModelExchange(
-                b"conformance", token.encode(), b"", c_bool(False), c_bool(False), None,
+                b"conformance", token.encode(), b"", c_bool(False), c_bool(True), None,
                 self._log))
         assert self.c.value
+        # Logging on (FMI 3.0 calls no logger otherwise), but not every call and step.
+        quiet = (c_char_p * 2)(b"logCalls", b"logSolver")
+        self.must("fmi3SetDebugLogging", c_bool(False), c_size_t(2), quiet)
 
     def call(self, name, *args):
         return getattr(self.lib, name)(self.c, *args)
@@ -245,16 +250,6 @@ def reach(probe, state, interface):
     if state == "InitializationMode":
         probe.enter_initialization()
         return
-    if state == "StepDiscarded":
-        probe.initialise(RUNAWAY)
-        probe.must("fmi3EnterStepMode")
-        for k in range(1000):
-            probe.time = k * 0.01
-            status, _ = probe.step(0.01)
-            if status == DISCARD:
-                return
-            assert status == OK
-        pytest.fail("the runaway never failed a step")
     probe.initialise()
     if interface == "CoSimulation" and state in ("StepMode", "Terminated"):
         probe.must("fmi3EnterStepMode")
@@ -448,14 +443,14 @@ def test_instantiation_refuses_what_it_cannot_make(library, model_description3):
     library.fmi3InstantiateModelExchange.restype = c_void_p
     library.fmi3InstantiateScheduledExecution.restype = c_void_p
     cases = [
-        (lambda: library.fmi3InstantiateModelExchange(b"x", b"{wrong}", b"", False, False, None,
+        (lambda: library.fmi3InstantiateModelExchange(b"x", b"{wrong}", b"", False, True, None,
                                                       log), "instantiationToken"),
-        (lambda: library.fmi3InstantiateModelExchange(b"  ", token, b"", False, False, None,
+        (lambda: library.fmi3InstantiateModelExchange(b"  ", token, b"", False, True, None,
                                                       log), "instanceName"),
-        (lambda: library.fmi3InstantiateCoSimulation(b"x", token, b"", False, False, False,
+        (lambda: library.fmi3InstantiateCoSimulation(b"x", token, b"", False, True, False,
                                                      False, (c_uint * 1)(1), c_size_t(1), None,
                                                      log, None), "intermediate update"),
-        (lambda: library.fmi3InstantiateScheduledExecution(b"x", token, b"", False, False,
+        (lambda: library.fmi3InstantiateScheduledExecution(b"x", token, b"", False, True,
                                                            None, log, None, None, None),
          "Scheduled Execution"),
     ]
@@ -463,5 +458,98 @@ def test_instantiation_refuses_what_it_cannot_make(library, model_description3):
         before = len(messages)
         assert make() is None
         assert any(word in m for m in messages[before:]), (word, messages[before:])
+    # "If loggingOn == fmi3False, then any logging is disabled and the logMessage callback
+    # function is not called by the FMU."
+    before = len(messages)
+    assert library.fmi3InstantiateModelExchange(b"x", b"{wrong}", b"", False, False, None,
+                                                log) is None
+    assert messages[before:] == []
     library.fmi3GetVersion.restype = c_char_p
     assert library.fmi3GetVersion() == b"3.0"
+
+
+def test_a_discarded_step_leaves_step_mode(library, model_description3, vr):
+    """FMI 3.0 has no state of its own after a Discard: "fmi3Discard: The call was not
+    successful and the FMU is in the same state as before the call", and fmi3DoStep may
+    return it only "if the FMU is in the same state as before the call". So the FMU keeps
+    its time and values, and Step Mode's calls go on (in FMI 2.0, stepFailed refuses them)."""
+    probe = Probe(library, model_description3.instantiationToken, vr, "CoSimulation")
+    try:
+        probe.initialise(RUNAWAY)
+        probe.must("fmi3EnterStepMode")
+        watched = list(vr.values())
+        for k in range(1000):
+            probe.time = k * 0.01
+            values = (c_double * 1)()
+            before = {}
+            for ref in watched:
+                if probe.call("fmi3GetFloat64", (c_uint * 1)(ref), c_size_t(1), values,
+                              c_size_t(1)) == OK:
+                    before[ref] = values[0]
+            status, last = probe.step(0.01)
+            if status == DISCARD:
+                break
+            assert status == OK
+        else:
+            pytest.fail("the runaway never failed a step")
+        assert last == probe.time
+        for ref, value in before.items():
+            probe.must("fmi3GetFloat64", (c_uint * 1)(ref), c_size_t(1), values, c_size_t(1))
+            assert values[0] == value, ref
+        probe.must("fmi3SetFloat64", probe.refs("M_m"), c_size_t(1), (c_double * 1)(0.0),
+                   c_size_t(1))
+        probe.must("fmi3SetInt64", probe.refs("change_point_branch"), c_size_t(1),
+                   (c_int64 * 1)(2), c_size_t(1))
+        probe.must("fmi3EnterEventMode")
+        probe.must("fmi3EnterStepMode")
+        status, _ = probe.step(1e-4)
+        assert status in (OK, DISCARD), probe.messages[-1:]
+    finally:
+        probe.free()
+
+
+def test_states_the_loop_cannot_close_are_a_discard(library, model_description3, vr):
+    """Model Exchange, explicit Euler at h = 0.01 on a change-point linkage: where Euler's
+    states leave the region in which the loop closes, fmi3SetContinuousStates returns
+    fmi3Discard, which FMI 3.0 recommends there so that the importer retries with a smaller
+    step, and changes nothing: the same step at half the size goes on."""
+    probe = Probe(library, model_description3.instantiationToken, vr, "ModelExchange")
+    try:
+        probe.enter_initialization()
+        for name, value in dict(L=0.95, phi2_0=1.0742, omega2_0=-5.4821).items():
+            probe.must("fmi3SetFloat64", probe.refs(name), c_size_t(1),
+                       (c_double * 1)(value), c_size_t(1))
+        probe.must("fmi3ExitInitializationMode")
+        flags = [c_bool() for _ in range(5)]
+        probe.must("fmi3UpdateDiscreteStates", *(byref(f) for f in flags), byref(c_double()))
+        probe.must("fmi3EnterContinuousTimeMode")
+        x, dx = (c_double * N_STATES)(), (c_double * N_STATES)()
+        t, h, discards = 0.0, 0.01, 0
+        while t < 2.0:
+            probe.must("fmi3GetContinuousStates", x, c_size_t(N_STATES))
+            probe.must("fmi3GetContinuousStateDerivatives", dx, c_size_t(N_STATES))
+            before = list(x)
+            step = h
+            while True:
+                moved = (c_double * N_STATES)(*(a + step * b for a, b in zip(before, dx)))
+                probe.must("fmi3SetTime", c_double(t + step))
+                status = probe.call("fmi3SetContinuousStates", moved, c_size_t(N_STATES))
+                if status == OK:
+                    break
+                assert status == DISCARD, probe.messages[-1:]
+                discards += 1
+                probe.must("fmi3GetContinuousStates", x, c_size_t(N_STATES))
+                assert list(x) == before, "a Discard changed the states"
+                step *= 0.5
+                assert step > 1e-9, "no step small enough"
+            t += step
+            event, stop = c_bool(), c_bool()
+            probe.must("fmi3CompletedIntegratorStep", c_bool(True), byref(event), byref(stop))
+            if event.value:
+                probe.must("fmi3EnterEventMode")
+                probe.must("fmi3UpdateDiscreteStates", *(byref(f) for f in flags),
+                           byref(c_double()))
+                probe.must("fmi3EnterContinuousTimeMode")
+        assert discards > 0, "Euler's states always closed the loop"
+    finally:
+        probe.free()
