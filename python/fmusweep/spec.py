@@ -118,6 +118,15 @@ class Scenario:
         }
         return Scenario(start, stop, step, tolerance, timeout, parameters, inputs)
 
+    def refuse_also_set(self, name: str, where: str, what: str) -> None:
+        """`name` is varied at `where` (a design column, a fitted parameter): refused if
+        the scenario fixes it or drives it as an input, since one of the two would be
+        ignored without a word."""
+        for table, settings in (("parameters", self.parameters), ("inputs", self.inputs)):
+            if name in settings:
+                raise SpecError(where, f"{name} is also set in scenario.{table}: {what} it or "
+                                       f"set it there, not both")
+
     def plan(self, metrics: list[dict], series: dict | None) -> dict:
         """The native runner's plan: what every point shares, and what it reads."""
         return {"start": self.start, "stop": self.stop, "step": self.step,
@@ -190,6 +199,8 @@ class Spec:
             raise SpecError("design.seed", f"a {kind} design needs a seed, so that it can be repeated")
         if not _table(design, "parameters", "design"):
             raise SpecError("design.parameters", "names no parameter: the design is empty")
+        for name in design["parameters"]:
+            scenario.refuse_also_set(name, f"design.parameters.{name}", "vary")
         outputs = _table(raw, "outputs", "spec", required=True)
         _only(outputs, "outputs", {"metrics", "series"})
         metrics = [_metric(name, m) for name, m in _table(outputs, "metrics", "outputs").items()]

@@ -244,6 +244,8 @@ def _bad(tmp, fmu_path, truth_rows):
         "an output as a parameter": ("fit.parameters.omega1", param("omega1", {"start": 1.0, "range": [0.0, 2.0]}), None),
         "a range the FMU refuses": ("fit.parameters.d34", param("d34", {"start": 0.1, "range": [-1.0, 5.0]}), None),
         "a parameter also fixed": ("fit.parameters.k34", lambda s: s["scenario"].update(parameters={"k34": 100.0}), None),
+        "a parameter also an input": ("fit.parameters.M_r", lambda s: (s["scenario"].update(inputs={"M_r": 1.0}),
+                                                                       s["fit"]["parameters"].update(M_r={"start": 0.0, "range": [-1.0, 1.0]})), None),
         "starts without a seed": ("fit.seed", lambda s: s["fit"].update(starts=3), None),
         "a fixed value the FMU refuses": ("scenario.parameters", lambda s: s["scenario"].update(parameters={"J1": -1.0}), None),
         "an unknown field": ("fit.method", lambda s: s["fit"].update(method="lm"), None),

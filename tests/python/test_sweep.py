@@ -66,6 +66,10 @@ SPEC_ERRORS = {
     "design.parameters.phi1": lambda s: s["design"]["parameters"].update(phi1={"values": [0.0]}),
     "design.parameters.solver": lambda s: s["design"]["parameters"].update(solver={"values": [1.5]}),
     "design.parameters": lambda s: s["design"].update(parameters={}),
+    # A column that the scenario also sets: one of the two would be ignored without a word.
+    "design.parameters.M_m": lambda s: (s["scenario"].update(inputs={"M_m": 5.0}),
+                                        s["design"]["parameters"].update(M_m={"values": [0.0, 20.0]})),
+    "design.parameters.k34": lambda s: s["scenario"]["parameters"].update(k34=100.0),
     "design.kind": lambda s: s["design"].update(kind="random"),
     "design.samples": lambda s: s["design"].update(kind="sobol", seed=1, samples=100, parameters={
         "J1": {"range": [0.1, 1.0]}}),

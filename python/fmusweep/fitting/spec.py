@@ -146,8 +146,7 @@ def _parameter(name: str, entry, scenario: Scenario) -> FitParameter:
     where = f"fit.parameters.{name}"
     if not isinstance(entry, dict) or set(entry) != {"start", "range"}:
         raise SpecError(where, "give start = x and range = [low, high]")
-    if name in scenario.parameters:
-        raise SpecError(where, f"{name} is also fixed in scenario.parameters: fix it or fit it")
+    scenario.refuse_also_set(name, where, "fit")
     low, high = low_high(entry["range"], f"{where}.range")
     start = finite(entry["start"], f"{where}.start")
     if not low <= start <= high:
