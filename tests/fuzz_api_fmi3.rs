@@ -968,3 +968,141 @@ fn special_change_point_linkages_return_early_at_each_change_point() {
         unsafe { fmi3FreeInstance(c) };
     }
 }
+
+/// The states (φ1..φ4, ω1..ω4) read out now.
+unsafe fn states(c: fmi3Instance) -> [f64; 8] {
+    let names = [
+        "phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4",
+    ];
+    let vrs: Vec<u32> = names.iter().map(|n| vr3(n)).collect();
+    let mut y = [f64::NAN; 8];
+    let status = unsafe { fmi3GetFloat64(c, vrs.as_ptr(), 8, y.as_mut_ptr(), 8) };
+    assert_eq!(status, fmi3Status_fmi3OK);
+    y
+}
+
+/// Steps of `h` from `t` to `until` (the last one shorter), every one OK; the time reached.
+unsafe fn step_to(c: fmi3Instance, mut t: f64, h: f64, until: f64) -> f64 {
+    while t < until {
+        let step = h.min(until - t);
+        let (mut event, mut stop, mut early, mut last) = (false, false, false, f64::NAN);
+        let status = unsafe {
+            fmi3DoStep(
+                c, t, step, true, &mut event, &mut stop, &mut early, &mut last,
+            )
+        };
+        assert_eq!(status, fmi3Status_fmi3OK, "the step from {t} of {step}");
+        assert!(!early, "an early return at {last} on the way from {t}");
+        t = last;
+    }
+    t
+}
+
+/// A master on a fine grid passes a change point: the crossing (about 2.5e-4 s) spans its
+/// steps, the linkage shown on its way, and after it the run agrees with one whose step
+/// held the whole crossing; an FMU state saved on the way restores and goes on bit for
+/// bit.
+#[test]
+fn a_fine_grid_passes_a_change_point() {
+    let parameters = [
+        ("L", 0.95),
+        ("phi2_0", std::f64::consts::FRAC_PI_2),
+        ("omega2_0", 4.0),
+        ("builtin_laws", 0.0),
+    ];
+    for branch in [1i64, 2] {
+        let log = Box::new(RefCell::new(Log {
+            enabled: [true; 6],
+            messages: 0,
+            last_problem: String::new(),
+            broken: Vec::new(),
+        }));
+        let c = unsafe { started(true, true, &parameters, &log) };
+        let mut t = 0.0;
+        unsafe {
+            loop {
+                let (mut event, mut stop, mut early, mut last) = (false, false, false, f64::NAN);
+                let status = fmi3DoStep(
+                    c, t, 1e-3, true, &mut event, &mut stop, &mut early, &mut last,
+                );
+                assert_eq!(status, fmi3Status_fmi3OK);
+                t = last;
+                if early {
+                    break;
+                }
+                assert!(t < 6.0, "no change point met");
+            }
+            assert_eq!(fmi3EnterEventMode(c), fmi3Status_fmi3OK);
+            let vr = [vr3("change_point_branch")];
+            assert_eq!(
+                fmi3SetInt64(c, vr.as_ptr(), 1, [branch].as_ptr(), 1),
+                fmi3Status_fmi3OK
+            );
+            let mut flags = [false; 5];
+            let mut next = 0.0;
+            let [a, b, d, e, f] = &mut flags;
+            assert_eq!(
+                fmi3UpdateDiscreteStates(c, a, b, d, e, f, &mut next),
+                fmi3Status_fmi3OK
+            );
+            assert_eq!(fmi3EnterStepMode(c), fmi3Status_fmi3OK);
+            let mut at_event: fmi3FMUState = null_mut();
+            assert_eq!(fmi3GetFMUState(c, &mut at_event), fmi3Status_fmi3OK);
+            let mut energy_at_event = f64::NAN;
+            fmi3GetFloat64(c, [vr3("energy")].as_ptr(), 1, &mut energy_at_event, 1);
+            // A state saved on the way restores, and the run goes on bit for bit.
+            let on_the_way = step_to(c, t, 1e-5, t + 5e-5);
+            let mut saved: fmi3FMUState = null_mut();
+            assert_eq!(fmi3GetFMUState(c, &mut saved), fmi3Status_fmi3OK);
+            let bytes = serialized(c, saved);
+            step_to(c, on_the_way, 1e-4, t + 0.01);
+            let straight_on = states(c);
+            let mut restored: fmi3FMUState = null_mut();
+            let s = fmi3DeserializeFMUState(c, bytes.as_ptr(), bytes.len(), &mut restored);
+            assert_eq!(
+                s, fmi3Status_fmi3OK,
+                "a state on a crossing's way was refused"
+            );
+            assert_eq!(fmi3SetFMUState(c, restored), fmi3Status_fmi3OK);
+            step_to(c, on_the_way, 1e-4, t + 0.01);
+            assert!(states(c) == straight_on, "the restored run differs");
+            for mut state in [saved, restored] {
+                fmi3FreeFMUState(c, &mut state);
+            }
+            assert_eq!(fmi3SetFMUState(c, at_event), fmi3Status_fmi3OK);
+            let until = t + 0.01;
+            // The reference: the whole crossing within one step.
+            step_to(c, t, 1e-3, until);
+            let whole = states(c);
+            for h in [1e-4, 1e-5, 1e-9] {
+                assert_eq!(fmi3SetFMUState(c, at_event), fmi3Status_fmi3OK);
+                // The finest grid only through the crossing, then on at 1e-4.
+                let through = if h < 1e-6 { t + 1e-6 } else { t };
+                let reached = step_to(c, t, h, through);
+                step_to(c, reached, h.max(1e-4), t + 1e-4);
+                // On the way: all outputs readable and finite.
+                let on_the_way = states(c);
+                assert!(on_the_way.iter().all(|v| v.is_finite()));
+                let mut out = [f64::NAN; 3];
+                let vrs = [vr3("energy"), vr3("rod_force"), vr3("constraint_residual")];
+                let status = fmi3GetFloat64(c, vrs.as_ptr(), 3, out.as_mut_ptr(), 3);
+                assert_eq!(status, fmi3Status_fmi3OK);
+                // No torques: the crossing's path keeps the energy, and the loop closed.
+                let drift = (out[0] - energy_at_event) / energy_at_event;
+                assert!(drift.abs() < 1e-9 && out[2].abs() < 1e-12, "{out:?}");
+                step_to(c, t + 1e-4, h.max(1e-4), until);
+                let fine = states(c);
+                let worst = whole
+                    .iter()
+                    .zip(&fine)
+                    .map(|(a, b)| (a - b).abs())
+                    .fold(0.0, f64::max);
+                eprintln!("branch {branch}, h = {h:e}: worst difference at t0 + 0.01 {worst:e}");
+                assert!(worst < 1e-6, "branch {branch}, h = {h}: {worst}");
+            }
+            let mut at = at_event;
+            fmi3FreeFMUState(c, &mut at);
+            fmi3FreeInstance(c);
+        }
+    }
+}

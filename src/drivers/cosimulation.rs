@@ -142,6 +142,34 @@ pub struct CoSimulation {
     /// The plant stands just before a change point, located by an FMI 3.0 step that
     /// returned early there: the next step crosses it first ([`CoSimulation::cross`]).
     crossing_pending: bool,
+    /// A crossing under way: a step ended before the crossing did, and the plant stands
+    /// on its path ([`Crossing::along`]).
+    in_flight: Option<InFlight>,
+}
+
+/// A crossing of a change point under way: made from `from` at `start`, with the inputs
+/// of that time.
+#[derive(Clone, Copy, Debug)]
+struct InFlight {
+    start: f64,
+    from: State,
+    inputs: Inputs,
+    crossing: Crossing,
+}
+
+impl InFlight {
+    /// The plant's state `at` (within the crossing) on the crossing's path.
+    fn state_at(&self, params: &Parameters, at: f64) -> State {
+        let (mut start, mut end) = ([0.0; STATE_SIZE], [0.0; STATE_SIZE]);
+        model::state_derivative(params, &self.inputs, &self.from, &mut start);
+        model::state_derivative(params, &self.inputs, &self.crossing.state, &mut end);
+        self.crossing
+            .along(params, &self.from, (&start, &end), at - self.start)
+    }
+
+    fn end(&self) -> f64 {
+        self.start + self.crossing.duration
+    }
 }
 
 impl CoSimulation {
@@ -159,6 +187,7 @@ impl CoSimulation {
             ),
             carried: None,
             crossing_pending: false,
+            in_flight: None,
         }
     }
 
@@ -179,13 +208,42 @@ impl CoSimulation {
         change_point::cross(plant.params(), &inputs, plant.state(), plant.branch())
     }
 
-    /// Make a planned crossing: the plant moves past the change point, and the integrator
-    /// starts afresh there.
-    pub fn cross(&mut self, plant: &mut Plant, crossing: &Crossing) {
-        plant.jump(plant.time() + crossing.duration, crossing.state);
+    /// Make a planned crossing, as far as `target`: the whole of it where it ends by then
+    /// (the plant moves past the change point, and the integrator starts afresh there),
+    /// otherwise the plant placed on its way at `target` and the rest left for the next
+    /// steps ([`CoSimulation::go_on_crossing`]). Returns whether the crossing is complete.
+    pub fn cross(&mut self, plant: &mut Plant, crossing: &Crossing, target: f64) -> bool {
         self.crossing_pending = false;
+        self.in_flight = Some(InFlight {
+            start: plant.time(),
+            from: *plant.state(),
+            inputs: plant.inputs_at(plant.time()),
+            crossing: *crossing,
+        });
+        self.go_on_crossing(plant, target)
+    }
+
+    /// Whether a crossing is under way: the plant stands on its path.
+    pub fn crossing_in_flight(&self) -> bool {
+        self.in_flight.is_some()
+    }
+
+    /// The crossing under way taken on to `target`, as in [`CoSimulation::cross`]. Returns
+    /// whether it is complete (as it is where none is under way).
+    pub fn go_on_crossing(&mut self, plant: &mut Plant, target: f64) -> bool {
+        let Some(flight) = self.in_flight else {
+            return true;
+        };
         self.restart = true;
         self.carried = None;
+        if target >= flight.end() {
+            plant.jump(flight.end(), flight.crossing.state);
+            self.in_flight = None;
+            true
+        } else {
+            plant.jump(target, flight.state_at(plant.params(), target));
+            false
+        }
     }
 
     pub fn statistics(&self) -> Statistics {
@@ -401,6 +459,30 @@ impl CoSimulation {
         w.f64s(&carried.f);
         w.f64s(&[carried.inputs.motor_torque, carried.inputs.load_torque]);
         w.bool(self.crossing_pending);
+        w.bool(self.in_flight.is_some());
+        let flight = self.in_flight.unwrap_or(InFlight {
+            start: 0.0,
+            from: [0.0; STATE_SIZE],
+            inputs: Inputs::default(),
+            crossing: Crossing {
+                duration: 0.0,
+                state: [0.0; STATE_SIZE],
+                node: (0.0, 0.0),
+                time_to_node: 0.0,
+                arriving: [0.0; 2],
+                leaving: [0.0; 2],
+            },
+        });
+        let c = &flight.crossing;
+        w.f64s(&[
+            flight.start,
+            flight.inputs.motor_torque,
+            flight.inputs.load_torque,
+        ]);
+        w.f64s(&flight.from);
+        w.f64s(&[c.duration, c.node.0, c.node.1, c.time_to_node]);
+        w.f64s(&c.state);
+        w.f64s(&[c.arriving[0], c.arriving[1], c.leaving[0], c.leaving[1]]);
     }
 
     /// The driver written by [`CoSimulation::serialize_into`], checked against the plant
@@ -419,6 +501,28 @@ impl CoSimulation {
         let f = r.f64s()?;
         let [motor_torque_then, load_torque_then] = r.f64s()?;
         let crossing_pending = r.bool()?;
+        let in_flight = r.bool()?;
+        let [start, flight_motor_torque, flight_load_torque] = r.f64s()?;
+        let from = r.f64s()?;
+        let [duration, node_phi2, node_phi3, time_to_node] = r.f64s()?;
+        let end = r.f64s()?;
+        let [a2, a3, l2, l3] = r.f64s()?;
+        let in_flight = in_flight.then_some(InFlight {
+            start,
+            from,
+            inputs: Inputs {
+                motor_torque: flight_motor_torque,
+                load_torque: flight_load_torque,
+            },
+            crossing: Crossing {
+                duration,
+                state: end,
+                node: (node_phi2, node_phi3),
+                time_to_node,
+                arriving: [a2, a3],
+                leaving: [l2, l3],
+            },
+        });
         let carried = has_carried.then_some(CarriedStage {
             f,
             inputs: Inputs {
@@ -437,6 +541,7 @@ impl CoSimulation {
             solver,
             carried,
             crossing_pending,
+            in_flight,
         };
         driver
             .check_restored(plant, experiment)
@@ -458,6 +563,9 @@ impl CoSimulation {
             let y = plant.state();
             change_point::locate_node(plant.params(), y[1], y[2])
                 .map_err(|e| format!("a change point to cross: {e}"))?;
+        }
+        if let Some(flight) = &self.in_flight {
+            self.check_flight(flight, plant)?;
         }
         if self.carried.is_some() {
             if self.restart {
@@ -493,6 +601,42 @@ impl CoSimulation {
             let system = Driven::new(plant, &self.integrator_inputs, experiment.tolerance);
             self.solver
                 .check_memory(&system, self.integrator_time, &self.integrator_state)?;
+        }
+        Ok(())
+    }
+
+    /// A restored crossing under way: its values finite and in order, the plant within
+    /// it, and the plant's state what the crossing's path gives there, bit for bit.
+    fn check_flight(&self, flight: &InFlight, plant: &Plant) -> Result<(), String> {
+        if self.crossing_pending || !self.restart || self.carried.is_some() {
+            return Err("a crossing under way with the integrator not waiting for it".into());
+        }
+        check_inputs(&flight.inputs, " (crossing's)")?;
+        let c = &flight.crossing;
+        let numbers = [flight.start, c.duration, c.node.0, c.node.1, c.time_to_node];
+        let finite = numbers
+            .iter()
+            .chain(&flight.from)
+            .chain(&c.state)
+            .chain(&c.arriving)
+            .chain(&c.leaving)
+            .all(|v| v.is_finite());
+        if !(finite && c.time_to_node > 0.0 && c.time_to_node < c.duration) {
+            return Err("a crossing under way with values out of order".into());
+        }
+        if !(flight.start < plant.time() && plant.time() < flight.end()) {
+            return Err("the plant's time is not within the crossing under way".into());
+        }
+        let p = plant.params();
+        let size = p.l + p.l2 + p.l3 + p.L;
+        if model::length_residual(p, c.state[1], c.state[2]).abs() > 1e-8 * size {
+            return Err("the crossing under way does not end on the loop".into());
+        }
+        let y = plant.state();
+        let on_path = same_bits(y, &flight.state_at(p, plant.time()));
+        let residual = model::length_residual(p, y[1], y[2]);
+        if !on_path || residual.to_bits() != plant.residual().to_bits() {
+            return Err("the plant's state is not on the crossing's path".into());
         }
         Ok(())
     }

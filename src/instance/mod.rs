@@ -677,7 +677,8 @@ impl Instance {
         self.cosimulation()?.1.allow_work(CALL_WORK);
         // The common case, a step that neither starts at nor meets a change point, as
         // fmi2DoStep's.
-        if self.cosimulation()?.1.crossing_pending() {
+        let driver = self.cosimulation()?.1;
+        if driver.crossing_pending() || driver.crossing_in_flight() {
             let before = self.snapshot()?;
             return self.finish_fmi3_step(before, now, target, None);
         }
@@ -725,9 +726,16 @@ impl Instance {
                     }
                 }
             }
-            if self.cosimulation()?.1.crossing_pending() {
+            let (plant, driver, _) = self.cosimulation()?;
+            if driver.crossing_in_flight() {
+                if !driver.go_on_crossing(plant, target) {
+                    // The step ends on the crossing's way.
+                    return Ok(met);
+                }
+            } else if driver.crossing_pending() {
                 match self.cross(target) {
-                    Ok(()) => {}
+                    Ok(true) => {}
+                    Ok(false) => return Ok(met),
                     Err(Refusal::OutOfWork(at)) => {
                         return self.out_of_work(before, now, target, at)
                     }
@@ -845,11 +853,12 @@ impl Instance {
         Ok((plant, driver, experiment))
     }
 
-    /// Cross the change point the plant stands before, within a step to `target`. A
-    /// crossing that cannot be made is a Discard; one longer than the step is refused with
-    /// the length it needs.
+    /// Cross the change point the plant stands before, within a step to `target`: whole,
+    /// or as far as `target` where the crossing lasts longer than the step (the next steps
+    /// go on with it). Returns whether it is complete; a crossing that cannot be made is a
+    /// Discard.
     #[cold]
-    fn cross(&mut self, target: f64) -> Result<(), Refusal> {
+    fn cross(&mut self, target: f64) -> Result<bool, Refusal> {
         let Ok((plant, driver, _)) = self.cosimulation() else {
             return Err(Refusal::Discard(
                 "the integrator starts at initialisation".into(),
@@ -863,27 +872,26 @@ impl Instance {
         driver.allow_work(left - CROSSING_WORK);
         let crossing = driver
             .plan_crossing(plant)
-            .map_err(|e| Refusal::Discard(format!("at t = {start}: {e}")))?;
-        if start + crossing.duration > target {
-            return Err(Refusal::Discard(format!(
-                "crossing the change point takes {} s, past the step's end t = {target}: take \
-                 a step of at least that length",
-                crossing.duration
-            )));
-        }
-        driver.cross(plant, &crossing);
+            .map_err(|e| Refusal::Discard(format!("at t = {}: {e}", number(start))))?;
+        let complete = driver.cross(plant, &crossing, target);
         if self.log_enabled(Category::Solver) {
             let message = format!(
-                "t = {start}: the change point at phi2 = {}, phi3 = {} crossed onto the branch \
-                 {} in {} s",
+                "t = {}: the change point at phi2 = {}, phi3 = {} crossed onto the branch {} \
+                 in {} s{}",
+                number(start),
                 crossing.node.0,
                 crossing.node.1,
                 self.current.plant.branch().name(),
-                crossing.duration
+                crossing.duration,
+                if complete {
+                    ""
+                } else {
+                    ", on its way over the next steps"
+                }
             );
             self.log(Status::Ok, Category::Solver, &message);
         }
-        Ok(())
+        Ok(complete)
     }
 
     /// After a step that failed from `start` towards `target` with `error`: for a

@@ -57,6 +57,87 @@ pub struct Crossing {
     /// The change point crossed (φ2, φ3), and when it was passed, after the start.
     pub node: (f64, f64),
     pub time_to_node: f64,
+    /// (ω2, ω3) at the change point: arriving along the approach, and leaving along the
+    /// branch taken.
+    pub arriving: [f64; 2],
+    pub leaving: [f64; 2],
+}
+
+/// Hermite's cubic on [0, `span`] from value `a` with slope `da` to `b` with slope `db`:
+/// its value and slope at `t`.
+fn hermite((a, da): (f64, f64), (b, db): (f64, f64), span: f64, t: f64) -> (f64, f64) {
+    let s = t / span;
+    let (s2, s3) = (s * s, s * s * s);
+    let value = (2.0 * s3 - 3.0 * s2 + 1.0) * a
+        + (s3 - 2.0 * s2 + s) * span * da
+        + (3.0 * s2 - 2.0 * s3) * b
+        + (s3 - s2) * span * db;
+    let slope = (6.0 * s2 - 6.0 * s) / span * (a - b)
+        + (3.0 * s2 - 4.0 * s + 1.0) * da
+        + (3.0 * s2 - 2.0 * s) * db;
+    (value, slope)
+}
+
+impl Crossing {
+    /// The state `t` after `from`, the state the crossing started from, while it is under
+    /// way (0 < t < duration): a master stepping more finely than the crossing lasts sees
+    /// the linkage on its way. Crank and rocker follow the crossing's own path, to the
+    /// change point along the approach and away from it along the branch taken, each half
+    /// a cubic in time between its ends' angles and speeds; bodies 1 and 4 a cubic between
+    /// the ends' angles and speeds, and their speeds one between the ends' speeds and
+    /// accelerations (`rates` holds f at `from` and at the end). Near the change point the
+    /// loop's closure is not enforced: no projection is regular there. Crank and rocker
+    /// then carry the energy the crossing's balance gives, linear in time between its ends'.
+    pub fn along(&self, p: &Parameters, from: &State, rates: (&State, &State), t: f64) -> State {
+        let end = &self.state;
+        let mut y = *from;
+        for (angle, speed) in [(0, 4), (3, 7)] {
+            y[angle] = hermite(
+                (from[angle], from[speed]),
+                (end[angle], end[speed]),
+                self.duration,
+                t,
+            )
+            .0;
+            y[speed] = hermite(
+                (from[speed], rates.0[speed]),
+                (end[speed], rates.1[speed]),
+                self.duration,
+                t,
+            )
+            .0;
+        }
+        let node = [self.node.0, self.node.1];
+        for (k, (angle, speed)) in [(1, 5), (2, 6)].into_iter().enumerate() {
+            let (value, slope) = if t <= self.time_to_node {
+                hermite(
+                    (from[angle], from[speed]),
+                    (node[k], self.arriving[k]),
+                    self.time_to_node,
+                    t,
+                )
+            } else {
+                hermite(
+                    (node[k], self.leaving[k]),
+                    (end[angle], end[speed]),
+                    self.duration - self.time_to_node,
+                    t - self.time_to_node,
+                )
+            };
+            y[angle] = value;
+            y[speed] = slope;
+        }
+        let (start, end) = (energy(p, from), energy(p, &self.state));
+        let target = start + (end - start) * (t / self.duration);
+        let rest = energy(p, &[y[0], y[1], y[2], y[3], y[4], 0.0, 0.0, y[7]]);
+        let kinetic = 0.5 * (p.J2 * y[5] * y[5] + p.J3 * y[6] * y[6]);
+        let factor = ((target - rest) / kinetic).sqrt();
+        if factor.is_finite() {
+            y[5] *= factor;
+            y[6] *= factor;
+        }
+        y
+    }
 }
 
 /// The farthest (rad, in φ2 + φ3) a state may stand from the change point it is to cross.
@@ -148,11 +229,14 @@ pub fn cross(
         let state = leave(p, inputs, y, exit, velocity, duration)?;
         let (_, b1, c1) = closure_with_gradient(p, state[1], state[2]);
         if conditioning(p, b1, c1) >= 4.0 * MIN_CONDITIONING {
+            let speed_along = |d: [f64; 2], speed: f64| [d[0] * speed, d[1] * speed];
             return Ok(Crossing {
                 duration,
                 state,
                 node,
                 time_to_node,
+                arriving: speed_along(arriving, speed_at_node),
+                leaving: speed_along(chosen, leaving_speed),
             });
         }
         reach *= 1.5;
