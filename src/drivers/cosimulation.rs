@@ -170,6 +170,31 @@ impl InFlight {
     fn end(&self) -> f64 {
         self.start + self.crossing.duration
     }
+
+    /// What [`CoSimulation::serialize_into`] wrote of a crossing under way.
+    fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
+        let [start, motor_torque, load_torque] = r.f64s()?;
+        let from = r.f64s()?;
+        let [duration, node_phi2, node_phi3, time_to_node] = r.f64s()?;
+        let state = r.f64s()?;
+        let [a2, a3, l2, l3] = r.f64s()?;
+        Ok(Self {
+            start,
+            from,
+            inputs: Inputs {
+                motor_torque,
+                load_torque,
+            },
+            crossing: Crossing {
+                duration,
+                state,
+                node: (node_phi2, node_phi3),
+                time_to_node,
+                arriving: [a2, a3],
+                leaving: [l2, l3],
+            },
+        })
+    }
 }
 
 impl CoSimulation {
@@ -459,30 +484,20 @@ impl CoSimulation {
         w.f64s(&carried.f);
         w.f64s(&[carried.inputs.motor_torque, carried.inputs.load_torque]);
         w.bool(self.crossing_pending);
+        // A crossing under way, only where there is one: no unused numbers to check.
         w.bool(self.in_flight.is_some());
-        let flight = self.in_flight.unwrap_or(InFlight {
-            start: 0.0,
-            from: [0.0; STATE_SIZE],
-            inputs: Inputs::default(),
-            crossing: Crossing {
-                duration: 0.0,
-                state: [0.0; STATE_SIZE],
-                node: (0.0, 0.0),
-                time_to_node: 0.0,
-                arriving: [0.0; 2],
-                leaving: [0.0; 2],
-            },
-        });
-        let c = &flight.crossing;
-        w.f64s(&[
-            flight.start,
-            flight.inputs.motor_torque,
-            flight.inputs.load_torque,
-        ]);
-        w.f64s(&flight.from);
-        w.f64s(&[c.duration, c.node.0, c.node.1, c.time_to_node]);
-        w.f64s(&c.state);
-        w.f64s(&[c.arriving[0], c.arriving[1], c.leaving[0], c.leaving[1]]);
+        if let Some(flight) = &self.in_flight {
+            let c = &flight.crossing;
+            w.f64s(&[
+                flight.start,
+                flight.inputs.motor_torque,
+                flight.inputs.load_torque,
+            ]);
+            w.f64s(&flight.from);
+            w.f64s(&[c.duration, c.node.0, c.node.1, c.time_to_node]);
+            w.f64s(&c.state);
+            w.f64s(&[c.arriving[0], c.arriving[1], c.leaving[0], c.leaving[1]]);
+        }
     }
 
     /// The driver written by [`CoSimulation::serialize_into`], checked against the plant
@@ -501,28 +516,11 @@ impl CoSimulation {
         let f = r.f64s()?;
         let [motor_torque_then, load_torque_then] = r.f64s()?;
         let crossing_pending = r.bool()?;
-        let in_flight = r.bool()?;
-        let [start, flight_motor_torque, flight_load_torque] = r.f64s()?;
-        let from = r.f64s()?;
-        let [duration, node_phi2, node_phi3, time_to_node] = r.f64s()?;
-        let end = r.f64s()?;
-        let [a2, a3, l2, l3] = r.f64s()?;
-        let in_flight = in_flight.then_some(InFlight {
-            start,
-            from,
-            inputs: Inputs {
-                motor_torque: flight_motor_torque,
-                load_torque: flight_load_torque,
-            },
-            crossing: Crossing {
-                duration,
-                state: end,
-                node: (node_phi2, node_phi3),
-                time_to_node,
-                arriving: [a2, a3],
-                leaving: [l2, l3],
-            },
-        });
+        let in_flight = if r.bool()? {
+            Some(InFlight::deserialize_from(r)?)
+        } else {
+            None
+        };
         let carried = has_carried.then_some(CarriedStage {
             f,
             inputs: Inputs {
