@@ -1,10 +1,13 @@
-//! An FMI 2.0 unit (Co-Simulation and Model Exchange) for the cyclic mechanism of `docs/model.md`.
+//! An FMI 2.0 and 3.0 unit (Co-Simulation and Model Exchange) for the cyclic mechanism of
+//! `docs/model.md`.
 //! ARCHITECTURE.md at the repository's root tells how the parts fit; from the top down:
 //!
-//! - [`fmi2`]: the FMI 2.0 C ABI; with `fmi3` and `abi` the only `unsafe` code in the crate
-//!   (with the runner's loader);
+//! - [`fmi2`]: the FMI 2.0 C ABI; with `fmi3` and `abi` the crate's `unsafe` code, with
+//!   three files of the instance (the master's logger, FMU state handles, the AVX copy);
 //! - [`fmi3`]: the FMI 3.0 C ABI over the same instance, and its model description;
 //! - [`instance`]: one instance of either version: its restorable state, states and logger;
+//! - [`description`]: what both versions' model descriptions share (names, log categories,
+//!   the interface's hash, the XML writers);
 //! - [`drivers`]: the co-simulation driver (the FMU's own integrator) and the Model Exchange
 //!   adapter (the master's integrator), each over the plant;
 //! - [`plant`]: the mechanism as a master sees it: variables, checks, outputs, derivatives;
@@ -14,6 +17,7 @@
 //! - [`solver`]: integrators that know nothing of the mechanism.
 
 mod abi;
+pub mod description;
 pub mod drivers;
 pub mod fmi2;
 pub mod fmi3;

@@ -5,7 +5,8 @@
 //! `cargo run --release --bin fmu-assets -- modelDescription` (and paste
 //! `modelDescription/variables.md` into the README).
 
-use cyclic_mechanism::fmi2::model_description::{variables_markdown, xml};
+use cyclic_mechanism::description::variables_markdown;
+use cyclic_mechanism::fmi2::model_description::xml;
 
 fn read(path: &str) -> String {
     let full = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path);

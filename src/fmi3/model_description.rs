@@ -8,7 +8,7 @@ use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
 use std::io;
 
-use crate::fmi2::model_description::{
+use crate::description::{
     fnv1a_128, type_attributes, uuid_text, write_default_experiment, write_interface, write_items,
     write_log_categories, write_units, write_unknown, Items, UuidText, DESCRIPTION_ATTRIBUTES,
     MAX_OUTPUT_DERIVATIVE_ORDER, MODEL_NAME,
@@ -238,7 +238,7 @@ mod tests {
         assert!(text.contains(instantiation_token()));
         assert_ne!(
             instantiation_token(),
-            crate::fmi2::model_description::guid()
+            crate::description::uuid_text(crate::description::interface_hash())
         );
     }
 

@@ -5,8 +5,8 @@ use fmi_sys::fmi3::*;
 
 use super::export;
 use crate::abi::{null_argument, slice, slice_mut};
+use crate::description::EVENT_INDICATORS;
 use crate::drivers::model_exchange::STATES;
-use crate::fmi2::model_description::EVENT_INDICATORS;
 use crate::instance::Instance;
 
 export! {

@@ -5,8 +5,8 @@
 
 use super::state::{Interface, State, Version};
 use super::Failure;
+use crate::description::{self, DEFAULT_EXPERIMENT};
 use crate::drivers::{CoSimulation, Exchange, Experiment};
-use crate::fmi2::model_description::{guid, DEFAULT_EXPERIMENT};
 use crate::plant::{Activity, Plant};
 use crate::snapshot::{fnv1a_64, FormatError, Reader, Writer};
 
@@ -221,7 +221,8 @@ impl FmuState {
     }
 }
 
-/// Serialized states carry this hash of the GUID: a state of another FMU is refused.
+/// Serialized states carry this hash of the interface (either version's): a state of
+/// another FMU, or of another build of its interface, is refused.
 pub(super) fn interface_hash() -> u64 {
-    fnv1a_64(guid().as_bytes())
+    fnv1a_64(&description::interface_hash().to_le_bytes())
 }

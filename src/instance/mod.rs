@@ -16,10 +16,10 @@ use handles::StateHandles;
 pub use logger::Logger;
 pub use state::{Interface, State, Version};
 
+use crate::description::LOG_CATEGORIES;
 use crate::drivers::cosimulation::{CALL_WORK, CROSSING_WORK};
 use crate::drivers::model_exchange::STATES;
 use crate::drivers::{CoSimulation, Exchange, Experiment};
-use crate::fmi2::model_description::LOG_CATEGORIES;
 use crate::plant::{AccessError, Plant, Value};
 use crate::solver::SolverError;
 use crate::text::number;
@@ -417,7 +417,7 @@ impl Instance {
     }
 
     pub fn get_event_indicators(&mut self, z: &mut [f64]) -> Outcome {
-        let expected = crate::fmi2::model_description::EVENT_INDICATORS;
+        let expected = crate::description::EVENT_INDICATORS;
         if z.len() != expected {
             return Err(Failure::error(format!(
                 "ni = {}: this FMU has {expected} event indicator",

@@ -13,6 +13,7 @@ mod demo;
 mod fit;
 mod fmu;
 mod instructions;
+mod layers;
 mod motor;
 mod platforms;
 mod setup;

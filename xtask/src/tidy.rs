@@ -1,6 +1,8 @@
 //! `cargo xtask tidy`, also the first step of `cargo xtask test`: the code is formatted,
-//! clippy finds nothing, `unsafe` appears only in the FFI and loader files, and no comment
-//! in `src/` carries a measured figure (figures live in the reports a command writes).
+//! clippy finds nothing, `unsafe` appears only in the FFI and loader files, no module of
+//! `src/` imports from a layer above its own (ARCHITECTURE.md's table, `layers`), and no
+//! comment in `src/` carries a measured figure (figures live in the reports a command
+//! writes).
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -45,6 +47,9 @@ pub(crate) fn check() -> Result {
         "warnings",
     ]))?;
     let mut problems = Vec::new();
+    let architecture = fs::read_to_string(root().join("ARCHITECTURE.md"))
+        .map_err(|e| format!("ARCHITECTURE.md: {e}"))?;
+    let layers = crate::layers::from_architecture(&architecture)?;
     for dir in ["src", "runner/src"] {
         for file in rust_files(&root().join(dir))? {
             let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
@@ -56,11 +61,18 @@ pub(crate) fn check() -> Result {
             problems.extend(unsafe_outside_ffi(&name, &text));
             if dir == "src" {
                 problems.extend(figures_in_comments(&name, &text));
+                if let Some(module) = crate::layers::module_of(&name) {
+                    let code = code_lines(&text).map(|(n, line)| (n, line.to_string()));
+                    problems.extend(crate::layers::arrows_up(&layers, &name, module, code));
+                }
             }
         }
     }
     if problems.is_empty() {
-        println!("xtask: tidy: formatted, clippy clean, unsafe only where allowed, no figures in src/ comments");
+        println!(
+            "xtask: tidy: formatted, clippy clean, unsafe only where allowed, no arrow up in \
+             src/, no figures in src/ comments"
+        );
         Ok(())
     } else {
         Err(format!("tidy:\n{}", problems.join("\n")))

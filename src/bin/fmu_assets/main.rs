@@ -7,7 +7,8 @@
 
 mod markdown;
 
-use cyclic_mechanism::fmi2::model_description::{variable_rows, variables_markdown, xml};
+use cyclic_mechanism::description::{variable_rows, variables_markdown};
+use cyclic_mechanism::fmi2::model_description::xml;
 use std::path::PathBuf;
 
 const GUIDE: &str = include_str!("../../../docs/fmu.md");
