@@ -54,7 +54,7 @@ impl SolverKind {
     }
 }
 
-/// First and second time derivatives of the inputs (fmi2SetRealInputDerivatives): within a
+/// First and second time derivatives of the inputs (the master's input derivatives): within a
 /// communication step starting at tc, an input is u(t) = u + u′·(t − tc) + u″·(t − tc)²/2,
 /// u being the value the master set. They persist until the master changes them.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -234,7 +234,7 @@ impl Plant {
         }
     }
 
-    /// The master moves time: Model Exchange's fmi2SetTime, and before initialisation the
+    /// The master moves time: Model Exchange's SetTime, and before initialisation the
     /// experiment's start time, where [`Plant::initialize`] will place the mechanism
     /// (a state saved before initialisation is checked against it on restore).
     pub fn set_time(&mut self, time: f64) {
@@ -417,7 +417,7 @@ impl Plant {
         (f(&ya, ta) - f(&yb, tb)) / (2.0 * h)
     }
 
-    /// A Real variable's value: the hot path of fmi2GetReal. φ and ω take one subtraction
+    /// A Real variable's value: the hot path of the Real getters. φ and ω take one subtraction
     /// and one comparison, and need no check (`advance` keeps the state finite; inputs and
     /// parameters are checked when set). The computed outputs are checked: none leaves the
     /// FMU non-finite. Inlined into both versions' getters: with two callers the compiler
@@ -632,7 +632,7 @@ impl Plant {
         }
     }
 
-    /// The derivatives of the Real `unknowns` along a direction of the knowns (fmi2GetDirectionalDerivative),
+    /// The derivatives of the Real `unknowns` along a direction of the knowns (GetDirectionalDerivative),
     /// exact by forward-mode differentiation: `input_seed` moves M_m and M_r; `states`, in
     /// Model Exchange, gives the independent coordinates with their seed. Without
     /// `states` the state is held (Co-Simulation's outputs at a communication point).
@@ -676,7 +676,7 @@ impl Plant {
 
 /// A Real output or Model Exchange variable of state `y` under `inputs` with `chart` leading,
 /// generic so that one definition serves values and exact derivatives; `None` for the
-/// slots that are not computed from the state. Inlined: in fmi2GetReal's path the match
+/// slots that are not computed from the state. Inlined: in the Real getter's path the match
 /// on the slot then folds into the caller's.
 #[inline(always)]
 fn real_value<T: Scalar>(
@@ -715,7 +715,7 @@ const fn state_component(slot: Slot) -> Option<usize> {
 }
 
 /// The value reference of φ1, which φ2…ω4 follow in state order (the table is built that
-/// way, and this checks it when compiling): fmi2GetReal serves a state with one
+/// way, and this checks it when compiling): the Real getter serves a state with one
 /// subtraction and one comparison, cheaper than a table lookup per value on the path of
 /// every read.
 const FIRST_STATE_VR: u32 = {
@@ -878,13 +878,19 @@ fn check_type(var: &Variable, value: Value) -> Result<(), AccessError> {
     if matches {
         return Ok(());
     }
-    let accessor = match var.var_type() {
+    // The FMI function names the accessor; the plant names the types.
+    let asked = match value {
+        Value::Real(_) => "Real",
+        Value::Integer(_) => "Integer",
+        Value::Boolean(_) => "Boolean",
+    };
+    let own = match var.var_type() {
         VarType::Real => "Real",
         VarType::Integer | VarType::Enumeration => "Integer",
         VarType::Boolean => "Boolean",
     };
     Err(AccessError::NotAllowed(format!(
-        "{} is of type {}: use fmi2Get{accessor}/fmi2Set{accessor}",
+        "{} is of type {}: read and write it as {own}, not {asked}",
         var.name,
         var.var_type().as_str()
     )))
@@ -906,7 +912,7 @@ mod tests {
     use super::*;
     use crate::variables::{variables, COUNT};
 
-    /// fmi2GetReal's fast path for φ and ω (by value reference range) gives what the
+    /// The Real getter's fast path for φ and ω (by value reference range) gives what the
     /// general path gives, and every other Real variable still reads through the general
     /// path.
     #[test]

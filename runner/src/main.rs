@@ -1,4 +1,4 @@
-//! `fmu-runner serve DIR`: load the FMI 2.0 co-simulation FMU unpacked in DIR and answer
+//! `fmu-runner serve DIR`: load the co-simulation FMU (FMI 2.0) unpacked in DIR and answer
 //! requests on standard input (see `protocol`). The sweep's workers start one runner per
 //! FMU and keep it for their whole life, so the per-point work never passes through
 //! Python; a crash of the FMU ends only this process.

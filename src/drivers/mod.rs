@@ -5,8 +5,8 @@
 //!   choice, restart rules, dense output, projection at communication points);
 //! - [`model_exchange`]: the master integrates the loop's independent coordinates.
 //!
-//! Both read the master's [`Experiment`]. A new interface (FMI 3.0's Co-Simulation and
-//! Model Exchange) drives the plant through these same two.
+//! Both read the master's [`Experiment`]. Both FMI versions drive the plant through these
+//! same two.
 
 pub mod cosimulation;
 pub mod model_exchange;

@@ -65,7 +65,7 @@ impl Exchange {
         &self.at
     }
 
-    /// fmi2SetContinuousStates: a rejected x changes nothing.
+    /// SetContinuousStates: a rejected x changes nothing.
     pub fn set_states(&mut self, plant: &mut Plant, x: &[f64]) -> Result<(), ModelError> {
         if let Some(i) = x.iter().position(|v| !v.is_finite()) {
             return Err(ModelError::new(format!(
@@ -93,7 +93,7 @@ impl Exchange {
         [plant.handover_indicator()]
     }
 
-    /// fmi2NewDiscreteStates: hand over to the other chart if the indicator has crossed.
+    /// NewDiscreteStates (FMI 3.0's UpdateDiscreteStates): hand over to the other chart if the indicator has crossed.
     /// Returns whether the continuous states changed (their meaning did). A refusal (a
     /// change point, where neither chart holds) changes nothing.
     pub fn update(&mut self, plant: &mut Plant) -> Result<bool, ModelError> {
