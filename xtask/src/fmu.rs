@@ -118,11 +118,12 @@ pub(crate) fn build_portable_library() -> Result<PathBuf> {
     Ok(library)
 }
 
-/// Write the archive beside its place and move it there when complete, so that a failure
-/// never leaves a partial FMU.
+/// Write the archive beside its place and move it there when complete (a rename replaces
+/// the old archive at once), so that a failure never leaves a partial FMU and another job
+/// reading the archive meanwhile reads the old one or the new one, never none. The partial
+/// file is this process's own.
 pub(crate) fn pack(fmu: &Path, files: &[(String, PathBuf)]) -> Result {
-    let partial = fmu.with_extension("fmu.partial");
-    let _ = fs::remove_file(fmu);
+    let partial = fmu.with_extension(format!("fmu.{}.partial", std::process::id()));
     if let Err(error) = write_zip(&partial, files) {
         let _ = fs::remove_file(&partial);
         return Err(error);
@@ -150,7 +151,7 @@ mod tests {
     use super::*;
 
     /// The archive holds what was given under its names; a source that cannot be read
-    /// leaves no archive, neither a partial one nor the one before.
+    /// leaves no partial archive, and the one before as it was (a reader never finds none).
     #[test]
     fn packing_is_all_or_nothing() {
         let dir = std::env::temp_dir().join(format!("xtask-pack-{}", std::process::id()));
@@ -172,10 +173,20 @@ mod tests {
             "binaries/win64/CyclicMechanism.dll".into(),
             dir.join("missing"),
         ));
+        let before = fs::read(&fmu).unwrap();
         let error = pack(&fmu, &broken).unwrap_err();
         assert!(error.contains("missing"), "{error}");
-        assert!(!fmu.exists(), "a failed pack leaves no archive");
-        assert!(!fmu.with_extension("fmu.partial").exists());
+        assert_eq!(
+            fs::read(&fmu).unwrap(),
+            before,
+            "a failed pack changed the archive"
+        );
+        let left: Vec<_> = fs::read_dir(&dir)
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().contains("partial"))
+            .collect();
+        assert!(left.is_empty(), "a partial archive was left: {left:?}");
         fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -309,6 +309,26 @@ pub(crate) fn fingerprint(paths: &[PathBuf]) -> Result<String> {
     Ok(format!("{hash:016x}"))
 }
 
+/// Every file below `dir`, sorted, but for caches (`__pycache__`, `target`) and hidden ones.
+pub(crate) fn files_below(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    let entries = fs::read_dir(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.starts_with('.') || name == "__pycache__" || name == "target" {
+            continue;
+        }
+        if path.is_dir() {
+            files.extend(files_below(&path)?);
+        } else {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
 /// The files of `dir` (not its subdirectories) whose names end in `.ext`, sorted.
 pub(crate) fn files_with_extension(dir: &Path, ext: &str) -> Result<Vec<PathBuf>> {
     let mut files: Vec<PathBuf> = fs::read_dir(dir)

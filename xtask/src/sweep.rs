@@ -2,7 +2,7 @@
 //! a sweep of a spec, and the sweep benchmark.
 
 use std::fs;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::cli::{Flag, Parsed};
@@ -16,6 +16,18 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
     ensure_libclang()?;
     let python = ensure_venv(Packages::Tests)?;
     let out = root().join("target/wheels");
+    // The wheel is made of the package, the runner's crate and the lock file: with the same
+    // bytes of each, the wheel built from them last is the one.
+    let mut inputs = files_below(&root().join("python"))?;
+    inputs.extend(files_below(&root().join("runner"))?);
+    inputs.push(root().join("Cargo.lock"));
+    let key = fingerprint(&inputs)?;
+    let stamp = root().join("target/wheels.fingerprint");
+    if fs::read_to_string(&stamp).is_ok_and(|built| built == key) {
+        if let Some(wheel) = wheel_in(&out) {
+            return Ok(wheel);
+        }
+    }
     if out.exists() {
         fs::remove_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
     }
@@ -32,12 +44,19 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
             .env("BINDGEN_EXTRA_CLANG_ARGS", c_header_args()?),
     )?;
     check_glibc(&root().join("target/x86_64-unknown-linux-gnu/release/fmu-runner"))?;
-    fs::read_dir(&out)
-        .map_err(|e| format!("{}: {e}", out.display()))?
+    let wheel =
+        wheel_in(&out).ok_or_else(|| format!("maturin wrote no wheel to {}", out.display()))?;
+    fs::write(&stamp, key).map_err(|e| format!("{}: {e}", stamp.display()))?;
+    Ok(wheel)
+}
+
+/// The wheel in `dir`, if there is one.
+fn wheel_in(dir: &Path) -> Option<PathBuf> {
+    fs::read_dir(dir)
+        .ok()?
         .flatten()
         .map(|entry| entry.path())
         .find(|path| path.extension().is_some_and(|e| e == "whl"))
-        .ok_or_else(|| format!("maturin wrote no wheel to {}", out.display()))
 }
 
 /// manylinux2014 is glibc 2.17, the baseline of every Linux binary here.
