@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import Collector, did_you_mean
 from .spec import SpecError
 
 __all__ = ["check_against_fmu", "Variables"]
@@ -26,7 +27,7 @@ class Variables:
     def get(self, name: str, where: str, causalities=None, types=None, what="variable") -> dict:
         v = self.by_name.get(name)
         if v is None:
-            raise SpecError(where, f"the FMU has no {what} {name!r}")
+            raise SpecError(where, f"the FMU has no {what} {name!r}{did_you_mean(name, self.by_name)}")
         if causalities and v["causality"] not in causalities:
             raise SpecError(where, f"{name} has causality {v['causality']}; "
                                    f"only {' or '.join(causalities)} variables can be {what_for(causalities)}")
@@ -34,23 +35,27 @@ class Variables:
             raise SpecError(where, f"{name} is of type {v['type']}; expected {' or '.join(types)}")
         return v
 
-    def check_scenario(self, scenario) -> None:
+    def check_scenario(self, scenario, errors: Collector) -> None:
         for name in scenario.parameters:
-            self.get(name, f"scenario.parameters.{name}", SETTABLE, VALUE_TYPES)
+            errors.run(lambda: self.get(name, f"scenario.parameters.{name}", SETTABLE, VALUE_TYPES))
         for name in scenario.inputs:
-            self.get(name, f"scenario.inputs.{name}", ("input",), ("real",))
+            errors.run(lambda: self.get(name, f"scenario.inputs.{name}", ("input",), ("real",)))
 
     def check_columns(self, names: list[str], rows: np.ndarray, field: str) -> None:
         """Each column of a design (or a fit's parameters) is a settable variable, and its
-        values suit the variable's type."""
+        values suit the variable's type; every mistake reported at once."""
+        errors = Collector()
         for j, name in enumerate(names):
-            v = self.get(name, f"{field}.{name}", SETTABLE, VALUE_TYPES)
-            column = rows[:, j]
-            if v["type"] in ("integer", "enumeration") and np.any(column != np.round(column)):
-                raise SpecError(f"{field}.{name}", f"{name} is an Integer; the design gives "
-                                                   f"{column[column != np.round(column)][0]}")
-            if v["type"] == "boolean" and not np.all((column == 0) | (column == 1)):
-                raise SpecError(f"{field}.{name}", f"{name} is a Boolean; the design must give 0 or 1")
+            errors.run(lambda: self._check_column(name, rows[:, j], field))
+        errors.raise_any()
+
+    def _check_column(self, name: str, column: np.ndarray, field: str) -> None:
+        v = self.get(name, f"{field}.{name}", SETTABLE, VALUE_TYPES)
+        if v["type"] in ("integer", "enumeration") and np.any(column != np.round(column)):
+            raise SpecError(f"{field}.{name}", f"{name} is an Integer; the design gives "
+                                               f"{column[column != np.round(column)][0]}")
+        if v["type"] == "boolean" and not np.all((column == 0) | (column == 1)):
+            raise SpecError(f"{field}.{name}", f"{name} is a Boolean; the design must give 0 or 1")
 
 
 def what_for(causalities) -> str:
@@ -58,13 +63,17 @@ def what_for(causalities) -> str:
 
 
 def check_against_fmu(spec, design, description: dict, runner) -> None:
+    """Every name against the FMU, every mistake reported at once; then the values."""
     variables = Variables(description)
-    variables.check_scenario(spec)
+    errors = Collector()
+    variables.check_scenario(spec, errors)
     for m in spec.metrics:
-        variables.get(m.variable, f"outputs.metrics.{m.name}.variable", None, VALUE_TYPES)
+        errors.run(lambda: variables.get(m.variable, f"outputs.metrics.{m.name}.variable", None,
+                                         VALUE_TYPES))
     for name in spec.series_variables:
-        variables.get(name, "outputs.series.variables", None, VALUE_TYPES)
-    variables.check_columns(design.names, design.rows, "design.parameters")
+        errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
+    errors.run(lambda: variables.check_columns(design.names, design.rows, "design.parameters"))
+    errors.raise_any()
     ask_the_fmu(spec.plan(), design.names, design.rows, runner, "design.parameters",
                 "scenario.parameters")
 

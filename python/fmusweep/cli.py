@@ -77,7 +77,8 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="fmusweep", description=__doc__.split("\n\n")[0],
                                      epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"fmusweep {__version__}")
-    parser.add_argument("spec", help="the sweep specification (TOML); or `fit` and a fit's")
+    parser.add_argument("spec", help="the sweep specification (TOML); `python -m fmusweep fit "
+                                     "SPEC` runs a fit (see `fit --help`)")
     _engine_arguments(parser)
     parser.add_argument("--out", help="output directory (default: sweep-<spec digest>)")
     parser.add_argument("--resume", action="store_true", help="finish the sweep in --out, redoing only missing points")

@@ -4,6 +4,11 @@ importing each other."""
 
 from __future__ import annotations
 
+import difflib
+from typing import Callable, TypeVar
+
+T = TypeVar("T")
+
 
 class SpecError(ValueError):
     """A specification that cannot run; the message names the field and the rule."""
@@ -11,3 +16,44 @@ class SpecError(ValueError):
     def __init__(self, field_name: str, rule: str):
         super().__init__(f"{field_name}: {rule}")
         self.field = field_name
+
+
+class SpecErrors(SpecError):
+    """Several mistakes of one specification, found in one pass: each a SpecError (the
+    first one's field is this error's field)."""
+
+    def __init__(self, errors: list[SpecError]):
+        lines = "\n".join(f"  {e}" for e in errors)
+        ValueError.__init__(self, f"{len(errors)} problems:\n{lines}")
+        self.field = errors[0].field
+        self.errors = errors
+
+
+class Collector:
+    """Checks that do not depend on each other, run one after another; every SpecError
+    they raise is kept, and :meth:`raise_any` raises them together."""
+
+    def __init__(self) -> None:
+        self.errors: list[SpecError] = []
+
+    def run(self, check: Callable[[], T]) -> T | None:
+        """check()'s result, or None after keeping the SpecError(s) it raised."""
+        try:
+            return check()
+        except SpecErrors as e:
+            self.errors.extend(e.errors)
+        except SpecError as e:
+            self.errors.append(e)
+        return None
+
+    def raise_any(self) -> None:
+        if len(self.errors) == 1:
+            raise self.errors[0]
+        if self.errors:
+            raise SpecErrors(self.errors)
+
+
+def did_you_mean(name: str, known) -> str:
+    """", did you mean 'x'?" for the known name closest to a misspelt one, else ""."""
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""

@@ -10,6 +10,7 @@ import io
 import pathlib
 import shutil
 import tempfile
+import xml.etree.ElementTree as ElementTree
 import zipfile
 
 from .errors import SpecError
@@ -68,8 +69,28 @@ def open_for_checks(fmu, spec_fmu) -> tuple[Archive, NativeRunner, dict]:
         raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), pass fmu=, "
                                "or set FMUSWEEP_FMU")
     target = Archive.read(path)
+    version = fmi_version(target)
+    if version is None:
+        raise SpecError("fmu", f"{path} has no readable modelDescription.xml: it is not an FMU")
+    if version != "2.0":
+        raise SpecError("fmu", f"{path} is an FMI {version} FMU (its modelDescription.xml says "
+                               f"fmiVersion=\"{version}\"); fmusweep runs FMI 2.0 "
+                               f"Co-Simulation FMUs: give the model's FMI 2.0 archive")
     local = local_runner(target)
     return target, local, local.describe()
+
+
+def fmi_version(fmu: Archive) -> str | None:
+    """The fmiVersion its modelDescription.xml declares; None without a readable one."""
+    with zipfile.ZipFile(io.BytesIO(fmu.data)) as archive:
+        try:
+            text = archive.read("modelDescription.xml")
+        except KeyError:
+            return None
+    try:
+        return ElementTree.fromstring(text).get("fmiVersion")
+    except ElementTree.ParseError:
+        return None
 
 
 @atexit.register

@@ -47,7 +47,7 @@ import tomllib
 from dataclasses import dataclass, field
 
 from . import design as _design
-from .errors import SpecError
+from .errors import Collector, SpecError
 from .system import System
 from .fields import number as _number
 from .fields import only as _only
@@ -183,43 +183,22 @@ class Spec:
 
     @staticmethod
     def from_dict(raw: dict, base_dir) -> "Spec":
+        """The spec of `raw`, every mistake of its own fields reported at once (the names
+        are checked against the FMU afterwards, also all at once)."""
         raw = copy.deepcopy(raw)
         base_dir = pathlib.Path(base_dir)
-        _only(raw, "spec", {"fmu", "ssp", "system", "scenario", "design", "outputs"})
-        fmu, ssp, system = what_runs(raw, base_dir)
-        scenario = Scenario.of(raw)
-        design = _table(raw, "design", "spec", required=True)
-        kind = design.get("kind", "grid")
-        if kind not in DESIGN_KINDS:
-            raise SpecError("design.kind", f"must be one of {', '.join(DESIGN_KINDS)}, got {kind!r}")
-        seed = design.get("seed")
-        if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
-            raise SpecError("design.seed", f"must be a whole number ≥ 0, got {seed!r}")
-        if kind in ("lhs", "sobol", "morris") and seed is None:
-            raise SpecError("design.seed", f"a {kind} design needs a seed, so that it can be repeated")
-        if not _table(design, "parameters", "design"):
-            raise SpecError("design.parameters", "names no parameter: the design is empty")
-        for name in design["parameters"]:
-            scenario.refuse_also_set(name, f"design.parameters.{name}", "vary")
-        outputs = _table(raw, "outputs", "spec", required=True)
-        _only(outputs, "outputs", {"metrics", "series"})
-        metrics = [_metric(name, m) for name, m in _table(outputs, "metrics", "outputs").items()]
-        series = _table(outputs, "series", "outputs")
-        series_variables, every = [], 0
-        if series:
-            _only(series, "outputs.series", {"variables", "interval"})
-            series_variables = series.get("variables")
-            if not (isinstance(series_variables, list) and series_variables
-                    and all(isinstance(v, str) for v in series_variables)):
-                raise SpecError("outputs.series.variables", "must be a non-empty list of variable names")
-            step = scenario.step
-            interval = _number(series.get("interval", step), "outputs.series.interval")
-            every = round(interval / step)
-            if every < 1 or abs(interval / step - every) > 1e-6:
-                raise SpecError("outputs.series.interval",
-                                f"must be a whole multiple of scenario.step ({step}), got {interval}")
-        if not metrics and not series_variables:
-            raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
+        errors = Collector()
+        errors.run(lambda: _only(raw, "spec", {"fmu", "ssp", "system", "scenario", "design",
+                                               "outputs"}))
+        runs = errors.run(lambda: what_runs(raw, base_dir))
+        scenario = errors.run(lambda: Scenario.of(raw))
+        header = errors.run(lambda: _design_header(raw, scenario))
+        outputs = errors.run(lambda: _outputs(raw, scenario))
+        errors.raise_any()
+        assert runs and scenario and header and outputs
+        fmu, ssp, system = runs
+        design, kind, seed = header
+        metrics, series_variables, every = outputs
         spec = Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
                     ssp=(base_dir / ssp) if ssp else None, system=system,
                     start=scenario.start, stop=scenario.stop, step=scenario.step,
@@ -265,6 +244,64 @@ def read_source(source, base_dir, also: str) -> tuple[dict, pathlib.Path]:
     if isinstance(source, dict):
         return source, pathlib.Path(base_dir or pathlib.Path.cwd())
     raise SpecError("spec", f"expected a path, a dict or {also}, got {type(source).__name__}")
+
+
+def _design_header(raw: dict, scenario: Scenario | None) -> tuple[dict, str, int | None]:
+    """The [design] table, its kind and seed; its columns must not be set by the scenario
+    too (whose own mistakes are reported apart)."""
+    design = _table(raw, "design", "spec", required=True)
+    kind = design.get("kind", "grid")
+    if kind not in DESIGN_KINDS:
+        raise SpecError("design.kind", f"must be one of {', '.join(DESIGN_KINDS)}, got {kind!r}")
+    seed = design.get("seed")
+    if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
+        raise SpecError("design.seed", f"must be a whole number ≥ 0, got {seed!r}")
+    if kind in ("lhs", "sobol", "morris") and seed is None:
+        raise SpecError("design.seed", f"a {kind} design needs a seed, so that it can be repeated")
+    if not _table(design, "parameters", "design"):
+        raise SpecError("design.parameters", "names no parameter: the design is empty")
+    if scenario is not None:
+        errors = Collector()
+        for name in design["parameters"]:
+            errors.run(lambda: scenario.refuse_also_set(name, f"design.parameters.{name}", "vary"))
+        errors.raise_any()
+    return design, kind, seed
+
+
+def _outputs(raw: dict, scenario: Scenario | None) -> tuple[list[MetricSpec], list[str], int]:
+    """The [outputs] table: the metrics, and the series' variables and interval (as a
+    number of the scenario's steps, once the scenario is known)."""
+    outputs = _table(raw, "outputs", "spec", required=True)
+    _only(outputs, "outputs", {"metrics", "series"})
+    errors = Collector()
+    metrics = [errors.run(lambda: _metric(name, m))
+               for name, m in _table(outputs, "metrics", "outputs").items()]
+    series = _table(outputs, "series", "outputs")
+    series_variables, every = [], 0
+    if series:
+        _only(series, "outputs.series", {"variables", "interval"})
+        series_variables = series.get("variables")
+        if not (isinstance(series_variables, list) and series_variables
+                and all(isinstance(v, str) for v in series_variables)):
+            errors.run(lambda: _refuse("outputs.series.variables",
+                                       "must be a non-empty list of variable names"))
+            series_variables = []
+        if scenario is not None:
+            step = scenario.step
+            interval = _number(series.get("interval", step), "outputs.series.interval")
+            every = round(interval / step)
+            if every < 1 or abs(interval / step - every) > 1e-6:
+                errors.run(lambda: _refuse("outputs.series.interval",
+                                           f"must be a whole multiple of scenario.step ({step}), "
+                                           f"got {interval}"))
+    errors.raise_any()
+    if not metrics and not series_variables:
+        raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
+    return [m for m in metrics if m is not None], series_variables, every
+
+
+def _refuse(field_name: str, rule: str) -> None:
+    raise SpecError(field_name, rule)
 
 
 # --- field checks -----------------------------------------------------------------------

@@ -99,6 +99,37 @@ def test_a_broken_spec_is_refused_before_anything_runs_naming_the_field(fmu_path
     assert not (tmp_path / "out").exists()
 
 
+def test_every_mistake_of_a_spec_is_reported_in_one_pass(fmu_path, tmp_path):
+    """Its own fields' mistakes together; then every name the FMU lacks together, each with
+    the nearest name it has."""
+    spec = grid_spec()
+    spec["scenario"]["step"] = 0.03
+    spec["design"]["kind"] = "random"
+    spec["outputs"]["metrics"]["n_rhs"]["kind"] = "median"
+    with pytest.raises(SpecError) as refused:
+        run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False)
+    said = str(refused.value)
+    assert "3 problems" in said, said
+    for field in ("scenario.step", "design.kind", "outputs.metrics.n_rhs.kind"):
+        assert field in said, (field, said)
+    spec = grid_spec(k43={"values": [1.0]})
+    spec["outputs"]["metrics"]["peak_rod_force"]["variable"] = "rod_forc"
+    with pytest.raises(SpecError) as refused:
+        run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False)
+    said = str(refused.value)
+    assert "2 problems" in said, said
+    assert "did you mean 'rod_force'" in said and "did you mean 'k34'" in said, said
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_fmi3_archive_is_refused_naming_the_users_file(fmu3_path, tmp_path):
+    with pytest.raises(SpecError) as refused:
+        run_sweep(grid_spec(), fmu=fmu3_path, out=tmp_path / "out", serial=True, progress=False)
+    assert refused.value.field == "fmu"
+    assert str(fmu3_path) in str(refused.value) and "FMI 3.0" in str(refused.value)
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_fmus_own_rule_is_in_the_message(fmu_path, tmp_path):
     spec = _broken(SPEC_ERRORS["design.parameters.J1"])
     with pytest.raises(SpecError, match=r"J1 = -1 .*must be > 0"):

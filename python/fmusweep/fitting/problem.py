@@ -13,6 +13,7 @@ import numpy as np
 import pyarrow as pa
 
 from ..check import VALUE_TYPES, Variables, ask_the_fmu
+from ..errors import Collector
 from ..engine import point_ids
 from ..store import ResultStore
 
@@ -33,13 +34,16 @@ class Evaluation:
 
 
 def check_fit_against_fmu(spec, description: dict, runner) -> None:
+    """Every name against the FMU, every mistake reported at once; then the values."""
     variables = Variables(description)
-    variables.check_scenario(spec.scenario)
+    errors = Collector()
+    variables.check_scenario(spec.scenario, errors)
     for name in spec.data.columns:
-        variables.get(name, "data.file", READABLE, VALUE_TYPES, what="output")
+        errors.run(lambda: variables.get(name, "data.file", READABLE, VALUE_TYPES, what="output"))
     names = spec.names
     rows = np.array([[p.start for p in spec.parameters], spec.lows, spec.highs])
-    variables.check_columns(names, rows, "fit.parameters")
+    errors.run(lambda: variables.check_columns(names, rows, "fit.parameters"))
+    errors.raise_any()
     ask_the_fmu(spec.plan(), names, rows, runner, "fit.parameters", "scenario.parameters")
 
 
