@@ -302,6 +302,25 @@ pub fn variables_markdown() -> String {
     text
 }
 
+/// Every variable with what defines it (reference, name, type, causality, variability,
+/// unit, start, range), as text: what the hashes that identify the interface hash.
+pub fn variables_text() -> String {
+    let mut text = String::new();
+    for (vr, v) in variables() {
+        text += &format!(
+            " {vr}:{}:{}:{}:{}:{}:{:?}:{:?}",
+            v.name,
+            v.var_type().as_str(),
+            v.causality().as_str(),
+            v.variability(),
+            v.unit,
+            v.start(),
+            v.range()
+        );
+    }
+    text
+}
+
 /// A hash of the interface that either version's instances share (the variable table, the
 /// states, the event indicators, the output derivatives): it stamps serialized FMU states,
 /// so that a state is restored only by a binary with the same interface. Formed once per
@@ -313,18 +332,7 @@ pub fn interface_hash() -> u128 {
             "{MODEL_IDENTIFIER} {MAX_OUTPUT_DERIVATIVE_ORDER} indicators={EVENT_INDICATORS} \
              states={STATE_REFERENCES:?}"
         );
-        for (vr, v) in variables() {
-            text += &format!(
-                " {vr}:{}:{}:{}:{}:{}:{:?}:{:?}",
-                v.name,
-                v.var_type().as_str(),
-                v.causality().as_str(),
-                v.variability(),
-                v.unit,
-                v.start(),
-                v.range()
-            );
-        }
+        text += &variables_text();
         fnv1a_128(text.as_bytes())
     })
 }

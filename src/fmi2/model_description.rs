@@ -8,9 +8,10 @@ use quick_xml::Writer;
 use std::io;
 
 use crate::description::{
-    fnv1a_128, type_attributes, uuid_text, write_default_experiment, write_interface, write_items,
-    write_log_categories, write_units, write_unknown, Items, UuidText, DESCRIPTION_ATTRIBUTES,
-    EVENT_INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER, MODEL_IDENTIFIER, MODEL_NAME,
+    fnv1a_128, type_attributes, uuid_text, variables_text, write_default_experiment,
+    write_interface, write_items, write_log_categories, write_units, write_unknown, Items,
+    UuidText, DESCRIPTION_ATTRIBUTES, EVENT_INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER,
+    MODEL_IDENTIFIER, MODEL_NAME,
 };
 use crate::model::LINKAGE_CLASSES;
 use crate::variables::{
@@ -60,18 +61,7 @@ fn interface_guid() -> String {
         text += &format!(" {name}={value}");
     }
     text += &format!(" indicators={EVENT_INDICATORS} states={STATE_REFERENCES:?}");
-    for (vr, v) in variables() {
-        text += &format!(
-            " {vr}:{}:{}:{}:{}:{}:{:?}:{:?}",
-            v.name,
-            v.var_type().as_str(),
-            v.causality().as_str(),
-            v.variability(),
-            v.unit,
-            v.start(),
-            v.range()
-        );
-    }
+    text += &variables_text();
     uuid_text(fnv1a_128(text.as_bytes()))
 }
 
