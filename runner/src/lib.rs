@@ -15,4 +15,5 @@ pub mod point;
 pub mod protocol;
 pub mod stdio;
 pub mod system;
+pub mod target;
 pub mod unit;

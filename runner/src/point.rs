@@ -8,7 +8,8 @@ use crate::description::Description;
 use crate::fmi::Status;
 use crate::messages;
 use crate::plan::{type_group, ByType, Plan};
-use crate::unit::{Running, Target, Unit};
+use crate::target::{Running, Target};
+use crate::unit::Unit;
 
 /// How a point ended, as the results table spells it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

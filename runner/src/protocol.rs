@@ -20,7 +20,7 @@ use crate::fmi::Library;
 use crate::plan::{Plan, PlanSpec};
 use crate::point::{Assignments, Runner};
 use crate::system::{is_system, SystemLibrary};
-use crate::unit::Target;
+use crate::target::Target;
 
 /// The longest a finished point's reply waits in the buffer.
 const FLUSH_EVERY: Duration = Duration::from_millis(20);

@@ -1,11 +1,8 @@
-//! What a sweep point drives: one FMU's instance, or a coupled system of instances
-//! ([`crate::system`]), through the same calls. The point's master loop, metrics and
-//! series do not tell them apart.
+//! What a sweep point drives, as its master loop sees it: the calls of [`Unit`], which one
+//! FMU's instance implements here and a coupled system ([`crate::system`]) beside it. The
+//! point's master loop, metrics and series do not tell them apart ([`crate::target`]).
 
-use std::rc::Rc;
-
-use crate::fmi::{Instance, Library, Status};
-use crate::system::{SystemInstance, SystemLibrary};
+use crate::fmi::{Instance, Status};
 
 /// The FMI 2.0 co-simulation calls of a point's master loop.
 pub trait Unit {
@@ -40,6 +37,7 @@ macro_rules! each_call {
         );
     };
 }
+pub(crate) use each_call;
 
 /// Each call goes to the instance's method of the same name.
 macro_rules! delegate {
@@ -52,45 +50,4 @@ macro_rules! delegate {
 
 impl Unit for Instance {
     each_call!(delegate);
-}
-
-/// What the runner loaded: one FMU's library, or a system's.
-#[derive(Clone)]
-pub enum Target {
-    Fmu(Rc<Library>),
-    System(Rc<SystemLibrary>),
-}
-
-impl Target {
-    /// A new instance of the target.
-    pub fn instantiate(&self) -> Result<Running, String> {
-        Ok(match self {
-            Target::Fmu(library) => Running::Fmu(Instance::new(library, c"sweep")?),
-            Target::System(system) => Running::System(SystemInstance::new(system)?),
-        })
-    }
-}
-
-/// An instance of a [`Target`]. Dispatched by a match, not a virtual call: a single FMU's
-/// calls on the runner's per-step path stay direct (and inlinable), as without systems.
-pub enum Running {
-    Fmu(Instance),
-    System(SystemInstance),
-}
-
-/// Each call goes to the variant's method of the same name.
-macro_rules! dispatch {
-    ($($name:ident($($arg:ident: $t:ty),*)),* $(,)?) => {
-        $(#[inline]
-        fn $name(&mut self, $($arg: $t),*) -> Status {
-            match self {
-                Running::Fmu(unit) => Unit::$name(unit, $($arg),*),
-                Running::System(unit) => Unit::$name(unit, $($arg),*),
-            }
-        })*
-    };
-}
-
-impl Unit for Running {
-    each_call!(dispatch);
 }

@@ -206,7 +206,7 @@ pub fn build_native_master(dir: &Path) -> Result<PathBuf> {
 /// Compile tests/platforms/master.c with `compiler` (its own options given) and the shared
 /// flags into `output`, linking `libraries`.
 fn compile_master(compiler: &mut Command, output: &Path, libraries: &[&str]) -> Result {
-    let fmi2 = fmi2_headers()?;
+    let fmi2 = crate::builders::fmi2_headers()?;
     let fmi3 = fmi2
         .parent()
         .and_then(Path::parent)
@@ -221,20 +221,6 @@ fn compile_master(compiler: &mut Command, output: &Path, libraries: &[&str]) -> 
         .arg(output)
         .arg(root().join("tests/platforms/master.c"))
         .args(libraries))
-}
-
-/// The FMI 2.0 headers that fmi-sys ships (fetched into cargo's registry by the build).
-pub fn fmi2_headers() -> Result<PathBuf> {
-    let home = std::env::var_os("CARGO_HOME")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")))
-        .ok_or("neither CARGO_HOME nor HOME is set")?;
-    fs::read_dir(home.join("registry/src"))
-        .into_iter()
-        .flat_map(|d| d.flatten())
-        .map(|index| index.path().join("fmi-sys-0.6.0/fmi-standard2/headers"))
-        .find(|headers| headers.join("fmi2Functions.h").exists())
-        .ok_or_else(|| "fmi-sys 0.6.0's FMI 2.0 headers not found in cargo's registry".into())
 }
 
 /// Wine's settings: a prefix kept with the cross builds (its creation takes a while), no

@@ -8,6 +8,7 @@
 
 mod abi_tests;
 mod bench;
+mod builders;
 mod cli;
 mod demo;
 mod fit;

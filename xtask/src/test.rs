@@ -31,8 +31,8 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .arg(&fmu)
         .arg(&smoke)
         .args(["--quick", "--fmu-only"]))?;
-    let python = crate::sweep::ensure_sweep_package()?;
-    let motor = crate::motor::build_motor()?;
+    let python = crate::builders::ensure_sweep_package()?;
+    let motor = crate::builders::build_motor()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(root().join("tests/python"))

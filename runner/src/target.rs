@@ -1,0 +1,50 @@
+//! What the runner loaded and runs, whichever it is: one FMU, or a coupled system of FMUs.
+//! Above both [`crate::unit`] (the calls) and [`crate::system`] (a system's
+//! implementation of them), which import nothing from here.
+
+use std::rc::Rc;
+
+use crate::fmi::{Instance, Library, Status};
+use crate::system::{SystemInstance, SystemLibrary};
+use crate::unit::{each_call, Unit};
+
+/// What the runner loaded: one FMU's library, or a system's.
+#[derive(Clone)]
+pub enum Target {
+    Fmu(Rc<Library>),
+    System(Rc<SystemLibrary>),
+}
+
+impl Target {
+    /// A new instance of the target.
+    pub fn instantiate(&self) -> Result<Running, String> {
+        Ok(match self {
+            Target::Fmu(library) => Running::Fmu(Instance::new(library, c"sweep")?),
+            Target::System(system) => Running::System(SystemInstance::new(system)?),
+        })
+    }
+}
+
+/// An instance of a [`Target`]. Dispatched by a match, not a virtual call: a single FMU's
+/// calls on the runner's per-step path stay direct (and inlinable), as without systems.
+pub enum Running {
+    Fmu(Instance),
+    System(SystemInstance),
+}
+
+/// Each call goes to the variant's method of the same name.
+macro_rules! dispatch {
+    ($($name:ident($($arg:ident: $t:ty),*)),* $(,)?) => {
+        $(#[inline]
+        fn $name(&mut self, $($arg: $t),*) -> Status {
+            match self {
+                Running::Fmu(unit) => Unit::$name(unit, $($arg),*),
+                Running::System(unit) => Unit::$name(unit, $($arg),*),
+            }
+        })*
+    };
+}
+
+impl Unit for Running {
+    each_call!(dispatch);
+}

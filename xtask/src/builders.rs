@@ -1,0 +1,125 @@
+//! The artefacts several jobs build and use, below the jobs that use them (none of which
+//! imports another for them): the compiled DC motor FMU, the sweep's wheel installed in the
+//! venv, and the FMI 2.0 headers that C code here compiles against.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::setup::*;
+use crate::Result;
+
+/// Build and pack the motor; returns the archive.
+pub(crate) fn build_motor() -> Result<PathBuf> {
+    let source = root().join("examples/dc_motor/native");
+    let zig = crate::platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
+    let dir = root().join("target/motor");
+    std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let library = dir.join("DcMotor.so");
+    run(zig
+        .cc("x86_64-linux-gnu.2.17")
+        .args(["-O2", "-std=c99", "-shared", "-fPIC", "-fvisibility=hidden"])
+        .args(["-Wall", "-Wextra", "-Wno-unused-parameter", "-Werror", "-I"])
+        .arg(fmi2_headers()?)
+        .arg("-o")
+        .arg(&library)
+        .arg(source.join("dc_motor.c"))
+        .arg("-lm"))?;
+    check_glibc(&library)?;
+    let fmu = root().join("target/fmu/DcMotor.fmu");
+    crate::fmu::pack(
+        &fmu,
+        &[
+            (
+                "modelDescription.xml".to_string(),
+                source.join("modelDescription.xml"),
+            ),
+            ("binaries/linux64/DcMotor.so".to_string(), library),
+        ],
+    )?;
+    Ok(fmu)
+}
+
+/// The fmusweep wheel, built by maturin from `python/pyproject.toml`: the Python package
+/// and the native runner, built with zig against glibc 2.17 (as the FMU) and tagged
+/// manylinux_2_17, so that workers on older Linux install it too.
+pub(crate) fn build_wheel() -> Result<PathBuf> {
+    ensure_libclang()?;
+    let python = ensure_venv(Packages::Tests)?;
+    let out = root().join("target/wheels");
+    // The wheel is made of the package, the runner's crate and the lock file: with the same
+    // bytes of each, the wheel built from them last is the one.
+    let mut inputs = files_below(&root().join("python"))?;
+    inputs.extend(files_below(&root().join("runner"))?);
+    inputs.push(root().join("Cargo.lock"));
+    let key = fingerprint(&inputs)?;
+    let stamp = root().join("target/wheels.fingerprint");
+    if fs::read_to_string(&stamp).is_ok_and(|built| built == key) {
+        if let Some(wheel) = wheel_in(&out) {
+            return Ok(wheel);
+        }
+    }
+    if out.exists() {
+        fs::remove_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    }
+    let maturin = python.with_file_name("maturin");
+    crate::setup::run(
+        Command::new(&maturin)
+            .current_dir(root().join("python"))
+            .args(["build", "--release", "--quiet", "--zig", "--compatibility"])
+            .arg(format!("manylinux{}", MANYLINUX_FOR_BASELINE))
+            .arg("--out")
+            .arg(&out)
+            .env("PATH", path_with_venv(&python)?)
+            // As for cargo-zigbuild: bindgen gets the C headers from here, not from zig.
+            .env("BINDGEN_EXTRA_CLANG_ARGS", c_header_args()?),
+    )?;
+    check_glibc(&root().join("target/x86_64-unknown-linux-gnu/release/fmu-runner"))?;
+    let wheel =
+        wheel_in(&out).ok_or_else(|| format!("maturin wrote no wheel to {}", out.display()))?;
+    fs::write(&stamp, key).map_err(|e| format!("{}: {e}", stamp.display()))?;
+    Ok(wheel)
+}
+
+/// The wheel in `dir`, if there is one.
+fn wheel_in(dir: &Path) -> Option<PathBuf> {
+    fs::read_dir(dir)
+        .ok()?
+        .flatten()
+        .map(|entry| entry.path())
+        .find(|path| path.extension().is_some_and(|e| e == "whl"))
+}
+
+/// manylinux2014 is glibc 2.17, the baseline of every Linux binary here.
+const MANYLINUX_FOR_BASELINE: &str = "2014";
+
+/// Build the wheel and install it in the venv, unless that very wheel is installed.
+pub(crate) fn ensure_sweep_package() -> Result<PathBuf> {
+    let wheel = build_wheel()?;
+    let python = ensure_venv(Packages::Tests)?;
+    let stamp = root().join("target/venv/fmusweep.installed.whl");
+    let bytes = fs::read(&wheel).map_err(|e| format!("{}: {e}", wheel.display()))?;
+    if fs::read(&stamp).is_ok_and(|installed| installed == bytes) {
+        return Ok(python);
+    }
+    println!("xtask: installing {} in the venv", wheel.display());
+    run(pip_install(&python)
+        .args(["--no-deps", "--force-reinstall"])
+        .arg(&wheel))?;
+    fs::write(&stamp, bytes).map_err(|e| e.to_string())?;
+    Ok(python)
+}
+
+/// The FMI 2.0 headers that fmi-sys ships (fetched into cargo's registry by the build).
+pub(crate) fn fmi2_headers() -> Result<PathBuf> {
+    let home = std::env::var_os("CARGO_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")))
+        .ok_or("neither CARGO_HOME nor HOME is set")?;
+    fs::read_dir(home.join("registry/src"))
+        .into_iter()
+        .flat_map(|d| d.flatten())
+        .map(|index| index.path().join("fmi-sys-0.6.0/fmi-standard2/headers"))
+        .find(|headers| headers.join("fmi2Functions.h").exists())
+        .ok_or_else(|| "fmi-sys 0.6.0's FMI 2.0 headers not found in cargo's registry".into())
+}
