@@ -3,7 +3,7 @@
 //! ARCHITECTURE.md at the repository's root tells how the parts fit; from the top down:
 //!
 //! - [`fmi2`]: the FMI 2.0 C ABI; with `fmi3` and `abi` the crate's `unsafe` code, with
-//!   three files of the instance (the master's logger, FMU state handles, the AVX copy);
+//!   two files of the instance (the master's logger, FMU state handles) and the drivers' AVX copy;
 //! - [`fmi3`]: the FMI 3.0 C ABI over the same instance, and its model description;
 //! - [`instance`]: one instance of either version: its restorable state, states and logger;
 //! - [`description`]: what both versions' model descriptions share (names, log categories,

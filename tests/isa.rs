@@ -1,5 +1,5 @@
 //! fmi2DoStep runs the step through a copy compiled with AVX where the processor has it
-//! (src/instance/isa.rs); `CoSimulation::advance` called from here is the baseline build. Both
+//! (src/drivers/isa.rs); `CoSimulation::advance` called from here is the baseline build. Both
 //! must give the same bits at every communication point, with the same work.
 
 use cyclic_mechanism::fmi2::{fmi2DoStep, fmi2FreeInstance, fmi2GetInteger, fmi2GetReal};

@@ -9,6 +9,8 @@
 //! same two.
 
 pub mod cosimulation;
+pub mod events;
+pub mod isa;
 pub mod model_exchange;
 
 pub use cosimulation::CoSimulation;

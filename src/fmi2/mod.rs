@@ -1,7 +1,7 @@
 //! The FMI 2.0 C ABI, Co-Simulation and Model Exchange: every function of `fmi2Functions.h`,
 //! with the official types of `fmi-sys`. Its `unsafe` code turns C pointers into safe calls
 //! on [`crate::instance::Instance`] (the crate's other `unsafe` is in `fmi3`, `abi` and the
-//! instance's logger, FMU state handles and AVX copy, as ARCHITECTURE.md lists).
+//! instance's logger and FMU state handles and the drivers' AVX copy, as ARCHITECTURE.md lists).
 //!
 //! Every function that takes an instance is declared once with [`export!`]: its C name, its
 //! arguments, the header's type it must match (checked at compile time) and its body. The C

@@ -5,7 +5,6 @@
 
 pub mod fmu_state;
 mod handles;
-pub mod isa;
 pub mod logger;
 pub mod state;
 
@@ -17,7 +16,10 @@ pub use logger::Logger;
 pub use state::{Interface, State, Version};
 
 use crate::description::LOG_CATEGORIES;
-use crate::drivers::cosimulation::{CALL_WORK, CROSSING_WORK};
+use crate::drivers::cosimulation::CALL_WORK;
+pub use crate::drivers::events::StepEnd;
+use crate::drivers::events::{self, EventHandling, Happening};
+use crate::drivers::isa;
 use crate::drivers::model_exchange::STATES;
 use crate::drivers::{CoSimulation, Exchange, Experiment};
 use crate::plant::{AccessError, Plant, Value};
@@ -77,38 +79,6 @@ impl From<AccessError> for Failure {
 }
 
 pub type Outcome = Result<(), Failure>;
-
-/// How an FMI 3.0 step ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum StepEnd {
-    /// At the step's end time, with nothing to handle.
-    Complete,
-    /// At the step's end time, a change point crossed on the way (early return not
-    /// allowed): the master may handle the event.
-    CompleteAfterEvent,
-    /// Early, just before a change point, for the master to handle in event mode.
-    ChangePointEvent,
-    /// Early, where the work one call may do ran out: no event, the master steps on.
-    OutOfWork,
-}
-
-/// Why the rest of an FMI 3.0 step stopped short of its end.
-enum Refusal {
-    /// The call's work is spent, at this time.
-    OutOfWork(f64),
-    /// The step cannot go on: a Discard, for this reason.
-    Discard(String),
-}
-
-/// Where a failed step of a change-point linkage stopped.
-enum Located {
-    /// Not at a change point: the failure is the step's.
-    NotAChangePoint,
-    /// Just before a change point, at this time.
-    At(f64),
-    /// The call's work ran out at this time before the change point was located.
-    OutOfWork(f64),
-}
 
 /// Relative mismatch accepted between the master's communication point and the FMU's time.
 const TIME_MATCH: f64 = 1e-12;
@@ -663,179 +633,79 @@ impl Instance {
         Ok(())
     }
 
-    /// fmi3DoStep: as fmi2DoStep, but a change point is an event (docs/model.md §7). The
-    /// step stops just before it, located to the tolerance in time; with event mode and
-    /// early return it returns there, the next step crossing it onto the branch
-    /// `change_point_branch` names then; with event mode alone it crosses at once and
-    /// completes the step; without event mode it ends with Discard. A Discard leaves the
-    /// FMU as it was before the call (FMI 3.0's Discard); a step whose work exceeds what one
-    /// call may do ([`CALL_WORK`]) returns early where it got to, where early return is
-    /// allowed, and is discarded otherwise.
+    /// fmi3DoStep: as fmi2DoStep, but a change point is an event, and a step is bounded
+    /// in work, as the driver's step with events has it ([`events::step`]); a step it
+    /// refuses is FMI 3.0's Discard, the FMU as before the call.
     pub fn do_step_fmi3(&mut self, current: f64, step: f64) -> Result<StepEnd, Failure> {
         let now = self.current.plant.time();
         let target = self.step_target(now, current, step)?;
-        self.cosimulation()?.1.allow_work(CALL_WORK);
-        // The common case, a step that neither starts at nor meets a change point, as
-        // fmi2DoStep's.
-        let driver = self.cosimulation()?.1;
-        if driver.crossing_pending() || driver.crossing_in_flight() {
-            let before = self.snapshot()?;
-            return self.finish_fmi3_step(before, now, target, None);
-        }
-        match self.advance_to(target)? {
-            Ok(()) => Ok(StepEnd::Complete),
-            Err(error) => {
-                // The plant stands where the step began: what a Discard restores.
-                let before = self.snapshot()?;
-                self.finish_fmi3_step(before, now, target, Some(error))
-            }
-        }
-    }
-
-    /// The plant and driver as they are, for a Discard to put back.
-    #[cold]
-    fn snapshot(&mut self) -> Result<(Plant, CoSimulation), Failure> {
-        let (plant, driver, _) = self.cosimulation()?;
-        Ok((plant.clone(), driver.clone()))
-    }
-
-    /// The rest of an FMI 3.0 step from `now` to `target` that failed with `error`, or
-    /// starts at a change point (`error` is `None`): each change point located and crossed
-    /// as the instance's settings say, then on, until the step's end, an early return, or a
-    /// Discard, which puts `before` back.
-    #[cold]
-    fn finish_fmi3_step(
-        &mut self,
-        before: (Plant, CoSimulation),
-        now: f64,
-        target: f64,
-        mut error: Option<SolverError>,
-    ) -> Result<StepEnd, Failure> {
-        let mut met = StepEnd::Complete;
-        loop {
-            if let Some(failed) = error.take() {
-                let start = self.current.plant.time();
-                match self.after_failure(start, target, failed) {
-                    Ok(Some(end)) => return Ok(end),
-                    Ok(None) => met = StepEnd::CompleteAfterEvent,
-                    Err(Refusal::OutOfWork(at)) => {
-                        return self.out_of_work(before, now, target, at)
-                    }
-                    Err(Refusal::Discard(message)) => {
-                        return Err(self.discard_fmi3(before, message))
-                    }
-                }
-            }
-            let (plant, driver, _) = self.cosimulation()?;
-            if driver.crossing_in_flight() {
-                if !driver.go_on_crossing(plant, target) {
-                    // The step ends on the crossing's way.
-                    return Ok(met);
-                }
-            } else if driver.crossing_pending() {
-                match self.cross(target) {
-                    Ok(true) => {}
-                    Ok(false) => return Ok(met),
-                    Err(Refusal::OutOfWork(at)) => {
-                        return self.out_of_work(before, now, target, at)
-                    }
-                    Err(Refusal::Discard(message)) => {
-                        return Err(self.discard_fmi3(before, message))
-                    }
-                }
-            }
-            match self.advance_to(target)? {
-                Ok(()) => return Ok(met),
-                Err(failed) => error = Some(failed),
-            }
-        }
-    }
-
-    /// FMI 3.0's Discard: the FMU put back as it was before the call (`before`).
-    #[cold]
-    fn discard_fmi3(&mut self, before: (Plant, CoSimulation), message: String) -> Failure {
-        let (plant, driver) = before;
-        self.current.plant = plant;
-        if let Driver::CoSimulation(Some(d)) = &mut self.current.driver {
-            *d = driver;
-        }
-        Failure::discard(format!(
-            "{message}; the FMU is as before the call, at t = {}",
-            number(self.current.plant.time())
-        ))
-    }
-
-    /// A step that needs more work than one call may do, stopped at `at`: with early return
-    /// allowed it returns there (where it got past its start), otherwise a Discard.
-    #[cold]
-    fn out_of_work(
-        &mut self,
-        before: (Plant, CoSimulation),
-        now: f64,
-        target: f64,
-        at: f64,
-    ) -> Result<StepEnd, Failure> {
-        let reached = self.early_return_allowed && {
-            let (plant, driver, experiment) = self.cosimulation()?;
-            let experiment = *experiment;
-            driver.accept_reached(plant, target, &experiment) || plant.time() > now
+        let handling = EventHandling {
+            event_mode: self.event_mode_used,
+            early_return: self.early_return_allowed,
         };
-        if reached {
-            return Ok(StepEnd::OutOfWork);
-        }
-        let (now, target, at) = (number(now), number(target), number(at));
-        let message = format!(
-            "the step from t = {now} to {target} needs more work than one call may do \
-             ({CALL_WORK} right-hand sides); it got to t = {at}: take shorter steps{}",
-            if self.early_return_allowed {
-                ""
-            } else {
-                ", or allow early return"
-            }
+        // Empty, and so without an allocation, unless a change point is met.
+        let mut happenings = Vec::new();
+        let warned = self.warned_stability;
+        let (plant, driver, experiment) = self.cosimulation()?;
+        let experiment = *experiment;
+        let outcome = events::step(
+            plant,
+            driver,
+            &experiment,
+            target,
+            handling,
+            &mut happenings,
         );
-        Err(self.discard_fmi3(before, message))
+        let stability_limited = !warned && driver.dop853_is_stability_limited();
+        if !happenings.is_empty() {
+            self.log_happenings(&happenings);
+        }
+        match outcome {
+            Ok(end) => {
+                self.report_step(self.current.plant.time(), stability_limited);
+                Ok(end)
+            }
+            Err(message) => Err(Failure::discard(format!(
+                "{message}; the FMU is as before the call, at t = {}",
+                number(now)
+            ))),
+        }
     }
 
-    /// A step that failed from `start` towards `target`: `None` where it stopped before a
-    /// change point and is to cross it at once (event mode without early return);
-    /// otherwise how it ends.
+    /// What a step with events met, in the solver's log.
     #[cold]
-    fn after_failure(
-        &mut self,
-        start: f64,
-        target: f64,
-        error: SolverError,
-    ) -> Result<Option<StepEnd>, Refusal> {
-        if let SolverError::WorkLimit { t, .. } = error {
-            return Err(Refusal::OutOfWork(t));
+    fn log_happenings(&self, happenings: &[Happening]) {
+        if !self.log_enabled(Category::Solver) {
+            return;
         }
-        let located = match self.locate_change_point(start, target, &error) {
-            Located::NotAChangePoint => {
-                return Err(Refusal::Discard(format!(
-                    "step from t = {} to {} failed: {error}",
-                    number(start),
-                    number(target)
-                )))
-            }
-            Located::OutOfWork(t) => return Err(Refusal::OutOfWork(t)),
-            Located::At(located) => located,
-        };
-        if !self.event_mode_used {
-            let (start, target, located) = (number(start), number(target), number(located));
-            return Err(Refusal::Discard(format!(
-                "the step from t = {start} to {target} meets a change point at t = {located} \
-                 ({error}); without event mode the FMU does not choose a branch: instantiate \
-                 with eventModeUsed = true to go on (docs/model.md §7), or step to t = \
-                 {located} at most"
-            )));
+        let branch = self.current.plant.branch().name();
+        for happening in happenings {
+            let message = match *happening {
+                Happening::Located { at, phi2, phi3 } => format!(
+                    "t = {}: the linkage reaches a change point (phi2 = {phi2}, phi3 = {phi3}): \
+                     an event; the next step crosses it onto change_point_branch = {branch}",
+                    number(at)
+                ),
+                Happening::Crossed {
+                    at,
+                    crossing,
+                    complete,
+                } => format!(
+                    "t = {}: the change point at phi2 = {}, phi3 = {} crossed onto the branch \
+                     {branch} in {} s{}",
+                    number(at),
+                    crossing.node.0,
+                    crossing.node.1,
+                    crossing.duration,
+                    if complete {
+                        ""
+                    } else {
+                        ", on its way over the next steps"
+                    }
+                ),
+            };
+            self.log(Status::Ok, Category::Solver, &message);
         }
-        if let Ok((_, driver, _)) = self.cosimulation() {
-            driver.expect_crossing();
-        }
-        self.log_change_point(located);
-        Ok(self
-            .early_return_allowed
-            .then_some(StepEnd::ChangePointEvent))
     }
 
     /// The co-simulation plant, driver and experiment, once initialised.
@@ -851,139 +721,6 @@ impl Instance {
             return Err(Failure::error("the integrator starts at initialisation"));
         };
         Ok((plant, driver, experiment))
-    }
-
-    /// Cross the change point the plant stands before, within a step to `target`: whole,
-    /// or as far as `target` where the crossing lasts longer than the step (the next steps
-    /// go on with it). Returns whether it is complete; a crossing that cannot be made is a
-    /// Discard.
-    #[cold]
-    fn cross(&mut self, target: f64) -> Result<bool, Refusal> {
-        let Ok((plant, driver, _)) = self.cosimulation() else {
-            return Err(Refusal::Discard(
-                "the integrator starts at initialisation".into(),
-            ));
-        };
-        let start = plant.time();
-        let left = driver.work_left();
-        if left < CROSSING_WORK {
-            return Err(Refusal::OutOfWork(start));
-        }
-        driver.allow_work(left - CROSSING_WORK);
-        let crossing = driver
-            .plan_crossing(plant)
-            .map_err(|e| Refusal::Discard(format!("at t = {}: {e}", number(start))))?;
-        let complete = driver.cross(plant, &crossing, target);
-        if self.log_enabled(Category::Solver) {
-            let message = format!(
-                "t = {}: the change point at phi2 = {}, phi3 = {} crossed onto the branch {} \
-                 in {} s{}",
-                number(start),
-                crossing.node.0,
-                crossing.node.1,
-                self.current.plant.branch().name(),
-                crossing.duration,
-                if complete {
-                    ""
-                } else {
-                    ", on its way over the next steps"
-                }
-            );
-            self.log(Status::Ok, Category::Solver, &message);
-        }
-        Ok(complete)
-    }
-
-    /// After a step that failed from `start` towards `target` with `error`: for a
-    /// change-point linkage, the last time before the change point to the tolerance, found
-    /// by bisection (the plant and driver left there), where the state stands next to a
-    /// change point. The bisection starts from the bracket the failure gives (the end of
-    /// the step that failed), and its work counts against the call's.
-    #[cold]
-    fn locate_change_point(&mut self, start: f64, target: f64, error: &SolverError) -> Located {
-        if crate::model::classify(self.current.plant.params())
-            != crate::model::LinkageClass::ChangePoint
-        {
-            return Located::NotAChangePoint;
-        }
-        let Ok((plant, driver, experiment)) = self.cosimulation() else {
-            return Located::NotAChangePoint;
-        };
-        let resolution = experiment.tolerance * start.abs().max(1.0);
-        let failed_by = match *error {
-            SolverError::ProjectionFailed { t, .. } | SolverError::StepSizeTooSmall { t, .. } => {
-                t.clamp(start, target)
-            }
-            SolverError::WorkLimit { .. } => target,
-        };
-        // The first try is the failure's bracket; past it, the whole step.
-        let mut tries = [failed_by, target].into_iter();
-        let (mut lo, mut hi) = (start, tries.next().unwrap_or(target));
-        let (allowed, done_before) = (driver.work_left(), driver.statistics().n_rhs);
-        let mut spent = 0;
-        let mut reached: Option<(Plant, CoSimulation)> = None;
-        let mut probe = Some(hi);
-        while hi - lo > resolution || probe.is_some() {
-            let mid = probe.take().unwrap_or(0.5 * (lo + hi));
-            let (mut p, mut d) = reached
-                .clone()
-                .unwrap_or_else(|| (plant.clone(), driver.clone()));
-            d.allow_work(allowed.saturating_sub(spent));
-            let done = d.statistics().n_rhs;
-            // Every try lands on its time: an integrator step reaching past it could pass the
-            // change point and fail a try that stops before it.
-            let landing = Experiment {
-                stop: Some(mid),
-                ..*experiment
-            };
-            let result = isa::advance(&mut d, &mut p, mid, &landing);
-            spent += d.statistics().n_rhs - done;
-            match result {
-                Ok(()) => {
-                    lo = mid;
-                    reached = Some((p, d));
-                    if lo >= hi {
-                        // The bracket held no failure: the whole step's is next.
-                        match tries.next() {
-                            Some(next) if next > lo => {
-                                hi = next;
-                                probe = Some(hi);
-                            }
-                            _ => break,
-                        }
-                    }
-                }
-                Err(SolverError::WorkLimit { .. }) => return Located::OutOfWork(lo),
-                Err(_) => hi = mid,
-            }
-        }
-        let (p, mut d) = reached.unwrap_or_else(|| (plant.clone(), driver.clone()));
-        let y = p.state();
-        if crate::model::change_point::locate_node(p.params(), y[1], y[2]).is_err() {
-            return Located::NotAChangePoint;
-        }
-        // The statistics count every right-hand side the bisection evaluated, also on the
-        // tries it dropped; the call's allowance goes on from what is left.
-        d.count_work(done_before + spent - d.statistics().n_rhs);
-        d.allow_work(allowed.saturating_sub(spent));
-        *plant = p;
-        *driver = d;
-        Located::At(lo)
-    }
-
-    fn log_change_point(&self, located: f64) {
-        if self.log_enabled(Category::Solver) {
-            let plant = &self.current.plant;
-            let y = plant.state();
-            let message = format!(
-                "t = {located}: the linkage reaches a change point (phi2 = {}, phi3 = {}): an \
-                 event; the next step crosses it onto change_point_branch = {}",
-                y[1],
-                y[2],
-                plant.branch().name()
-            );
-            self.log(Status::Ok, Category::Solver, &message);
-        }
     }
 
     #[inline(always)]

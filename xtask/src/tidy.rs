@@ -20,7 +20,7 @@ const UNSAFE_ALLOWED: &[&str] = &[
     "src/abi.rs",
     "src/instance/handles.rs",
     "src/instance/logger.rs",
-    "src/instance/isa.rs",
+    "src/drivers/isa.rs",
     "runner/src/fmi.rs",
     "runner/src/stdio.rs",
     "tests/",

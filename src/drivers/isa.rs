@@ -8,7 +8,7 @@
 //! multiplication and an addition on its own, so both copies round alike and give the same
 //! bits (tests/isa.rs compares them).
 
-use crate::drivers::{CoSimulation, Experiment};
+use super::{CoSimulation, Experiment};
 use crate::plant::Plant;
 use crate::solver::SolverError;
 
