@@ -5,7 +5,7 @@ use std::ffi::c_void;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use crate::instance::state::{Belongs, Entry};
-use crate::instance::{Failure, Instance, Outcome, State, Status};
+use crate::instance::{Failure, Instance, Outcome, Status};
 
 /// Run `body` on the instance behind `c` if `function` belongs to its interface and the
 /// state machine allows it now; log and map its failure to a status; turn a panic into
@@ -35,7 +35,7 @@ pub(crate) fn guarded(
             failure.status
         }
         Err(panic) => {
-            instance.current.state = State::Fatal;
+            instance.fail_fatally();
             let what = panic
                 .downcast_ref::<&str>()
                 .map(|s| s.to_string())
@@ -65,10 +65,10 @@ fn admitted(instance: &Instance, function: impl Entry) -> Outcome {
             )));
         }
     }
-    if !function.allowed().contains(instance.current.state) {
+    if !function.allowed().contains(instance.state()) {
         return Err(Failure::error(format!(
             "not allowed in state {}",
-            instance.current.state.describe(instance.version())
+            instance.state().describe(instance.version())
         )));
     }
     Ok(())

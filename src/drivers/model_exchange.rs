@@ -17,7 +17,7 @@ use crate::snapshot::{same_bits, FormatError, Reader, Writer};
 use crate::variables::{Local, STATES as STATE_NAMES};
 
 /// The number of continuous states.
-pub const STATES: usize = STATE_NAMES.len();
+pub const CONTINUOUS_STATES: usize = STATE_NAMES.len();
 
 /// An indicator below this counts as crossed: a master's root finder may stop just before
 /// the zero, and leaving a chart early is harmless (the other one is good there).
@@ -84,7 +84,7 @@ impl Exchange {
     }
 
     /// ẋ at the current time, state and inputs.
-    pub fn derivatives(plant: &Plant) -> [f64; STATES] {
+    pub fn derivatives(plant: &Plant) -> [f64; CONTINUOUS_STATES] {
         std::array::from_fn(|i| plant.local(Local::Derivative(i)))
     }
 

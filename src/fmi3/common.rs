@@ -11,6 +11,7 @@ use fmi_sys::fmi3::*;
 use super::model_description::instantiation_token;
 use super::{check_value_count, export, references, table_reference, table_references, Accessor};
 use crate::abi::{self, null_argument, slice, slice_mut};
+use crate::drivers::events::EventHandling;
 use crate::instance::{Failure, Instance, Interface, Logger, Outcome, Status, Version};
 use crate::plant::Value;
 use crate::variables::VarType;
@@ -157,8 +158,10 @@ pub unsafe extern "C" fn fmi3InstantiateCoSimulation(
             loggingOn,
         );
         if let Some(instance) = instance.as_mut() {
-            instance.event_mode_used = eventModeUsed;
-            instance.early_return_allowed = earlyReturnAllowed;
+            instance.handle_events(EventHandling {
+                event_mode: eventModeUsed,
+                early_return: earlyReturnAllowed,
+            });
         }
         into_handle(instance)
     })

@@ -51,7 +51,7 @@ export! {
         earlyReturn: *mut fmi3Boolean,
         lastSuccessfulTime: *mut fmi3Float64,
     ): fmi3DoStepTYPE = |instance| {
-        let outcome = instance.do_step_fmi3(currentCommunicationPoint, communicationStepSize);
+        let outcome = instance.step_with_events(currentCommunicationPoint, communicationStepSize);
         let end = match &outcome {
             Ok(end) => *end,
             Err(_) => StepEnd::Complete,

@@ -6,7 +6,7 @@ use fmi_sys::fmi3::*;
 use super::export;
 use crate::abi::{null_argument, slice, slice_mut};
 use crate::description::EVENT_INDICATORS;
-use crate::drivers::model_exchange::STATES;
+use crate::drivers::model_exchange::CONTINUOUS_STATES;
 use crate::instance::Instance;
 
 export! {
@@ -115,4 +115,4 @@ macro_rules! count {
 count!(fmi3GetNumberOfEventIndicators: fmi3GetNumberOfEventIndicatorsTYPE,
     "nEventIndicators", EVENT_INDICATORS);
 count!(fmi3GetNumberOfContinuousStates: fmi3GetNumberOfContinuousStatesTYPE,
-    "nContinuousStates", STATES);
+    "nContinuousStates", CONTINUOUS_STATES);

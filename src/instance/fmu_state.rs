@@ -4,7 +4,7 @@
 //! fields in one order, each part checking its values again on reading.
 
 use super::state::{Interface, State, Version};
-use super::Failure;
+use super::status::Failure;
 use crate::description::{self, DEFAULT_EXPERIMENT};
 use crate::drivers::{CoSimulation, Exchange, Experiment};
 use crate::plant::{Activity, Plant};

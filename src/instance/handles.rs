@@ -2,7 +2,8 @@
 //! whose address is registered, so that a pointer the instance did not issue, or freed
 //! already, is refused instead of dereferenced.
 
-use super::{Failure, FmuState, Outcome};
+use super::fmu_state::FmuState;
+use super::status::{Failure, Outcome};
 
 #[derive(Default)]
 pub(super) struct StateHandles {

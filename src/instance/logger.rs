@@ -3,7 +3,7 @@
 
 use std::ffi::{c_void, CString};
 
-use super::Status;
+use super::status::Status;
 
 type Fmi2Callback = unsafe extern "C" fn(
     *mut c_void,
