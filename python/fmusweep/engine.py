@@ -218,7 +218,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
                 held = pool.held_by_scheduler()
     finally:
         bar.close()
-    table = store.consolidate()
+    store.consolidate()
     report = SweepReport(
         out=str(store.out), points=len(rows), computed=sum(statuses.values()),
         resumed=len(done), batch_size=size, batches=batches, workers=pool.workers,
@@ -226,7 +226,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         wall_s=time.perf_counter() - started, point_seconds=point_seconds, startup_s=pool.startup_s,
         dispatch_s=dispatch_s, statuses=statuses, held_results=held)
     from .results import Results
-    results = Results(store.out, table.to_pandas(), store.meta, report)
+    results = Results(store.out, None, store.meta, report)
     if plots:
         results.analyse_and_plot(design)
     return results

@@ -18,14 +18,22 @@ class Results:
     ``sweep.json`` records; ``report``: counts and times of the run that returned it;
     ``sensitivity``: indices per metric for sobol and morris designs."""
 
-    def __init__(self, out, points: pd.DataFrame, meta: dict, report=None):
+    def __init__(self, out, points: pd.DataFrame | None, meta: dict, report=None):
         self.out = pathlib.Path(out)
-        self.points = points
+        self._points = points
         self.meta = meta
         self.report = report
         path = self.out / "sensitivity.json"
         self.sensitivity = json.loads(path.read_text()) if path.exists() else {}
         self.plots: list[pathlib.Path] = sorted((self.out / "plots").glob("*.png"))
+
+    @property
+    def points(self) -> pd.DataFrame:
+        """Every point, read from points.parquet on first use (a sweep's client holds none
+        of them until then)."""
+        if self._points is None:
+            self._points = pd.read_parquet(self.out / "points.parquet")
+        return self._points
 
     def series(self) -> pd.DataFrame | None:
         """Columns point, variable, time, value; None when the sweep kept no series."""

@@ -47,7 +47,11 @@ def _remove_files():
 
 def describe_ssp(system) -> dict:
     """The system's connectors (paths) and, per component, its FMU's variables."""
-    from fmpy import read_model_description
+    try:
+        from fmpy import read_model_description
+    except ImportError:
+        raise SpecError("ssp", "an SSP file runs through FMPy: pip install "
+                               "'fmusweep[systems]'") from None
     from fmpy.ssp.simulation import add_path, find_components, find_connectors
     from fmpy.ssp.ssd import read_ssd
     path = _file(system)

@@ -23,6 +23,7 @@ from importlib import metadata
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 __all__ = ["ResultStore", "FORMAT", "versions"]
@@ -30,13 +31,36 @@ __all__ = ["ResultStore", "FORMAT", "versions"]
 FORMAT = 1
 
 
+def _text_columns(table: pa.Table) -> list[str]:
+    """Dictionary pages only for text: on floats they cost 4× the write time for nothing."""
+    return [f.name for f in table.schema
+            if pa.types.is_string(f.type) or pa.types.is_dictionary(f.type)]
+
+
 def atomic_write_table(table: pa.Table, path: pathlib.Path):
     tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
-    # Dictionary pages only for text: on floats they cost 4× the write time for nothing.
-    text = [f.name for f in table.schema
-            if pa.types.is_string(f.type) or pa.types.is_dictionary(f.type)]
-    pq.write_table(table, tmp, use_dictionary=text)
+    pq.write_table(table, tmp, use_dictionary=_text_columns(table))
     os.replace(tmp, path)
+
+
+def _overlapping_groups(parts: list[pathlib.Path]) -> list[list[pathlib.Path]]:
+    """The parts in groups whose point ranges overlap, the groups in point order: each
+    group's points, sorted, follow the previous group's."""
+    ranges = []
+    for part in parts:
+        points = pq.read_table(part, columns=["point"])["point"]
+        ranges.append((pc.min(points).as_py(), pc.max(points).as_py(), part))
+    ranges.sort(key=lambda r: r[0])
+    groups: list[list[pathlib.Path]] = []
+    reach = None
+    for low, high, part in ranges:
+        if reach is not None and low <= reach:
+            groups[-1].append(part)
+            reach = max(reach, high)
+        else:
+            groups.append([part])
+            reach = high
+    return groups
 
 
 def atomic_write_text(text: str, path: pathlib.Path):
@@ -98,10 +122,30 @@ class ResultStore:
             atomic_write_table(series, self.series_dir / name)
         atomic_write_table(points, self.points_dir / name)
 
-    def consolidate(self) -> pa.Table:
-        table = self.points_table_of(self.out)
-        atomic_write_table(table, self.out / "points.parquet")
-        return table
+    def consolidate(self) -> int:
+        """Write points.parquet, every point in point order, from the parts, streamed: a
+        group of parts at a time (the parts whose point ranges overlap, which only a
+        resumed sweep makes; otherwise one part), so that the client holds no more than
+        the largest group, however many points. Returns the number of points."""
+        parts = sorted(self.points_dir.glob("part-*.parquet"))
+        if not parts:
+            raise FileNotFoundError(f"{self.out} holds no finished point")
+        path = self.out / "points.parquet"
+        tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
+        rows = 0
+        writer = None
+        try:
+            for group in _overlapping_groups(parts):
+                table = pa.concat_tables([pq.read_table(p) for p in group]).sort_by("point")
+                if writer is None:
+                    writer = pq.ParquetWriter(tmp, table.schema, use_dictionary=_text_columns(table))
+                writer.write_table(table)
+                rows += table.num_rows
+        finally:
+            if writer is not None:
+                writer.close()
+        os.replace(tmp, path)
+        return rows
 
     @staticmethod
     def points_table_of(out) -> pa.Table:

@@ -176,7 +176,12 @@ class System:
         return Archive(buffer.getvalue(), "system.zip")
 
     def _container(self, descriptions: dict, step: float) -> Archive:
-        from fmu_manipulation_toolbox.assembly import AssemblyNode
+        try:
+            from fmu_manipulation_toolbox.assembly import AssemblyNode
+        except ImportError:
+            raise SpecError("system.engine", "engine = \"container\" needs "
+                                             "fmu-manipulation-toolbox: pip install "
+                                             "'fmusweep[container]'") from None
         with tempfile.TemporaryDirectory(prefix="fmusweep-system-") as tmp:
             directory = pathlib.Path(tmp)
             node = AssemblyNode("system.fmu", step_size=step, auto_parameter=True, auto_link=False,
@@ -233,8 +238,12 @@ def _connection(i: int, pair, components: dict) -> Connection:
 
 
 def _description(name: str, path: pathlib.Path):
-    import fmpy
     where = f"system.components.{name}"
+    try:
+        import fmpy
+    except ImportError:
+        raise SpecError(where, "a [system] needs FMPy to read its components: "
+                               "pip install 'fmusweep[systems]'") from None
     try:
         data = path.read_bytes()
     except OSError as e:

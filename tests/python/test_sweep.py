@@ -342,3 +342,18 @@ def test_a_coupled_ssp_system_sweeps_through_fmpy(fmu_path, tmp_path):
         run_sweep(dict(spec, design={"kind": "list", "parameters": {"mechanism.Mr_b9": {"values": [1.0]}}}),
                   out=tmp_path / "bad", serial=True, progress=False)
     assert refused.value.field == "design.parameters.mechanism.Mr_b9"
+
+
+def test_the_final_table_is_streamed_in_point_order_from_its_parts(tmp_path):
+    """points.parquet is written a group of parts at a time (parts whose point ranges
+    overlap, as a resumed sweep's do, sorted together), in point order."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    from fmusweep.store import ResultStore
+    store = ResultStore(tmp_path, {"kind": "sweep", "spec_digest": "d", "fmu_sha256": "f",
+                                   "format": 1}, resume=False)
+    for points in ([0, 1, 2], [3, 4], [5, 7, 9], [6, 8], [10, 11]):
+        store.write_batch(pa.table({"point": pa.array(points, pa.int64()),
+                                    "status": pa.array(["ok"] * len(points))}), None)
+    assert store.consolidate() == 12
+    assert pq.read_table(tmp_path / "points.parquet")["point"].to_pylist() == list(range(12))
