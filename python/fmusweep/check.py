@@ -66,7 +66,7 @@ def check_against_fmu(spec, design, description: dict, runner) -> None:
     """Every name against the FMU, every mistake reported at once; then the values."""
     variables = Variables(description)
     errors = Collector()
-    variables.check_scenario(spec, errors)
+    variables.check_scenario(spec.scenario, errors)
     for m in spec.metrics:
         errors.run(lambda: variables.get(m.variable, f"outputs.metrics.{m.name}.variable", None,
                                          VALUE_TYPES))

@@ -156,7 +156,7 @@ def run_sweep(spec, *, fmu=None, out=None, workers: int | None = None,
         identity = {"ssp_name": target.name, "ssp_sha256": target.sha256}
         batch_function, prepare_function = run_ssp_batch, prepare_ssp_worker
     else:
-        target, local, description = open_target(spec.system, fmu, spec.fmu, spec.step)
+        target, local, description = open_target(spec.system, fmu, spec.fmu, spec.scenario.step)
         if spec.system is not None and fmu is None:
             identity = {"system": {name: str(path) for name, path in spec.system.components.items()},
                         "connections": [str(c) for c in spec.system.connections]}

@@ -150,25 +150,20 @@ def what_runs(raw: dict, base_dir: pathlib.Path) -> tuple[str | None, str | None
 
 @dataclass
 class Spec:
+    """A sweep's specification: what runs, the scenario every point shares (its fixed
+    parameters are ``scenario.parameters``), the design, and the outputs wanted."""
     raw: dict
     base_dir: pathlib.Path
     fmu: pathlib.Path | None
     ssp: pathlib.Path | None
     system: System | None
-    start: float
-    stop: float
-    step: float
-    tolerance: float | None
-    timeout: float | None
-    parameters: dict[str, float]
-    inputs: dict[str, dict]
+    scenario: Scenario
     design_kind: str
     design: dict
     seed: int | None
     metrics: list[MetricSpec]
     series_variables: list[str] = field(default_factory=list)
     series_every: int = 0
-    scenario: Scenario | None = None
     # The design's points, generated once when the spec is checked (a large design costs
     # seconds to generate).
     points: object = field(default=None, repr=False)
@@ -200,13 +195,10 @@ class Spec:
         design, kind, seed = header
         metrics, series_variables, every = outputs
         spec = Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
-                    ssp=(base_dir / ssp) if ssp else None, system=system,
-                    start=scenario.start, stop=scenario.stop, step=scenario.step,
-                    tolerance=scenario.tolerance, timeout=scenario.timeout,
-                    parameters=scenario.parameters, inputs=scenario.inputs,
+                    ssp=(base_dir / ssp) if ssp else None, system=system, scenario=scenario,
                     design_kind=kind, design=design,
                     seed=seed, metrics=metrics, series_variables=series_variables,
-                    series_every=every, scenario=scenario)
+                    series_every=every)
         # The design's own fields are checked where its points are generated.
         spec.points = _design.generate(spec)
         return spec

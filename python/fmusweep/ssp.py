@@ -67,7 +67,7 @@ def describe_ssp(system) -> dict:
 
 
 def check_ssp(spec, design, description: dict):
-    if spec.inputs:
+    if spec.scenario.inputs:
         raise SpecError("scenario.inputs", "an SSP system takes no inputs here; "
                                            "set parameters of its components instead")
 
@@ -83,7 +83,7 @@ def check_ssp(spec, design, description: dict):
         if causality not in ("parameter", "input") or kind not in ("Real", "Integer", "Boolean", "Enumeration"):
             raise SpecError(where, f"{name} is a {kind} {causality}; only parameters and inputs can be set")
 
-    for name in spec.parameters:
+    for name in spec.scenario.parameters:
         parameter(name, f"scenario.parameters.{name}")
     for name in design.names:
         parameter(name, f"design.parameters.{name}")
