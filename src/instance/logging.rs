@@ -5,22 +5,29 @@ use super::{Category, Failure, Instance, Outcome, Status, Version};
 use crate::description::LOG_CATEGORIES;
 
 impl Instance {
-    /// FMI 2.0: errors, discards, warnings and fatal errors are always reported (its
-    /// logger decides what to show when logging is off); the debug categories (calls,
-    /// solver) only while debug logging is on for them. FMI 3.0: only the categories
-    /// enabled now, none while logging is off ("If loggingOn = fmi3False, then any
-    /// logging is disabled"). Nothing is reported (or formatted) without a logger callback.
+    /// Whether a message of `category` goes to the master now: one load, as the guard of
+    /// every call asks it (see [`Instance::logging_changed`]).
     #[inline(always)]
     pub fn log_enabled(&self, category: Category) -> bool {
-        if self.logger.is_none() {
-            return false;
-        }
-        match (self.version(), category) {
-            (Version::Fmi3, _) => self.enabled[category as usize],
-            (_, Category::Calls | Category::Solver) => {
-                self.debug_logging && self.enabled[category as usize]
-            }
-            _ => true,
+        self.logged[category as usize]
+    }
+
+    /// Which categories are logged, from the settings: FMI 2.0 reports errors, discards,
+    /// warnings and fatal errors always (its logger decides what to show when logging is
+    /// off), the debug categories (calls, solver) only while debug logging is on for them.
+    /// FMI 3.0 only the categories enabled now, none while logging is off ("If loggingOn
+    /// = fmi3False, then any logging is disabled"). Nothing is reported (or formatted)
+    /// without a logger callback.
+    pub(super) fn logging_changed(&mut self) {
+        let fmi3 = self.version() == Version::Fmi3;
+        for (i, logged) in self.logged.iter_mut().enumerate() {
+            let debug = i == Category::Calls as usize || i == Category::Solver as usize;
+            *logged = self.logger.is_some()
+                && if fmi3 || debug {
+                    self.enabled[i] && (fmi3 || self.debug_logging)
+                } else {
+                    true
+                };
         }
     }
 
@@ -88,6 +95,7 @@ impl Instance {
                 *enabled &= !off;
             }
         }
+        self.logging_changed();
         Ok(())
     }
 }

@@ -38,6 +38,8 @@ pub struct Instance {
     /// selects. FMI 3.0: `enabled` alone says which categories are logged.
     debug_logging: bool,
     enabled: [bool; LOG_CATEGORIES.len()],
+    /// What the settings above give: whether each category is logged now.
+    logged: [bool; LOG_CATEGORIES.len()],
     /// Everything SetFMUState restores.
     fmu_state: FmuState,
     /// Addresses of the FMU states this instance has handed out and not yet freed.
@@ -64,17 +66,20 @@ impl Instance {
         logger: Option<Logger>,
         debug_logging: bool,
     ) -> Self {
-        Self {
+        let mut instance = Self {
             name,
             logger,
             events: EventHandling::default(),
             debug_logging,
             // FMI 3.0's categories are each on or off, all as `loggingOn` says at first.
             enabled: [version == Version::Fmi2 || debug_logging; LOG_CATEGORIES.len()],
+            logged: [false; LOG_CATEGORIES.len()],
             fmu_state: FmuState::new(interface, version),
             issued_states: StateHandles::default(),
             warned_stability: false,
-        }
+        };
+        instance.logging_changed();
+        instance
     }
 
     pub fn setup_experiment(

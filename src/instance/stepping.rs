@@ -106,20 +106,20 @@ impl Instance {
     pub fn do_step(&mut self, current: f64, step: f64) -> Outcome {
         let now = self.fmu_state.plant.time();
         let target = self.step_target(now, current, step)?;
-        self.cosimulation()?.1.allow_work(CALL_WORK);
         if let Err(error) = self.advance_to(target)? {
             return Err(self.step_failed(now, target, error));
         }
         Ok(())
     }
 
-    /// The plant advanced to `target` by the co-simulation driver and the step reported;
-    /// the outer error when there is no driver yet, the inner the solver's (the plant then
-    /// stays where it was).
+    /// The plant advanced to `target` by the co-simulation driver, within one call's
+    /// work, and the step reported; the outer error when there is no driver yet, the inner
+    /// the solver's (the plant then stays where it was).
     #[inline(always)]
     fn advance_to(&mut self, target: f64) -> Result<Result<(), SolverError>, Failure> {
         let warned = self.warned_stability;
         let (plant, driver, experiment) = self.cosimulation()?;
+        driver.allow_work(CALL_WORK);
         if let Err(error) = isa::advance(driver, plant, target, experiment) {
             return Ok(Err(error));
         }

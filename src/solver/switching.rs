@@ -268,21 +268,33 @@ impl<const N: usize> Integrator<N> {
     /// step of size `communication_step`. Call only between communication steps; returns
     /// whether the method changed, in which case the integrator must restart from the
     /// communication point.
+    ///
+    /// The tests inlined into the step, the change of method out of line: called on its
+    /// own, the whole of it (with the new method's frame) cost a call with a large stack
+    /// frame at every communication point.
+    #[inline(always)]
     pub fn reconsider(&mut self, communication_step: f64) -> bool {
         if self.choice != Choice::Auto {
             return false;
         }
-        let next = match &self.active {
-            Active::Explicit(s) if s.is_stiff() && worth_landing(s, communication_step) => {
-                Active::Implicit(Radau5::resume(s.progress()))
-            }
-            Active::Implicit(s) if s.is_non_stiff() => {
-                Active::Explicit(Dop853::resume(s.progress()))
-            }
-            _ => return false,
+        let change = match &self.active {
+            Active::Explicit(s) => s.is_stiff() && worth_landing(s, communication_step),
+            Active::Implicit(s) => s.is_non_stiff(),
         };
-        self.active = next;
-        true
+        if change {
+            self.change_method();
+        }
+        change
+    }
+
+    /// `auto`'s change of method: the other one goes on with this one's progress.
+    #[cold]
+    #[inline(never)]
+    fn change_method(&mut self) {
+        self.active = match &self.active {
+            Active::Explicit(s) => Active::Implicit(Radau5::resume(s.progress())),
+            Active::Implicit(s) => Active::Explicit(Dop853::resume(s.progress())),
+        };
     }
 
     /// Everything the integrator remembers, for a serialized FMU state.
