@@ -202,7 +202,7 @@ impl Stepper<'_> {
         target: f64,
         error: SolverError,
     ) -> Result<Option<StepEnd>, Refusal> {
-        if let SolverError::WorkLimit { t, .. } = error {
+        if let SolverError::WorkLimit { t } = error {
             return Err(Refusal::OutOfWork(t));
         }
         let start = self.plant.time();

@@ -19,15 +19,15 @@ impl Instance {
     /// = fmi3False, then any logging is disabled"). Nothing is reported (or formatted)
     /// without a logger callback.
     pub(super) fn logging_changed(&mut self) {
-        let fmi3 = self.version() == Version::Fmi3;
+        let version = self.version();
         for (i, logged) in self.logged.iter_mut().enumerate() {
             let debug = i == Category::Calls as usize || i == Category::Solver as usize;
-            *logged = self.logger.is_some()
-                && if fmi3 || debug {
-                    self.enabled[i] && (fmi3 || self.debug_logging)
-                } else {
-                    true
-                };
+            let on = match (version, debug) {
+                (Version::Fmi3, _) => self.enabled[i],
+                (Version::Fmi2, true) => self.debug_logging && self.enabled[i],
+                (Version::Fmi2, false) => true,
+            };
+            *logged = self.logger.is_some() && on;
         }
     }
 

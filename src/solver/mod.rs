@@ -94,10 +94,7 @@ pub trait Stepper<const N: usize>: Clone + Sized {
 /// reaches its limit ([`Progress::work_limit`]).
 fn plan_step(t: f64, h: f64, limit: f64, progress: &Progress) -> Result<(f64, bool), SolverError> {
     if progress.stats.n_rhs >= progress.work_limit {
-        return Err(SolverError::WorkLimit {
-            t,
-            limit: progress.work_limit,
-        });
+        return Err(SolverError::WorkLimit { t });
     }
     let landing = t + 1.01 * h >= limit;
     let h_step = if landing { limit - t } else { h };
@@ -231,7 +228,7 @@ pub enum SolverError {
     ProjectionFailed { t: f64, reason: String },
     /// The work limit of the call was reached ([`Progress::work_limit`]): the state is
     /// good up to `t`, and the call asked for more work than it allows.
-    WorkLimit { t: f64, limit: u64 },
+    WorkLimit { t: f64 },
 }
 
 impl std::fmt::Display for SolverError {
@@ -247,7 +244,7 @@ impl std::fmt::Display for SolverError {
             SolverError::ProjectionFailed { t, reason } => {
                 write!(f, "at t = {}: {reason}", number(*t))
             }
-            SolverError::WorkLimit { t, .. } => {
+            SolverError::WorkLimit { t } => {
                 write!(
                     f,
                     "the work one call may do was spent at t = {}",
