@@ -7,24 +7,36 @@ A sweep and a fit share these checks; each names its own fields.
 
 from __future__ import annotations
 
+from collections.abc import Collection, Sequence
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 
-from .errors import Collector, did_you_mean
-from .spec import SpecError
+from .errors import Collector, SpecError, did_you_mean
+from .records import Plan, Rows
+
+if TYPE_CHECKING:
+    from .design import Design
+    from .native import NativeRunner
+    from .spec import Scenario, Spec
 
 __all__ = ["check_against_fmu", "Variables"]
 
 SETTABLE = ("parameter", "input")
 VALUE_TYPES = ("real", "integer", "enumeration", "boolean")
 
+# A variable as the runner describes it: name, causality, type, …
+Variable = dict[str, Any]
+
 
 class Variables:
     """The FMU's variables by name, as the runner describes them."""
 
-    def __init__(self, description: dict):
-        self.by_name = {v["name"]: v for v in description["variables"]}
+    def __init__(self, description: dict[str, Any]):
+        self.by_name: dict[str, Variable] = {v["name"]: v for v in description["variables"]}
 
-    def get(self, name: str, where: str, causalities=None, types=None, what="variable") -> dict:
+    def get(self, name: str, where: str, causalities: Sequence[str] | None = None,
+            types: Sequence[str] | None = None, what: str = "variable") -> Variable:
         v = self.by_name.get(name)
         if v is None:
             raise SpecError(where, f"the FMU has no {what} {name!r}{did_you_mean(name, self.by_name)}")
@@ -35,21 +47,21 @@ class Variables:
             raise SpecError(where, f"{name} is of type {v['type']}; expected {' or '.join(types)}")
         return v
 
-    def check_scenario(self, scenario, errors: Collector) -> None:
+    def check_scenario(self, scenario: Scenario, errors: Collector) -> None:
         for name in scenario.parameters:
             errors.run(lambda: self.get(name, f"scenario.parameters.{name}", SETTABLE, VALUE_TYPES))
         for name in scenario.inputs:
             errors.run(lambda: self.get(name, f"scenario.inputs.{name}", ("input",), ("real",)))
 
-    def check_columns(self, names: list[str], rows: np.ndarray, field: str) -> None:
-        """Each column of a design (or a fit's parameters) is a settable variable, and its
-        values suit the variable's type; every mistake reported at once."""
+    def check_columns(self, names: list[str], columns: Sequence[Rows], field: str) -> None:
+        """Each column of a design (or a fit's parameters) is a settable variable, and the
+        values it takes suit the variable's type; every mistake reported at once."""
         errors = Collector()
-        for j, name in enumerate(names):
-            errors.run(lambda: self._check_column(name, rows[:, j], field))
+        for name, column in zip(names, columns):
+            errors.run(lambda: self._check_column(name, column, field))
         errors.raise_any()
 
-    def _check_column(self, name: str, column: np.ndarray, field: str) -> None:
+    def _check_column(self, name: str, column: Rows, field: str) -> None:
         v = self.get(name, f"{field}.{name}", SETTABLE, VALUE_TYPES)
         if v["type"] in ("integer", "enumeration") and np.any(column != np.round(column)):
             raise SpecError(f"{field}.{name}", f"{name} is an Integer; the design gives "
@@ -58,11 +70,12 @@ class Variables:
             raise SpecError(f"{field}.{name}", f"{name} is a Boolean; the design must give 0 or 1")
 
 
-def what_for(causalities) -> str:
+def what_for(causalities: Collection[str]) -> str:
     return "set" if set(causalities) <= set(SETTABLE) else "read"
 
 
-def check_against_fmu(spec, design, description: dict, runner) -> None:
+def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
+                      runner: NativeRunner) -> None:
     """Every name against the FMU, every mistake reported at once; then the values."""
     variables = Variables(description)
     errors = Collector()
@@ -72,34 +85,37 @@ def check_against_fmu(spec, design, description: dict, runner) -> None:
                                          VALUE_TYPES))
     for name in spec.series_variables:
         errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
-    errors.run(lambda: variables.check_columns(design.names, design.rows, "design.parameters"))
+    columns = [design.column_values(j) for j in range(len(design.names))]
+    errors.run(lambda: variables.check_columns(design.names, columns, "design.parameters"))
     errors.raise_any()
-    ask_the_fmu(spec.plan(), design.names, design.rows, runner, "design.parameters",
+    first = design.rows_at(np.zeros(1, dtype=np.int64))
+    ask_the_fmu(spec.plan(), design.names, first, columns, runner, "design.parameters",
                 "scenario.parameters")
 
 
-def ask_the_fmu(plan: dict, columns: list[str], rows: np.ndarray, runner, field: str,
-                fixed_field: str) -> None:
-    """Set the fixed values, then each column's extremes, and report what the FMU refuses.
-    Single-variable rules are caught here; a combination that cannot run (a geometry that
-    does not assemble) is a result of the sweep, not a mistake in it."""
+def ask_the_fmu(plan: Plan, names: list[str], first: Rows, columns: Sequence[Rows],
+                runner: NativeRunner, field: str, fixed_field: str) -> None:
+    """Set the fixed values, then the first point, then each column's extremes from it, and
+    report what the FMU refuses. Single-variable rules are caught here; a combination that
+    cannot run (a geometry that does not assemble) is a result of the sweep, not a mistake
+    in it."""
     runner.configure(plan)
     fixed = runner.check([], [[]])[0]
     if fixed["status"] != "ok":
         raise SpecError(fixed_field, f"the FMU refuses the fixed values: {fixed['message']}")
-    first = runner.check(columns, rows[:1])[0]
-    if first["status"] != "ok":
-        raise SpecError(field, f"the FMU refuses the first point: {first['message']}")
+    answer = runner.check(names, first)[0]
+    if answer["status"] != "ok":
+        raise SpecError(field, f"the FMU refuses the first point: {answer['message']}")
     # From the first point, which passed, change one column to its extreme values: a
     # refusal then belongs to that column.
     probes, owners = [], []
-    for j, name in enumerate(columns):
-        for value in np.unique([rows[:, j].min(), rows[:, j].max()]):
-            probe = rows[0].copy()
+    for j, (name, column) in enumerate(zip(names, columns)):
+        for value in np.unique([column.min(), column.max()]):
+            probe = first[0].copy()
             probe[j] = value
             probes.append(probe)
-            owners.append((name, value))
-    for (name, value), answer in zip(owners, runner.check(columns, probes)):
+            owners.append((name, float(value)))
+    for (name, value), answer in zip(owners, runner.check(names, np.array(probes))):
         if answer["status"] != "ok":
             raise SpecError(f"{field}.{name}",
                             f"the FMU refuses {name} = {value:g}: {answer['message']}")

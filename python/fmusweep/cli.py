@@ -8,7 +8,7 @@ import argparse
 import sys
 
 from . import __version__
-from .engine import run_sweep
+from .sweep import run_sweep
 from .native import RunnerError
 from .spec import SpecError
 

@@ -1,4 +1,4 @@
-"""Designs: the parameter points of a sweep, as a names list and a rows array.
+"""Designs: the parameter points of a sweep, as a names list and rows taken by index.
 
 - ``grid``: each parameter takes ``values = [...]``, ``linspace = [start, stop, count]``
   or ``logspace = [start, stop, count]`` (the values themselves, evenly spaced in log:
@@ -11,19 +11,27 @@
   two, gives N·(D + 2) points (N·(2D + 2) with ``second_order = true``).
 - ``morris``: Morris' elementary effects (SALib): ``trajectories`` = r gives r·(D + 1)
   points on a grid of ``levels`` (default 4).
+
+A grid keeps only its axes and makes a point's values from its index when a batch needs
+them, so that the client's memory does not grow with the number of points; the sampled
+designs are held whole (their generators make them so).
 """
 
 from __future__ import annotations
 
-import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .errors import SpecError
 from .fields import finite as _finite
 from .fields import low_high, whole
+from .records import Points, Rows
+
+if TYPE_CHECKING:
+    from .spec import Spec
 
 __all__ = ["Design", "generate"]
 
@@ -32,15 +40,49 @@ MAX_POINTS = 100_000_000
 
 @dataclass
 class Design:
+    """The points of a sweep: ``rows_at(points)`` gives their values (one row per point,
+    a column per name), ``len(design)`` their number."""
     kind: str
     names: list[str]
-    rows: np.ndarray  # (points, parameters), float64
-    problem: dict | None = None  # SALib's problem, for sobol and morris
+    # Either the axes of a full-factorial grid (the first varying slowest), or every row.
+    axes: list[Rows] | None = field(default=None, repr=False)
+    stored: Rows | None = field(default=None, repr=False)
+    problem: dict[str, Any] | None = None  # SALib's problem, for sobol and morris
     second_order: bool = False
     levels: int = 4  # morris
 
+    def __len__(self) -> int:
+        if self.axes is not None:
+            return math.prod(len(a) for a in self.axes)
+        assert self.stored is not None
+        return len(self.stored)
 
-def generate(spec) -> Design:
+    def rows_at(self, points: Points) -> Rows:
+        """The values of the points with these indices, a row each."""
+        points = np.asarray(points, dtype=np.int64)
+        if self.axes is None:
+            assert self.stored is not None
+            return self.stored[points]
+        shape = tuple(len(a) for a in self.axes)
+        indices = np.unravel_index(points, shape)
+        return np.column_stack([a[i] for a, i in zip(self.axes, indices)]).reshape(
+            len(points), len(self.names))
+
+    @property
+    def rows(self) -> Rows:
+        """Every row at once (a grid's made for the asking: only what needs them all, the
+        sensitivity estimators and small designs, should ask)."""
+        return self.rows_at(np.arange(len(self), dtype=np.int64))
+
+    def column_values(self, j: int) -> Rows:
+        """Every value column j takes (a grid's axis: each value once)."""
+        if self.axes is not None:
+            return self.axes[j]
+        assert self.stored is not None
+        return self.stored[:, j]
+
+
+def generate(spec: Spec) -> Design:
     d = spec.design
     kind = spec.design_kind
     params = d["parameters"]
@@ -57,14 +99,13 @@ def generate(spec) -> Design:
         axes = [_axis(name, params[name]) for name in names]
         count = math.prod(len(a) for a in axes)
         _not_too_many(count)
-        rows = np.array(list(itertools.product(*axes)), dtype=float).reshape(count, len(names))
-        return Design(kind, names, rows)
+        return Design(kind, names, axes=[np.asarray(a, dtype=float) for a in axes])
     if kind == "list":
         columns = [_values(name, params[name]) for name in names]
         lengths = {len(c) for c in columns}
         if len(lengths) != 1:
             raise SpecError("design.parameters", f"a list design needs values of one length, got {sorted(lengths)}")
-        return Design(kind, names, np.array(columns, dtype=float).T.copy())
+        return Design(kind, names, stored=np.array(columns, dtype=float).T.copy())
     bounds = [_range(name, params[name], allow_log=(kind == "lhs")) for name in names]
     if kind == "lhs":
         n = _count(d, "samples", "design.samples")
@@ -77,7 +118,7 @@ def generate(spec) -> Design:
                 rows[:, j] = np.exp(np.log(low) + unit[:, j] * (np.log(high) - np.log(low)))
             else:
                 rows[:, j] = low + unit[:, j] * (high - low)
-        return Design(kind, names, rows)
+        return Design(kind, names, stored=rows)
     problem = {"num_vars": len(names), "names": names,
                "bounds": [[low, high] for low, high, _ in bounds]}
     if kind == "sobol":
@@ -90,7 +131,8 @@ def generate(spec) -> Design:
         _not_too_many(n * (2 * len(names) + 2 if second else len(names) + 2))
         from SALib.sample import sobol
         rows = sobol.sample(problem, n, calc_second_order=second, seed=spec.seed)
-        return Design(kind, names, np.asarray(rows, dtype=float), problem, second)
+        return Design(kind, names, stored=np.asarray(rows, dtype=float), problem=problem,
+                      second_order=second)
     r = _count(d, "trajectories", "design.trajectories")
     levels = d.get("levels", 4)
     if not isinstance(levels, int) or isinstance(levels, bool) or levels < 2 or levels % 2:
@@ -98,7 +140,8 @@ def generate(spec) -> Design:
     _not_too_many(r * (len(names) + 1))
     from SALib.sample.morris import sample as morris_sample
     rows = morris_sample(problem, r, num_levels=levels, seed=spec.seed)
-    return Design(kind, names, np.asarray(rows, dtype=float), problem, levels=levels)
+    return Design(kind, names, stored=np.asarray(rows, dtype=float), problem=problem,
+                  levels=levels)
 
 
 def _not_too_many(count: int):

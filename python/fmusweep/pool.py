@@ -11,10 +11,13 @@ import logging
 import os
 import threading
 import time
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any, ContextManager
 
 import numpy as np
 
 from .native import failed_result
+from .records import Batch, BatchFunction, Plan, PointResult, Points, PrepareFunction, Rows
 
 __all__ = ["Pool", "IN_FLIGHT_PER_WORKER", "without_message_log"]
 
@@ -32,8 +35,9 @@ class Pool:
     batches run here, one at a time (``run`` is then safe to call from several threads:
     they take turns)."""
 
-    def __init__(self, target, functions, plan: dict, *, workers: int | None = None,
-                 scheduler: str | None = None, serial: bool = False, prefix: str = "fmusweep-"):
+    def __init__(self, target: object, functions: tuple[BatchFunction, PrepareFunction],
+                 plan: Plan, *, workers: int | None = None, scheduler: str | None = None,
+                 serial: bool = False, prefix: str = "fmusweep-"):
         self.target = target
         self.batch_function, self.prepare_function = functions
         self.plan = plan
@@ -43,9 +47,9 @@ class Pool:
         self.prefix = prefix
         self.workers = 1
         self.startup_s = 0.0
-        self.client = None
-        self._cluster = None
-        self._target_future = None
+        self.client: Any = None
+        self._cluster: Any = None
+        self._target_future: Any = None
         self._serial_lock = threading.Lock()
         self._keys = itertools.count()
 
@@ -54,21 +58,21 @@ class Pool:
         return "serial" if self.serial else (self.scheduler or "LocalCluster")
 
     # --- life ------------------------------------------------------------------------
-    def __enter__(self) -> "Pool":
+    def __enter__(self) -> Pool:
         if not self.serial:
             t0 = time.perf_counter()
             self._connect()
             self.startup_s = time.perf_counter() - t0
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         if self.client is not None:
             self.client.close()
         if self._cluster is not None:
             self._cluster.close()
         self.client = self._cluster = None
 
-    def _connect(self):
+    def _connect(self) -> None:
         from distributed import Client, LocalCluster
         if self.scheduler:
             self.client = Client(self.scheduler, timeout="30s")
@@ -92,8 +96,11 @@ class Pool:
             future.release()
 
     # --- work ------------------------------------------------------------------------
-    def stream(self, names: list[str], rows: np.ndarray, chunks, key=None):
-        """Yield each chunk's batch (a dict: points, results, worker) as it finishes.
+    def stream(self, names: list[str], rows_of: Callable[[Points], Rows],
+               chunks: Iterable[Points],
+               key: Callable[[Points], str] | None = None) -> Iterator[Batch]:
+        """Yield each chunk's batch as it finishes; `rows_of` gives a chunk's values, made
+        only when the chunk is submitted.
 
         On Dask at most IN_FLIGHT_PER_WORKER batches per worker are submitted at a time,
         and each batch's future is released as soon as it is yielded, so that neither the
@@ -102,21 +109,23 @@ class Pool:
         if self.serial:
             for chunk in chunks:
                 with self._serial_lock:
-                    batch = self.batch_function(self.target, self.plan, names, rows[chunk], chunk)
+                    batch = self.batch_function(self.target, self.plan, names, rows_of(chunk),
+                                                chunk)
                 yield batch
             return
         from distributed import as_completed
         from distributed.scheduler import KilledWorker
-        key = key or (lambda chunk: f"{self.prefix}{next(self._keys)}")
+        name = key or (lambda chunk: f"{self.prefix}{next(self._keys)}")
         waiting = iter(chunks)
         finished = as_completed()
-        pending = {}
+        pending: dict[Any, Points] = {}
 
-        def submit_next():
+        def submit_next() -> None:
             chunk = next(waiting, None)
             if chunk is not None:
                 future = self.client.submit(self.batch_function, self._target_future, self.plan,
-                                            names, rows[chunk], chunk, key=key(chunk), pure=False)
+                                            names, rows_of(chunk), chunk, key=name(chunk),
+                                            pure=False)
                 pending[future] = chunk
                 finished.add(future)
 
@@ -130,7 +139,8 @@ class Pool:
                 except KilledWorker as e:
                     lost = failed_result("crashed", f"the batch failed on the cluster: {e!r}",
                                          self.plan)
-                    batch = {"points": chunk, "worker": "", "results": [dict(lost) for _ in chunk]}
+                    batch = {"points": chunk, "worker": "",
+                             "results": [PointResult(**lost) for _ in chunk]}
                 future.release()
                 del future
                 submit_next()
@@ -139,17 +149,17 @@ class Pool:
             for future in pending:
                 future.cancel()
 
-    def run(self, names: list[str], rows: np.ndarray) -> list[dict]:
+    def run(self, names: list[str], rows: Rows) -> list[PointResult]:
         """Every row's result, in order: the rows cut into one batch per worker, run at
         once, and gathered."""
         rows = np.asarray(rows, dtype=float).reshape(len(rows), len(names))
         parts = min(len(rows), 1 if self.serial else self.workers)
         chunks = [c for c in np.array_split(np.arange(len(rows)), max(parts, 1)) if len(c)]
-        results: list[dict | None] = [None] * len(rows)
-        for batch in self.stream(names, rows, chunks):
+        results: list[PointResult | None] = [None] * len(rows)
+        for batch in self.stream(names, lambda chunk: rows[chunk], chunks):
             for i, result in zip(batch["points"], batch["results"]):
-                results[int(i)] = dict(result, worker=batch["worker"])
-        return results
+                results[int(i)] = PointResult(**result, worker=batch["worker"])
+        return [r for r in results if r is not None]
 
     def held_by_scheduler(self) -> int | None:
         """How many finished batches of this pool the scheduler still holds in memory
@@ -158,7 +168,7 @@ class Pool:
             return None
         prefix = self.prefix
 
-        def held(dask_scheduler=None):
+        def held(dask_scheduler: Any = None) -> int:
             # Defined here to travel by value: the scheduler need not have this package.
             return sum(1 for key, task in dask_scheduler.tasks.items()
                        if str(key).startswith(prefix) and task.state == "memory")
@@ -171,7 +181,7 @@ class Pool:
         return count
 
 
-def without_message_log(serial: bool = False):
+def without_message_log(serial: bool = False) -> ContextManager[object]:
     """Dask keeps the last messages of every connection for debugging (1000 by default),
     and a task's message carries its batch's rows: the sweep's client and, in a
     LocalCluster, the scheduler and workers would grow by each batch up to that many.

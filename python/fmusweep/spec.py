@@ -164,9 +164,9 @@ class Spec:
     metrics: list[MetricSpec]
     series_variables: list[str] = field(default_factory=list)
     series_every: int = 0
-    # The design's points, generated once when the spec is checked (a large design costs
-    # seconds to generate).
-    points: object = field(default=None, repr=False)
+    # The design's points, made when the spec is checked (sampling a large design costs
+    # seconds).
+    points: _design.Design = field(default=None, repr=False)  # type: ignore[assignment]
 
     # --- loading -------------------------------------------------------------------
     @staticmethod

@@ -8,14 +8,21 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
 
 from ..check import VALUE_TYPES, Variables, ask_the_fmu
 from ..errors import Collector
-from ..engine import point_ids
+from ..native import NativeRunner
+from ..records import PointResult, Points, Rows
 from ..store import ResultStore
+from .data import Data
+
+if TYPE_CHECKING:
+    from ..study import Study
+    from .spec import FitSpec
 
 __all__ = ["Problem", "Evaluation", "check_fit_against_fmu"]
 
@@ -26,14 +33,15 @@ READABLE = ("output", "local")
 class Evaluation:
     status: str
     message: str
-    predictions: np.ndarray | None  # (data times, columns) when the run reached the end
+    predictions: Rows | None  # (data times, columns) when the run reached the end
 
     @property
     def ok(self) -> bool:
         return self.status == "ok" and self.predictions is not None
 
 
-def check_fit_against_fmu(spec, description: dict, runner) -> None:
+def check_fit_against_fmu(spec: FitSpec, description: dict[str, Any],
+                          runner: NativeRunner) -> None:
     """Every name against the FMU, every mistake reported at once; then the values."""
     variables = Variables(description)
     errors = Collector()
@@ -42,46 +50,47 @@ def check_fit_against_fmu(spec, description: dict, runner) -> None:
         errors.run(lambda: variables.get(name, "data.file", READABLE, VALUE_TYPES, what="output"))
     names = spec.names
     rows = np.array([[p.start for p in spec.parameters], spec.lows, spec.highs])
-    errors.run(lambda: variables.check_columns(names, rows, "fit.parameters"))
+    columns = list(rows.T)
+    errors.run(lambda: variables.check_columns(names, columns, "fit.parameters"))
     errors.raise_any()
-    ask_the_fmu(spec.plan(), names, rows, runner, "fit.parameters", "scenario.parameters")
+    ask_the_fmu(spec.plan(), names, rows[:1], columns, runner, "fit.parameters",
+                "scenario.parameters")
 
 
 class Problem:
     """Residuals of parameter vectors, for any number of optimisations at once (each
     evaluates from its own thread; the pool places the batches)."""
 
-    def __init__(self, spec, pool, store: ResultStore, fmu_sha256: str):
+    def __init__(self, spec: FitSpec, study: Study):
         self.spec = spec
-        self.pool = pool
-        self.store = store
-        self.fmu_sha256 = fmu_sha256
-        self.digest = spec.digest()
+        self.study = study
+        self.pool = study.pool
+        self.store = study.store
         self.lock = threading.Lock()
-        self.cache: dict[str, Evaluation] = _stored_evaluations(store, spec)
-        self.next_point = _next_point(store)
+        self.cache: dict[str, Evaluation] = _stored_evaluations(self.store, spec)
+        self.next_point = _next_point(self.store)
         self.computed = 0
         self.reused = 0
 
-    def residuals(self, evaluation: Evaluation) -> np.ndarray:
+    def residuals(self, evaluation: Evaluation) -> Rows:
         """Weighted residuals (model − data) / sigma, row by row; +inf for a failed run,
         which a trust-region step treats as infinitely bad."""
         data = self.spec.data
-        if not evaluation.ok:
+        if evaluation.predictions is None or not evaluation.ok:
             return np.full(data.values.size, np.inf)
         return ((evaluation.predictions - data.values) / data.sigma).ravel()
 
-    def cached(self, theta: np.ndarray) -> Evaluation | None:
+    def cached(self, theta: Rows) -> Evaluation | None:
         """The evaluation of a point already run (or read back), without running it."""
-        [key] = point_ids(self.fmu_sha256, self.digest, self.spec.names, np.atleast_2d(theta))
+        [key] = self.study.ids(self.spec.names, np.atleast_2d(theta))
         with self.lock:
             return self.cache.get(key)
 
-    def evaluate(self, thetas: np.ndarray, start: int, roles: list[str]) -> list[Evaluation]:
+    def evaluate(self, thetas: Rows, start: int, roles: list[str]) -> list[Evaluation]:
         thetas = np.atleast_2d(np.asarray(thetas, dtype=float))
-        ids = point_ids(self.fmu_sha256, self.digest, self.spec.names, thetas)
+        ids = self.study.ids(self.spec.names, thetas)
         with self.lock:
-            found = [self.cache.get(i) for i in ids]
+            found: list[Evaluation | None] = [self.cache.get(i) for i in ids]
         missing = [k for k, e in enumerate(found) if e is None]
         if missing:
             results = self.pool.run(self.spec.names, thetas[missing])
@@ -97,9 +106,9 @@ class Problem:
                         start, [roles[k] for k in missing])
         with self.lock:
             self.reused += len(thetas) - len(missing)
-        return found
+        return [e for e in found if e is not None]
 
-    def _evaluation(self, result: dict) -> Evaluation:
+    def _evaluation(self, result: PointResult) -> Evaluation:
         series = result.get("series")
         rows = self.spec.data.rows
         if result["status"] != "ok" or series is None or len(series) <= rows[-1]:
@@ -107,7 +116,8 @@ class Problem:
                               result["message"] or "the run ended before the last data time", None)
         return Evaluation("ok", result["message"], np.array(series[rows, 1:]))
 
-    def _write(self, points, ids, thetas, results, evaluations, start, roles):
+    def _write(self, points: Points, ids: list[str], thetas: Rows, results: list[PointResult],
+               evaluations: list[Evaluation], start: int, roles: list[str]) -> None:
         spec = self.spec
         columns = {"point": pa.array(points, pa.int64()), "point_id": pa.array(ids, pa.string())}
         for j, name in enumerate(spec.names):
@@ -121,11 +131,12 @@ class Problem:
         for key, kind in (("t_end", pa.float64()), ("steps", pa.int64()), ("wall_s", pa.float64()),
                           ("worker", pa.string())):
             columns[key] = pa.array([r.get(key) for r in results], kind)
-        long = [(p, e.predictions) for p, e in zip(points, evaluations) if e.ok]
+        long = [(int(p), e.predictions) for p, e in zip(points, evaluations)
+                if e.ok and e.predictions is not None]
         self.store.write_batch(pa.table(columns), _long_form(long, spec.data) if long else None)
 
 
-def _long_form(runs, data) -> pa.Table:
+def _long_form(runs: list[tuple[int, Rows]], data: Data) -> pa.Table:
     n_t, n_c = data.values.shape
     point = np.repeat(np.array([p for p, _ in runs], dtype=np.int64), n_t * n_c)
     variable = np.tile(np.repeat(np.arange(n_c, dtype=np.int8), n_t), len(runs))
@@ -136,14 +147,14 @@ def _long_form(runs, data) -> pa.Table:
                      "time": pa.array(time_), "value": pa.array(value)})
 
 
-def _stored_evaluations(store: ResultStore, spec) -> dict[str, Evaluation]:
+def _stored_evaluations(store: ResultStore, spec: FitSpec) -> dict[str, Evaluation]:
     """The points an earlier run of this fit wrote (none for a new fit)."""
     try:
         points = ResultStore.points_table_of(store.out).to_pandas()
     except FileNotFoundError:
         return {}
     series = ResultStore.series_table_of(store.out)
-    by_point = {}
+    by_point: dict[int, Rows] = {}
     if series is not None:
         frame = series.to_pandas()
         n_t = len(spec.data.times)
@@ -151,8 +162,8 @@ def _stored_evaluations(store: ResultStore, spec) -> dict[str, Evaluation]:
             values = np.empty((n_t, len(spec.data.columns)))
             for j, name in enumerate(spec.data.columns):
                 values[:, j] = group[group["variable"] == name].sort_values("time")["value"].to_numpy()
-            by_point[point] = values
-    cache = {}
+            by_point[int(point)] = values
+    cache: dict[str, Evaluation] = {}
     for row in points.itertuples(index=False):
         predictions = by_point.get(row.point)
         if row.status == "ok" and predictions is None:

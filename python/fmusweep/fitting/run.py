@@ -1,0 +1,147 @@
+"""A fit run as a study (``fmusweep.study``): the spec checked against what runs, then
+bounded nonlinear least squares from each start, every trial point run on the study's
+pool and kept in its store, and the summary and plots written."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import time
+from typing import Any
+
+import numpy as np
+
+from ..store import ResultStore, atomic_write_text
+from ..study import Study, Target
+from .method import Start, solve_all, starting_points
+from .problem import Problem, check_fit_against_fmu
+from .spec import FitSpec
+from .statistics import uncertainty
+
+__all__ = ["fit", "FitResult", "SERIAL_BELOW_S"]
+
+# Without an engine named, a fit whose runs take less than this runs in this process: a
+# fit waits for each batch before it chooses the next, and a round trip through Dask costs
+# milliseconds, more than such a batch gains from running on several workers.
+SERIAL_BELOW_S = 0.02
+
+Summary = dict[str, Any]
+
+
+class FitResult:
+    """``summary``: what fit.json holds; ``out``: the output directory; ``points``: every
+    evaluated run (a DataFrame); ``plots``: the pictures written."""
+
+    def __init__(self, out: pathlib.Path, summary: Summary, plots: list[pathlib.Path]):
+        self.out = out
+        self.summary = summary
+        self.plots = plots
+
+    @property
+    def points(self) -> Any:
+        """Every evaluated run, a pandas DataFrame."""
+        return ResultStore.points_table_of(self.out).to_pandas()
+
+    def estimates(self) -> dict[str, float]:
+        return {k: v["estimate"] for k, v in self.summary["parameters"].items()}
+
+    def __repr__(self) -> str:
+        return (f"FitResult({str(self.out)!r}, status={self.summary['status']!r}, "
+                f"cost={self.summary['cost']!r})")
+
+
+def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None = None,
+        out: str | None = None, workers: int | None = None, scheduler: str | None = None,
+        serial: bool = False, resume: bool = False, plots: bool = True) -> FitResult:
+    """Fit the spec's parameters to its data and return a FitResult.
+
+    spec: a TOML path, a dict, or a FitSpec. fmu: the FMU's path, over the spec's own
+    (default: the spec's FMU or coupled [system], else $FMUSWEEP_FMU). out: the output
+    directory (default ``fit-<digest>`` here). workers, scheduler, serial: as for
+    ``run_sweep``; given none, the fit runs here when one run takes less than
+    SERIAL_BELOW_S, else on a LocalCluster of every core. resume: continue a fit that
+    ``out`` holds; the points it evaluated are read, not run again.
+    """
+    started = time.perf_counter()
+    spec = FitSpec.load(spec)
+    target = Target.open(spec, fmu)
+    assert target.local is not None  # a fit names no SSP file
+    check_fit_against_fmu(spec, target.description, target.local)
+    plan = spec.plan()
+    target.local.configure(plan)
+    serial, engine_note = _choose_engine(spec, target, serial, workers, scheduler)
+    record = {"data_sha256": spec.data.sha256, "metrics": ["cost"],
+              "design": {"kind": "fit", "names": spec.names, "points": None}}
+    study = Study("fit", spec, target, plan, out=out, resume=resume, record=record,
+                  workers=workers, scheduler=scheduler, serial=serial)
+    with study.running() as pool:
+        problem = Problem(spec, study)
+        solving = time.perf_counter()
+        starts = solve_all(problem, starting_points(spec), 1 if serial else pool.workers)
+        solve_s = time.perf_counter() - solving
+    study.finish()
+    summary = _summary(spec, problem, starts, study, time.perf_counter() - started)
+    summary["solve_s"] = solve_s
+    summary["engine_choice"] = engine_note
+    out_dir = study.store.out
+    atomic_write_text(json.dumps(summary, indent=2), out_dir / "fit.json")
+    written: list[pathlib.Path] = []
+    if plots and summary["status"] != "failed":
+        from .plots import plot_fit
+        best = min(starts, key=lambda s: s.cost)
+        # The optimiser's last accepted point: run, and kept, on the way.
+        assert best.estimate is not None
+        at_best = problem.cached(best.estimate)
+        if at_best is not None and at_best.ok:
+            written = plot_fit(spec, at_best, summary, out_dir / "plots")
+    return FitResult(out_dir, summary, written)
+
+
+def _choose_engine(spec: FitSpec, target: Target, serial: bool, workers: int | None,
+                   scheduler: str | None) -> tuple[bool, str]:
+    """Serial or not, and why, when the caller named no engine: one run at the start says
+    what a run costs."""
+    if serial or workers is not None or scheduler is not None:
+        return serial, "as asked"
+    assert target.local is not None
+    [probe] = target.local.run(spec.names, [[p.start for p in spec.parameters]])
+    run_s = probe["wall_s"] or 0.0
+    if run_s < SERIAL_BELOW_S:
+        return True, (f"serial: a run takes {run_s * 1e3:.1f} ms, less than a round trip "
+                      "through Dask gains (name --workers or --scheduler to use one)")
+    return False, f"a LocalCluster: a run takes {run_s * 1e3:.0f} ms"
+
+
+def _summary(spec: FitSpec, problem: Problem, starts: list[Start], study: Study,
+             wall_s: float) -> Summary:
+    finished = [s for s in starts if s.estimate is not None]
+    best = min(finished, key=lambda s: s.cost) if finished else None
+    pool = study.pool
+    summary: Summary = {
+        "status": best.status if best else "failed",
+        "message": best.message if best else "; ".join(f"start {s.index}: {s.message}" for s in starts),
+        "cost": best.cost if best else None,
+        "evaluations": problem.computed + problem.reused,
+        "computed": problem.computed, "resumed": problem.reused,
+        "iterations": best.iterations if best else None,
+        "start": best.index if best else None,
+        "data": {"file": str(spec.data.path), "times": len(spec.data.times),
+                 "columns": spec.data.columns},
+        "engine": pool.engine, "workers": pool.workers, "wall_s": wall_s,
+        "startup_s": pool.startup_s,
+        "starts": [{"start": dict(zip(spec.names, map(float, s.start))), "status": s.status,
+                    "cost": s.cost if s.estimate is not None else None,
+                    "estimate": (dict(zip(spec.names, map(float, s.estimate)))
+                                 if s.estimate is not None else None),
+                    "iterations": s.iterations, "message": s.message, "notes": s.notes}
+                   for s in starts],
+    }
+    if best is None:
+        summary.update(parameters={}, correlation={}, residual_rms={}, warnings=[summary["message"]])
+        return summary
+    summary.update(uncertainty(spec, best.estimate, best.jacobian, best.residuals))
+    weighted = best.residuals.reshape(spec.data.values.shape)
+    summary["residual_rms"] = {c: float(np.sqrt(np.mean((weighted[:, j] * spec.data.sigma[j]) ** 2)))
+                               for j, c in enumerate(spec.data.columns)}
+    summary["warnings"] = summary["warnings"] + [n for s in starts for n in s.notes]
+    return summary

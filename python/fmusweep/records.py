@@ -1,0 +1,73 @@
+"""The records that travel between the study runner, the workers and the native runner,
+written once: the plan every point of a study shares (sent to ``fmu-runner`` as JSON, so
+its keys are the runner's), a point's result, and a finished batch."""
+
+from __future__ import annotations
+
+from typing import Callable, NotRequired, TypedDict
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["InputTable", "MetricPlan", "SeriesPlan", "Plan", "PointResult", "Batch",
+           "BatchFunction", "PrepareFunction", "Rows", "Points"]
+
+# A batch's parameter values, one row per point (float64), and the points' indices.
+Rows = npt.NDArray[np.float64]
+Points = npt.NDArray[np.int64]
+
+
+class InputTable(TypedDict):
+    """A piecewise-linear input, held beyond its ends; one point makes a constant."""
+    times: list[float]
+    values: list[float]
+
+
+# "from" is a keyword: the functional form.
+MetricPlan = TypedDict("MetricPlan", {"variable": str, "kind": str, "from": float | None,
+                                      "to": float | None})
+
+
+class SeriesPlan(TypedDict):
+    variables: list[str]
+    every: int  # every how many communication steps a row is kept
+
+
+class Plan(TypedDict):
+    """What every point of a study shares."""
+    start: float
+    stop: float
+    step: float
+    tolerance: float | None
+    fixed: dict[str, float]
+    inputs: dict[str, InputTable]
+    metrics: list[MetricPlan]
+    series: SeriesPlan | None
+    timeout_s: float | None
+
+
+class PointResult(TypedDict):
+    """One point's outcome: ``status`` ok, or why not (``message``); the metrics in the
+    plan's order (None where the run did not get far enough); the series' rows
+    (t, variables…) when the plan keeps a series; ``worker`` once a pool has placed it."""
+    status: str
+    message: str
+    metrics: list[float | None]
+    t_end: float | None
+    steps: int | None
+    wall_s: float | None
+    series: NotRequired[npt.NDArray[np.float64]]
+    worker: NotRequired[str]
+
+
+class Batch(TypedDict):
+    """A batch's results in its points' order, and the worker that ran it."""
+    points: Points
+    results: list[PointResult]
+    worker: str
+
+
+# What a pool runs on a chunk of points, and how a worker prepares itself once; the
+# first argument is the study's target (an FMU's or an SSP's bytes).
+BatchFunction = Callable[..., Batch]
+PrepareFunction = Callable[..., str]

@@ -1,0 +1,111 @@
+"""What a sweep and a fit share, in the order they do it: open what runs (an FMU, a coupled
+[system] or an SSP file) and describe it, check the spec against it (each study its own
+checks), open the output store with the record of what ran, and place batches of points on
+a pool (serially or on Dask). The sweep (``sweep``) streams a design through a study, the
+fit (``fitting.run``) asks it for a few points at a time; neither opens, stores or places
+anything itself."""
+
+from __future__ import annotations
+
+import hashlib
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .fmu import Archive
+from .native import NativeRunner
+from .pool import Pool, without_message_log
+from .records import BatchFunction, Plan, PrepareFunction, Rows
+from .ssp import describe_ssp, prepare_ssp_worker, run_ssp_batch
+from .store import FORMAT, ResultStore, versions
+from .system import System, open_target
+from .worker import prepare_worker, run_batch
+
+if TYPE_CHECKING:
+    from .fitting.spec import FitSpec
+    from .spec import Spec
+
+__all__ = ["Target", "Study", "point_ids"]
+
+
+def point_ids(fmu_sha: str, spec_digest: str, names: list[str], rows: Rows) -> list[str]:
+    """A stable id per point: a hash of the FMU, the scenario and the point's values."""
+    prefix = f"{fmu_sha}|{spec_digest}|{','.join(names)}|".encode()
+    return [hashlib.blake2b(prefix + np.ascontiguousarray(row).tobytes(),
+                            digest_size=8).hexdigest() for row in rows]
+
+
+@dataclass
+class Target:
+    """What a study runs: the bytes shipped to every worker, what the output records of
+    it, its description, this process's runner for it (None for an SSP file, which runs
+    through FMPy) and the functions a worker runs it with."""
+    archive: Archive
+    identity: dict[str, Any]
+    description: dict[str, Any]
+    local: NativeRunner | None
+    run_batch: BatchFunction
+    prepare: PrepareFunction
+
+    @staticmethod
+    def open(spec: Spec | FitSpec, fmu: str | None) -> Target:
+        """The FMU the caller names, else the spec's SSP file, [system] or FMU, else
+        $FMUSWEEP_FMU."""
+        ssp = getattr(spec, "ssp", None)
+        if ssp is not None and fmu is None:
+            archive = Archive.read(ssp)
+            return Target(archive, {"ssp_name": archive.name, "ssp_sha256": archive.sha256},
+                          describe_ssp(archive), None, run_ssp_batch, prepare_ssp_worker)
+        system: System | None = spec.system
+        archive, local, description = open_target(system, fmu, spec.fmu, spec.scenario.step)
+        if system is not None and fmu is None:
+            identity: dict[str, Any] = {
+                "system": {name: str(path) for name, path in system.components.items()},
+                "connections": [str(c) for c in system.connections]}
+        else:
+            identity = {"fmu_name": archive.name, "fmu_guid": description["guid"]}
+        return Target(archive, identity, description, local, run_batch, prepare_worker)
+
+    @property
+    def sha256(self) -> str:
+        return self.archive.sha256
+
+
+class Study:
+    """One sweep's or fit's run of a checked target: its output store (``out``, or
+    ``<kind>-<digest>`` here; ``resume`` continues what it holds) and its pool of
+    ``workers`` on a LocalCluster, an existing ``scheduler``, or ``serial`` here."""
+
+    def __init__(self, kind: str, spec: Spec | FitSpec, target: Target, plan: Plan, *,
+                 out: str | None, resume: bool, record: dict[str, Any],
+                 workers: int | None, scheduler: str | None, serial: bool):
+        self.kind = kind
+        self.target = target
+        self.plan = plan
+        self.digest = spec.digest()
+        meta = {"format": FORMAT, "kind": kind, "spec": spec.raw, "spec_digest": self.digest,
+                "seed": spec.seed, "fmu_sha256": target.sha256, **target.identity, **record,
+                "versions": versions(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+        self.store = ResultStore(out or f"{kind}-{self.digest[:10]}", meta, resume)
+        prefix = "fmusweep-" + ("fit-" if kind == "fit" else "")
+        self.pool = Pool(target.archive, (target.run_batch, target.prepare), plan,
+                         workers=workers, scheduler=scheduler, serial=serial,
+                         prefix=f"{prefix}{self.digest[:8]}-")
+
+    def ids(self, names: list[str], rows: Rows) -> list[str]:
+        return point_ids(self.target.sha256, self.digest, names, rows)
+
+    @contextmanager
+    def running(self) -> Iterator[Pool]:
+        """The pool, started (a cluster connected and every worker prepared) and closed
+        at the end."""
+        with without_message_log(self.pool.serial), self.pool:
+            yield self.pool
+
+    def finish(self) -> int:
+        """Write the final table from the parts; the number of points it holds."""
+        return self.store.consolidate()
