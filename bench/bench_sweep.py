@@ -1,7 +1,8 @@
 """The sweep benchmark: points per second per worker against a bare C-ABI master loop and
 FMPy's simulate_fmu, Dask's share of the wall time, scaling from 1 to 2 workers, the
-per-task cost behind the cluster sizing advice, worker memory over 100 000 points, and
-every process's memory over a 10⁶-point sweep (10⁴ with --quick).
+per-task cost behind the cluster sizing advice, worker memory over 100 000 points,
+every process's memory over a 10⁶-point sweep (10⁴ with --quick), and the client's
+high-water mark against the sweep's size (9·10⁴ and 10⁶ points).
 
     python bench/bench_sweep.py <CyclicMechanism.fmu> <output directory> [--quick]
 
@@ -13,6 +14,7 @@ import json
 import os
 import pathlib
 import platform
+import subprocess
 import sys
 import tempfile
 import time
@@ -252,6 +254,15 @@ def sweep_memory(fmu, per_axis, series):
             "growth": {name: (taken[1.0][name] - kib) / kib for name, kib in taken[0.1].items()}}
 
 
+def client_memory(fmu, per_axis):
+    """The client's memory over a per_axis² sweep, in a process of its own
+    (client_memory.py): its resident memory before, its high-water mark, and per point."""
+    script = pathlib.Path(__file__).with_name("client_memory.py")
+    done = subprocess.run([sys.executable, str(script), str(fmu), str(per_axis)], check=True,
+                          capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
 def machine():
     cpu = "unknown"
     for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
@@ -321,6 +332,20 @@ def report(r) -> str:
         for name, growth in m["growth"].items():
             a, b, c = (at[k][name] / 1024 for k in ("0.1", "0.5", "1.0"))
             lines.append(f"| {name} | {a:.0f} | {b:.0f} | {c:.0f} | {growth:+.1%} |")
+    if r.get("client_memory"):
+        lines += ["", "The client's memory against the sweep's size (metrics only; 1 s runs, 2 "
+                  "workers; a process of its own; the LocalCluster's scheduler runs in it, its "
+                  "runner does not), in MiB:", "",
+                  "| points | before the sweep | high-water mark | above before, per point |",
+                  "| --- | --- | --- | --- |"]
+        for m in r["client_memory"]:
+            lines.append(f"| {m['points']:,} | {m['before_kib'] / 1024:.0f} | "
+                         f"{m['peak_kib'] / 1024:.0f} | {m['bytes_per_point']:.0f} B |")
+        small, large = r["client_memory"][0], r["client_memory"][-1]
+        slope = ((large["peak_kib"] - small["peak_kib"]) * 1024
+                 / (large["points"] - small["points"]))
+        lines += ["", f"Growth of the high-water mark from {small['points']:,} to "
+                  f"{large['points']:,} points: {slope:.0f} bytes per point."]
     return "\n".join(lines) + "\n"
 
 
@@ -351,6 +376,8 @@ def main():
     per_axis = 100 if quick else 1000
     print(f"bench-sweep: memory of a {per_axis ** 2:,}-point sweep on 2 workers", flush=True)
     r["sweep_memory"] = [sweep_memory(fmu, per_axis, series) for series in (False, True)]
+    print("bench-sweep: the client's memory against the number of points", flush=True)
+    r["client_memory"] = [client_memory(fmu, n) for n in ((30, 100) if quick else (300, 1000))]
     write_results(out, r, report(r))
 
 

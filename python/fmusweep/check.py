@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from .native import NativeRunner
     from .spec import Scenario, Spec
 
-__all__ = ["check_against_fmu", "Variables"]
+__all__ = ["check_against_fmu", "Variables", "names_missing"]
 
 SETTABLE = ("parameter", "input")
 VALUE_TYPES = ("real", "integer", "enumeration", "boolean")
@@ -119,3 +119,36 @@ def ask_the_fmu(plan: Plan, names: list[str], first: Rows, columns: Sequence[Row
         if answer["status"] != "ok":
             raise SpecError(f"{field}.{name}",
                             f"the FMU refuses {name} = {value:g}: {answer['message']}")
+
+
+def names_missing(raw: dict[str, Any], description: dict[str, Any]) -> list[SpecError]:
+    """The names a spec's tables use that the FMU lacks (or cannot set or read as they are
+    used), read from the tables as written: for a spec whose own fields have mistakes, so
+    that one run reports both kinds."""
+    variables = Variables(description)
+    errors = Collector()
+
+    def entries(*path: str) -> dict[str, Any]:
+        found: object = raw
+        for key in path:
+            found = found.get(key) if isinstance(found, dict) else None
+        return found if isinstance(found, dict) else {}
+
+    for table, causalities, types in (("parameters", SETTABLE, VALUE_TYPES),
+                                      ("inputs", ("input",), ("real",))):
+        for name in entries("scenario", table):
+            errors.run(lambda: variables.get(name, f"scenario.{table}.{name}", causalities, types))
+    for where, names in (("design.parameters", entries("design", "parameters")),
+                         ("fit.parameters", entries("fit", "parameters"))):
+        for name in names:
+            errors.run(lambda: variables.get(name, f"{where}.{name}", SETTABLE, VALUE_TYPES))
+    for metric, entry in entries("outputs", "metrics").items():
+        variable = entry.get("variable") if isinstance(entry, dict) else None
+        if isinstance(variable, str):
+            errors.run(lambda: variables.get(variable, f"outputs.metrics.{metric}.variable", None,
+                                             VALUE_TYPES))
+    listed = entries("outputs", "series").get("variables")
+    for name in listed if isinstance(listed, list) else []:
+        if isinstance(name, str):
+            errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
+    return errors.errors

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import Callable, Sequence, TypeVar
 
 from . import __version__
 from .sweep import run_sweep
@@ -48,8 +49,10 @@ with fit.toml:
 
 ENGINE_ERRORS = (SpecError, RunnerError, FileExistsError, FileNotFoundError, ValueError)
 
+T = TypeVar("T")
 
-def _engine_arguments(parser: argparse.ArgumentParser):
+
+def _engine_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fmu", help="the FMU, when the spec names none (or to override it)")
     parser.add_argument("--workers", type=int, help="LocalCluster worker processes (default: every core)")
     parser.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
@@ -57,7 +60,7 @@ def _engine_arguments(parser: argparse.ArgumentParser):
     parser.add_argument("--no-plots", action="store_true", help="no plots")
 
 
-def _guarded(prog: str, kept: str, run):
+def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
     """run()'s result, or the exit code after a refusal (2) or an interrupt (130), each
     said on standard error."""
     try:
@@ -70,7 +73,7 @@ def _guarded(prog: str, kept: str, run):
         return 130
 
 
-def main(argv=None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["fit"]:
         return fit_main(argv[1:])
@@ -92,6 +95,7 @@ def main(argv=None) -> int:
     if isinstance(results, int):
         return results
     r = results.report
+    assert r is not None  # a sweep just run reports itself
     counts = ", ".join(f"{n} {s}" for s, n in sorted(r.statuses.items())) or "nothing new"
     print(f"fmusweep: {r.points} points ({r.resumed} already done; computed: {counts}) in "
           f"{r.wall_s:.1f} s on {r.workers} worker(s), {r.engine}, batches of {r.batch_size}")
@@ -102,7 +106,7 @@ def main(argv=None) -> int:
     return 0
 
 
-def fit_main(argv) -> int:
+def fit_main(argv: Sequence[str]) -> int:
     from .fitting import fit
     parser = argparse.ArgumentParser(prog="fmusweep fit", description="Fit an FMU's parameters "
                                      "to measurements on the sweep engine; writes OUT/fit.json "

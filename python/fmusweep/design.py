@@ -144,25 +144,25 @@ def generate(spec: Spec) -> Design:
                   levels=levels)
 
 
-def _not_too_many(count: int):
+def _not_too_many(count: int) -> None:
     if count < 1:
         raise SpecError("design", "has no point")
     if count > MAX_POINTS:
         raise SpecError("design", f"has {count} points, more than the {MAX_POINTS} one sweep takes")
 
 
-def _count(d: dict, key: str, where: str) -> int:
+def _count(d: dict[str, Any], key: str, where: str) -> int:
     return whole(d.get(key), where, 1)
 
 
-def _values(name: str, entry) -> list[float]:
+def _values(name: str, entry: object) -> list[float]:
     where = f"design.parameters.{name}"
     if not isinstance(entry, dict) or set(entry) != {"values"}:
         raise SpecError(where, "a list design takes values = [...] for each parameter")
     return _value_list(entry["values"], f"{where}.values")
 
 
-def _value_list(values, where: str) -> list[float]:
+def _value_list(values: object, where: str) -> list[float]:
     if not isinstance(values, list):
         raise SpecError(where, f"must be a list of numbers, got {values!r}")
     if not values:
@@ -170,7 +170,7 @@ def _value_list(values, where: str) -> list[float]:
     return [_finite(v, where) for v in values]
 
 
-def _axis(name: str, entry) -> list[float]:
+def _axis(name: str, entry: object) -> list[float]:
     where = f"design.parameters.{name}"
     if isinstance(entry, list):
         return _value_list(entry, where)
@@ -188,13 +188,13 @@ def _axis(name: str, entry) -> list[float]:
     if not isinstance(count, int) or isinstance(count, bool) or count < 1:
         raise SpecError(where, f"count must be a whole number ≥ 1, got {count!r}")
     if how == "linspace":
-        return np.linspace(start, stop, count).tolist()
+        return [float(x) for x in np.linspace(start, stop, count)]
     if start <= 0 or stop <= 0:
         raise SpecError(where, f"logspace takes values > 0 (not exponents), got {start} and {stop}")
-    return np.geomspace(start, stop, count).tolist()
+    return [float(x) for x in np.geomspace(start, stop, count)]
 
 
-def _range(name: str, entry, allow_log: bool):
+def _range(name: str, entry: object, allow_log: bool) -> tuple[float, float, bool]:
     where = f"design.parameters.{name}"
     keys = {"range", "log"} if allow_log else {"range"}
     if not isinstance(entry, dict) or "range" not in entry or set(entry) - keys:

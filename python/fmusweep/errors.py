@@ -5,6 +5,7 @@ importing each other."""
 from __future__ import annotations
 
 import difflib
+from collections.abc import Iterable
 from typing import Callable, TypeVar
 
 T = TypeVar("T")
@@ -53,7 +54,7 @@ class Collector:
             raise SpecErrors(self.errors)
 
 
-def did_you_mean(name: str, known) -> str:
+def did_you_mean(name: str, known: Iterable[str]) -> str:
     """", did you mean 'x'?" for the known name closest to a misspelt one, else ""."""
     close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
     return f"; did you mean {close[0]!r}?" if close else ""

@@ -4,13 +4,14 @@ SpecError that names the field (``where``) and the rule."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from .errors import SpecError
 
 __all__ = ["only", "table", "number", "finite", "whole", "low_high"]
 
 
-def only(table_: dict, where: str, allowed: set):
+def only(table_: dict[str, Any], where: str, allowed: set[str]) -> None:
     """No field but the allowed ones (``where`` "spec": the top level)."""
     unknown = sorted(set(table_) - allowed)
     if unknown:
@@ -18,7 +19,7 @@ def only(table_: dict, where: str, allowed: set):
                         f"unknown field; expected one of {', '.join(sorted(allowed))}")
 
 
-def table(parent: dict, key: str, where: str, required: bool = False) -> dict:
+def table(parent: dict[str, Any], key: str, where: str, required: bool = False) -> dict[str, Any]:
     value = parent.get(key)
     name = key if where == "spec" else f"{where}.{key}"
     if value is None:
@@ -30,26 +31,26 @@ def table(parent: dict, key: str, where: str, required: bool = False) -> dict:
     return value
 
 
-def number(value, where: str) -> float:
+def number(value: object, where: str) -> float:
     """A finite number, which must be there."""
     if value is None:
         raise SpecError(where, "is missing")
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise SpecError(where, f"must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise SpecError(where, f"must be finite, got {value}")
-    return value
+    converted = float(value)
+    if not math.isfinite(converted):
+        raise SpecError(where, f"must be finite, got {converted}")
+    return converted
 
 
-def finite(value, where: str) -> float:
+def finite(value: object, where: str) -> float:
     """A finite number, in a list of values or a range."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise SpecError(where, f"must be a finite number, got {value!r}")
     return float(value)
 
 
-def whole(value, where: str, low: int, high: int | None = None) -> int:
+def whole(value: object, where: str, low: int, high: int | None = None) -> int:
     if (not isinstance(value, int) or isinstance(value, bool) or value < low
             or (high is not None and value > high)):
         bound = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
@@ -57,7 +58,7 @@ def whole(value, where: str, low: int, high: int | None = None) -> int:
     return value
 
 
-def low_high(r, where: str) -> tuple[float, float]:
+def low_high(r: object, where: str) -> tuple[float, float]:
     """A range = [low, high] with low < high."""
     if not (isinstance(r, list) and len(r) == 2):
         raise SpecError(where, f"must be [low, high], got {r!r}")

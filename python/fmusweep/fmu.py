@@ -12,6 +12,7 @@ import shutil
 import tempfile
 import xml.etree.ElementTree as ElementTree
 import zipfile
+from typing import Any
 
 from .errors import SpecError
 from .native import NativeRunner
@@ -28,7 +29,7 @@ class Archive:
         self.sha256 = hashlib.sha256(data).hexdigest()
 
     @staticmethod
-    def read(path) -> "Archive":
+    def read(path: str | os.PathLike[str]) -> Archive:
         path = pathlib.Path(path)
         try:
             data = path.read_bytes()
@@ -61,7 +62,8 @@ def local_runner(fmu: Archive) -> NativeRunner:
     return runner
 
 
-def open_for_checks(fmu, spec_fmu) -> tuple[Archive, NativeRunner, dict]:
+def open_for_checks(fmu: str | os.PathLike[str] | None, spec_fmu: str | os.PathLike[str] | None,
+                    ) -> tuple[Archive, NativeRunner, dict[str, Any]]:
     """The FMU the caller names, else the spec's, else $FMUSWEEP_FMU: its bytes, this
     process's runner for it, and its description, for the checks before anything runs."""
     path = fmu or spec_fmu or os.environ.get("FMUSWEEP_FMU")
@@ -94,7 +96,7 @@ def fmi_version(fmu: Archive) -> str | None:
 
 
 @atexit.register
-def _close_all():
+def _close_all() -> None:
     for directory, runner in _RUNNERS.values():
         runner.close()
         shutil.rmtree(directory, ignore_errors=True)

@@ -23,8 +23,11 @@ import sys
 import sysconfig
 import tempfile
 import time
+from typing import IO, Any
 
 import numpy as np
+
+from .records import Plan, PointResult
 
 __all__ = ["RunnerError", "NativeRunner", "runner_path", "failed_result"]
 
@@ -106,19 +109,19 @@ class _Pipe:
 class NativeRunner:
     """One `fmu-runner serve DIR` process for the FMU unpacked in `fmu_dir`."""
 
-    def __init__(self, fmu_dir: str | os.PathLike):
+    def __init__(self, fmu_dir: str | os.PathLike[str]):
         self.fmu_dir = pathlib.Path(fmu_dir)
-        self.plan: dict | None = None
+        self.plan: Plan | None = None
         self.restarts = 0
         self._start()
 
     # --- process ---------------------------------------------------------------------
-    def _start(self):
+    def _start(self) -> None:
         self._stderr = tempfile.TemporaryFile()
         self.process = subprocess.Popen(
             [str(runner_path()), "serve", str(self.fmu_dir)],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr)
-        self.pipe = _Pipe(self.process.stdout.fileno())
+        self.pipe = _Pipe(_opened(self.process.stdout).fileno())
         hello = self._reply(deadline=time.monotonic() + 60)
         if hello is None or "ready" not in hello:
             reason = (hello or {}).get("error") or self._died()
@@ -135,39 +138,43 @@ class NativeRunner:
         tail = self._stderr.read().decode(errors="replace").strip().splitlines()[-3:]
         return f"the runner process died ({what})" + (f"; it said: {' / '.join(tail)}" if tail else "")
 
-    def _restart(self):
+    def _restart(self) -> None:
         self.close()
         self.restarts += 1
         self._start()
 
-    def close(self):
+    def close(self) -> None:
         process = getattr(self, "process", None)
         if process is not None and process.poll() is None:
             try:
-                process.stdin.close()
+                _opened(process.stdin).close()
                 process.wait(timeout=2)
             except (OSError, subprocess.TimeoutExpired):
                 process.kill()
                 process.wait()
         if process is not None:
-            process.stdout.close()
+            _opened(process.stdout).close()
 
-    def __enter__(self):
+    def __enter__(self) -> NativeRunner:
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # --- requests --------------------------------------------------------------------
-    def _send(self, request: dict):
-        self.process.stdin.write(json.dumps(request).encode() + b"\n")
-        self.process.stdin.flush()
+    def _send(self, request: dict[str, Any]) -> None:
+        stdin = _opened(self.process.stdin)
+        stdin.write(json.dumps(request).encode() + b"\n")
+        stdin.flush()
 
-    def _reply(self, deadline: float | None = None) -> dict | None:
+    def _reply(self, deadline: float | None = None) -> dict[str, Any] | None:
         line = self.pipe.line(deadline)
-        return None if line is None else json.loads(line)
+        if line is None:
+            return None
+        reply: dict[str, Any] = json.loads(line)
+        return reply
 
-    def _request(self, request: dict) -> dict:
+    def _request(self, request: dict[str, Any]) -> dict[str, Any]:
         try:
             self._send(request)
             reply = self._reply()
@@ -179,54 +186,62 @@ class NativeRunner:
             raise RunnerError(reply["error"])
         return reply
 
-    def describe(self) -> dict:
-        return self._request({"op": "describe"})["description"]
+    def describe(self) -> dict[str, Any]:
+        description: dict[str, Any] = self._request({"op": "describe"})["description"]
+        return description
 
-    def _configure(self, plan: dict) -> list[str]:
-        return self._request({"op": "configure", "plan": plan})["reads"]
+    def _configure(self, plan: Plan) -> list[str]:
+        reads: list[str] = self._request({"op": "configure", "plan": plan})["reads"]
+        return reads
 
-    def configure(self, plan: dict) -> list[str]:
+    def configure(self, plan: Plan) -> list[str]:
         """Set the plan of the following runs; returns the variables read per point."""
         reads = self._configure(plan)
         self.plan = plan
         return reads
 
-    def check(self, names: list[str], rows) -> list[dict]:
-        rows = np.asarray(rows, dtype=float).tolist()
-        return self._request({"op": "check", "names": names, "rows": rows})["checked"]
+    def check(self, names: list[str], rows: Any) -> list[dict[str, str]]:
+        """Each row set (in initialisation mode, nothing runs): status and message."""
+        listed = np.asarray(rows, dtype=float).tolist()
+        checked: list[dict[str, str]] = self._request(
+            {"op": "check", "names": names, "rows": listed})["checked"]
+        return checked
 
-    def bare(self, names: list[str], rows) -> float:
-        rows = np.asarray(rows, dtype=float).tolist()
-        return self._request({"op": "bare", "names": names, "rows": rows})["seconds"]
+    def bare(self, names: list[str], rows: Any) -> float:
+        listed = np.asarray(rows, dtype=float).tolist()
+        return float(self._request({"op": "bare", "names": names, "rows": listed})["seconds"])
 
-    def run(self, names: list[str], rows) -> list[dict]:
+    def run(self, names: list[str], rows: Any) -> list[PointResult]:
         """Run every row; one result dict per row, in order, whatever happens to the
         runner on the way. Each has status, message, metrics, t_end, steps, wall_s and,
         when the plan records one, series (an array of rows t, variables…)."""
-        rows = np.asarray(rows, dtype=float)
-        results: list[dict] = []
-        while len(results) < len(rows):
-            answered, lost = self._run_until_failure(names, rows[len(results):], careful=False)
+        values = np.asarray(rows, dtype=float)
+        results: list[PointResult] = []
+        while len(results) < len(values):
+            answered, lost = self._run_until_failure(names, values[len(results):], careful=False)
             results += answered
             if lost:
                 # Which point was it? Only a runner that flushes every reply can say.
-                results += self._run_until_failure(names, rows[len(results):], careful=True)[0]
+                results += self._run_until_failure(names, values[len(results):], careful=True)[0]
         return results
 
     def _hard_deadline(self) -> float | None:
-        budget = (self.plan or {}).get("timeout_s")
+        budget = self.plan.get("timeout_s") if self.plan is not None else None
         if budget is None:
             return None
         return time.monotonic() + HARD_DEADLINE_FACTOR * budget + HARD_DEADLINE_GRACE_S
 
-    def _run_until_failure(self, names, rows, careful: bool) -> tuple[list[dict], bool]:
+    def _run_until_failure(self, names: list[str], rows: Any,
+                           careful: bool) -> tuple[list[PointResult], bool]:
         """The rows' results in order, and whether the runner was lost (killed by the FMU
         or by the hard deadline; it is then restarted). With `careful` the runner flushes
         every reply, so the point after the last reply is the one that failed, and its row
         ends the results; without, the results stop at the last reply received."""
-        series = self.plan.get("series")
+        plan = self.plan
+        assert plan is not None, "configure the runner before running points"
+        series = plan.get("series")
         width = len(series["variables"]) + 1 if series else 0
-        results: list[dict] = []
+        results: list[PointResult] = []
         try:
             self._send({"op": "run", "names": names, "rows": rows.tolist(), "flush_each": careful})
             while True:
@@ -243,27 +258,32 @@ class NativeRunner:
                     if data is None:
                         break
                     header["series"] = np.frombuffer(data, dtype="<f8").reshape(rows_n, width)
-                results.append(header)
+                results.append(PointResult(**header))  # type: ignore[typeddict-item]
         except TimeoutError:
             self.process.kill()
             if careful:
                 message = (f"no answer within {HARD_DEADLINE_FACTOR} × the budget of "
-                           f"{self.plan['timeout_s']} s + {HARD_DEADLINE_GRACE_S} s: the runner "
+                           f"{plan['timeout_s']} s + {HARD_DEADLINE_GRACE_S} s: the runner "
                            "was killed")
-                results.append(failed_result("timeout", message, self.plan))
+                results.append(failed_result("timeout", message, plan))
             self._restart()
             return results, True
         except BrokenPipeError:
             pass
         if careful:
             message = self._died() + " while running this point"
-            results.append(failed_result("crashed", message, self.plan))
+            results.append(failed_result("crashed", message, plan))
         self._restart()
         return results, True
 
 
-def failed_result(status: str, message: str, plan: dict) -> dict:
+def failed_result(status: str, message: str, plan: Plan) -> PointResult:
     """The result of a point that ended without a reply of the runner's."""
-    return {"status": status, "message": message,
-            "metrics": [None] * len(plan.get("metrics") or []),
+    return {"status": status, "message": message, "metrics": [None] * len(plan.get("metrics") or []),
             "t_end": None, "steps": None, "wall_s": None}
+
+
+def _opened(stream: IO[bytes] | None) -> IO[bytes]:
+    """A pipe of the runner's process, which Popen opened (it asked for PIPE)."""
+    assert stream is not None
+    return stream

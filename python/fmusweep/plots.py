@@ -6,32 +6,40 @@ intervals."""
 from __future__ import annotations
 
 import pathlib
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .design import Design
 
 __all__ = ["plot_all"]
 
 
-def _pyplot():
+def _pyplot() -> Any:
+    """matplotlib's pyplot on the Agg backend (no display needed)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
 
 
-def _save(fig, path):
+def _save(fig: Any, path: pathlib.Path) -> pathlib.Path:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     _pyplot().close(fig)
     return path
 
 
-def _failed_note(points) -> str:
+def _failed_note(points: pd.DataFrame) -> str:
     failed = int((points["status"] != "ok").sum())
     return f" ({failed} of {len(points)} points failed)" if failed else ""
 
 
-def plot_all(design, points, metric_names, sensitivity: dict, out) -> list[pathlib.Path]:
+def plot_all(design: Design, points: pd.DataFrame, metric_names: list[str],
+             sensitivity: dict[str, Any], out: pathlib.Path) -> list[pathlib.Path]:
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     varying = [n for n in design.names if points[n].nunique() > 1]
@@ -50,14 +58,15 @@ def plot_all(design, points, metric_names, sensitivity: dict, out) -> list[pathl
     return written
 
 
-def _spans_decades(values) -> bool:
+def _spans_decades(values: Any) -> bool:
     """Positive values over more than three decades: a log axis shows them all."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     return len(v) > 1 and v.min() > 0 and v.max() / v.min() > 1e3
 
 
-def _lines(points, name, metrics, path):
+def _lines(points: pd.DataFrame, name: str, metrics: list[str],
+           path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     fig, axes = plt.subplots(len(metrics), 1, figsize=(7, 2.6 * len(metrics)), sharex=True,
                              squeeze=False)
@@ -71,7 +80,8 @@ def _lines(points, name, metrics, path):
     return _save(fig, path)
 
 
-def _heatmap(points, names, metric, path):
+def _heatmap(points: pd.DataFrame, names: list[str], metric: str,
+             path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     x_name, y_name = names
     table = points.pivot_table(index=y_name, columns=x_name, values=metric, aggfunc="first",
@@ -88,7 +98,8 @@ def _heatmap(points, names, metric, path):
     return _save(fig, path)
 
 
-def _scatter_matrix(points, names, metrics, path):
+def _scatter_matrix(points: pd.DataFrame, names: list[str], metrics: list[str],
+                    path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     fig, axes = plt.subplots(len(metrics), len(names), figsize=(2.6 * len(names) + 1, 2.4 * len(metrics) + 0.8),
                              squeeze=False, sharey="row")
@@ -108,7 +119,7 @@ def _scatter_matrix(points, names, metrics, path):
     return _save(fig, path)
 
 
-def _sobol_bars(metric, s, path):
+def _sobol_bars(metric: str, s: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     names = s["names"]
     x = np.arange(len(names))
@@ -124,7 +135,7 @@ def _sobol_bars(metric, s, path):
     return _save(fig, path)
 
 
-def _morris(metric, s, path):
+def _morris(metric: str, s: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6, 4.5))
     ax.scatter(s["mu_star"], s["sigma"])

@@ -176,7 +176,7 @@ class Pool:
         # The releases travel on the client's batched stream and the question on another
         # connection: a second to let them arrive. A result held for good stays counted.
         deadline = time.monotonic() + 1.0
-        while (count := self.client.run_on_scheduler(held)) and time.monotonic() < deadline:
+        while (count := int(self.client.run_on_scheduler(held))) and time.monotonic() < deadline:
             time.sleep(0.02)
         return count
 

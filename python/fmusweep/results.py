@@ -3,11 +3,17 @@
 from __future__ import annotations
 
 import json
+import os
 import pathlib
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
 from .store import ResultStore
+
+if TYPE_CHECKING:
+    from .design import Design
+    from .sweep import SweepReport
 
 __all__ = ["Results", "load_results"]
 
@@ -18,13 +24,14 @@ class Results:
     ``sweep.json`` records; ``report``: counts and times of the run that returned it;
     ``sensitivity``: indices per metric for sobol and morris designs."""
 
-    def __init__(self, out, points: pd.DataFrame | None, meta: dict, report=None):
+    def __init__(self, out: str | os.PathLike[str], points: pd.DataFrame | None,
+                 meta: dict[str, Any], report: SweepReport | None = None):
         self.out = pathlib.Path(out)
         self._points = points
         self.meta = meta
         self.report = report
         path = self.out / "sensitivity.json"
-        self.sensitivity = json.loads(path.read_text()) if path.exists() else {}
+        self.sensitivity: dict[str, Any] = json.loads(path.read_text()) if path.exists() else {}
         self.plots: list[pathlib.Path] = sorted((self.out / "plots").glob("*.png"))
 
     @property
@@ -43,7 +50,7 @@ class Results:
     def ok(self) -> pd.DataFrame:
         return self.points[self.points["status"] == "ok"]
 
-    def analyse_and_plot(self, design):
+    def analyse_and_plot(self, design: Design) -> None:
         from .plots import plot_all
         from .sensitivity import analyse
         from .store import atomic_write_text
@@ -54,12 +61,12 @@ class Results:
         self.plots = plot_all(design, self.points, self.meta["metrics"], self.sensitivity,
                               self.out / "plots")
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         counts = self.points["status"].value_counts().to_dict()
         return f"Results({str(self.out)!r}, points={len(self.points)}, status={counts})"
 
 
-def load_results(out) -> Results:
+def load_results(out: str | os.PathLike[str]) -> Results:
     """The results in an output directory, as far as they go (finished or not)."""
     out = pathlib.Path(out)
     meta = json.loads((out / "sweep.json").read_text())

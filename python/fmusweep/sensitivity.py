@@ -3,12 +3,21 @@ metric, with their confidence intervals."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .design import Design
 
 __all__ = ["sobol_indices", "morris_effects", "analyse"]
 
 
-def sobol_indices(problem: dict, values, second_order: bool = False, seed: int = 0) -> dict:
+def sobol_indices(problem: dict[str, Any], values: npt.ArrayLike, second_order: bool = False,
+                  seed: int = 0) -> dict[str, Any]:
     """S1, ST and their 95 % confidence half-widths for one output over a Saltelli
     design (the rows in SALib's order)."""
     from SALib.analyze import sobol
@@ -19,7 +28,8 @@ def sobol_indices(problem: dict, values, second_order: bool = False, seed: int =
             **{k: np.asarray(result[k]).tolist() for k in keys}}
 
 
-def morris_effects(problem: dict, rows, values, levels: int = 4, seed: int = 0) -> dict:
+def morris_effects(problem: dict[str, Any], rows: npt.ArrayLike, values: npt.ArrayLike,
+                   levels: int = 4, seed: int = 0) -> dict[str, Any]:
     from SALib.analyze import morris
     result = morris.analyze(problem, np.asarray(rows, dtype=float),
                             np.asarray(values, dtype=float), num_levels=levels, seed=seed)
@@ -28,12 +38,13 @@ def morris_effects(problem: dict, rows, values, levels: int = 4, seed: int = 0) 
             **{k: np.asarray(result[k], dtype=float).tolist() for k in keys}}
 
 
-def analyse(design, points, metric_names: list[str], seed: int) -> dict:
+def analyse(design: Design, points: pd.DataFrame, metric_names: list[str],
+            seed: int) -> dict[str, Any]:
     """Indices for every metric of a sobol or morris design; a metric with failed points
     gets a note instead (the estimators need every point of the design)."""
     if design.kind not in ("sobol", "morris"):
         return {}
-    found = {}
+    found: dict[str, Any] = {}
     for name in metric_names:
         values = points[name].to_numpy(dtype=float)
         failed = int(np.sum(~np.isfinite(values)))
@@ -41,6 +52,8 @@ def analyse(design, points, metric_names: list[str], seed: int) -> dict:
             found[name] = {"method": design.kind,
                            "note": f"{failed} of {len(values)} points have no value; "
                                    "the indices need every point of the design"}
+        elif design.problem is None:
+            raise AssertionError("a sampled design keeps its SALib problem")
         elif design.kind == "sobol":
             found[name] = sobol_indices(design.problem, values, design.second_order, seed)
         else:

@@ -42,9 +42,11 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import os
 import pathlib
 import tomllib
 from dataclasses import dataclass, field
+from typing import Any
 
 from . import design as _design
 from .errors import Collector, SpecError
@@ -52,6 +54,7 @@ from .system import System
 from .fields import number as _number
 from .fields import only as _only
 from .fields import table as _table
+from .records import InputTable, MetricPlan, Plan, SeriesPlan
 
 __all__ = ["SpecError", "Spec", "Scenario", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS"]
 
@@ -77,15 +80,15 @@ class Scenario:
     step: float
     tolerance: float | None
     timeout: float | None
-    parameters: dict
-    inputs: dict
+    parameters: dict[str, Any]
+    inputs: dict[str, Any]
 
     @property
     def steps(self) -> int:
         return round((self.stop - self.start) / self.step)
 
     @staticmethod
-    def of(raw: dict) -> "Scenario":
+    def of(raw: dict[str, Any]) -> "Scenario":
         scenario = _table(raw, "scenario", "spec", required=True)
         _only(scenario, "scenario", {"start", "stop", "step", "tolerance", "timeout", "parameters", "inputs"})
         start = _number(scenario.get("start", 0.0), "scenario.start")
@@ -127,14 +130,14 @@ class Scenario:
                 raise SpecError(where, f"{name} is also set in scenario.{table}: {what} it or "
                                        f"set it there, not both")
 
-    def plan(self, metrics: list[dict], series: dict | None) -> dict:
+    def plan(self, metrics: list[MetricPlan], series: SeriesPlan | None) -> Plan:
         """The native runner's plan: what every point shares, and what it reads."""
         return {"start": self.start, "stop": self.stop, "step": self.step,
                 "tolerance": self.tolerance, "fixed": self.parameters, "inputs": self.inputs,
                 "metrics": metrics, "series": series, "timeout_s": self.timeout}
 
 
-def what_runs(raw: dict, base_dir: pathlib.Path) -> tuple[str | None, str | None, System | None]:
+def what_runs(raw: dict[str, Any], base_dir: pathlib.Path) -> tuple[str | None, str | None, System | None]:
     """The spec's FMU path, SSP path or [system], at most one of them (each checked)."""
     fmu, ssp = raw.get("fmu"), raw.get("ssp")
     for key, value in (("fmu", fmu), ("ssp", ssp)):
@@ -152,14 +155,14 @@ def what_runs(raw: dict, base_dir: pathlib.Path) -> tuple[str | None, str | None
 class Spec:
     """A sweep's specification: what runs, the scenario every point shares (its fixed
     parameters are ``scenario.parameters``), the design, and the outputs wanted."""
-    raw: dict
+    raw: dict[str, Any]
     base_dir: pathlib.Path
     fmu: pathlib.Path | None
     ssp: pathlib.Path | None
     system: System | None
     scenario: Scenario
     design_kind: str
-    design: dict
+    design: dict[str, Any]
     seed: int | None
     metrics: list[MetricSpec]
     series_variables: list[str] = field(default_factory=list)
@@ -170,14 +173,15 @@ class Spec:
 
     # --- loading -------------------------------------------------------------------
     @staticmethod
-    def load(source, base_dir: str | pathlib.Path | None = None) -> "Spec":
+    def load(source: Spec | str | os.PathLike[str] | dict[str, Any],
+             base_dir: str | os.PathLike[str] | None = None) -> Spec:
         """A Spec from a TOML path, a TOML string's dict, or a Spec (returned as is)."""
         if isinstance(source, Spec):
             return source
         return Spec.from_dict(*read_source(source, base_dir, "a Spec"))
 
     @staticmethod
-    def from_dict(raw: dict, base_dir) -> "Spec":
+    def from_dict(raw: dict[str, Any], base_dir: str | os.PathLike[str]) -> Spec:
         """The spec of `raw`, every mistake of its own fields reported at once (the names
         are checked against the FMU afterwards, also all at once)."""
         raw = copy.deepcopy(raw)
@@ -204,11 +208,11 @@ class Spec:
         return spec
 
     # --- derived ---------------------------------------------------------------------
-    def plan(self) -> dict:
+    def plan(self) -> Plan:
         """The native runner's plan: everything every point shares."""
-        metrics = [{"variable": m.variable, "kind": m.kind, "from": m.start, "to": m.end}
-                   for m in self.metrics]
-        series = ({"variables": self.series_variables, "every": self.series_every}
+        metrics = [MetricPlan({"variable": m.variable, "kind": m.kind, "from": m.start,
+                                "to": m.end}) for m in self.metrics]
+        series = (SeriesPlan(variables=self.series_variables, every=self.series_every)
                   if self.series_variables else None)
         return self.scenario.plan(metrics, series)
 
@@ -221,7 +225,8 @@ class Spec:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
-def read_source(source, base_dir, also: str) -> tuple[dict, pathlib.Path]:
+def read_source(source: object, base_dir: str | os.PathLike[str] | None,
+                also: str) -> tuple[dict[str, Any], pathlib.Path]:
     """A specification's table and the directory its paths are relative to, from a TOML
     path (its own directory) or a dict (the current directory), unless base_dir says."""
     if isinstance(source, (str, pathlib.Path)):
@@ -238,7 +243,8 @@ def read_source(source, base_dir, also: str) -> tuple[dict, pathlib.Path]:
     raise SpecError("spec", f"expected a path, a dict or {also}, got {type(source).__name__}")
 
 
-def _design_header(raw: dict, scenario: Scenario | None) -> tuple[dict, str, int | None]:
+def _design_header(raw: dict[str, Any],
+                   scenario: Scenario | None) -> tuple[dict[str, Any], str, int | None]:
     """The [design] table, its kind and seed; its columns must not be set by the scenario
     too (whose own mistakes are reported apart)."""
     design = _table(raw, "design", "spec", required=True)
@@ -260,7 +266,7 @@ def _design_header(raw: dict, scenario: Scenario | None) -> tuple[dict, str, int
     return design, kind, seed
 
 
-def _outputs(raw: dict, scenario: Scenario | None) -> tuple[list[MetricSpec], list[str], int]:
+def _outputs(raw: dict[str, Any], scenario: Scenario | None) -> tuple[list[MetricSpec], list[str], int]:
     """The [outputs] table: the metrics, and the series' variables and interval (as a
     number of the scenario's steps, once the scenario is known)."""
     outputs = _table(raw, "outputs", "spec", required=True)
@@ -269,15 +275,16 @@ def _outputs(raw: dict, scenario: Scenario | None) -> tuple[list[MetricSpec], li
     metrics = [errors.run(lambda: _metric(name, m))
                for name, m in _table(outputs, "metrics", "outputs").items()]
     series = _table(outputs, "series", "outputs")
-    series_variables, every = [], 0
+    series_variables: list[str] = []
+    every = 0
     if series:
         _only(series, "outputs.series", {"variables", "interval"})
-        series_variables = series.get("variables")
-        if not (isinstance(series_variables, list) and series_variables
-                and all(isinstance(v, str) for v in series_variables)):
+        listed = series.get("variables")
+        if isinstance(listed, list) and listed and all(isinstance(v, str) for v in listed):
+            series_variables = listed
+        else:
             errors.run(lambda: _refuse("outputs.series.variables",
                                        "must be a non-empty list of variable names"))
-            series_variables = []
         if scenario is not None:
             step = scenario.step
             interval = _number(series.get("interval", step), "outputs.series.interval")
@@ -297,7 +304,7 @@ def _refuse(field_name: str, rule: str) -> None:
 
 
 # --- field checks -----------------------------------------------------------------------
-def _setting(value, where: str) -> float:
+def _setting(value: object, where: str) -> float:
     """A fixed parameter's value: a number, or true/false for a Boolean (1 or 0, as the
     runner passes Booleans)."""
     if isinstance(value, bool):
@@ -305,7 +312,7 @@ def _setting(value, where: str) -> float:
     return _number(value, where)
 
 
-def _input(value, where: str) -> dict:
+def _input(value: object, where: str) -> InputTable:
     if not isinstance(value, dict):
         return {"times": [0.0], "values": [_number(value, where)]}
     _only(value, where, {"times", "values"})
@@ -319,7 +326,7 @@ def _input(value, where: str) -> dict:
     return {"times": times, "values": values}
 
 
-def _metric(name: str, m) -> MetricSpec:
+def _metric(name: str, m: object) -> MetricSpec:
     where = f"outputs.metrics.{name}"
     if not isinstance(m, dict):
         raise SpecError(where, "must be a table with variable and kind")

@@ -18,10 +18,18 @@ import shutil
 import tempfile
 import time
 import zipfile
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .spec import SpecError
+from .errors import SpecError
+from .fmu import Archive
+from .records import Batch, Plan, PointResult, Points, Rows
+from .worker import trace, worker_name
+
+if TYPE_CHECKING:
+    from .design import Design
+    from .spec import Spec
 
 __all__ = ["describe_ssp", "check_ssp", "run_ssp_batch", "metrics_of"]
 
@@ -29,7 +37,7 @@ __all__ = ["describe_ssp", "check_ssp", "run_ssp_batch", "metrics_of"]
 _FILES: dict[str, pathlib.Path] = {}
 
 
-def _file(system) -> pathlib.Path:
+def _file(system: Archive) -> pathlib.Path:
     path = _FILES.get(system.sha256)
     if path is None:
         directory = pathlib.Path(tempfile.mkdtemp(prefix=f"fmusweep-ssp-{system.sha256[:12]}-"))
@@ -40,12 +48,12 @@ def _file(system) -> pathlib.Path:
 
 
 @atexit.register
-def _remove_files():
+def _remove_files() -> None:
     for path in _FILES.values():
         shutil.rmtree(path.parent, ignore_errors=True)
 
 
-def describe_ssp(system) -> dict:
+def describe_ssp(system: Archive) -> dict[str, Any]:
     """The system's connectors (paths) and, per component, its FMU's variables."""
     try:
         from fmpy import read_model_description
@@ -66,12 +74,12 @@ def describe_ssp(system) -> dict:
     return {"connectors": [c.path for c in find_connectors(ssd.system)], "components": components}
 
 
-def check_ssp(spec, design, description: dict):
+def check_ssp(spec: Spec, design: Design, description: dict[str, Any]) -> None:
     if spec.scenario.inputs:
         raise SpecError("scenario.inputs", "an SSP system takes no inputs here; "
                                            "set parameters of its components instead")
 
-    def parameter(name: str, where: str):
+    def parameter(name: str, where: str) -> None:
         component, _, variable = name.partition(".")
         variables = description["components"].get(component)
         if variables is None or not variable:
@@ -98,19 +106,19 @@ def check_ssp(spec, design, description: dict):
             raise SpecError("outputs.series.variables", f"{name!r} is not a connector of the system")
 
 
-def loop_stop(plan: dict) -> float:
+def loop_stop(plan: Plan) -> float:
     """The stop time to hand simulate_ssp. Its loop adds the step to an accumulated time
     while that is below the stop time, and the sum of 10 000 steps of 1 ms falls just
     short of 10 s: given the stop time itself, it takes one step more. Half a step short
     of it, the loop takes exactly the steps the plan asks for. (The FMUs get no stop time
     from simulate_ssp either way.)"""
-    return plan["stop"] - 0.5 * plan["step"]
+    return float(plan["stop"] - 0.5 * plan["step"])
 
 
-def metrics_of(t: np.ndarray, columns: dict, plan: dict) -> list:
+def metrics_of(t: Rows, columns: dict[str, Any], plan: Plan) -> list[float | None]:
     """The runner's metrics (same windows and definitions) over recorded rows."""
     slack = 1e-9 * plan["step"]
-    found = []
+    found: list[float | None] = []
     for m in plan["metrics"]:
         start = plan["start"] if m["from"] is None else m["from"]
         end = plan["stop"] if m["to"] is None else m["to"]
@@ -130,7 +138,7 @@ def metrics_of(t: np.ndarray, columns: dict, plan: dict) -> list:
     return found
 
 
-def _one_point(path, plan, values: dict) -> dict:
+def _one_point(path: pathlib.Path, plan: Plan, values: dict[str, float]) -> PointResult:
     from fmpy.ssp.simulation import simulate_ssp
     from fmpy.ssp.ssd import Parameter, ParameterSet
     started = time.perf_counter()
@@ -143,10 +151,11 @@ def _one_point(path, plan, values: dict) -> dict:
                 "metrics": [None] * len(plan["metrics"]), "t_end": None, "steps": None,
                 "wall_s": time.perf_counter() - started}
     # simulate_ssp labels each row with its step's start; the values are those after it.
-    t = plan["start"] + plan["step"] * np.arange(1, len(rows) + 1)
+    t: Rows = plan["start"] + plan["step"] * np.arange(1, len(rows) + 1, dtype=np.float64)
     columns = {name: rows[name] for name in rows.dtype.names[1:]}
-    result = {"status": "ok", "message": "", "metrics": metrics_of(t, columns, plan),
-              "t_end": float(t[-1]), "steps": len(rows), "wall_s": time.perf_counter() - started}
+    result: PointResult = {"status": "ok", "message": "", "metrics": metrics_of(t, columns, plan),
+                           "t_end": float(t[-1]), "steps": len(rows),
+                           "wall_s": time.perf_counter() - started}
     series = plan.get("series")
     if series:
         keep = np.arange(len(t)) % series["every"] == series["every"] - 1
@@ -155,17 +164,16 @@ def _one_point(path, plan, values: dict) -> dict:
     return result
 
 
-def run_ssp_batch(system, plan: dict, names: list[str], rows: np.ndarray, points: np.ndarray) -> dict:
-    from .worker import _trace, worker_name
-    _trace("start", points)
+def run_ssp_batch(system: Archive, plan: Plan, names: list[str], rows: Rows,
+                  points: Points) -> Batch:
+    trace("start", points)
     path = _file(system)
     results = [_one_point(path, plan, dict(plan["fixed"], **dict(zip(names, map(float, row)))))
                for row in rows]
-    _trace("end", points)
+    trace("end", points)
     return {"points": points, "results": results, "worker": worker_name()}
 
 
-def prepare_ssp_worker(system, plan: dict) -> str:
-    from .worker import worker_name
+def prepare_ssp_worker(system: Archive, plan: Plan) -> str:
     _file(system)
     return worker_name()

@@ -20,11 +20,14 @@ import pathlib
 import platform
 import secrets
 from importlib import metadata
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
+
+from .records import Points
 
 __all__ = ["ResultStore", "FORMAT", "versions"]
 
@@ -37,7 +40,7 @@ def _text_columns(table: pa.Table) -> list[str]:
             if pa.types.is_string(f.type) or pa.types.is_dictionary(f.type)]
 
 
-def atomic_write_table(table: pa.Table, path: pathlib.Path):
+def atomic_write_table(table: pa.Table, path: pathlib.Path) -> None:
     tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
     pq.write_table(table, tmp, use_dictionary=_text_columns(table))
     os.replace(tmp, path)
@@ -63,14 +66,14 @@ def _overlapping_groups(parts: list[pathlib.Path]) -> list[list[pathlib.Path]]:
     return groups
 
 
-def atomic_write_text(text: str, path: pathlib.Path):
+def atomic_write_text(text: str, path: pathlib.Path) -> None:
     tmp = path.with_name(f".{path.name}.{secrets.token_hex(4)}.tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
 
 
 class ResultStore:
-    def __init__(self, out, meta: dict, resume: bool):
+    def __init__(self, out: str | os.PathLike[str], meta: dict[str, Any], resume: bool):
         self.out = pathlib.Path(out)
         self.kind = meta.get("kind", "sweep")
         self.points_dir = self.out / "points"
@@ -90,7 +93,7 @@ class ResultStore:
         self.meta = json.loads(meta_path.read_text())
         self._drop_orphans()
 
-    def _check_same_sweep(self, stored: dict, meta: dict):
+    def _check_same_sweep(self, stored: dict[str, Any], meta: dict[str, Any]) -> None:
         spec = "the specification or its data" if self.kind == "fit" else "the specification"
         for key, what in (("spec_digest", spec), ("fmu_sha256", "the FMU"),
                           ("format", "the results format")):
@@ -98,7 +101,7 @@ class ResultStore:
                 raise ValueError(f"cannot resume in {self.out}: {what} changed since the "
                                  f"{self.kind} began ({key} {stored.get(key)} → {meta.get(key)})")
 
-    def _drop_orphans(self):
+    def _drop_orphans(self) -> None:
         """Temporary files of a killed write, and series parts whose points part never
         landed (the points part is written last and marks a batch as done)."""
         for d in (self.points_dir, self.series_dir):
@@ -109,13 +112,13 @@ class ResultStore:
             if part.name not in done:
                 part.unlink()
 
-    def done_points(self) -> np.ndarray:
+    def done_points(self) -> Points:
         parts = sorted(self.points_dir.glob("part-*.parquet"))
         if not parts:
             return np.empty(0, dtype=np.int64)
         return np.concatenate([pq.read_table(p, columns=["point"])["point"].to_numpy() for p in parts])
 
-    def write_batch(self, points: pa.Table, series: pa.Table | None):
+    def write_batch(self, points: pa.Table, series: pa.Table | None) -> None:
         first = int(points["point"][0].as_py())
         name = f"part-{first:010d}-{secrets.token_hex(4)}.parquet"
         if series is not None and series.num_rows:
@@ -148,14 +151,14 @@ class ResultStore:
         return rows
 
     @staticmethod
-    def points_table_of(out) -> pa.Table:
+    def points_table_of(out: str | os.PathLike[str]) -> pa.Table:
         parts = sorted((pathlib.Path(out) / "points").glob("part-*.parquet"))
         if not parts:
             raise FileNotFoundError(f"{out} holds no finished point")
         return pa.concat_tables([pq.read_table(p) for p in parts]).sort_by("point")
 
     @staticmethod
-    def series_table_of(out) -> pa.Table | None:
+    def series_table_of(out: str | os.PathLike[str]) -> pa.Table | None:
         parts = sorted((pathlib.Path(out) / "series").glob("part-*.parquet"))
         if not parts:
             return None
@@ -167,10 +170,10 @@ class ResultStore:
         return table.sort_by([("point", "ascending"), ("variable", "ascending"), ("time", "ascending")])
 
 
-def versions() -> dict:
+def versions() -> dict[str, str | None]:
     """The versions of the packages that make the results, recorded beside them."""
     names = ["fmusweep", "numpy", "pyarrow", "dask", "distributed", "SALib", "scipy"]
-    found = {"python": platform.python_version()}
+    found: dict[str, str | None] = {"python": platform.python_version()}
     for name in names:
         try:
             found[name] = metadata.version(name)

@@ -12,14 +12,17 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable, TypeVar
 
 import numpy as np
 
-from .fmu import Archive
-from .native import NativeRunner
+from .check import names_missing
+from .errors import SpecError, SpecErrors
+from .fmu import Archive, open_for_checks
+from .native import NativeRunner, RunnerError
 from .pool import Pool, without_message_log
 from .records import BatchFunction, Plan, PrepareFunction, Rows
+from .spec import read_source
 from .ssp import describe_ssp, prepare_ssp_worker, run_ssp_batch
 from .store import FORMAT, ResultStore, versions
 from .system import System, open_target
@@ -29,7 +32,39 @@ if TYPE_CHECKING:
     from .fitting.spec import FitSpec
     from .spec import Spec
 
-__all__ = ["Target", "Study", "point_ids"]
+__all__ = ["Target", "Study", "point_ids", "load_spec"]
+
+S = TypeVar("S")
+
+
+def load_spec(load: Callable[[], S], source: object, fmu: str | None) -> S:
+    """load()'s spec; when its own fields have mistakes, those and, where the FMU can be
+    opened, every name it lacks, in one error, so that one run reports both kinds."""
+    try:
+        return load()
+    except SpecError as refused:
+        known = refused.errors if isinstance(refused, SpecErrors) else [refused]
+        missing = _names_missing(source, fmu)
+        fields = {e.field for e in known}
+        extra = [e for e in missing if e.field not in fields]
+        if not extra:
+            raise
+        raise SpecErrors(known + extra) from None
+
+
+def _names_missing(source: object, fmu: str | None) -> list[SpecError]:
+    """Every name the spec uses that its FMU lacks; none when the spec cannot be read or
+    its FMU opened (a [system] or an SSP file is not opened for this)."""
+    try:
+        raw, base_dir = read_source(source, None, "a spec")
+        named = raw.get("fmu")
+        if fmu is None and (raw.get("system") is not None or raw.get("ssp") is not None):
+            return []
+        spec_fmu = base_dir / named if isinstance(named, str) else None
+        _, _, description = open_for_checks(fmu, spec_fmu)
+    except (SpecError, OSError, ValueError, RunnerError):
+        return []
+    return names_missing(raw, description)
 
 
 def point_ids(fmu_sha: str, spec_digest: str, names: list[str], rows: Rows) -> list[str]:

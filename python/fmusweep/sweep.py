@@ -23,7 +23,7 @@ from .errors import SpecError
 from .records import Batch, PointResult, Points, Rows
 from .spec import Spec
 from .ssp import check_ssp
-from .study import Study, Target
+from .study import Study, Target, load_spec
 
 if TYPE_CHECKING:
     from .results import Results
@@ -197,7 +197,8 @@ def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | No
     on_batch: called with (points saved so far, points in the sweep) after each batch.
     """
     started = time.perf_counter()
-    spec = Spec.load(spec)
+    given = spec
+    spec = load_spec(lambda: Spec.load(given), given, fmu)
     design = spec.points
     target = open_sweep(spec, design, fmu)
     record = {"design": {"kind": design.kind, "names": design.names, "points": len(design)},

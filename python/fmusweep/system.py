@@ -35,16 +35,19 @@ import hashlib
 import io
 import json
 import logging
+import os
 import pathlib
 import re
 import shutil
 import tempfile
 import zipfile
+from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 from .errors import SpecError
 from .fmu import Archive, local_runner, open_for_checks
-from .native import RunnerError
+from .native import NativeRunner, RunnerError
 
 __all__ = ["System", "load_system"]
 
@@ -58,7 +61,7 @@ class Connection:
     target: str   # component
     input: str
 
-    def __str__(self):
+    def __str__(self) -> str:
         return f"{self.source}.{self.output} → {self.target}.{self.input}"
 
 
@@ -74,7 +77,7 @@ class System:
 
     # --- the spec's fields ---------------------------------------------------------------
     @staticmethod
-    def of(table, base_dir: pathlib.Path) -> "System":
+    def of(table: object, base_dir: pathlib.Path) -> System:
         if not isinstance(table, dict):
             raise SpecError("system", "must be a table with components and connections")
         fields = {"components", "connections", "engine", "input_derivatives"}
@@ -110,10 +113,10 @@ class System:
         return System(paths, parsed, engine, derivatives)
 
     # --- checks against the components -------------------------------------------------
-    def check(self) -> dict:
+    def check(self) -> dict[str, Any]:
         """Each component's model description; each connection checked against them."""
         descriptions = {name: _description(name, path) for name, path in self.components.items()}
-        fed = {}
+        fed: dict[tuple[str, str], int] = {}
         for i, c in enumerate(self.connections):
             where = f"system.connections[{i}]"
             source = _variable(descriptions[c.source], c.source, c.output, where)
@@ -158,7 +161,7 @@ class System:
         return archive
 
     # --- the engines -------------------------------------------------------------------------
-    def _native(self, descriptions: dict) -> Archive:
+    def _native(self, descriptions: dict[str, Any]) -> Archive:
         """system.json and the components' files, zipped (stored: they are zips already)."""
         order = _feed_order(self.connections, descriptions)
         layout = {
@@ -175,7 +178,7 @@ class System:
                 archive.writestr(f"components/{name}.fmu", path.read_bytes())
         return Archive(buffer.getvalue(), "system.zip")
 
-    def _container(self, descriptions: dict, step: float) -> Archive:
+    def _container(self, descriptions: dict[str, Any], step: float) -> Archive:
         try:
             from fmu_manipulation_toolbox.assembly import AssemblyNode
         except ImportError:
@@ -207,7 +210,7 @@ class System:
 
 
 @contextlib.contextmanager
-def _toolbox_log_quiet():
+def _toolbox_log_quiet() -> Iterator[None]:
     """The toolbox logs its progress and remarks at INFO and WARNING (a loop of connections
     is one: the loop's first component starts without its inputs' values, as in any
     co-simulation); its errors still show."""
@@ -220,7 +223,7 @@ def _toolbox_log_quiet():
         toolbox.setLevel(level)
 
 
-def _connection(i: int, pair, components: dict) -> Connection:
+def _connection(i: int, pair: object, components: dict[str, Any]) -> Connection:
     where = f"system.connections[{i}]"
     if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(p, str) for p in pair)):
         raise SpecError(where, f"must be [\"component.output\", \"component.input\"], got {pair!r}")
@@ -237,7 +240,8 @@ def _connection(i: int, pair, components: dict) -> Connection:
     return Connection(source, output, target, input_)
 
 
-def _description(name: str, path: pathlib.Path):
+def _description(name: str, path: pathlib.Path) -> Any:
+    """The component's model description, as FMPy reads it."""
     where = f"system.components.{name}"
     try:
         import fmpy
@@ -259,14 +263,14 @@ def _description(name: str, path: pathlib.Path):
     return description
 
 
-def _variable(description, component: str, name: str, where: str):
+def _variable(description: Any, component: str, name: str, where: str) -> Any:
     for v in description.modelVariables:
         if v.name == name:
             return v
     raise SpecError(where, f"component {component} has no variable {name!r}")
 
 
-def _feed_order(connections: list[Connection], descriptions: dict) -> list[Connection]:
+def _feed_order(connections: list[Connection], descriptions: dict[str, Any]) -> list[Connection]:
     """The connections in an order that passes an output only after the connections that
     feed the inputs it depends on directly (there is no algebraic loop: the order exists)."""
     edges = _dependencies(connections, descriptions)
@@ -276,7 +280,9 @@ def _feed_order(connections: list[Connection], descriptions: dict) -> list[Conne
         output = f"{c.source}.{c.output}"
         return {node for node, targets in edges.items() if output in targets} & fed
 
-    placed, done, pending = [], set(), list(connections)
+    placed: list[Connection] = []
+    done: set[str] = set()
+    pending = list(connections)
     while pending:
         ready = next((c for c in pending if needs(c) <= done), pending[0])
         placed.append(ready)
@@ -285,7 +291,7 @@ def _feed_order(connections: list[Connection], descriptions: dict) -> list[Conne
     return placed
 
 
-def _dependencies(connections: list[Connection], descriptions: dict) -> dict[str, set[str]]:
+def _dependencies(connections: list[Connection], descriptions: dict[str, Any]) -> dict[str, set[str]]:
     """Edges from each variable to those that depend on it directly: a connection's output
     to its input, and a component's input to its outputs (their ModelStructure; an output
     without a dependency list depends on every input, as the standard says)."""
@@ -302,13 +308,13 @@ def _dependencies(connections: list[Connection], descriptions: dict) -> dict[str
     return edges
 
 
-def _algebraic_loop(connections: list[Connection], descriptions: dict) -> list[str] | None:
+def _algebraic_loop(connections: list[Connection], descriptions: dict[str, Any]) -> list[str] | None:
     """A cycle through the connections and the components' direct dependencies of outputs
     on inputs, as the names along it; None when there is none."""
     edges = _dependencies(connections, descriptions)
     state: dict[str, int] = {}
 
-    def visit(node, trail):
+    def visit(node: str, trail: list[str]) -> list[str] | None:
         path = trail + [node]
         state[node] = 1
         for nxt in sorted(edges.get(node, ())):
@@ -329,7 +335,9 @@ def _algebraic_loop(connections: list[Connection], descriptions: dict) -> list[s
     return None
 
 
-def open_target(system: System | None, fmu, spec_fmu, step: float):
+def open_target(system: System | None, fmu: str | os.PathLike[str] | None,
+                spec_fmu: str | os.PathLike[str] | None,
+                step: float) -> tuple[Archive, NativeRunner, dict[str, Any]]:
     """What a sweep or a fit runs, for the checks before anything runs: the FMU the caller
     names, else the spec's [system] (built for communication step `step`), else the spec's
     FMU or $FMUSWEEP_FMU. Its bytes, this process's runner for it, and its description."""
@@ -339,7 +347,7 @@ def open_target(system: System | None, fmu, spec_fmu, step: float):
     return open_for_checks(fmu, spec_fmu)
 
 
-def load_system(target: Archive):
+def load_system(target: Archive) -> tuple[NativeRunner, dict[str, Any]]:
     """The runner of a coupled system and its description; a system that does not load (a
     component that cannot be loaded, say) is refused as a whole."""
     try:

@@ -6,11 +6,11 @@ from __future__ import annotations
 import os
 import sys
 
-import numpy as np
-
 from .fmu import Archive, local_runner
+from .native import NativeRunner
+from .records import Batch, Plan, Points, Rows
 
-__all__ = ["prepare_worker", "run_batch", "worker_name"]
+__all__ = ["prepare_worker", "run_batch", "worker_name", "trace"]
 
 
 def worker_name() -> str:
@@ -23,31 +23,30 @@ def worker_name() -> str:
     return f"local-{os.getpid()}"
 
 
-def _configured_runner(fmu: Archive, plan: dict):
+def _configured_runner(fmu: Archive, plan: Plan) -> NativeRunner:
     runner = local_runner(fmu)
     if runner.plan != plan:
         runner.configure(plan)
     return runner
 
 
-def prepare_worker(fmu: Archive, plan: dict) -> str:
+def prepare_worker(fmu: Archive, plan: Plan) -> str:
     """Unpack the FMU, start and configure this worker's runner: the one-off costs."""
     _configured_runner(fmu, plan)
     return worker_name()
 
 
-def run_batch(fmu: Archive, plan: dict, names: list[str], rows: np.ndarray,
-              points: np.ndarray) -> dict:
-    _trace("start", points)
+def run_batch(fmu: Archive, plan: Plan, names: list[str], rows: Rows, points: Points) -> Batch:
+    trace("start", points)
     results = _configured_runner(fmu, plan).run(names, rows)
-    _trace("end", points)
+    trace("end", points)
     return {"points": points, "results": results, "worker": worker_name()}
 
 
-def _trace(event: str, points):
+def trace(event: str, points: Points) -> None:
     """With $FMUSWEEP_TRACE naming a file, an audit line per batch started and ended
     (event, first point, count): how the tests count recomputation after a kill."""
-    trace = os.environ.get("FMUSWEEP_TRACE")
-    if trace:
-        with open(trace, "a") as f:
+    path = os.environ.get("FMUSWEEP_TRACE")
+    if path:
+        with open(path, "a") as f:
             f.write(f"{event} {int(points[0])} {len(points)}\n")

@@ -100,8 +100,8 @@ def test_a_broken_spec_is_refused_before_anything_runs_naming_the_field(fmu_path
 
 
 def test_every_mistake_of_a_spec_is_reported_in_one_pass(fmu_path, tmp_path):
-    """Its own fields' mistakes together; then every name the FMU lacks together, each with
-    the nearest name it has."""
+    """Its own fields' mistakes together, every name the FMU lacks together (each with the
+    nearest name it has), and both kinds together when a spec has both."""
     spec = grid_spec()
     spec["scenario"]["step"] = 0.03
     spec["design"]["kind"] = "random"
@@ -119,6 +119,14 @@ def test_every_mistake_of_a_spec_is_reported_in_one_pass(fmu_path, tmp_path):
     said = str(refused.value)
     assert "2 problems" in said, said
     assert "did you mean 'rod_force'" in said and "did you mean 'k34'" in said, said
+    # Both kinds at once: a field's mistake and a name the FMU lacks, in one run.
+    spec = grid_spec(k43={"values": [1.0]})
+    spec["scenario"]["step"] = 0.03
+    with pytest.raises(SpecError) as refused:
+        run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False)
+    said = str(refused.value)
+    assert "2 problems" in said and "scenario.step" in said, said
+    assert "design.parameters.k43" in said and "did you mean 'k34'" in said, said
     assert not (tmp_path / "out").exists()
 
 

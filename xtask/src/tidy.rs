@@ -1,14 +1,15 @@
 //! `cargo xtask tidy`, also the first step of `cargo xtask test`: the code is formatted,
 //! clippy finds nothing, `unsafe` appears only in the FFI and loader files, no module of
-//! `src/` imports from a layer above its own (ARCHITECTURE.md's table, `layers`), and no
+//! `src/` imports from a layer above its own (ARCHITECTURE.md's table, `layers`), no
 //! comment in `src/` carries a measured figure (figures live in the reports a command
-//! writes).
+//! writes), and `mypy --strict` passes on the Python package.
 
 use std::fs;
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 use crate::cli::Parsed;
-use crate::setup::{cargo, root, run};
+use crate::setup::{cargo, ensure_venv, root, run, Packages};
 use crate::Result;
 
 /// The files allowed to hold `unsafe`: the FMI 2 and 3 C ABIs and what they share (the
@@ -30,6 +31,18 @@ const UNSAFE_ALLOWED: &[&str] = &[
 
 pub(crate) fn job(_: &Parsed) -> Result {
     check()
+}
+
+/// `mypy` on `python/fmusweep` with the package's own settings (strict, in its
+/// pyproject.toml), its cache in target/ so that a re-run with nothing changed is quick.
+fn type_check() -> Result {
+    let python = ensure_venv(Packages::Tests)?;
+    let package = root().join("python");
+    run(Command::new(python)
+        .current_dir(&package)
+        .args(["-m", "mypy", "--no-error-summary", "--cache-dir"])
+        .arg(root().join("target/mypy"))
+        .arg("fmusweep"))
 }
 
 pub(crate) fn check() -> Result {
@@ -68,10 +81,11 @@ pub(crate) fn check() -> Result {
             }
         }
     }
+    type_check()?;
     if problems.is_empty() {
         println!(
             "xtask: tidy: formatted, clippy clean, unsafe only where allowed, no arrow up in \
-             src/, no figures in src/ comments"
+             src/, no figures in src/ comments, fmusweep typed (mypy --strict)"
         );
         Ok(())
     } else {

@@ -14,11 +14,16 @@ import hashlib
 import math
 import pathlib
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import SpecError
 from ..fields import only
+from ..records import Points, Rows
+
+if TYPE_CHECKING:
+    from ..spec import Scenario
 
 __all__ = ["Data"]
 
@@ -43,7 +48,7 @@ class Data:
         return self.steps // self.every
 
     @staticmethod
-    def of(table: dict, base_dir: pathlib.Path, scenario) -> "Data":
+    def of(table: dict[str, Any], base_dir: pathlib.Path, scenario: Scenario) -> Data:
         only(table, "data", {"file", "sigma"})
         name = table.get("file")
         if not isinstance(name, str):
@@ -61,7 +66,7 @@ class Data:
                     given, steps, every)
 
 
-def _parse(content: bytes, path: pathlib.Path):
+def _parse(content: bytes, path: pathlib.Path) -> tuple[list[str], Rows, Rows]:
     try:
         text = content.decode("utf-8-sig")
     except UnicodeDecodeError:
@@ -104,7 +109,7 @@ def _parse(content: bytes, path: pathlib.Path):
     return columns, t, table[:, keep]
 
 
-def _grid_steps(times: np.ndarray, scenario, path) -> np.ndarray:
+def _grid_steps(times: Rows, scenario: Scenario, path: pathlib.Path) -> Points:
     decreasing = np.flatnonzero(np.diff(times) <= 0)
     if len(decreasing):
         line = int(decreasing[0]) + 3
@@ -127,7 +132,7 @@ def _grid_steps(times: np.ndarray, scenario, path) -> np.ndarray:
     return steps
 
 
-def _sigma(table, columns: list[str]):
+def _sigma(table: object, columns: list[str]) -> tuple[Rows, list[bool]]:
     sigma = np.ones(len(columns))
     given = [False] * len(columns)
     if table is None:

@@ -9,8 +9,15 @@ from __future__ import annotations
 
 import concurrent.futures
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from ..records import Rows
+
+if TYPE_CHECKING:
+    from .problem import Problem
+    from .spec import FitSpec
 
 __all__ = ["Start", "solve", "starting_points"]
 
@@ -22,18 +29,18 @@ STATUS = {-1: "failed", 0: "max_iterations", 1: "converged", 2: "converged", 3: 
 class Start:
     """One optimisation from one starting point."""
     index: int
-    start: np.ndarray
+    start: Rows
     status: str = "failed"
     message: str = ""
-    estimate: np.ndarray | None = None
+    estimate: Rows | None = None
     cost: float = float("inf")
     iterations: int = 0
-    jacobian: np.ndarray | None = None  # d(weighted residuals)/d(parameters) at the estimate
-    residuals: np.ndarray | None = None
+    jacobian: Rows | None = None  # d(weighted residuals)/d(parameters) at the estimate
+    residuals: Rows | None = None
     notes: list[str] = field(default_factory=list)
 
 
-def starting_points(spec) -> np.ndarray:
+def starting_points(spec: FitSpec) -> Rows:
     """The spec's start, then a seeded Latin hypercube over the ranges for the others."""
     first = np.array([[p.start for p in spec.parameters]])
     if spec.starts == 1:
@@ -43,7 +50,7 @@ def starting_points(spec) -> np.ndarray:
     return np.vstack([first, spec.lows + unit * (spec.highs - spec.lows)])
 
 
-def solve_all(problem, starts: np.ndarray, concurrency: int) -> list[Start]:
+def solve_all(problem: Problem, starts: Rows, concurrency: int) -> list[Start]:
     """Every start's optimisation; with concurrency > 1 they run side by side, each
     waiting on its own batches, so that the workers stay busy."""
     if concurrency <= 1 or len(starts) == 1:
@@ -52,20 +59,21 @@ def solve_all(problem, starts: np.ndarray, concurrency: int) -> list[Start]:
         return list(threads.map(lambda item: solve(problem, item[1], item[0]), enumerate(starts)))
 
 
-def solve(problem, start: np.ndarray, index: int) -> Start:
+def solve(problem: Problem, start: Rows, index: int) -> Start:
     from scipy.optimize import least_squares
     spec = problem.spec
     low, width = spec.lows, spec.highs - spec.lows
     outcome = Start(index, start)
     # The Jacobian of the last evaluated point: the trust region asks for the Jacobian of
     # an accepted trial, always the point it evaluated last.
-    last: tuple[bytes, np.ndarray] | None = None
+    last: tuple[bytes, Rows] | None = None
     failure = ""
 
-    def theta(z):
-        return low + np.asarray(z) * width
+    def theta(z: Any) -> Rows:
+        moved: Rows = low + np.asarray(z) * width
+        return moved
 
-    def residuals(z):
+    def residuals(z: Any) -> Rows:
         nonlocal last, failure
         f, jacobian, message = _evaluate_with_jacobian(problem, theta(z), index, outcome.notes)
         if jacobian is None:
@@ -76,9 +84,10 @@ def solve(problem, start: np.ndarray, index: int) -> Start:
         last = (np.asarray(z).tobytes(), jacobian * width)
         return f
 
-    def jacobian(z, *_):
+    def jacobian(z: Any, *_: object) -> Rows:
         if last is None or last[0] != np.asarray(z).tobytes():
             residuals(z)
+        assert last is not None
         return last[1]
 
     z0 = (start - low) / width
@@ -99,7 +108,8 @@ def solve(problem, start: np.ndarray, index: int) -> Start:
     return outcome
 
 
-def _evaluate_with_jacobian(problem, theta: np.ndarray, start: int, notes: list[str]):
+def _evaluate_with_jacobian(problem: Problem, theta: Rows, start: int,
+                           notes: list[str]) -> tuple[Rows, Rows | None, str]:
     """The residuals at theta and their Jacobian in parameter units, from one batch of
     theta and its perturbed points (and a second batch for a column whose perturbed run
     failed, perturbed the other way)."""
@@ -110,8 +120,8 @@ def _evaluate_with_jacobian(problem, theta: np.ndarray, start: int, notes: list[
     if not evaluations[0].ok:
         return problem.residuals(evaluations[0]), None, evaluations[0].message
     f = problem.residuals(evaluations[0])
-    columns = [None if not e.ok else (problem.residuals(e) - f) / steps[j]
-               for j, e in enumerate(evaluations[1:])]
+    columns: list[Rows | None] = [None if not e.ok else (problem.residuals(e) - f) / steps[j]
+                                  for j, e in enumerate(evaluations[1:])]
     retry = [j for j, c in enumerate(columns) if c is None]
     if retry:
         back = np.array([theta - np.eye(len(theta))[j] * steps[j] for j in retry])
@@ -122,12 +132,13 @@ def _evaluate_with_jacobian(problem, theta: np.ndarray, start: int, notes: list[
                 columns[j] = np.zeros_like(f)
                 notes.append(f"{spec.names[j]}: the runs perturbed both ways from {theta[j]:g} "
                              f"failed ({e.message}); its Jacobian column was taken as zero")
-    return f, np.column_stack(columns), ""
+    return f, np.column_stack([c for c in columns if c is not None]), ""
 
 
-def _steps(spec, theta: np.ndarray) -> np.ndarray:
+def _steps(spec: FitSpec, theta: Rows) -> Rows:
     """A forward step per parameter, from its size and its range; backward where forward
     would leave the range."""
     width = spec.highs - spec.lows
     h = spec.relative_step * np.maximum(np.abs(theta), 0.1 * width)
-    return np.where(theta + h > spec.highs, -h, h)
+    steps: Rows = np.where(theta + h > spec.highs, -h, h)
+    return steps

@@ -4,24 +4,32 @@ the parameters' correlation matrix."""
 from __future__ import annotations
 
 import pathlib
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..plots import _pyplot, _save
+from ..records import Rows
+
+if TYPE_CHECKING:
+    from .problem import Evaluation
+    from .spec import FitSpec
 
 __all__ = ["plot_fit"]
 
 
-def plot_fit(spec, best, summary: dict, out: pathlib.Path) -> list[pathlib.Path]:
+def plot_fit(spec: FitSpec, best: Evaluation, summary: dict[str, Any],
+             out: pathlib.Path) -> list[pathlib.Path]:
+    assert best.predictions is not None, "plotted only after a run that reached its end"
     out.mkdir(parents=True, exist_ok=True)
-    written = [_trajectories(spec, best, summary, out / "fit_trajectories.png"),
-               _residuals(spec, best, out / "fit_residuals.png")]
+    written = [_trajectories(spec, best.predictions, summary, out / "fit_trajectories.png"),
+               _residuals(spec, best.predictions, out / "fit_residuals.png")]
     if len(spec.names) > 1:
         written.append(_correlation(spec, summary, out / "fit_correlation.png"))
     return written
 
 
-def _estimates_text(summary: dict) -> str:
+def _estimates_text(summary: dict[str, Any]) -> str:
     parts = []
     for name, p in summary["parameters"].items():
         low, high = p["ci95"]
@@ -30,13 +38,14 @@ def _estimates_text(summary: dict) -> str:
     return ", ".join(parts)
 
 
-def _trajectories(spec, best, summary, path):
+def _trajectories(spec: FitSpec, predictions: Rows, summary: dict[str, Any],
+                  path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     data = spec.data
     n = len(data.columns)
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n + 0.6), sharex=True, squeeze=False)
     for j, (ax, name) in enumerate(zip(axes[:, 0], data.columns)):
-        ax.plot(data.times, best.predictions[:, j], "-", lw=1.0, color="C0", label="fitted")
+        ax.plot(data.times, predictions[:, j], "-", lw=1.0, color="C0", label="fitted")
         ax.plot(data.times, data.values[:, j], ".", ms=2.0, color="0.25", label="measured")
         ax.set_ylabel(name)
         ax.grid(alpha=0.3)
@@ -46,13 +55,13 @@ def _trajectories(spec, best, summary, path):
     return _save(fig, path)
 
 
-def _residuals(spec, best, path):
+def _residuals(spec: FitSpec, predictions: Rows, path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     data = spec.data
     n = len(data.columns)
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.2 * n + 0.6), sharex=True, squeeze=False)
     for j, (ax, name) in enumerate(zip(axes[:, 0], data.columns)):
-        r = best.predictions[:, j] - data.values[:, j]
+        r = predictions[:, j] - data.values[:, j]
         ax.plot(data.times, r, ".", ms=2.5, color="C3")
         ax.axhline(0.0, color="0.2", lw=0.8)
         if data.sigma_given[j]:
@@ -65,7 +74,7 @@ def _residuals(spec, best, path):
     return _save(fig, path)
 
 
-def _correlation(spec, summary, path):
+def _correlation(spec: FitSpec, summary: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     names = spec.names
     p = len(names)

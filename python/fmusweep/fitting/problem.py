@@ -78,7 +78,8 @@ class Problem:
         data = self.spec.data
         if evaluation.predictions is None or not evaluation.ok:
             return np.full(data.values.size, np.inf)
-        return ((evaluation.predictions - data.values) / data.sigma).ravel()
+        weighted: Rows = ((evaluation.predictions - data.values) / data.sigma).ravel()
+        return weighted
 
     def cached(self, theta: Rows) -> Evaluation | None:
         """The evaluation of a point already run (or read back), without running it."""

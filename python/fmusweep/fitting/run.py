@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..store import ResultStore, atomic_write_text
-from ..study import Study, Target
+from ..study import Study, Target, load_spec
 from .method import Start, solve_all, starting_points
 from .problem import Problem, check_fit_against_fmu
 from .spec import FitSpec
@@ -63,7 +63,8 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
     ``out`` holds; the points it evaluated are read, not run again.
     """
     started = time.perf_counter()
-    spec = FitSpec.load(spec)
+    given = spec
+    spec = load_spec(lambda: FitSpec.load(given), given, fmu)
     target = Target.open(spec, fmu)
     assert target.local is not None  # a fit names no SSP file
     check_fit_against_fmu(spec, target.description, target.local)
@@ -139,6 +140,7 @@ def _summary(spec: FitSpec, problem: Problem, starts: list[Start], study: Study,
     if best is None:
         summary.update(parameters={}, correlation={}, residual_rms={}, warnings=[summary["message"]])
         return summary
+    assert best.estimate is not None and best.jacobian is not None and best.residuals is not None
     summary.update(uncertainty(spec, best.estimate, best.jacobian, best.residuals))
     weighted = best.residuals.reshape(spec.data.values.shape)
     summary["residual_rms"] = {c: float(np.sqrt(np.mean((weighted[:, j] * spec.data.sigma[j]) ** 2)))

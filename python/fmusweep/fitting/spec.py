@@ -32,8 +32,10 @@ import copy
 import hashlib
 import json
 import math
+import os
 import pathlib
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -41,6 +43,7 @@ from ..errors import SpecError
 from ..fields import finite, low_high, only, table, whole
 from ..spec import Scenario, read_source, what_runs
 from ..system import System
+from ..records import Plan, SeriesPlan
 from .data import Data
 
 __all__ = ["FitSpec", "FitParameter"]
@@ -63,7 +66,7 @@ class FitParameter:
 
 @dataclass
 class FitSpec:
-    raw: dict
+    raw: dict[str, Any]
     base_dir: pathlib.Path
     fmu: pathlib.Path | None
     system: System | None
@@ -88,13 +91,14 @@ class FitSpec:
         return np.array([p.high for p in self.parameters])
 
     @staticmethod
-    def load(source, base_dir=None) -> "FitSpec":
+    def load(source: FitSpec | str | os.PathLike[str] | dict[str, Any],
+             base_dir: str | os.PathLike[str] | None = None) -> FitSpec:
         if isinstance(source, FitSpec):
             return source
         return FitSpec.from_dict(*read_source(source, base_dir, "a FitSpec"))
 
     @staticmethod
-    def from_dict(raw: dict, base_dir) -> "FitSpec":
+    def from_dict(raw: dict[str, Any], base_dir: str | os.PathLike[str]) -> FitSpec:
         raw = copy.deepcopy(raw)
         base_dir = pathlib.Path(base_dir)
         only(raw, "spec", {"fmu", "system", "scenario", "data", "fit"})
@@ -136,13 +140,14 @@ class FitSpec:
         text = json.dumps(canonical, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode() + self.data.sha256.encode()).hexdigest()
 
-    def plan(self) -> dict:
+    def plan(self) -> Plan:
         """The runner's plan: the scenario, reading the measured variables at every
         communication point that holds a data time (and at no other, where it can)."""
-        return self.scenario.plan([], {"variables": self.data.columns, "every": self.data.every})
+        return self.scenario.plan([], SeriesPlan(variables=self.data.columns,
+                                                 every=self.data.every))
 
 
-def _parameter(name: str, entry, scenario: Scenario) -> FitParameter:
+def _parameter(name: str, entry: object, scenario: Scenario) -> FitParameter:
     where = f"fit.parameters.{name}"
     if not isinstance(entry, dict) or set(entry) != {"start", "range"}:
         raise SpecError(where, "give start = x and range = [low, high]")

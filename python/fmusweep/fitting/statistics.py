@@ -10,7 +10,14 @@ parameters the data cannot decide.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
+
+from ..records import Rows
+
+if TYPE_CHECKING:
+    from .spec import FitSpec
 
 __all__ = ["uncertainty", "CORRELATION_LIMIT", "SINGULAR_RATIO"]
 
@@ -20,7 +27,7 @@ CORRELATION_LIMIT = 0.99
 SINGULAR_RATIO = 1e-8
 
 
-def uncertainty(spec, estimate: np.ndarray, jacobian: np.ndarray, residuals: np.ndarray) -> dict:
+def uncertainty(spec: FitSpec, estimate: Rows, jacobian: Rows, residuals: Rows) -> dict[str, Any]:
     from scipy import stats
     names = spec.names
     m, p = jacobian.shape
@@ -81,6 +88,6 @@ def uncertainty(spec, estimate: np.ndarray, jacobian: np.ndarray, residuals: np.
     }
 
 
-def _number(x) -> float | None:
+def _number(x: float) -> float | None:
     """A JSON number, or null where there is none (a singular Jacobian)."""
     return float(x) if np.isfinite(x) else None
