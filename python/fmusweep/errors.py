@@ -19,6 +19,11 @@ class SpecError(ValueError):
         self.field = field_name
 
 
+def refuse(field_name: str, rule: str) -> None:
+    """Raise the SpecError: for a check written as a lambda, which cannot raise."""
+    raise SpecError(field_name, rule)
+
+
 class SpecErrors(SpecError):
     """Several mistakes of one specification, found in one pass: each a SpecError (the
     first one's field is this error's field)."""

@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from . import design as _design
-from .errors import Collector, SpecError
+from .errors import Collector, SpecError, refuse
 from .system import System
 from .fields import number as _number
 from .fields import only as _only
@@ -283,14 +283,14 @@ def _outputs(raw: dict[str, Any], scenario: Scenario | None) -> tuple[list[Metri
         if isinstance(listed, list) and listed and all(isinstance(v, str) for v in listed):
             series_variables = listed
         else:
-            errors.run(lambda: _refuse("outputs.series.variables",
+            errors.run(lambda: refuse("outputs.series.variables",
                                        "must be a non-empty list of variable names"))
         if scenario is not None:
             step = scenario.step
             interval = _number(series.get("interval", step), "outputs.series.interval")
             every = round(interval / step)
             if every < 1 or abs(interval / step - every) > 1e-6:
-                errors.run(lambda: _refuse("outputs.series.interval",
+                errors.run(lambda: refuse("outputs.series.interval",
                                            f"must be a whole multiple of scenario.step ({step}), "
                                            f"got {interval}"))
     errors.raise_any()
@@ -298,9 +298,6 @@ def _outputs(raw: dict[str, Any], scenario: Scenario | None) -> tuple[list[Metri
         raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
     return [m for m in metrics if m is not None], series_variables, every
 
-
-def _refuse(field_name: str, rule: str) -> None:
-    raise SpecError(field_name, rule)
 
 
 # --- field checks -----------------------------------------------------------------------

@@ -360,3 +360,20 @@ def test_a_coupled_system_fits_as_one_fmu(fmu_path, tmp_path):
     for name, true in {"motor.R": 0.6, "mechanism.d34": 0.8}.items():
         low, high = summary["parameters"][name]["ci95"]
         assert low <= true <= high, (name, low, high)
+
+
+def test_every_mistake_of_a_fit_spec_is_reported_in_one_pass(fmu_path, truth_rows, tmp_path):
+    """The fields' mistakes of every table and the names the FMU lacks, in one run."""
+    write_csv(tmp_path / "measured.csv", noisy(truth_rows, 0))
+    spec = fit_spec(fmu_path, tmp_path)
+    spec["fit"].update(starts=3, method="lm")
+    spec["data"]["sigma"]["omega1"] = 0.0
+    spec["fit"]["parameters"]["k43"] = {"start": 1.0, "range": [0.0, 2.0]}
+    with pytest.raises(SpecError) as refused:
+        fit(spec, out=tmp_path / "out", serial=True, plots=False)
+    said = str(refused.value)
+    assert "4 problems" in said, said
+    for field in ("fit.seed", "fit.method", "data.sigma.omega1", "fit.parameters.k43"):
+        assert field in said, (field, said)
+    assert "did you mean 'k34'" in said, said
+    assert not (tmp_path / "out").exists()

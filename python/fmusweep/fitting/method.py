@@ -42,11 +42,11 @@ class Start:
 
 def starting_points(spec: FitSpec) -> Rows:
     """The spec's start, then a seeded Latin hypercube over the ranges for the others."""
-    first = np.array([[p.start for p in spec.parameters]])
+    first = np.array([[p.start for p in spec.fitted]])
     if spec.starts == 1:
         return first
     from scipy.stats import qmc
-    unit = qmc.LatinHypercube(d=len(spec.parameters), seed=spec.seed).random(spec.starts - 1)
+    unit = qmc.LatinHypercube(d=len(spec.fitted), seed=spec.seed).random(spec.starts - 1)
     return np.vstack([first, spec.lows + unit * (spec.highs - spec.lows)])
 
 

@@ -49,7 +49,7 @@ def check_fit_against_fmu(spec: FitSpec, description: dict[str, Any],
     for name in spec.data.columns:
         errors.run(lambda: variables.get(name, "data.file", READABLE, VALUE_TYPES, what="output"))
     names = spec.names
-    rows = np.array([[p.start for p in spec.parameters], spec.lows, spec.highs])
+    rows = np.array([[p.start for p in spec.fitted], spec.lows, spec.highs])
     columns = list(rows.T)
     errors.run(lambda: variables.check_columns(names, columns, "fit.parameters"))
     errors.raise_any()

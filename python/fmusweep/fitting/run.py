@@ -105,7 +105,7 @@ def _choose_engine(spec: FitSpec, target: Target, serial: bool, workers: int | N
     if serial or workers is not None or scheduler is not None:
         return serial, "as asked"
     assert target.local is not None
-    [probe] = target.local.run(spec.names, [[p.start for p in spec.parameters]])
+    [probe] = target.local.run(spec.names, [[p.start for p in spec.fitted]])
     run_s = probe["wall_s"] or 0.0
     if run_s < SERIAL_BELOW_S:
         return True, (f"serial: a run takes {run_s * 1e3:.1f} ms, less than a round trip "

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import SpecError
+from ..errors import Collector, SpecError, refuse
 from ..fields import finite, low_high, only, table, whole
 from ..spec import Scenario, read_source, what_runs
 from ..system import System
@@ -66,13 +66,16 @@ class FitParameter:
 
 @dataclass
 class FitSpec:
+    """A fit's specification: what runs, the scenario every run shares (its fixed
+    parameters are ``scenario.parameters``), the data, and the parameters fitted
+    (``fitted``, the ``[fit.parameters]`` table)."""
     raw: dict[str, Any]
     base_dir: pathlib.Path
     fmu: pathlib.Path | None
     system: System | None
     scenario: Scenario
     data: Data
-    parameters: list[FitParameter]
+    fitted: list[FitParameter]
     starts: int
     seed: int | None
     max_iterations: int
@@ -80,15 +83,15 @@ class FitSpec:
 
     @property
     def names(self) -> list[str]:
-        return [p.name for p in self.parameters]
+        return [p.name for p in self.fitted]
 
     @property
     def lows(self) -> np.ndarray:
-        return np.array([p.low for p in self.parameters])
+        return np.array([p.low for p in self.fitted])
 
     @property
     def highs(self) -> np.ndarray:
-        return np.array([p.high for p in self.parameters])
+        return np.array([p.high for p in self.fitted])
 
     @staticmethod
     def load(source: FitSpec | str | os.PathLike[str] | dict[str, Any],
@@ -99,36 +102,23 @@ class FitSpec:
 
     @staticmethod
     def from_dict(raw: dict[str, Any], base_dir: str | os.PathLike[str]) -> FitSpec:
+        """The fit spec of `raw`, every mistake of its own fields reported at once (the
+        names are checked against the FMU afterwards, also all at once)."""
         raw = copy.deepcopy(raw)
-        base_dir = pathlib.Path(base_dir)
-        only(raw, "spec", {"fmu", "system", "scenario", "data", "fit"})
-        fmu, _, system = what_runs(raw, base_dir)
-        scenario = Scenario.of(raw)
-        data = Data.of(table(raw, "data", "spec", required=True), base_dir, scenario)
-        fit = table(raw, "fit", "spec", required=True)
-        only(fit, "fit", {"parameters", "starts", "seed", "max_iterations", "relative_step"})
-        parameters = [_parameter(name, entry, scenario)
-                      for name, entry in table(fit, "parameters", "fit", required=True).items()]
-        if not parameters:
-            raise SpecError("fit.parameters", "names no parameter: there is nothing to fit")
-        starts = whole(fit.get("starts", 1), "fit.starts", 1, MAX_STARTS)
-        seed = fit.get("seed")
-        if seed is not None:
-            seed = whole(seed, "fit.seed", 0, None)
-        if starts > 1 and seed is None:
-            raise SpecError("fit.seed", "more than one start needs a seed, so that the fit can "
-                                        "be repeated")
-        max_iterations = whole(fit.get("max_iterations", DEFAULT_MAX_ITERATIONS),
-                                "fit.max_iterations", 1, None)
-        # A forward difference's error is the step plus the model's own error over the
-        # step; the square root of the integrator's tolerance balances the two.
-        default_step = math.sqrt(scenario.tolerance) if scenario.tolerance else 1e-4
-        relative_step = fit.get("relative_step", default_step)
-        if (isinstance(relative_step, bool) or not isinstance(relative_step, (int, float))
-                or not 0 < relative_step < 0.1):
-            raise SpecError("fit.relative_step", f"must be a number in (0, 0.1), got {relative_step!r}")
-        return FitSpec(raw, base_dir, (base_dir / fmu) if fmu else None, system, scenario, data,
-                       parameters, starts, seed, max_iterations, float(relative_step))
+        base = pathlib.Path(base_dir)
+        errors = Collector()
+        errors.run(lambda: only(raw, "spec", {"fmu", "system", "scenario", "data", "fit"}))
+        runs = errors.run(lambda: what_runs(raw, base))
+        scenario = errors.run(lambda: Scenario.of(raw))
+        data = (errors.run(lambda: Data.of(table(raw, "data", "spec", required=True), base,
+                                           scenario)) if scenario is not None else None)
+        settings = errors.run(lambda: _fit_table(raw, scenario)) if scenario is not None else None
+        errors.raise_any()
+        assert runs is not None and scenario is not None and data is not None
+        assert settings is not None
+        fmu, _, system = runs
+        return FitSpec(raw, base, (base / fmu) if fmu else None, system, scenario, data,
+                       *settings)
 
     def digest(self) -> str:
         """A hash of everything that decides the results: the spec and the data file's
@@ -145,6 +135,43 @@ class FitSpec:
         communication point that holds a data time (and at no other, where it can)."""
         return self.scenario.plan([], SeriesPlan(variables=self.data.columns,
                                                  every=self.data.every))
+
+
+def _fit_table(raw: dict[str, Any],
+               scenario: Scenario) -> tuple[list[FitParameter], int, int | None, int, float]:
+    """The [fit] table: the parameters fitted, the starts, the seed, the iterations and the
+    Jacobian's relative step; every mistake of it reported at once."""
+    fit = table(raw, "fit", "spec", required=True)
+    errors = Collector()
+    errors.run(lambda: only(fit, "fit", {"parameters", "starts", "seed", "max_iterations",
+                                         "relative_step"}))
+    entries = errors.run(lambda: table(fit, "parameters", "fit", required=True)) or {}
+    fitted = [errors.run(lambda: _parameter(name, entry, scenario))
+              for name, entry in entries.items()]
+    if not entries:
+        errors.run(lambda: refuse("fit.parameters", "names no parameter: there is nothing to fit"))
+    starts = errors.run(lambda: whole(fit.get("starts", 1), "fit.starts", 1, MAX_STARTS))
+    seed = fit.get("seed")
+    if seed is not None:
+        seed = errors.run(lambda: whole(seed, "fit.seed", 0, None))
+    elif starts is not None and starts > 1:
+        errors.run(lambda: refuse("fit.seed", "more than one start needs a seed, so that the "
+                                               "fit can be repeated"))
+    max_iterations = errors.run(lambda: whole(fit.get("max_iterations", DEFAULT_MAX_ITERATIONS),
+                                              "fit.max_iterations", 1, None))
+    # A forward difference's error is the step plus the model's own error over the step;
+    # the square root of the integrator's tolerance balances the two.
+    default_step = math.sqrt(scenario.tolerance) if scenario.tolerance else 1e-4
+    relative_step = fit.get("relative_step", default_step)
+    if (isinstance(relative_step, bool) or not isinstance(relative_step, (int, float))
+            or not 0 < relative_step < 0.1):
+        errors.run(lambda: refuse("fit.relative_step",
+                                   f"must be a number in (0, 0.1), got {relative_step!r}"))
+    errors.raise_any()
+    assert starts is not None and max_iterations is not None
+    return ([p for p in fitted if p is not None], starts, seed, max_iterations,
+            float(relative_step))
+
 
 
 def _parameter(name: str, entry: object, scenario: Scenario) -> FitParameter:

@@ -56,7 +56,7 @@ def uncertainty(spec: FitSpec, estimate: Rows, jacobian: Rows, residuals: Rows) 
     parameters = {}
     for j, name in enumerate(names):
         low, high = estimate[j] - quantile * stderr[j], estimate[j] + quantile * stderr[j]
-        spec_p = spec.parameters[j]
+        spec_p = spec.fitted[j]
         if np.isfinite(stderr[j]) and high - low > spec_p.width:
             undecided.add(name)
             warnings.append(f"{name}'s 95 % interval [{low:.6g}, {high:.6g}] is wider than its "
