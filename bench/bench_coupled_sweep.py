@@ -2,7 +2,9 @@
 at H = 1 ms), points per second of one worker through each engine, side by side in this
 process; and for each engine of a [system] the coupling error against the monolithic
 reference (motor and mechanism as one ODE, scipy's DOP853 at rtol 1e-11) and the points
-per second at H = 1, 2, 5 and 10 ms: the two curves that decide between the engines.
+per second at H = 1, 2, 5 and 10 ms: the two curves that decide between the engines; and
+the native engine with a coupling tolerance (1e-3 to 1e-6 on a 10 ms grid) against the
+same engine at fixed steps, at equal error.
 
     python bench/bench_coupled_sweep.py <CyclicMechanism.fmu> <DcMotor.fmu> <output directory> [--quick]
 
@@ -35,13 +37,18 @@ STATES = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4"
 # (engine, input derivatives): the [system] engines compared.
 ENGINES = [("native", 2), ("native", 1), ("native", 0), ("container", 0)]
 STEPS = (1e-3, 2e-3, 5e-3, 1e-2)
+# A coupling tolerance: the tolerances measured, their output grid, and the shorter fixed
+# steps that extend the best fixed engine's curve to the errors they reach.
+TOLERANCES = (1e-3, 1e-4, 1e-5, 1e-6)
+GRID = 1e-2
+FINE_STEPS = (2.5e-4, 5e-4)
 
 
 def engine_name(engine, derivatives):
     return f"{engine}, input derivatives {derivatives}" if engine == "native" else engine
 
 
-def system_spec(fmu, motor, stop, step, points, series=False, engine=("native", 2)):
+def system_spec(fmu, motor, stop, step, points, series=False, engine=("native", 2), tolerance=None):
     spec = {"system": {"components": {"motor": str(motor), "mechanism": str(fmu)},
                        "connections": [["motor.torque", "mechanism.M_m"],
                                        ["mechanism.omega1", "motor.omega"]],
@@ -53,12 +60,14 @@ def system_spec(fmu, motor, stop, step, points, series=False, engine=("native", 
             "outputs": {"metrics": {"final": {"variable": "mechanism.omega1", "kind": "final"}}}}
     if series:
         spec["outputs"]["series"] = {"variables": [f"mechanism.{s}" for s in STATES] + ["motor.current"]}
+    if tolerance is not None:
+        spec["system"]["coupling_tolerance"] = tolerance
     return spec
 
 
-def system_rate(fmu, motor, points, tmp, engine=("native", 2), step=1e-3):
-    spec = system_spec(fmu, motor, 10.0, step, points, engine=engine)
-    out = pathlib.Path(tmp) / f"rate-{engine[0]}-{engine[1]}-{step}"
+def system_rate(fmu, motor, points, tmp, engine=("native", 2), step=1e-3, tolerance=None):
+    spec = system_spec(fmu, motor, 10.0, step, points, engine=engine, tolerance=tolerance)
+    out = pathlib.Path(tmp) / f"rate-{engine[0]}-{engine[1]}-{step}-{tolerance}"
     r = run_sweep(spec, out=out, serial=True, progress=False, plots=False).report
     return r.computed / r.point_seconds
 
@@ -70,39 +79,88 @@ def master_loop_rate(fmu, motor, points):
     return points / (time.perf_counter() - t0)
 
 
-def coupling_errors(fmu, motor, tmp, engine, stop=2.0):
+def coupling_errors(fmu, motor, tmp, engine, stop=2.0, steps=STEPS):
     """An engine's worst error over the states and the current at every communication point
     against the monolithic reference, in units of each one's scale max(1, max |y|), per
     communication step."""
+    return {step: worst_error(system_spec(fmu, motor, stop, step, 1, series=True, engine=engine),
+                              pathlib.Path(tmp) / f"error-{engine[0]}-{engine[1]}-{step}")[0]
+            for step in steps}
+
+
+def worst_error(spec, out):
+    """A one-point spec's worst scaled error against the monolithic reference at every
+    communication point, and its row."""
     p = reference.Params(**MECHANISM, d34=1.0)
-    errors = {}
-    for step in STEPS:
-        spec = system_spec(fmu, motor, stop, step, 1, series=True, engine=engine)
-        out = pathlib.Path(tmp) / f"error-{engine[0]}-{engine[1]}-{step}"
-        results = run_sweep(spec, out=out, serial=True, progress=False, plots=False)
-        series = results.series()
-        names = [f"mechanism.{s}" for s in STATES] + ["motor.current"]
-        columns = [series[series["variable"] == n].sort_values("time") for n in names]
-        times = columns[0]["time"].to_numpy()
-        mine = np.column_stack([c["value"].to_numpy() for c in columns])
-        exact = reference.solve_with_motor(p, reference.Motor(), times, rtol=1e-11)
-        scale = np.maximum(1.0, np.abs(exact).max(axis=0))
-        errors[step] = float((np.abs(mine - exact) / scale).max())
-    return errors
+    results = run_sweep(spec, out=out, serial=True, progress=False, plots=False)
+    series = results.series()
+    names = [f"mechanism.{s}" for s in STATES] + ["motor.current"]
+    columns = [series[series["variable"] == n].sort_values("time") for n in names]
+    times = columns[0]["time"].to_numpy()
+    mine = np.column_stack([c["value"].to_numpy() for c in columns])
+    exact = reference.solve_with_motor(p, reference.Motor(), times, rtol=1e-11)
+    scale = np.maximum(1.0, np.abs(exact).max(axis=0))
+    return float((np.abs(mine - exact) / scale).max()), results.points.iloc[0]
 
 
-def rate_at_error(curve, target):
+def tolerance_runs(fmu, motor, points, tmp):
+    """With a coupling tolerance on a 10 ms output grid (native engine, 2 input
+    derivatives): per tolerance the worst error over 2 s, the points/s of 10 s runs and
+    the communication steps taken."""
+    runs = []
+    for tol in TOLERANCES:
+        spec = system_spec(fmu, motor, 2.0, GRID, 1, series=True, tolerance=tol)
+        error, row = worst_error(spec, pathlib.Path(tmp) / f"tolerance-{tol}")
+        runs.append({"tolerance": tol, "error": error, "estimate": float(row["coupling_error"]),
+                     "accepted": int(row["coupling_steps"]), "rejected": int(row["coupling_rejected"]),
+                     "min_step": float(row["coupling_min_step"]),
+                     "rate": system_rate(fmu, motor, points, tmp, step=GRID, tolerance=tol)})
+    return runs
+
+
+def interpolated_rate(curve, target):
     """Points/s at coupling error `target` on an engine's curve [(step, error, rate)],
-    log-log interpolated between measured steps, as text: "≥ rate" when even the longest
-    step measured is more accurate (longer steps would be faster still), "–" when the
-    shortest is not accurate enough."""
+    log-log interpolated between measured steps; None outside the errors measured."""
     for (h0, e0, r0), (h1, e1, r1) in zip(curve, curve[1:]):
         if min(e0, e1) <= target <= max(e0, e1):
             x = np.log(target / e0) / np.log(e1 / e0)
-            return f"{np.exp(np.log(r0) + x * np.log(r1 / r0)):.0f}"
+            return float(np.exp(np.log(r0) + x * np.log(r1 / r0)))
+    return None
+
+
+def rate_at_error(curve, target):
+    """interpolated_rate as text: "≥ rate" when even the longest step measured is more
+    accurate (longer steps would be faster still), "–" when the shortest is not accurate
+    enough."""
+    rate = interpolated_rate(curve, target)
+    if rate is not None:
+        return f"{rate:.0f}"
     if target > max(e for _, e, _ in curve):
         return f"≥ {curve[-1][2]:.0f}"
     return "–"
+
+
+def tolerance_report(r) -> list[str]:
+    fixed = r["fixed_native_2"]
+    lines = ["## A coupling tolerance", "",
+             f"The native engine with 2 input derivatives and `coupling_tolerance`, on an output "
+             f"grid of {GRID * 1000:g} ms: the error as above (2 s), points/s of 10 s runs, and "
+             "the steps the controller took; against it, the same engine at fixed steps "
+             "(the curve above, extended by " + " and ".join(f"{h * 1000:g} ms" for h in FINE_STEPS)
+             + "), its points/s interpolated at the same error.", "",
+             "| tolerance | worst error | error / tolerance | points/s | steps accepted, rejected | "
+             "smallest step | fixed steps at that error: points/s | speed-up |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for run in r["tolerances"]:
+        rate = interpolated_rate(fixed, run["error"])
+        versus = f"{rate:.0f} | {run['rate'] / rate:.2f}×" if rate else "– | –"
+        lines.append(f"| {run['tolerance']:g} | {run['error']:.2e} | {run['error'] / run['tolerance']:.2f} "
+                     f"| {run['rate']:.0f} | {run['accepted']}, {run['rejected']} "
+                     f"({run['rejected'] / (run['accepted'] + run['rejected']):.1%}) | "
+                     f"{run['min_step']:.2e} s | {versus} |")
+    lines += ["", "Fixed steps, native engine, 2 input derivatives: " + ", ".join(
+        f"{h * 1000:g} ms: {e:.2e} at {rate:.0f} points/s" for h, e, rate in fixed) + ".", ""]
+    return lines
 
 
 def report(r) -> str:
@@ -143,6 +201,8 @@ def report(r) -> str:
     for n in names:
         lines.append(f"| {n} | " + " | ".join(rate_at_error(curves[n], t) for t in r["targets"]) + " |")
     lines += ["", "![points/s against coupling error](coupled_sweep_curves.png)", ""]
+    if r.get("tolerances"):
+        lines += tolerance_report(r)
     return "\n".join(lines)
 
 
@@ -189,6 +249,12 @@ def main():
                 (step, errors[step],
                  r["rates"][name] if step == 1e-3 else system_rate(fmu, motor, points, tmp, engine, step))
                 for step in STEPS]
+        print("bench-coupled-sweep: a coupling tolerance", flush=True)
+        best = engine_name("native", 2)
+        fine = coupling_errors(fmu, motor, tmp, ("native", 2), steps=FINE_STEPS)
+        r["fixed_native_2"] = [(h, fine[h], system_rate(fmu, motor, points, tmp, step=h))
+                               for h in FINE_STEPS] + r["curves"][best]
+        r["tolerances"] = tolerance_runs(fmu, motor, points, tmp)
     write_results(out, r, report(r))
     plot(r, out / "coupled_sweep_curves.png")
 

@@ -9,7 +9,8 @@ from typing import Callable, NotRequired, TypedDict
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["InputTable", "MetricPlan", "SeriesPlan", "Plan", "PointResult", "Batch",
+__all__ = ["InputTable", "MetricPlan", "SeriesPlan", "Plan", "CouplingRecord", "PointResult",
+           "Batch",
            "BatchFunction", "PrepareFunction", "Rows", "Points"]
 
 # A batch's parameter values, one row per point (float64), and the points' indices.
@@ -46,10 +47,21 @@ class Plan(TypedDict):
     timeout_s: float | None
 
 
+class CouplingRecord(TypedDict):
+    """A coupled point's communication steps, with a coupling tolerance: the largest
+    estimate of an accepted step (in units of the connections' scales), the accepted and
+    rejected steps and the smallest accepted one (None before any)."""
+    worst_estimate: float
+    accepted: int
+    rejected: int
+    min_step: float | None
+
+
 class PointResult(TypedDict):
     """One point's outcome: ``status`` ok, or why not (``message``); the metrics in the
     plan's order (None where the run did not get far enough); the series' rows
-    (t, variables…) when the plan keeps a series; ``worker`` once a pool has placed it."""
+    (t, variables…) when the plan keeps a series; ``coupling`` for a system with a coupling
+    tolerance; ``worker`` once a pool has placed it."""
     status: str
     message: str
     metrics: list[float | None]
@@ -57,6 +69,7 @@ class PointResult(TypedDict):
     steps: int | None
     wall_s: float | None
     series: NotRequired[npt.NDArray[np.float64]]
+    coupling: NotRequired[CouplingRecord | None]
     worker: NotRequired[str]
 
 

@@ -27,7 +27,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from .records import Points
+from .records import PointResult, Points
 
 __all__ = ["ResultStore", "FORMAT", "versions"]
 
@@ -38,6 +38,21 @@ def _text_columns(table: pa.Table) -> list[str]:
     """Dictionary pages only for text: on floats they cost 4× the write time for nothing."""
     return [f.name for f in table.schema
             if pa.types.is_string(f.type) or pa.types.is_dictionary(f.type)]
+
+
+def coupling_columns(results: list[PointResult]) -> dict[str, pa.Array]:
+    """The columns of a system with a coupling tolerance: each point's largest coupling
+    error estimate, its accepted and rejected communication steps and its smallest step
+    (null where the point reported none)."""
+    reports = [r.get("coupling") for r in results]
+
+    def column(key: str, kind: pa.DataType) -> pa.Array:
+        return pa.array([None if c is None else c[key] for c in reports], kind)  # type: ignore[literal-required]
+
+    return {"coupling_error": column("worst_estimate", pa.float64()),
+            "coupling_steps": column("accepted", pa.int64()),
+            "coupling_rejected": column("rejected", pa.int64()),
+            "coupling_min_step": column("min_step", pa.float64())}
 
 
 def atomic_write_table(table: pa.Table, path: pathlib.Path) -> None:

@@ -22,6 +22,7 @@ from .design import Design
 from .errors import SpecError
 from .records import Batch, PointResult, Points, Rows
 from .spec import Spec
+from .store import coupling_columns
 from .ssp import check_ssp
 from .study import Study, Target, load_spec
 
@@ -77,6 +78,8 @@ def _tables(spec: Spec, study: Study, names: list[str], rows: Rows,
     columns["steps"] = pa.array([r["steps"] for r in results], pa.int64())
     columns["wall_s"] = pa.array([r["wall_s"] for r in results], pa.float64())
     columns["worker"] = pa.array([batch["worker"]] * len(results), pa.string())
+    if spec.system is not None and spec.system.coupling_tolerance is not None:
+        columns.update(coupling_columns(results))
     series = None
     if spec.series_variables:
         runs = [(int(p), r["series"]) for p, r in zip(points, results) if "series" in r]

@@ -7,6 +7,7 @@ FMUs) and connections from an output of one to an input of another::
 
     engine = "native"          # default; or "container"
     input_derivatives = 2      # native only: 0 holds inputs over a step
+    coupling_tolerance = 1e-4  # native only: the system chooses its communication steps
 
 The system runs in the native runner, with no Python per communication step, by one of
 two engines:
@@ -18,6 +19,13 @@ two engines:
   ``input_derivatives``: the target then moves its input along the source's Taylor
   polynomial over the step instead of holding it, and the coupling error falls as H^(k+1)
   instead of H.
+  With ``coupling_tolerance`` the native engine chooses each communication step itself,
+  inside each step of the scenario's grid, from an estimate of the coupling error (how
+  far each source's output drifted from what its target was given over the step, in
+  units of max(1, its largest |value|)); a step whose estimate exceeds the tolerance is
+  taken again, shorter, from every component's saved FMU state, so every component must
+  be able to save and restore it (``canGetAndSetFMUstate``). Each point then reports its
+  largest estimate and its accepted and rejected steps.
 - ``container``: a container FMU (fmu-manipulation-toolbox's, whose compiled master holds
   each input over the step) built once per sweep and run as one FMU.
 
@@ -46,6 +54,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import SpecError
+from .fields import finite
 from .fmu import Archive, local_runner, open_for_checks
 from .native import NativeRunner, RunnerError
 
@@ -74,13 +83,14 @@ class System:
     connections: list[Connection]
     engine: str = "native"
     input_derivatives: int = 2
+    coupling_tolerance: float | None = None
 
     # --- the spec's fields ---------------------------------------------------------------
     @staticmethod
     def of(table: object, base_dir: pathlib.Path) -> System:
         if not isinstance(table, dict):
             raise SpecError("system", "must be a table with components and connections")
-        fields = {"components", "connections", "engine", "input_derivatives"}
+        fields = {"components", "connections", "engine", "input_derivatives", "coupling_tolerance"}
         unknown = sorted(set(table) - fields)
         if unknown:
             raise SpecError(f"system.{unknown[0]}", "unknown field; expected " + ", ".join(sorted(fields)))
@@ -93,6 +103,7 @@ class System:
         if engine == "container" and derivatives != 0:
             raise SpecError("system.input_derivatives", "the container holds inputs over a step: "
                                                         "only 0 with engine = \"container\"")
+        tolerance = _coupling_tolerance(table.get("coupling_tolerance"), engine)
         components = table.get("components")
         if not isinstance(components, dict) or not components:
             raise SpecError("system.components", "must name at least one component: name = \"file.fmu\"")
@@ -110,12 +121,19 @@ class System:
             raise SpecError("system.connections", "must be a list of [\"component.output\", "
                                                   "\"component.input\"] pairs")
         parsed = [_connection(i, c, paths) for i, c in enumerate(connections)]
-        return System(paths, parsed, engine, derivatives)
+        return System(paths, parsed, engine, derivatives, tolerance)
 
     # --- checks against the components -------------------------------------------------
     def check(self) -> dict[str, Any]:
         """Each component's model description; each connection checked against them."""
         descriptions = {name: _description(name, path) for name, path in self.components.items()}
+        if self.coupling_tolerance is not None:
+            for name, description in descriptions.items():
+                if not description.coSimulation.canGetAndSetFMUstate:
+                    raise SpecError(f"system.components.{name}",
+                                    "system.coupling_tolerance takes a step again from every "
+                                    "component's saved state, and this FMU cannot save its "
+                                    "state (canGetAndSetFMUstate is false)")
         fed: dict[tuple[str, str], int] = {}
         for i, c in enumerate(self.connections):
             where = f"system.connections[{i}]"
@@ -147,6 +165,8 @@ class System:
             h.update(name.encode() + b"\0" + hashlib.sha256(self.components[name].read_bytes()).digest())
         h.update(json.dumps([str(c) for c in self.connections]).encode())
         h.update(f"{self.engine}|{self.input_derivatives}".encode())
+        if self.coupling_tolerance is not None:
+            h.update(f"|{self.coupling_tolerance!r}".encode())
         return h.hexdigest()
 
     def build(self, step: float) -> Archive:
@@ -171,6 +191,8 @@ class System:
                             for c in order],
             "input_derivatives": self.input_derivatives,
         }
+        if self.coupling_tolerance is not None:
+            layout["coupling_tolerance"] = self.coupling_tolerance
         buffer = io.BytesIO()
         with zipfile.ZipFile(buffer, "w", zipfile.ZIP_STORED) as archive:
             archive.writestr("system.json", json.dumps(layout, indent=1))
@@ -207,6 +229,19 @@ class System:
                 raise SpecError("system", f"the container could not be built: {e}") from None
             data = (directory / "system.fmu").read_bytes()
         return Archive(data, "system.fmu")
+
+
+def _coupling_tolerance(value: object, engine: str) -> float | None:
+    if value is None:
+        return None
+    where = "system.coupling_tolerance"
+    if engine != "native":
+        raise SpecError(where, "only the native engine chooses its steps: not with "
+                               "engine = \"container\"")
+    tolerance = finite(value, where)
+    if not 0 < tolerance < 1:
+        raise SpecError(where, f"must be a number in (0, 1), got {tolerance}")
+    return tolerance
 
 
 @contextlib.contextmanager

@@ -45,6 +45,8 @@ pub struct Description {
     pub can_interpolate_inputs: bool,
     /// The highest order of fmi2GetRealOutputDerivatives (0: none).
     pub max_output_derivative_order: u32,
+    /// Whether the FMU can save and restore its state (canGetAndSetFMUstate).
+    pub can_get_and_set_state: bool,
     pub variables: Vec<Variable>,
 }
 
@@ -65,6 +67,7 @@ impl Description {
             can_handle_variable_step: false,
             can_interpolate_inputs: false,
             max_output_derivative_order: 0,
+            can_get_and_set_state: false,
             variables: Vec::new(),
         };
         // The <ScalarVariable> being read: its type comes from the child element.
@@ -88,6 +91,8 @@ impl Description {
                                     .is_some_and(|v| v == "true");
                             description.can_interpolate_inputs =
                                 attribute(e, "canInterpolateInputs")?.is_some_and(|v| v == "true");
+                            description.can_get_and_set_state =
+                                attribute(e, "canGetAndSetFMUstate")?.is_some_and(|v| v == "true");
                             description.max_output_derivative_order =
                                 attribute(e, "maxOutputDerivativeOrder")?
                                     .map_or(Ok(0), |v| v.parse())

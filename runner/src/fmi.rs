@@ -7,9 +7,9 @@ use std::path::Path;
 use std::rc::Rc;
 
 use fmi_sys::fmi2::{
-    self, fmi2CallbackFunctions, fmi2Component, fmi2Status_fmi2Discard, fmi2Status_fmi2Error,
-    fmi2Status_fmi2Fatal, fmi2Status_fmi2OK, fmi2Status_fmi2Pending, fmi2Status_fmi2Warning,
-    fmi2Type_fmi2CoSimulation, Fmi2Binding,
+    self, fmi2CallbackFunctions, fmi2Component, fmi2FMUstate, fmi2Status_fmi2Discard,
+    fmi2Status_fmi2Error, fmi2Status_fmi2Fatal, fmi2Status_fmi2OK, fmi2Status_fmi2Pending,
+    fmi2Status_fmi2Warning, fmi2Type_fmi2CoSimulation, Fmi2Binding,
 };
 
 use crate::description::Description;
@@ -120,6 +120,15 @@ impl Library {
     }
 }
 
+impl Library {
+    /// Whether the binary exports fmi2GetFMUstate, fmi2SetFMUstate and fmi2FreeFMUstate
+    /// (whatever its description declares).
+    pub fn exports_state(&self) -> bool {
+        let b = &self.binding;
+        b.fmi2GetFMUstate.is_ok() && b.fmi2SetFMUstate.is_ok() && b.fmi2FreeFMUstate.is_ok()
+    }
+}
+
 /// The functions a co-simulation run calls; the others may be absent.
 fn missing_functions(b: &Fmi2Binding) -> Vec<&'static str> {
     let present = [
@@ -188,6 +197,9 @@ macro_rules! getter {
 pub struct Instance {
     library: Rc<Library>,
     component: fmi2Component,
+    /// The one FMU state this instance keeps (`save_state`), null until it is first taken;
+    /// freed with the instance.
+    saved: fmi2FMUstate,
     // The FMU may keep this pointer for its whole life (FMI 2.0 does not say it copies):
     // boxed so that its address is stable.
     _callbacks: Box<fmi2CallbackFunctions>,
@@ -221,6 +233,7 @@ impl Instance {
         Ok(Instance {
             library: Rc::clone(library),
             component,
+            saved: std::ptr::null_mut(),
             _callbacks: callbacks,
         })
     }
@@ -298,6 +311,29 @@ impl Instance {
         })
     }
 
+    /// Take the FMU's state now into the instance's one saved state (the FMU overwrites
+    /// the state it gave before, as FMI 2.0 lets a master ask); Error when the FMU does not
+    /// export the function.
+    pub fn save_state(&mut self) -> Status {
+        let Ok(get) = self.b().fmi2GetFMUstate.as_ref() else {
+            return Status::Error;
+        };
+        // SAFETY: a live component; `saved` is null or a state this component gave.
+        Status::from_raw(unsafe { get(self.component, &mut self.saved) })
+    }
+
+    /// Put the FMU back into the state last saved; Error when none was saved.
+    pub fn restore_state(&mut self) -> Status {
+        let Ok(set) = self.b().fmi2SetFMUstate.as_ref() else {
+            return Status::Error;
+        };
+        if self.saved.is_null() {
+            return Status::Error;
+        }
+        // SAFETY: a live component and a state it gave.
+        Status::from_raw(unsafe { set(self.component, self.saved) })
+    }
+
     pub fn do_step(&mut self, time: f64, step: f64) -> Status {
         // SAFETY: a live component; plain values.
         Status::from_raw(unsafe { self.b().fmi2DoStep(self.component, time, step, 1) })
@@ -306,6 +342,10 @@ impl Instance {
 
 impl Drop for Instance {
     fn drop(&mut self) {
+        if let (false, Ok(free)) = (self.saved.is_null(), self.b().fmi2FreeFMUstate.as_ref()) {
+            // SAFETY: a state this live component gave, freed once, before the component.
+            unsafe { free(self.component, &mut self.saved) };
+        }
         // SAFETY: the component was created by this binding and is freed exactly once.
         unsafe { self.b().fmi2FreeInstance(self.component) }
     }

@@ -1,11 +1,13 @@
 //! The one place in the project that loads an FMI 2.0 co-simulation FMU: unpack the
 //! archive ([`archive`]), read its description with quick-xml ([`description`]), load its
 //! binary and own its instances, freed on drop ([`fmi`]); a coupled system of such FMUs
-//! is stepped as one unit ([`system`], [`unit`]). The `fmu-runner` binary serves
+//! is stepped as one unit ([`system`], [`unit`]), its communication steps chosen by an
+//! error estimate when it has a coupling tolerance ([`coupling`]). The `fmu-runner` binary serves
 //! sweep points over it ([`protocol`], [`plan`], [`point`], [`metrics`]); the benchmark
 //! harness drives the packed FMU through the same types.
 
 pub mod archive;
+pub mod coupling;
 pub mod description;
 pub mod fmi;
 pub mod messages;

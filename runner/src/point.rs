@@ -4,6 +4,7 @@
 
 use std::time::Instant;
 
+use crate::coupling::CouplingReport;
 use crate::description::Description;
 use crate::fmi::Status;
 use crate::messages;
@@ -44,6 +45,8 @@ pub struct PointResult {
     pub wall_s: f64,
     /// Rows of (t, variables…), flattened.
     pub series: Vec<f64>,
+    /// What the steps reported of the coupling (a system with a coupling tolerance).
+    pub coupling: Option<CouplingReport>,
 }
 
 /// The values one request sets at every point, by type, with the point's own columns.
@@ -372,8 +375,10 @@ impl Runner {
             steps: 0,
             wall_s: 0.0,
             series: Vec::new(),
+            coupling: None,
         };
         let ended = self.simulate(plan, assignments, row, &mut result, started);
+        result.coupling = self.instance.as_ref().and_then(Unit::coupling);
         let said = messages::take();
         match ended {
             Ok(()) => {

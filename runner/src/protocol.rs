@@ -170,6 +170,7 @@ impl Session {
                     "steps": r.steps,
                     "wall_s": r.wall_s,
                     "series_rows": r.series.len().checked_div(width).unwrap_or(0),
+                    "coupling": r.coupling,
                 }),
             )?;
             if !r.series.is_empty() {

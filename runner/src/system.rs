@@ -16,6 +16,10 @@
 //! derivatives of orders 1 to k (at most the source's maximum): the target then moves its
 //! input along the source's Taylor polynomial over the step instead of holding it, which
 //! raises the coupling's order of accuracy from 1 to k + 1.
+//!
+//! With `"coupling_tolerance": tol` the system chooses its communication steps itself
+//! inside each step the master asks for ([`crate::coupling`]): every component must then
+//! be able to save and restore its FMU state, so that a rejected step can be taken again.
 
 use std::ffi::CString;
 use std::path::Path;
@@ -24,6 +28,7 @@ use std::rc::Rc;
 use serde::Deserialize;
 
 use crate::archive::Unpacked;
+use crate::coupling::{drift, Controller, CouplingReport, Verdict};
 use crate::description::{Description, Variable};
 use crate::fmi::{Instance, Library, Status};
 use crate::plan::type_group;
@@ -36,6 +41,8 @@ struct SystemFile {
     connections: Vec<ConnectionFile>,
     #[serde(default)]
     input_derivatives: usize,
+    #[serde(default)]
+    coupling_tolerance: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -83,6 +90,7 @@ pub struct SystemLibrary {
     /// By the system's value reference (the index).
     routes: Vec<Route>,
     links: Vec<Link>,
+    coupling_tolerance: Option<f64>,
 }
 
 impl SystemLibrary {
@@ -176,15 +184,43 @@ impl SystemLibrary {
             can_handle_variable_step: descriptions.iter().all(|d| d.can_handle_variable_step),
             can_interpolate_inputs: false,
             max_output_derivative_order: 0,
+            can_get_and_set_state: false,
             variables,
         };
+        if let Some(tolerance) = file.coupling_tolerance {
+            check_rollback(tolerance, &components, &descriptions)?;
+        }
         let system = SystemLibrary {
             components,
             routes,
             links,
+            coupling_tolerance: file.coupling_tolerance,
         };
         Ok((description, Rc::new(system)))
     }
+}
+
+/// A coupling tolerance needs a positive tolerance and components that can roll back.
+fn check_rollback(
+    tolerance: f64,
+    components: &[Component],
+    descriptions: &[Description],
+) -> Result<(), String> {
+    if !(tolerance.is_finite() && tolerance > 0.0) {
+        return Err(format!(
+            "coupling_tolerance must be a finite number > 0, got {tolerance}"
+        ));
+    }
+    for (c, d) in components.iter().zip(descriptions) {
+        if !(d.can_get_and_set_state && c.library.exports_state()) {
+            return Err(format!(
+                "component {}: a coupling tolerance needs components that can save and \
+                 restore their FMU state (canGetAndSetFMUstate), and this one cannot",
+                c.name.to_string_lossy()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The component and variable that `end` ("component.variable") names.
@@ -248,6 +284,11 @@ fn link(
 pub struct SystemInstance {
     system: Rc<SystemLibrary>,
     instances: Vec<Instance>,
+    /// With a coupling tolerance: the step-size controller, and per connection the value
+    /// and derivatives its target was given at the step's start and its scale.
+    controller: Option<Controller>,
+    given: Vec<[f64; 3]>,
+    scales: Vec<f64>,
 }
 
 /// The first status that stops a run, else the worst; `calls` run in order until one stops.
@@ -272,9 +313,20 @@ impl SystemInstance {
                     .map_err(|e| format!("component {}: {e}", c.name.to_string_lossy()))
             })
             .collect::<Result<_, _>>()?;
+        let fewest = system
+            .links
+            .iter()
+            .map(|l| l.derivatives)
+            .min()
+            .unwrap_or(0);
         Ok(Self {
             system: Rc::clone(system),
             instances,
+            controller: system
+                .coupling_tolerance
+                .map(|tol| Controller::new(tol, fewest)),
+            given: vec![[0.0; 3]; system.links.len()],
+            scales: vec![1.0; system.links.len()],
         })
     }
 
@@ -328,8 +380,9 @@ impl SystemInstance {
         })
     }
 
-    /// Pass the value (and derivatives) of one connection's output to its input.
-    fn pass(&mut self, link: Link) -> Status {
+    /// Pass the value (and derivatives) of one connection's output to its input; `given`
+    /// receives the value and derivatives passed.
+    fn pass(&mut self, link: Link, given: &mut [f64; 3]) -> Status {
         let (from, to) = (link.from, link.to);
         let (mut real, mut whole) = ([0.0], [0]);
         let source = &mut self.instances[from.component];
@@ -349,6 +402,7 @@ impl SystemInstance {
             _ => (target.set_boolean(&[to.vr], &whole), "fmi2SetBoolean"),
         };
         let written = self.blame(to.component, call, written);
+        given[0] = real[0];
         if !written.proceeds() || link.derivatives == 0 {
             return in_turn([read, written]);
         }
@@ -359,6 +413,7 @@ impl SystemInstance {
         if !got.proceeds() {
             return got;
         }
+        given[1..=rates.len()].copy_from_slice(rates);
         let set = self.instances[to.component].set_input_derivatives(to.vr, rates);
         let set = self.blame(to.component, "fmi2SetRealInputDerivatives", set);
         in_turn([read, written, got, set])
@@ -397,6 +452,10 @@ fn blame(system: &SystemLibrary, component: usize, call: &str, status: Status) -
 
 impl Unit for SystemInstance {
     fn reset(&mut self) -> Status {
+        if let Some(controller) = self.controller.as_mut() {
+            controller.restart();
+        }
+        self.scales.iter_mut().for_each(|s| *s = 1.0);
         self.each("fmi2Reset", Instance::reset)
     }
 
@@ -444,14 +503,123 @@ impl Unit for SystemInstance {
         self.get((vr, values, 2), Instance::get_boolean)
     }
 
-    /// Pass every connection at `time`, then step every component to `time + step`.
+    /// Without a coupling tolerance: pass every connection at `time`, then step every
+    /// component to `time + step`. With one: as many controlled steps as it takes to reach
+    /// `time + step`.
     fn do_step(&mut self, time: f64, step: f64) -> Status {
-        let links = Rc::clone(&self.system);
-        let passed = in_turn(links.links.iter().map(|&link| self.pass(link)));
+        if self.controller.is_some() {
+            return self.controlled_steps(time, step);
+        }
+        self.jacobi_step(time, step)
+    }
+
+    fn coupling(&self) -> Option<CouplingReport> {
+        self.controller.as_ref().map(Controller::report)
+    }
+}
+
+impl SystemInstance {
+    /// Pass every connection at `time` (each link's given values kept), then step every
+    /// component to `time + step`.
+    fn jacobi_step(&mut self, time: f64, step: f64) -> Status {
+        let system = Rc::clone(&self.system);
+        let mut given = std::mem::take(&mut self.given);
+        let passed = in_turn(
+            system
+                .links
+                .iter()
+                .zip(given.iter_mut())
+                .map(|(&link, g)| self.pass(link, g)),
+        );
+        self.given = given;
         if !passed.proceeds() {
             return passed;
         }
         in_turn([passed, self.each("fmi2DoStep", |i| i.do_step(time, step))])
+    }
+
+    /// Steps chosen by the controller from `time` to exactly `time + grid`, each tried
+    /// from saved FMU states and taken again, shorter, when its estimate is too large.
+    fn controlled_steps(&mut self, time: f64, grid: f64) -> Status {
+        let end = time + grid;
+        let mut t = time;
+        let mut worst = Status::Ok;
+        while t < end {
+            let h = self.controller().next_step(t, end, grid);
+            let lands = h == end - t;
+            let saved = self.each("fmi2GetFMUstate", Instance::save_state);
+            if !saved.proceeds() {
+                return saved;
+            }
+            let stepped = self.jacobi_step(t, h);
+            let estimate = match stepped {
+                Status::Discard => f64::INFINITY,
+                s if !s.proceeds() => return s,
+                _ => match self.estimate(h) {
+                    Ok(e) => e,
+                    Err(s) => return s,
+                },
+            };
+            match self.controller_mut().judge(h, estimate, grid) {
+                Verdict::Accept => {
+                    worst = worst.max(stepped).max(saved);
+                    self.widen_scales();
+                    t = if lands { end } else { t + h };
+                }
+                Verdict::Reject => {
+                    let restored = self.each("fmi2SetFMUstate", Instance::restore_state);
+                    if !restored.proceeds() {
+                        return restored;
+                    }
+                }
+                Verdict::GiveUp => return self.give_up(t, estimate),
+            }
+        }
+        worst
+    }
+
+    /// The largest drift of a Real connection over the step just taken, in its scale.
+    fn estimate(&mut self, h: f64) -> Result<f64, Status> {
+        let system = Rc::clone(&self.system);
+        let mut largest = 0.0_f64;
+        for (k, link) in system.links.iter().enumerate() {
+            if link.from.group != 0 {
+                continue;
+            }
+            let mut now = [0.0];
+            let read = self.instances[link.from.component].get_real(&[link.from.vr], &mut now);
+            let read = self.blame(link.from.component, "fmi2GetReal", read);
+            if !read.proceeds() {
+                return Err(read);
+            }
+            let d = drift(&self.given[k], link.derivatives, h, now[0]);
+            largest = largest.max(d / self.scales[k].max(now[0].abs()));
+        }
+        Ok(largest)
+    }
+
+    /// Each connection's scale grows to the largest |value| passed so far.
+    fn widen_scales(&mut self) {
+        for (scale, given) in self.scales.iter_mut().zip(&self.given) {
+            *scale = scale.max(given[0].abs());
+        }
+    }
+
+    fn give_up(&self, t: f64, estimate: f64) -> Status {
+        let tolerance = self.controller().tolerance();
+        log::error!(
+            "the coupling error cannot be held to the tolerance {tolerance:e}: at t = {t} the \
+             smallest communication step still gives an estimate of {estimate:e}"
+        );
+        Status::Error
+    }
+
+    fn controller(&self) -> &Controller {
+        self.controller.as_ref().expect("a controlled system")
+    }
+
+    fn controller_mut(&mut self) -> &mut Controller {
+        self.controller.as_mut().expect("a controlled system")
     }
 }
 

@@ -4,6 +4,7 @@
 
 use std::rc::Rc;
 
+use crate::coupling::CouplingReport;
 use crate::fmi::{Instance, Library, Status};
 use crate::system::{SystemInstance, SystemLibrary};
 use crate::unit::{each_call, Unit};
@@ -47,4 +48,11 @@ macro_rules! dispatch {
 
 impl Unit for Running {
     each_call!(dispatch);
+
+    fn coupling(&self) -> Option<CouplingReport> {
+        match self {
+            Running::Fmu(unit) => unit.coupling(),
+            Running::System(unit) => unit.coupling(),
+        }
+    }
 }

@@ -2,6 +2,7 @@
 //! FMU's instance implements here and a coupled system ([`crate::system`]) beside it. The
 //! point's master loop, metrics and series do not tell them apart ([`crate::target`]).
 
+use crate::coupling::CouplingReport;
 use crate::fmi::{Instance, Status};
 
 /// The FMI 2.0 co-simulation calls of a point's master loop.
@@ -17,6 +18,11 @@ pub trait Unit {
     fn get_integer(&mut self, vr: &[u32], values: &mut [i32]) -> Status;
     fn get_boolean(&mut self, vr: &[u32], values: &mut [i32]) -> Status;
     fn do_step(&mut self, time: f64, step: f64) -> Status;
+    /// What a point's steps reported of the coupling, for a system with a coupling
+    /// tolerance; None for anything else.
+    fn coupling(&self) -> Option<CouplingReport> {
+        None
+    }
 }
 
 /// `$implement!` over every call of [`Unit`], written once here.

@@ -110,6 +110,45 @@ def test_steps_along_input_derivatives_are_exact(motor):
         assert math.isclose(second, rate_of_rate, rel_tol=1e-11)
 
 
+def _run_along(motor, steps):
+    """Steps of the given sizes from the motor's time, the inputs moving along derivatives
+    set before each; the current after each step."""
+    currents = []
+    for h in steps:
+        motor.setRealInputDerivatives([motor.vr["omega"], motor.vr["voltage"]], [1, 1],
+                                      [30.0, -4.0])
+        motor.doStep(motor.time, h)
+        motor.time += h
+        currents.append(motor.getReal([motor.vr["current"]])[0])
+    return currents
+
+
+def test_a_restored_state_steps_again_to_the_same_bits(motor):
+    """The state a master takes before a step, set back after it, makes the step again to
+    the last bit, also through its serialized bytes; a state from elsewhere is refused."""
+    motor.setupExperiment(startTime=0.0)
+    motor.enterInitializationMode()
+    motor.setReal([motor.vr["omega"]], [5.0])
+    motor.exitInitializationMode()
+    motor.time = 0.0
+    _run_along(motor, [0.002, 0.004])
+    saved, at = motor.getFMUstate(), motor.time
+    first = _run_along(motor, [0.003, 0.01])
+    motor.setFMUstate(saved)
+    motor.time = at
+    assert _run_along(motor, [0.003, 0.01]) == first
+    serialized = motor.serializeFMUstate(saved)
+    motor.freeFMUstate(saved)
+    restored = motor.deSerializeFMUstate(serialized)
+    motor.setFMUstate(restored)
+    motor.time = at
+    assert _run_along(motor, [0.003, 0.01]) == first
+    motor.freeFMUstate(restored)
+    with pytest.raises(FMICallException):
+        motor.deSerializeFMUstate(b"X" + bytes(serialized[1:]))
+    assert "not a state this FMU serialized" in motor.messages[-1]
+
+
 def test_bad_values_are_refused_by_name_and_change_nothing(motor):
     motor.setupExperiment(startTime=0.0)
     motor.enterInitializationMode()

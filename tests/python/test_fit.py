@@ -333,10 +333,12 @@ def test_the_command_line_refuses_a_bad_spec_by_field(fmu_path, tmp_path):
     assert "example:" in help_text and "[fit.parameters]" in help_text
 
 
-def test_a_coupled_system_fits_as_one_fmu(fmu_path, tmp_path):
+@pytest.mark.parametrize("coupling_tolerance", [None, 1e-7])
+def test_a_coupled_system_fits_as_one_fmu(fmu_path, tmp_path, coupling_tolerance):
     """A [system] of the DC motor and the mechanism: the motor's resistance and the load
     spring's damping from the mechanism's speed and the motor's current, measured with
-    noise; both 95 % intervals hold the truth."""
+    noise; both 95 % intervals hold the truth, at fixed communication steps and with the
+    steps chosen by a coupling tolerance (every run's steps then in its row)."""
     motor = packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
     system = {"components": {"motor": str(motor), "mechanism": str(fmu_path)},
               "connections": [["motor.torque", "mechanism.M_m"], ["mechanism.omega1", "motor.omega"]]}
@@ -350,16 +352,23 @@ def test_a_coupled_system_fits_as_one_fmu(fmu_path, tmp_path):
     rows = np.array(made["series"])
     rows[:, 1:] += np.random.default_rng(21).normal(0.0, [0.02, 0.05], size=rows[:, 1:].shape)
     write_csv(tmp_path / "measured.csv", rows, ("time", *columns))
+    if coupling_tolerance is not None:
+        system = dict(system, coupling_tolerance=coupling_tolerance)
+        scenario = dict(scenario, step=0.01)
     spec = {"system": system, "scenario": scenario,
             "data": {"file": str(tmp_path / "measured.csv"),
                      "sigma": {"mechanism.omega1": 0.02, "motor.current": 0.05}},
             "fit": {"parameters": {"motor.R": {"start": 1.0, "range": [0.1, 5.0]},
                                    "mechanism.d34": {"start": 0.3, "range": [0.0, 5.0]}}}}
-    summary = fit(spec, out=tmp_path / "out", serial=True, plots=False).summary
+    result = fit(spec, out=tmp_path / "out", serial=True, plots=False)
+    summary = result.summary
     assert summary["status"] == "converged"
     for name, true in {"motor.R": 0.6, "mechanism.d34": 0.8}.items():
         low, high = summary["parameters"][name]["ci95"]
         assert low <= true <= high, (name, low, high)
+    if coupling_tolerance is not None:
+        ok = result.points[result.points["status"] == "ok"]
+        assert (ok["coupling_error"] <= coupling_tolerance).all() and (ok["coupling_steps"] > 100).all()
 
 
 def test_every_mistake_of_a_fit_spec_is_reported_in_one_pass(fmu_path, truth_rows, tmp_path):

@@ -52,16 +52,34 @@ def test_latin_hypercube_over_the_geometry(fmu_path, tmp_path):
     assert (tmp_path / "plots" / "scatter.png").exists()
 
 
-def test_coupled_motor_and_mechanism(fmu_path, tmp_path):
-    """The [system] example, its components the FMUs under test: 400 coupled runs, all ok,
-    and the load spring's resonance where the motor's no-load speed V/k meets √(k34/J4)."""
+def _with_components(example, fmu_path, directory):
+    """The example with its components the FMUs under test."""
     motor = packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
-    text = (EXAMPLES / "coupled_motor.toml").read_text()
+    text = (EXAMPLES / example).read_text()
     text = text.replace('"../../target/fmu/DcMotor.fmu"', f'"{motor.resolve()}"')
     text = text.replace('"../../target/fmu/CyclicMechanism.fmu"', f'"{fmu_path.resolve()}"')
-    (tmp_path / "coupled.toml").write_text(text)
-    points, said = sweep(tmp_path / "coupled.toml", fmu_path, tmp_path / "out")
+    (directory / example).write_text(text)
+    return directory / example
+
+
+def test_coupled_motor_and_mechanism(fmu_path, tmp_path):
+    """The [system] example: 400 coupled runs, all ok, and the load spring's resonance
+    where the motor's no-load speed V/k meets √(k34/J4)."""
+    spec = _with_components("coupled_motor.toml", fmu_path, tmp_path)
+    points, said = sweep(spec, fmu_path, tmp_path / "out")
     assert len(points) == 400 and (points["status"] == "ok").all()
     assert "400 points" in said
+    worst = points.loc[points["omega1_ripple"].idxmax()]
+    assert 22.0 <= worst["motor.voltage"] <= 28.0 and worst["mechanism.d34"] == points["mechanism.d34"].min()
+
+
+def test_coupled_motor_with_a_coupling_tolerance(fmu_path, tmp_path):
+    """The same grid with a coupling tolerance: every point ok within it, its steps
+    reported, and the same resonance as at fixed steps."""
+    spec = _with_components("coupled_motor_tolerance.toml", fmu_path, tmp_path)
+    points, said = sweep(spec, fmu_path, tmp_path / "out")
+    assert len(points) == 400 and (points["status"] == "ok").all()
+    assert (points["coupling_error"] <= 1e-5).all() and (points["coupling_steps"] > 1000).all()
+    assert (points["coupling_rejected"] <= 0.1 * points["coupling_steps"]).all()
     worst = points.loc[points["omega1_ripple"].idxmax()]
     assert 22.0 <= worst["motor.voltage"] <= 28.0 and worst["mechanism.d34"] == points["mechanism.d34"].min()

@@ -176,7 +176,29 @@ def _bad_systems(fmu_path, motor_path, tmp):
             "system.input_derivatives",
             lambda s: s["system"].update(engine="container", input_derivatives=1)),
         "an unknown field": ("system.solver", lambda s: s["system"].update(solver="rk4")),
+        "a coupling tolerance of zero": ("system.coupling_tolerance",
+                                         lambda s: s["system"].update(coupling_tolerance=0.0)),
+        "a coupling tolerance for the container": (
+            "system.coupling_tolerance",
+            lambda s: s["system"].update(engine="container", input_derivatives=0,
+                                         coupling_tolerance=1e-4)),
+        "a coupling tolerance with a component that cannot roll back": (
+            "system.components.motor",
+            lambda s: s["system"].update(coupling_tolerance=1e-4, components={
+                "motor": str(without_state(motor_path, tmp)), "mechanism": str(fmu_path)})),
     }
+
+
+def without_state(fmu, directory):
+    """A copy of `fmu` whose description says it cannot save its state."""
+    path = directory / "stateless.fmu"
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(path, "w") as copy:
+        for item in source.infolist():
+            data = source.read(item)
+            if item.filename == "modelDescription.xml":
+                data = data.replace(b'canGetAndSetFMUstate="true"', b'canGetAndSetFMUstate="false"')
+            copy.writestr(item, data)
+    return path
 
 
 BAD = list(_bad_systems(None, None, pathlib.Path(".")))
@@ -280,3 +302,42 @@ def test_the_coupling_error_against_the_monolithic_reference_has_the_engines_ord
     order = np.log2(errors[1] / errors[0])
     assert orders[0] < order < orders[1], errors
     assert errors[0] < most, errors
+
+
+@pytest.mark.parametrize("tolerance", [1e-4, 1e-6])
+def test_a_coupling_tolerance_holds_the_error_and_reports_the_steps(
+        fmu_path, motor_path, tmp_path, tolerance):
+    """With a coupling tolerance the system chooses its communication steps inside a grid of
+    10 ms: against the monolithic reference over 1 s, the worst scaled error stays within
+    3 × the tolerance at every grid point, and each row reports the steps taken."""
+    import reference
+    p = reference.Params(**MECHANISM, d34=1.0)
+    names = [f"mechanism.{n}" for n in ("phi1", "phi2", "phi3", "phi4", "omega1", "omega2",
+                                        "omega3", "omega4")] + ["motor.current"]
+    spec = system_spec(fmu_path, motor_path, stop=1.0, design={"mechanism.d34": {"values": [1.0]}})
+    spec["system"]["coupling_tolerance"] = tolerance
+    spec["scenario"]["step"] = 0.01
+    spec["outputs"]["series"] = {"variables": names}
+    results = run_sweep(spec, out=tmp_path / "out", serial=True, progress=False, plots=False)
+    row = results.points.iloc[0]
+    assert row["status"] == "ok", row["message"]
+    series = results.series()
+    columns = [series[series["variable"] == v].sort_values("time") for v in names]
+    times = columns[0]["time"].to_numpy()
+    assert np.allclose(times, np.arange(101) * 0.01)
+    mine = np.column_stack([c["value"].to_numpy() for c in columns])
+    exact = reference.solve_with_motor(p, reference.Motor(), times, rtol=1e-11)
+    error = float((np.abs(mine - exact) / np.maximum(1.0, np.abs(exact).max(axis=0))).max())
+    assert error <= 3 * tolerance, error
+    # More steps than the grid's, each estimate within the tolerance, few rejected.
+    assert row["coupling_steps"] > 100 and row["coupling_error"] <= tolerance
+    assert row["coupling_rejected"] <= 0.1 * row["coupling_steps"]
+    assert 0 < row["coupling_min_step"] < 0.01
+
+
+def test_without_a_coupling_tolerance_the_rows_are_as_before(fmu_path, motor_path, tmp_path):
+    """No tolerance: no coupling columns, and the steps are the grid's."""
+    spec = system_spec(fmu_path, motor_path, stop=0.5)
+    points = run_sweep(spec, out=tmp_path / "out", serial=True, progress=False, plots=False).points
+    assert not any(c.startswith("coupling_") for c in points.columns)
+    assert (points["steps"] == 500).all()

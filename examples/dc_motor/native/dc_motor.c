@@ -312,8 +312,105 @@ fmi2Status fmi2SetRealInputDerivatives(fmi2Component c, const fmi2ValueReference
     return fmi2OK;
 }
 
+/* The FMU state: everything a step reads and writes (the values, the inputs' course, the
+ * time and the lifecycle state), not the master's callbacks or the instance's name. A
+ * master that rejects a communication step restores it and steps again, shorter. */
+typedef struct {
+    double values[N_VARIABLES];
+    double input_derivatives[2][2];
+    double elapsed;
+    double time;
+    double state;
+} Snapshot;
+
+/* Serialized: this tag, then the snapshot's doubles in this platform's byte order. */
+static const char SNAPSHOT_TAG[8] = {'D', 'C', 'M', 'O', 'T', 'O', 'R', '1'};
+enum { SNAPSHOT_DOUBLES = sizeof(Snapshot) / sizeof(double),
+       SERIALIZED_SIZE = sizeof SNAPSHOT_TAG + sizeof(Snapshot) };
+
+static void take(const Motor *m, Snapshot *s) {
+    memcpy(s->values, m->values, sizeof s->values);
+    memcpy(s->input_derivatives, m->input_derivatives, sizeof s->input_derivatives);
+    s->elapsed = m->elapsed;
+    s->time = m->time;
+    s->state = (double)m->state;
+}
+
+fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *out) {
+    Motor *m = c;
+    Snapshot *s;
+    if (!m) return fmi2Error;
+    if (!out) return refuse(m, "fmi2GetFMUstate", "FMUstate is NULL");
+    /* A state the master passes back is overwritten, as the standard has it. */
+    s = *out ? (Snapshot *)*out : malloc(sizeof *s);
+    if (!s) return refuse(m, "fmi2GetFMUstate", "out of memory");
+    take(m, s);
+    *out = s;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate state) {
+    Motor *m = c;
+    const Snapshot *s = state;
+    if (!m) return fmi2Error;
+    if (!s) return refuse(m, "fmi2SetFMUstate", "FMUstate is NULL");
+    memcpy(m->values, s->values, sizeof m->values);
+    memcpy(m->input_derivatives, s->input_derivatives, sizeof m->input_derivatives);
+    m->elapsed = s->elapsed;
+    m->time = s->time;
+    m->state = (State)s->state;
+    return fmi2OK;
+}
+
+fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *state) {
+    if (!c) return fmi2Error;
+    if (state) {
+        free(*state);
+        *state = NULL;
+    }
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate state, size_t *size) {
+    if (!c) return fmi2Error;
+    if (!state || !size) return refuse(c, "fmi2SerializedFMUstateSize", "an argument is NULL");
+    *size = SERIALIZED_SIZE;
+    return fmi2OK;
+}
+
+fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate state, fmi2Byte bytes[], size_t size) {
+    if (!c) return fmi2Error;
+    if (!state || !bytes) return refuse(c, "fmi2SerializeFMUstate", "an argument is NULL");
+    if (size < SERIALIZED_SIZE) return refuse(c, "fmi2SerializeFMUstate", "the buffer is too small");
+    memcpy(bytes, SNAPSHOT_TAG, sizeof SNAPSHOT_TAG);
+    memcpy(bytes + sizeof SNAPSHOT_TAG, state, sizeof(Snapshot));
+    return fmi2OK;
+}
+
+/* Only what this FMU wrote: the tag, the size, finite values and a lifecycle state. */
+fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte bytes[], size_t size,
+                                   fmi2FMUstate *out) {
+    Snapshot read, *s;
+    const double *field = (const double *)&read;
+    size_t i;
+    if (!c) return fmi2Error;
+    if (!bytes || !out) return refuse(c, "fmi2DeSerializeFMUstate", "an argument is NULL");
+    if (size != SERIALIZED_SIZE || memcmp(bytes, SNAPSHOT_TAG, sizeof SNAPSHOT_TAG) != 0)
+        return refuse(c, "fmi2DeSerializeFMUstate", "not a state this FMU serialized");
+    memcpy(&read, bytes + sizeof SNAPSHOT_TAG, sizeof read);
+    for (i = 0; i < SNAPSHOT_DOUBLES; i++)
+        if (!isfinite(field[i])) return refuse(c, "fmi2DeSerializeFMUstate", "a value is not finite");
+    if (read.state != floor(read.state) || read.state < INSTANTIATED || read.state > TERMINATED)
+        return refuse(c, "fmi2DeSerializeFMUstate", "not a state this FMU serialized");
+    s = malloc(sizeof *s);
+    if (!s) return refuse(c, "fmi2DeSerializeFMUstate", "out of memory");
+    *s = read;
+    *out = s;
+    return fmi2OK;
+}
+
 /* What this motor does not have: no Integer, Boolean or String variables (an empty request
- * succeeds), no FMU state, no directional derivatives, no asynchronous steps. */
+ * succeeds), no directional derivatives, no asynchronous steps. */
 #define NO_VARIABLES(fn, T, qualifier)                                                          \
     fmi2Status fn(fmi2Component c, const fmi2ValueReference vr[], size_t n, qualifier T value[]) { \
         (void)vr;                                                                               \
@@ -333,12 +430,6 @@ NO_VARIABLES(fmi2SetString, fmi2String, const)
         return c ? refuse(c, #fn, "not supported by this FMU (see its modelDescription.xml)")    \
                  : fmi2Error;                                                                   \
     }
-UNSUPPORTED(fmi2GetFMUstate, fmi2FMUstate *s)
-UNSUPPORTED(fmi2SetFMUstate, fmi2FMUstate s)
-UNSUPPORTED(fmi2FreeFMUstate, fmi2FMUstate *s)
-UNSUPPORTED(fmi2SerializedFMUstateSize, fmi2FMUstate s, size_t *size)
-UNSUPPORTED(fmi2SerializeFMUstate, fmi2FMUstate s, fmi2Byte b[], size_t size)
-UNSUPPORTED(fmi2DeSerializeFMUstate, const fmi2Byte b[], size_t size, fmi2FMUstate *s)
 UNSUPPORTED(fmi2GetDirectionalDerivative, const fmi2ValueReference u[], size_t nu,
             const fmi2ValueReference k[], size_t nk, const fmi2Real dk[], fmi2Real du[])
 UNSUPPORTED(fmi2GetStatus, const fmi2StatusKind s, fmi2Status *value)

@@ -17,7 +17,7 @@ from ..check import VALUE_TYPES, Variables, ask_the_fmu
 from ..errors import Collector
 from ..native import NativeRunner
 from ..records import PointResult, Points, Rows
-from ..store import ResultStore
+from ..store import ResultStore, coupling_columns
 from .data import Data
 
 if TYPE_CHECKING:
@@ -132,6 +132,8 @@ class Problem:
         for key, kind in (("t_end", pa.float64()), ("steps", pa.int64()), ("wall_s", pa.float64()),
                           ("worker", pa.string())):
             columns[key] = pa.array([r.get(key) for r in results], kind)
+        if spec.system is not None and spec.system.coupling_tolerance is not None:
+            columns.update(coupling_columns(results))
         long = [(int(p), e.predictions) for p, e in zip(points, evaluations)
                 if e.ok and e.predictions is not None]
         self.store.write_batch(pa.table(columns), _long_form(long, spec.data) if long else None)

@@ -1,0 +1,190 @@
+//! The communication step of a system with a coupling tolerance: chosen step by step from
+//! an estimate of the coupling error, inside each step of the output grid.
+//!
+//! The estimate needs no extra step. Over a communication step each input follows what the
+//! target was given at the step's start: the source's value, held, or moved along its
+//! Taylor polynomial (value and output derivatives). After the step the source's actual
+//! output is known, and the distance between it and that polynomial at the step's end is
+//! how far the input the target integrated with had drifted from the truth: the coupling
+//! error the step made, of order k + 1 in the step for derivatives up to order k. It is
+//! measured in units of each connection's scale, max(1, the largest |value| seen so far),
+//! and a step whose largest estimate exceeds the tolerance is rejected: every component is
+//! put back into the FMU state saved at the step's start, and the step is taken again,
+//! shorter. The next step's size comes from a PI controller on the estimates.
+
+use serde::Serialize;
+
+/// The smallest communication step, as a fraction of the output grid's step: below it a
+/// step whose estimate still exceeds the tolerance ends the point.
+pub const MIN_STEP_FRACTION: f64 = 1e-6;
+
+/// What a point reports of its coupling.
+#[derive(Clone, Copy, Debug, Serialize, PartialEq)]
+pub struct CouplingReport {
+    /// The largest estimate of an accepted step, in units of the connections' scales.
+    pub worst_estimate: f64,
+    pub accepted: u64,
+    pub rejected: u64,
+    /// The smallest accepted step.
+    pub min_step: f64,
+}
+
+/// What becomes of a step tried with a given estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Verdict {
+    Accept,
+    Reject,
+    /// The estimate exceeds the tolerance at the smallest step: the point cannot meet it.
+    GiveUp,
+}
+
+/// The step-size controller of one system instance.
+pub struct Controller {
+    tolerance: f64,
+    /// The order of the estimate in the step: 1 + the fewest derivatives a connection
+    /// passes.
+    order: f64,
+    /// The next step's size; 0 before the first.
+    proposed: f64,
+    /// The previous accepted step's estimate over the tolerance.
+    previous: f64,
+    report: CouplingReport,
+}
+
+impl Controller {
+    pub fn new(tolerance: f64, fewest_derivatives: usize) -> Self {
+        let mut controller = Self {
+            tolerance,
+            order: 1.0 + fewest_derivatives as f64,
+            proposed: 0.0,
+            previous: 1.0,
+            report: CouplingReport {
+                worst_estimate: 0.0,
+                accepted: 0,
+                rejected: 0,
+                min_step: f64::INFINITY,
+            },
+        };
+        controller.restart();
+        controller
+    }
+
+    /// Forget the last point: a new point starts from the output grid's step.
+    pub fn restart(&mut self) {
+        self.proposed = 0.0;
+        self.previous = 1.0;
+        self.report = CouplingReport {
+            worst_estimate: 0.0,
+            accepted: 0,
+            rejected: 0,
+            min_step: f64::INFINITY,
+        };
+    }
+
+    pub fn report(&self) -> CouplingReport {
+        self.report
+    }
+
+    pub fn tolerance(&self) -> f64 {
+        self.tolerance
+    }
+
+    /// The step to try from `t` within the grid step [.., `end`] of size `grid`: the
+    /// proposed one, landing exactly on `end` when it would reach it or leave a sliver.
+    pub fn next_step(&self, t: f64, end: f64, grid: f64) -> f64 {
+        let left = end - t;
+        let h = if self.proposed > 0.0 {
+            self.proposed
+        } else {
+            grid
+        };
+        if h >= left * (1.0 - 1e-9) || left - h < 1e-9 * grid {
+            left
+        } else {
+            h
+        }
+    }
+
+    /// Judge a step of size `h` whose largest estimate is `estimate` (in scale units), and
+    /// propose the next one.
+    pub fn judge(&mut self, h: f64, estimate: f64, grid: f64) -> Verdict {
+        let ratio = estimate / self.tolerance;
+        let q = self.order;
+        if ratio <= 1.0 {
+            // PI control: the step grows as the estimates fall, damped by the last one.
+            let fac = 0.9 * ratio.max(1e-10).powf(-0.7 / q) * self.previous.max(1e-4).powf(0.4 / q);
+            self.proposed = h * fac.clamp(0.2, 5.0);
+            self.previous = ratio;
+            let r = &mut self.report;
+            r.accepted += 1;
+            r.worst_estimate = r.worst_estimate.max(estimate);
+            r.min_step = r.min_step.min(h);
+            return Verdict::Accept;
+        }
+        self.report.rejected += 1;
+        if h <= MIN_STEP_FRACTION * grid * (1.0 + 1e-9) {
+            return Verdict::GiveUp;
+        }
+        let fac = (0.9 * ratio.powf(-1.0 / q)).clamp(0.1, 0.9);
+        self.proposed = (h * fac).max(MIN_STEP_FRACTION * grid);
+        Verdict::Reject
+    }
+}
+
+/// How far a connection's actual output `now`, `h` after the step's start, lies from the
+/// polynomial its target was given (value and derivatives at the start).
+pub fn drift(given: &[f64; 3], derivatives: usize, h: f64, now: f64) -> f64 {
+    let mut predicted = given[0];
+    if derivatives >= 1 {
+        predicted += h * given[1];
+    }
+    if derivatives >= 2 {
+        predicted += 0.5 * h * h * given[2];
+    }
+    (now - predicted).abs()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_step_lands_on_the_grid_without_a_sliver() {
+        let mut c = Controller::new(1e-4, 2);
+        assert_eq!(c.next_step(0.0, 0.01, 0.01), 0.01);
+        c.proposed = 0.004;
+        assert_eq!(c.next_step(0.0, 0.01, 0.01), 0.004);
+        assert_eq!(c.next_step(0.008, 0.01, 0.01), 0.01 - 0.008);
+        c.proposed = 0.01 - 0.008 - 1e-13;
+        assert_eq!(c.next_step(0.008, 0.01, 0.01), 0.01 - 0.008);
+    }
+
+    #[test]
+    fn a_large_estimate_shrinks_the_step_and_a_small_one_grows_it() {
+        let mut c = Controller::new(1e-4, 2);
+        assert_eq!(c.judge(0.01, 1e-2, 0.01), Verdict::Reject);
+        assert!(c.proposed < 0.01 * 0.5);
+        let shrunk = c.proposed;
+        assert_eq!(c.judge(shrunk, 1e-6, 0.01), Verdict::Accept);
+        assert!(c.proposed > shrunk);
+        let r = c.report();
+        assert_eq!((r.accepted, r.rejected, r.min_step), (1, 1, shrunk));
+        assert_eq!(r.worst_estimate, 1e-6);
+    }
+
+    #[test]
+    fn an_estimate_too_large_at_the_smallest_step_gives_up() {
+        let mut c = Controller::new(1e-4, 0);
+        let smallest = MIN_STEP_FRACTION * 0.01;
+        assert_eq!(c.judge(smallest, 1.0, 0.01), Verdict::GiveUp);
+    }
+
+    #[test]
+    fn the_drift_is_the_distance_from_the_polynomial_given() {
+        let given = [1.0, 2.0, 4.0];
+        assert_eq!(drift(&given, 0, 0.5, 1.0), 0.0);
+        assert_eq!(drift(&given, 1, 0.5, 2.0), 0.0);
+        assert_eq!(drift(&given, 2, 0.5, 2.5), 0.0);
+        assert_eq!(drift(&given, 2, 0.5, 3.0), 0.5);
+    }
+}
