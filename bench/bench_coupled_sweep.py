@@ -218,6 +218,13 @@ def plot(r, path):
         for h, e, rate in c:
             ax.annotate(f"{h * 1000:g} ms", (e, rate), textcoords="offset points", xytext=(4, 4),
                         fontsize=7)
+    if r.get("tolerances"):
+        runs = r["tolerances"]
+        ax.loglog([t["error"] for t in runs], [t["rate"] for t in runs], "s--", color="k",
+                  label="native, input derivatives 2, coupling tolerance (10 ms grid)")
+        for t in runs:
+            ax.annotate(f"tol {t['tolerance']:g}", (t["error"], t["rate"]), textcoords="offset points",
+                        xytext=(4, -10), fontsize=7)
     ax.set_xlabel("coupling error against the monolithic reference (scaled, worst point)")
     ax.set_ylabel("points/s, one worker (10 s runs)")
     ax.set_title("Coupled DC motor and mechanism: speed against coupling error")
