@@ -103,6 +103,22 @@ def worst_error(spec, out):
     return float((np.abs(mine - exact) / scale).max()), results.points.iloc[0]
 
 
+def fmu_tolerance_runs(fmu, motor, tmp):
+    """The worst error (2 s, 10 ms grid) with the FMUs' own tolerance at several fractions
+    of the coupling tolerance, and without one (the tenth the sweep then passes)."""
+    runs = []
+    for coupling in (1e-4, 1e-6):
+        for ratio in (1.0, 0.1, 0.01, 0.001, None):
+            spec = system_spec(fmu, motor, 2.0, GRID, 1, series=True, tolerance=coupling)
+            if ratio is None:
+                spec["scenario"].pop("tolerance")
+            else:
+                spec["scenario"]["tolerance"] = ratio * coupling
+            error, _ = worst_error(spec, pathlib.Path(tmp) / f"fmu-tolerance-{coupling}-{ratio}")
+            runs.append({"coupling": coupling, "ratio": ratio, "error": error})
+    return runs
+
+
 def tolerance_runs(fmu, motor, points, tmp):
     """With a coupling tolerance on a 10 ms output grid (native engine, 2 input
     derivatives): per tolerance the worst error over 2 s, the points/s of 10 s runs and
@@ -158,6 +174,13 @@ def tolerance_report(r) -> list[str]:
                      f"| {run['rate']:.0f} | {run['accepted']}, {run['rejected']} "
                      f"({run['rejected'] / (run['accepted'] + run['rejected']):.1%}) | "
                      f"{run['min_step']:.2e} s | {versus} |")
+    if r.get("fmu_tolerances"):
+        lines += ["", "The FMUs' own tolerance under a coupling tolerance (worst error as above; "
+                      "\"none given\": the sweep passes a tenth of the coupling tolerance):", "",
+                  "| coupling tolerance | FMU tolerance | worst error |", "| --- | --- | --- |"]
+        for run in r["fmu_tolerances"]:
+            given = "none given" if run["ratio"] is None else f"{run['ratio']:g} × coupling"
+            lines.append(f"| {run['coupling']:g} | {given} | {run['error']:.2e} |")
     lines += ["", "Fixed steps, native engine, 2 input derivatives: " + ", ".join(
         f"{h * 1000:g} ms: {e:.2e} at {rate:.0f} points/s" for h, e, rate in fixed) + ".", ""]
     return lines
@@ -262,6 +285,7 @@ def main():
         r["fixed_native_2"] = [(h, fine[h], system_rate(fmu, motor, points, tmp, step=h))
                                for h in FINE_STEPS] + r["curves"][best]
         r["tolerances"] = tolerance_runs(fmu, motor, points, tmp)
+        r["fmu_tolerances"] = fmu_tolerance_runs(fmu, motor, tmp)
     write_results(out, r, report(r))
     plot(r, out / "coupled_sweep_curves.png")
 

@@ -59,6 +59,10 @@ from .records import InputTable, MetricPlan, Plan, SeriesPlan
 __all__ = ["SpecError", "Spec", "Scenario", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS"]
 
 METRIC_KINDS = ("final", "min", "max", "peak_abs", "mean", "rms", "peak_to_peak")
+# The FMUs' own tolerance under a coupling tolerance, as a fraction of it: on the DC motor
+# and the mechanism the coupling error dominates the run's error over a wide range of FMU
+# tolerances (bench-coupling's report), and a tenth keeps a margin.
+FMU_TOLERANCE_RATIO = 0.1
 DESIGN_KINDS = ("grid", "list", "lhs", "sobol", "morris")
 
 
@@ -130,10 +134,16 @@ class Scenario:
                 raise SpecError(where, f"{name} is also set in scenario.{table}: {what} it or "
                                        f"set it there, not both")
 
-    def plan(self, metrics: list[MetricPlan], series: SeriesPlan | None) -> Plan:
-        """The native runner's plan: what every point shares, and what it reads."""
+    def plan(self, metrics: list[MetricPlan], series: SeriesPlan | None,
+             system: System | None = None) -> Plan:
+        """The native runner's plan: what every point shares, and what it reads. Without a
+        tolerance of its own, a system with a coupling tolerance runs its FMUs at
+        FMU_TOLERANCE_RATIO of it."""
+        tolerance = self.tolerance
+        if tolerance is None and system is not None and system.coupling_tolerance is not None:
+            tolerance = FMU_TOLERANCE_RATIO * system.coupling_tolerance
         return {"start": self.start, "stop": self.stop, "step": self.step,
-                "tolerance": self.tolerance, "fixed": self.parameters, "inputs": self.inputs,
+                "tolerance": tolerance, "fixed": self.parameters, "inputs": self.inputs,
                 "metrics": metrics, "series": series, "timeout_s": self.timeout}
 
 
@@ -214,7 +224,7 @@ class Spec:
                                 "to": m.end}) for m in self.metrics]
         series = (SeriesPlan(variables=self.series_variables, every=self.series_every)
                   if self.series_variables else None)
-        return self.scenario.plan(metrics, series)
+        return self.scenario.plan(metrics, series, self.system)
 
     def digest(self) -> str:
         """A hash of everything that decides the results (not the FMU's path)."""

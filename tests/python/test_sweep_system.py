@@ -341,3 +341,17 @@ def test_without_a_coupling_tolerance_the_rows_are_as_before(fmu_path, motor_pat
     points = run_sweep(spec, out=tmp_path / "out", serial=True, progress=False, plots=False).points
     assert not any(c.startswith("coupling_") for c in points.columns)
     assert (points["steps"] == 500).all()
+
+
+def test_under_a_coupling_tolerance_the_fmus_run_at_a_tenth_of_it(fmu_path, motor_path, tmp_path):
+    """Without a tolerance of its own the scenario passes a tenth of the coupling tolerance
+    to the FMUs; one it gives is kept."""
+    from fmusweep import Spec
+    spec = system_spec(fmu_path, motor_path)
+    spec["system"]["coupling_tolerance"] = 1e-5
+    del spec["scenario"]["tolerance"]
+    assert Spec.from_dict(spec, tmp_path).plan()["tolerance"] == pytest.approx(1e-6)
+    spec["scenario"]["tolerance"] = 1e-9
+    assert Spec.from_dict(spec, tmp_path).plan()["tolerance"] == 1e-9
+    del spec["system"]["coupling_tolerance"], spec["scenario"]["tolerance"]
+    assert Spec.from_dict(spec, tmp_path).plan()["tolerance"] is None

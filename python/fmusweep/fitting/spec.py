@@ -134,7 +134,7 @@ class FitSpec:
         """The runner's plan: the scenario, reading the measured variables at every
         communication point that holds a data time (and at no other, where it can)."""
         return self.scenario.plan([], SeriesPlan(variables=self.data.columns,
-                                                 every=self.data.every))
+                                                 every=self.data.every), self.system)
 
 
 def _fit_table(raw: dict[str, Any],
