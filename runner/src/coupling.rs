@@ -53,7 +53,7 @@ pub struct Controller {
 
 impl Controller {
     pub fn new(tolerance: f64, fewest_derivatives: usize) -> Self {
-        let mut controller = Self {
+        Self {
             tolerance,
             order: 1.0 + fewest_derivatives as f64,
             proposed: 0.0,
@@ -64,21 +64,12 @@ impl Controller {
                 rejected: 0,
                 min_step: f64::INFINITY,
             },
-        };
-        controller.restart();
-        controller
+        }
     }
 
     /// Forget the last point: a new point starts from the output grid's step.
     pub fn restart(&mut self) {
-        self.proposed = 0.0;
-        self.previous = 1.0;
-        self.report = CouplingReport {
-            worst_estimate: 0.0,
-            accepted: 0,
-            rejected: 0,
-            min_step: f64::INFINITY,
-        };
+        *self = Self::new(self.tolerance, self.order as usize - 1);
     }
 
     pub fn report(&self) -> CouplingReport {
