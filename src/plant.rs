@@ -56,7 +56,9 @@ impl SolverKind {
 
 /// First and second time derivatives of the inputs (the master's input derivatives): within a
 /// communication step starting at tc, an input is u(t) = u + u′·(t − tc) + u″·(t − tc)²/2,
-/// u being the value the master set. They persist until the master changes them.
+/// u being its value at tc. At the step's end the inputs move on along them (value and
+/// first derivative), so that the outputs there see the inputs the step ended with, and
+/// the polynomial goes on until the master sets new values or derivatives.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct InputDerivatives {
     pub motor_torque: [f64; 2],
@@ -214,6 +216,37 @@ impl Plant {
             self.inputs
         } else {
             self.input_derivatives.at(&self.inputs, self.time, t)
+        }
+    }
+
+    /// After a communication step from `start`: the inputs moved on along their derivatives
+    /// to the plant's time, as the step integrated them. The outputs and their derivatives
+    /// at the step's end then see the inputs there, and a next step without new values
+    /// continues their polynomials.
+    #[inline(always)]
+    pub fn move_inputs_on(&mut self, start: f64) {
+        if !self.input_derivatives.is_zero() {
+            self.move_inputs_along(start);
+        }
+    }
+
+    /// Out of line: held inputs, the common case, never come here.
+    #[inline(never)]
+    fn move_inputs_along(&mut self, start: f64) {
+        let dt = self.time - start;
+        let inputs = self.input_derivatives.at(&self.inputs, start, self.time);
+        let mut derivatives = self.input_derivatives;
+        for [d1, d2] in [&mut derivatives.motor_torque, &mut derivatives.load_torque] {
+            *d1 += dt * *d2;
+        }
+        // Where they would leave what the model admits, they stay as the master set them.
+        let admitted = |d: &[f64; 2]| d.iter().all(|v| v.abs() <= MAX_INPUT_DERIVATIVE);
+        if check_inputs(&inputs, "").is_ok()
+            && admitted(&derivatives.motor_torque)
+            && admitted(&derivatives.load_torque)
+        {
+            self.inputs = inputs;
+            self.input_derivatives = derivatives;
         }
     }
 

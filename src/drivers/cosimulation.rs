@@ -387,8 +387,10 @@ impl CoSimulation {
         if !short && self.carried.is_some() {
             self.carried = None;
         }
+        let start = plant.time();
         let (y, at) = self.integrate_to(plant, t_end, experiment, short)?;
         plant.accept_point(t_end, y, &at);
+        plant.move_inputs_on(start);
         Ok(())
     }
 

@@ -55,6 +55,40 @@ def test_output_derivatives_follow_their_definitions(running):
     fmu.slave.freeFMUstate(state)
 
 
+def test_after_a_step_the_outputs_see_the_inputs_moved_along_their_derivatives(running):
+    """With input derivatives set once, the torque goes on along its polynomial over the
+    steps that follow, and the output derivatives at each step's end see the torque there:
+    ω4's rates against difference quotients of ω4's own course, and the course against one
+    that sets the same polynomial's values again at every step."""
+    fmu = running
+    fmu.set("M_r", 3.0)
+    fmu.slave.setRealInputDerivatives([fmu.vr["M_r"]] * 2, [1, 2], [500.0, -4000.0])
+    state = fmu.slave.getFMUstate()
+    t, h = 0.5, 1e-4
+    for k in range(3):
+        fmu.slave.doStep(t + k * 0.01, 0.01)
+    t += 0.03
+    rates = [derivative(fmu, "omega4", order) for order in (1, 2)]
+    before = fmu.get("omega4")
+    first_before = rates[0]
+    fmu.slave.doStep(t, h)
+    after = fmu.get("omega4")
+    first_after, second_after = (derivative(fmu, "omega4", order) for order in (1, 2))
+    assert abs((after - before) / h - (rates[0] + 0.5 * h * rates[1])) < 1e-6 * max(1.0, abs(rates[0]))
+    mean_second = 0.5 * (rates[1] + second_after)
+    assert abs((first_after - first_before) / h - mean_second) < 1e-4 * max(1.0, abs(mean_second))
+    # The same polynomial, its value and derivatives set again at every step's start.
+    moved = fmu.get("omega4")
+    fmu.slave.setFMUstate(state)
+    fmu.slave.freeFMUstate(state)
+    for k, s in enumerate((0.0, 0.01, 0.02)):
+        fmu.set("M_r", 3.0 + s * (500.0 - 2000.0 * s))
+        fmu.slave.setRealInputDerivatives([fmu.vr["M_r"]] * 2, [1, 2], [500.0 - 4000.0 * s, -4000.0])
+        fmu.slave.doStep(0.5 + s, 0.01)
+    fmu.slave.doStep(t, h)
+    assert fmu.get("omega4") == pytest.approx(moved, rel=1e-9, abs=1e-12)
+
+
 def test_bad_derivative_requests_are_errors(running):
     fmu = running
     assert "order = 3" in fmu.expect(ERROR, fmu.slave.getRealOutputDerivatives, [fmu.vr["phi1"]], [3])
