@@ -21,6 +21,26 @@ def packed(variable, default, job):
     return path
 
 
+def compiled_slave(path, identifier, directory):
+    """An instance of a compiled co-simulation component of examples/ through FMPy, with
+    `vr` (value references by name) and `messages` (what it logged)."""
+    unzipped = fmpy.extract(str(path), unzipdir=str(directory))
+    description = fmpy.read_model_description(unzipped)
+    slave = fmpy.fmi2.FMU2Slave(guid=description.guid, unzipDirectory=unzipped,
+                                modelIdentifier=identifier, instanceName=identifier.lower())
+    slave.vr = {v.name: v.valueReference for v in description.modelVariables}
+    slave.messages = []
+    logger = fmpy.fmi2.fmi2CallbackLoggerTYPE(
+        lambda env, name, status, category, message: slave.messages.append(message.decode()))
+    callbacks = fmpy.fmi2.fmi2CallbackFunctions()
+    callbacks.logger = logger
+    callbacks.allocateMemory = fmpy.fmi2.fmi2CallbackAllocateMemoryTYPE(fmpy.fmi2.calloc)
+    callbacks.freeMemory = fmpy.fmi2.fmi2CallbackFreeMemoryTYPE(fmpy.fmi2.free)
+    slave.instantiate(callbacks=callbacks)
+    slave.keep = (logger, callbacks)  # alive as long as the instance
+    return slave
+
+
 @pytest.fixture(scope="session")
 def fmu_path():
     return packed("CYCLIC_MECHANISM_FMU", "target/fmu/CyclicMechanism.fmu", "fmu")

@@ -159,3 +159,33 @@ def solve_with_motor(p, motor, times, rtol=1e-12):
                     rtol=rtol, atol=rtol, args=(p, motor))
     assert sol.success, sol.message
     return sol.y.T
+
+
+@dataclass(frozen=True)
+class Flywheel:
+    """A flywheel on a torsional shaft driven by body 4 (examples/flywheel_load): twist' =
+    ω4 − w, J·w' = M − c·w, and M = k·twist + d·(ω4 − w) resisting body 4."""
+    k: float = 2000.0
+    d: float = 2.0
+    J: float = 0.5
+    c: float = 1.0
+
+
+def rhs_with_flywheel(t, y, p, load):
+    """The mechanism and the flywheel load as one ODE: y = φ1..φ4, ω1..ω4, twist, w; the
+    shaft's torque is the input M_r, exactly, at every instant."""
+    twist, w = y[8], y[9]
+    torque = load.k * twist + load.d * (y[7] - w)
+    mechanism = rhs(t, y[:8], replace(p, M_r=torque))
+    return np.concatenate([mechanism, [y[7] - w, (torque - load.c * w) / load.J]])
+
+
+def solve_with_flywheel(p, load, times, rtol=1e-12):
+    """The monolithic reference of the mechanism driving the flywheel load at `times`
+    (columns φ1..φ4, ω1..ω4, twist, flywheel speed), the shaft relaxed and the flywheel at
+    rest at the start."""
+    y0 = np.append(initial_state(p), [0.0, 0.0])
+    sol = solve_ivp(rhs_with_flywheel, (times[0], times[-1]), y0, method="DOP853", t_eval=times,
+                    rtol=rtol, atol=rtol, args=(p, load))
+    assert sol.success, sol.message
+    return sol.y.T

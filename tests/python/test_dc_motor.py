@@ -14,7 +14,7 @@ import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import ROOT, packed
+from conftest import ROOT, compiled_slave, packed
 
 sys.path.insert(0, str(ROOT / "examples/dc_motor"))
 import coupling  # noqa: E402
@@ -30,20 +30,7 @@ def motor_path():
 
 @pytest.fixture
 def motor(motor_path, tmp_path):
-    unzipped = fmpy.extract(str(motor_path), unzipdir=str(tmp_path / "motor"))
-    description = fmpy.read_model_description(unzipped)
-    slave = fmpy.fmi2.FMU2Slave(guid=description.guid, unzipDirectory=unzipped,
-                                modelIdentifier="DcMotor", instanceName="motor")
-    slave.vr = {v.name: v.valueReference for v in description.modelVariables}
-    slave.messages = []
-    logger = fmpy.fmi2.fmi2CallbackLoggerTYPE(
-        lambda env, name, status, category, message: slave.messages.append(message.decode()))
-    callbacks = fmpy.fmi2.fmi2CallbackFunctions()
-    callbacks.logger = logger
-    callbacks.allocateMemory = fmpy.fmi2.fmi2CallbackAllocateMemoryTYPE(fmpy.fmi2.calloc)
-    callbacks.freeMemory = fmpy.fmi2.fmi2CallbackFreeMemoryTYPE(fmpy.fmi2.free)
-    slave.instantiate(callbacks=callbacks)
-    slave.keep = (logger, callbacks)
+    slave = compiled_slave(motor_path, "DcMotor", tmp_path / "motor")
     yield slave
     slave.freeInstance()
 

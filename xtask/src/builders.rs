@@ -1,5 +1,5 @@
 //! The artefacts several jobs build and use, below the jobs that use them (none of which
-//! imports another for them): the compiled DC motor FMU, the sweep's wheel installed in the
+//! imports another for them): the compiled DC motor and flywheel load FMUs, the sweep's wheel installed in the
 //! venv, and the FMI 2.0 headers that C code here compiles against.
 
 use std::fs;
@@ -11,22 +11,42 @@ use crate::Result;
 
 /// Build and pack the motor; returns the archive.
 pub(crate) fn build_motor() -> Result<PathBuf> {
-    let source = root().join("examples/dc_motor/native");
+    build_compiled_fmu("DcMotor", "examples/dc_motor/native", "dc_motor.c")
+}
+
+/// Build and pack the flywheel load; returns the archive.
+pub(crate) fn build_flywheel_load() -> Result<PathBuf> {
+    build_compiled_fmu(
+        "FlywheelLoad",
+        "examples/flywheel_load/native",
+        "flywheel_load.c",
+    )
+}
+
+/// One model of `examples/` in C, linked with the co-simulation functions they share
+/// (`examples/native/cosim.c`) against glibc 2.17 with zig, packed as
+/// `target/fmu/{identifier}.fmu` with the model's `modelDescription.xml`.
+fn build_compiled_fmu(identifier: &str, source: &str, model: &str) -> Result<PathBuf> {
+    let source = root().join(source);
+    let shared = root().join("examples/native");
     let zig = crate::platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
-    let dir = root().join("target/motor");
+    let dir = root().join("target/compiled-fmus");
     std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-    let library = dir.join("DcMotor.so");
+    let library = dir.join(format!("{identifier}.so"));
     run(zig
         .cc("x86_64-linux-gnu.2.17")
         .args(["-O2", "-std=c99", "-shared", "-fPIC", "-fvisibility=hidden"])
         .args(["-Wall", "-Wextra", "-Wno-unused-parameter", "-Werror", "-I"])
         .arg(fmi2_headers()?)
+        .arg("-I")
+        .arg(&shared)
         .arg("-o")
         .arg(&library)
-        .arg(source.join("dc_motor.c"))
+        .arg(source.join(model))
+        .arg(shared.join("cosim.c"))
         .arg("-lm"))?;
     check_glibc(&library)?;
-    let fmu = root().join("target/fmu/DcMotor.fmu");
+    let fmu = root().join(format!("target/fmu/{identifier}.fmu"));
     crate::fmu::pack(
         &fmu,
         &[
@@ -34,7 +54,7 @@ pub(crate) fn build_motor() -> Result<PathBuf> {
                 "modelDescription.xml".to_string(),
                 source.join("modelDescription.xml"),
             ),
-            ("binaries/linux64/DcMotor.so".to_string(), library),
+            (format!("binaries/linux64/{identifier}.so"), library),
         ],
     )?;
     Ok(fmu)

@@ -77,7 +77,7 @@ const JOBS: &[Job] = &[
     Job {
         name: "motor",
         operands: &[],
-        about: "build and pack target/fmu/DcMotor.fmu, the compiled DC motor of examples/dc_motor/native",
+        about: "build and pack target/fmu/DcMotor.fmu and FlywheelLoad.fmu, the compiled components of examples/",
         flags: &[],
         run: motor::job,
     },

@@ -1,7 +1,8 @@
-//! `cargo xtask motor`: the compiled DC motor of `examples/dc_motor/native` (C, FMI 2.0
-//! Co-Simulation) built against glibc 2.17 with zig, checked and packed as
-//! `target/fmu/DcMotor.fmu`, for coupling and sweeping the mechanism at native speed; and
-//! `cargo xtask bench-coupling`, which measures a coupled step with it.
+//! `cargo xtask motor`: the compiled components of `examples/` (C, FMI 2.0 Co-Simulation),
+//! the DC motor and the flywheel load, built against glibc 2.17 with zig, checked and packed
+//! as `target/fmu/DcMotor.fmu` and `target/fmu/FlywheelLoad.fmu`, for coupling and
+//! sweeping the mechanism at native speed; and `cargo xtask bench-coupling`, which measures
+//! coupled steps and sweeps with them.
 
 use crate::cli::{Flag, Parsed};
 use crate::setup::{root, run};
@@ -9,6 +10,7 @@ use crate::Result;
 
 pub(crate) fn job(_: &Parsed) -> Result {
     println!("FMU: {}", crate::builders::build_motor()?.display());
+    println!("FMU: {}", crate::builders::build_flywheel_load()?.display());
     Ok(())
 }
 
@@ -19,24 +21,27 @@ pub(crate) fn job(_: &Parsed) -> Result {
 pub(crate) fn job_bench(parsed: &Parsed) -> Result {
     let mechanism = crate::fmu::build_fmu(false)?.fmu;
     let motor = crate::builders::build_motor()?;
+    let load = crate::builders::build_flywheel_load()?;
     let python = crate::builders::ensure_sweep_package()?;
     let out = root().join("target/bench-coupling");
-    for (script, part, flags) in [
+    for (script, part, flags, components) in [
         (
             "bench/bench_coupled_step.py",
             "step",
             parsed.flag_args_except(&["quick"]),
+            vec![&motor],
         ),
         (
             "bench/bench_coupled_sweep.py",
             "sweep",
             parsed.flag_args_except(&["before"]),
+            vec![&motor, &load],
         ),
     ] {
         run(std::process::Command::new(&python)
             .arg(root().join(script))
             .arg(&mechanism)
-            .arg(&motor)
+            .args(components)
             .arg(out.join(part))
             .args(flags))?;
     }

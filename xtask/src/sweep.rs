@@ -17,8 +17,9 @@ pub(crate) fn job(parsed: &Parsed) -> Result {
 /// (and the compiled DC motor packed beside it, in target/fmu).
 pub(crate) fn run_fmusweep(subcommand: &[&str], parsed: &Parsed) -> Result {
     let fmu = fmu::build_fmu(false)?.fmu;
-    // The compiled motor too: the worked coupled systems use it.
+    // The compiled motor and load too: the worked coupled systems use them.
     crate::builders::build_motor()?;
+    crate::builders::build_flywheel_load()?;
     let python = crate::builders::ensure_sweep_package()?;
     // Run where the user is: spec paths are theirs.
     crate::setup::run(

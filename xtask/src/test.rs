@@ -33,12 +33,14 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .args(["--quick", "--fmu-only"]))?;
     let python = crate::builders::ensure_sweep_package()?;
     let motor = crate::builders::build_motor()?;
+    let load = crate::builders::build_flywheel_load()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(root().join("tests/python"))
         .env("CYCLIC_MECHANISM_FMU", &fmu)
         .env("CYCLIC_MECHANISM_FMU3", &fmu3)
         .env("DC_MOTOR_FMU", &motor)
+        .env("FLYWHEEL_LOAD_FMU", &load)
         .current_dir(root()))?;
     // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
     // by the packed FMU, the test files, the installed packages and the selection and
