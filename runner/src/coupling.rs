@@ -91,6 +91,9 @@ impl Controller {
         };
         if h >= left * (1.0 - 1e-9) || left - h < 1e-9 * grid {
             left
+        } else if h > 0.5 * left {
+            // Two equal steps to the grid point, not a full one and a sliver.
+            0.5 * left
         } else {
             h
         }
@@ -104,7 +107,13 @@ impl Controller {
         if ratio <= 1.0 {
             // PI control: the step grows as the estimates fall, damped by the last one.
             let fac = 0.9 * ratio.max(1e-10).powf(-0.7 / q) * self.previous.max(1e-4).powf(0.4 / q);
-            self.proposed = h * fac.clamp(0.2, 5.0);
+            let grown = h * fac.clamp(0.2, 5.0);
+            // A step shortened to land on the grid says nothing against the step proposed.
+            self.proposed = if h < self.proposed {
+                grown.max(self.proposed)
+            } else {
+                grown
+            };
             self.previous = ratio;
             let r = &mut self.report;
             r.accepted += 1;
@@ -148,6 +157,20 @@ mod tests {
         assert_eq!(c.next_step(0.008, 0.01, 0.01), 0.01 - 0.008);
         c.proposed = 0.01 - 0.008 - 1e-13;
         assert_eq!(c.next_step(0.008, 0.01, 0.01), 0.01 - 0.008);
+        // Between one and two proposed steps from the grid point: two equal ones.
+        c.proposed = 0.004;
+        assert_eq!(c.next_step(0.004, 0.01, 0.01), 0.003);
+    }
+
+    #[test]
+    fn a_step_shortened_to_land_keeps_the_step_proposed() {
+        let mut c = Controller::new(1e-4, 2);
+        c.proposed = 0.004;
+        assert_eq!(c.judge(0.001, 1e-9, 0.01), Verdict::Accept);
+        assert_eq!(c.proposed, 0.005); // grown fivefold, no less than before
+        c.proposed = 0.004;
+        assert_eq!(c.judge(0.0001, 1e-9, 0.01), Verdict::Accept);
+        assert_eq!(c.proposed, 0.004);
     }
 
     #[test]

@@ -289,6 +289,9 @@ pub struct SystemInstance {
     controller: Option<Controller>,
     given: Vec<[f64; 3]>,
     scales: Vec<f64>,
+    /// The time at which every connection was last passed by a controlled step's end, until
+    /// a value is set from outside: the next step starts from those values.
+    passed_at: Option<f64>,
 }
 
 /// The first status that stops a run, else the worst; `calls` run in order until one stops.
@@ -327,6 +330,7 @@ impl SystemInstance {
                 .map(|tol| Controller::new(tol, fewest)),
             given: vec![[0.0; 3]; system.links.len()],
             scales: vec![1.0; system.links.len()],
+            passed_at: None,
         })
     }
 
@@ -456,6 +460,7 @@ impl Unit for SystemInstance {
             controller.restart();
         }
         self.scales.iter_mut().for_each(|s| *s = 1.0);
+        self.passed_at = None;
         self.each("fmi2Reset", Instance::reset)
     }
 
@@ -480,14 +485,17 @@ impl Unit for SystemInstance {
     }
 
     fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
+        self.passed_at = None;
         self.set((vr, values, 0), Instance::set_real)
     }
 
     fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Status {
+        self.passed_at = None;
         self.set((vr, values, 1), Instance::set_integer)
     }
 
     fn set_boolean(&mut self, vr: &[u32], values: &[i32]) -> Status {
+        self.passed_at = None;
         self.set((vr, values, 2), Instance::set_boolean)
     }
 
@@ -522,28 +530,46 @@ impl SystemInstance {
     /// Pass every connection at `time` (each link's given values kept), then step every
     /// component to `time + step`.
     fn jacobi_step(&mut self, time: f64, step: f64) -> Status {
+        let passed = self.jacobi_pass();
+        if !passed.proceeds() {
+            return passed;
+        }
+        in_turn([passed, self.step_all(time, step)])
+    }
+
+    /// Pass every connection, in the system's order, the values and derivatives passed
+    /// into `given`.
+    fn pass_all(&mut self, given: &mut [[f64; 3]]) -> Status {
         let system = Rc::clone(&self.system);
-        let mut given = std::mem::take(&mut self.given);
-        let passed = in_turn(
+        in_turn(
             system
                 .links
                 .iter()
                 .zip(given.iter_mut())
                 .map(|(&link, g)| self.pass(link, g)),
-        );
-        self.given = given;
-        if !passed.proceeds() {
-            return passed;
-        }
-        in_turn([passed, self.each("fmi2DoStep", |i| i.do_step(time, step))])
+        )
     }
 
-    /// Steps chosen by the controller from `time` to exactly `time + grid`, each tried
-    /// from saved FMU states and taken again, shorter, when its estimate is too large.
+    fn step_all(&mut self, time: f64, step: f64) -> Status {
+        self.each("fmi2DoStep", |i| i.do_step(time, step))
+    }
+
+    /// Steps chosen by the controller from `time` to exactly `time + grid`. Each is taken
+    /// from saved FMU states with the connections passed at its start, and ends by passing
+    /// them at its end: what the targets are then given, against what they were given, is
+    /// the estimate. A step whose estimate is too large is taken again, shorter, from the
+    /// saved states (which hold the inputs passed at its start).
     fn controlled_steps(&mut self, time: f64, grid: f64) -> Status {
         let end = time + grid;
-        let mut t = time;
         let mut worst = Status::Ok;
+        if self.passed_at != Some(time) {
+            worst = self.jacobi_pass();
+            if !worst.proceeds() {
+                return worst;
+            }
+        }
+        let mut t = time;
+        let mut next = self.given.clone();
         while t < end {
             let h = self.controller().next_step(t, end, grid);
             let lands = h == end - t;
@@ -551,20 +577,23 @@ impl SystemInstance {
             if !saved.proceeds() {
                 return saved;
             }
-            let stepped = self.jacobi_step(t, h);
+            let stepped = match self.step_all(t, h) {
+                Status::Discard => Status::Discard,
+                s if !s.proceeds() => return s,
+                s => s.max(self.pass_all(&mut next)),
+            };
             let estimate = match stepped {
                 Status::Discard => f64::INFINITY,
                 s if !s.proceeds() => return s,
-                _ => match self.estimate(h) {
-                    Ok(e) => e,
-                    Err(s) => return s,
-                },
+                _ => self.largest_drift(&next, h),
             };
             match self.controller_mut().judge(h, estimate, grid) {
                 Verdict::Accept => {
                     worst = worst.max(stepped).max(saved);
+                    std::mem::swap(&mut self.given, &mut next);
                     self.widen_scales();
                     t = if lands { end } else { t + h };
+                    self.passed_at = Some(t);
                 }
                 Verdict::Reject => {
                     let restored = self.each("fmi2SetFMUstate", Instance::restore_state);
@@ -578,24 +607,25 @@ impl SystemInstance {
         worst
     }
 
-    /// The largest drift of a Real connection over the step just taken, in its scale.
-    fn estimate(&mut self, h: f64) -> Result<f64, Status> {
-        let system = Rc::clone(&self.system);
+    /// Pass every connection now, into the values given.
+    fn jacobi_pass(&mut self) -> Status {
+        let mut given = std::mem::take(&mut self.given);
+        let passed = self.pass_all(&mut given);
+        self.given = given;
+        passed
+    }
+
+    /// The largest drift of a Real connection over a step of `h`: what its target is given
+    /// now (`now`) against the polynomial it was given at the step's start, in its scale.
+    fn largest_drift(&self, now: &[[f64; 3]], h: f64) -> f64 {
         let mut largest = 0.0_f64;
-        for (k, link) in system.links.iter().enumerate() {
-            if link.from.group != 0 {
-                continue;
+        for (k, link) in self.system.links.iter().enumerate() {
+            if link.from.group == 0 {
+                let d = drift(&self.given[k], link.derivatives, h, now[k][0]);
+                largest = largest.max(d / self.scales[k].max(now[k][0].abs()));
             }
-            let mut now = [0.0];
-            let read = self.instances[link.from.component].get_real(&[link.from.vr], &mut now);
-            let read = self.blame(link.from.component, "fmi2GetReal", read);
-            if !read.proceeds() {
-                return Err(read);
-            }
-            let d = drift(&self.given[k], link.derivatives, h, now[0]);
-            largest = largest.max(d / self.scales[k].max(now[0].abs()));
         }
-        Ok(largest)
+        largest
     }
 
     /// Each connection's scale grows to the largest |value| passed so far.

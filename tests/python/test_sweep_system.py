@@ -355,3 +355,43 @@ def test_under_a_coupling_tolerance_the_fmus_run_at_a_tenth_of_it(fmu_path, moto
     assert Spec.from_dict(spec, tmp_path).plan()["tolerance"] == 1e-9
     del spec["system"]["coupling_tolerance"], spec["scenario"]["tolerance"]
     assert Spec.from_dict(spec, tmp_path).plan()["tolerance"] is None
+
+
+@pytest.fixture(scope="module")
+def load_path():
+    return packed("FLYWHEEL_LOAD_FMU", "target/fmu/FlywheelLoad.fmu", "motor")
+
+
+def _flywheel_error(fmu_path, load_path, out, step, derivatives=2, tolerance=None, stop=1.0):
+    """The mechanism driving the flywheel on its stiff shaft (the benchmark's system): the
+    worst scaled error against the monolithic reference, and the point's row."""
+    import sys
+    sys.path.insert(0, str(ROOT / "bench"))
+    import bench_coupled_sweep as coupled
+    spec = coupled.system_spec(fmu_path, load_path, stop, step, 1, series=True,
+                               engine=("native", derivatives), tolerance=tolerance,
+                               system=coupled.FLYWHEEL,
+                               fmu_tolerance=1e-10 if tolerance is None else None)
+    return coupled.worst_error(spec, out, coupled.FLYWHEEL)
+
+
+def test_on_the_stiff_flywheel_held_inputs_diverge_and_derivatives_converge_at_order_three(
+        fmu_path, load_path, tmp_path):
+    """Holding inputs over 10 ms the stiff shaft's loop is unstable; passing two output
+    derivatives it converges at order 3, which needs the shaft's torque (it depends on the
+    speed it is given) passed after that speed, and the mechanism's rates at a step's end
+    seeing the torque moved on along its derivatives."""
+    held, _ = _flywheel_error(fmu_path, load_path, tmp_path / "held", 0.01, derivatives=0)
+    assert held > 1.0
+    fine, _ = _flywheel_error(fmu_path, load_path, tmp_path / "fine", 0.002)
+    coarse, _ = _flywheel_error(fmu_path, load_path, tmp_path / "coarse", 0.004)
+    assert 2.6 < np.log2(coarse / fine) < 3.6, (fine, coarse)
+    assert fine < 1e-6
+
+
+@pytest.mark.parametrize("tolerance", [1e-4, 1e-6])
+def test_a_coupling_tolerance_holds_on_the_stiff_flywheel(fmu_path, load_path, tmp_path, tolerance):
+    error, row = _flywheel_error(fmu_path, load_path, tmp_path / "out", 0.01, tolerance=tolerance)
+    assert error <= 3 * tolerance, error
+    assert row["coupling_error"] <= tolerance and row["coupling_steps"] > 100
+    assert row["coupling_rejected"] <= 0.1 * row["coupling_steps"]
