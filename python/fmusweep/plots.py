@@ -80,16 +80,35 @@ def _lines(points: pd.DataFrame, name: str, metrics: list[str],
     return _save(fig, path)
 
 
+def _cell_edges(values: np.ndarray) -> tuple[np.ndarray, bool]:
+    """The edges of the cells around a grid axis's sorted values, and whether the axis is
+    drawn in log scale (values positive and evenly spaced in log, as ``logspace`` makes
+    them): each edge halfway between neighbours, in log or linear terms."""
+    if len(values) == 1:
+        return np.array([values[0] - 0.5, values[0] + 0.5]), False
+    ratios = values[1:] / values[:-1] if (values > 0).all() else np.array([np.nan])
+    log = len(values) > 2 and bool(np.allclose(ratios, ratios[0], rtol=1e-6)) and ratios[0] > 1.5
+    axis = np.log(values) if log else values
+    middles = 0.5 * (axis[1:] + axis[:-1])
+    edges = np.concatenate([[2 * axis[0] - middles[0]], middles, [2 * axis[-1] - middles[-1]]])
+    return (np.exp(edges) if log else edges), log
+
+
 def _heatmap(points: pd.DataFrame, names: list[str], metric: str,
              path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
     x_name, y_name = names
     table = points.pivot_table(index=y_name, columns=x_name, values=metric, aggfunc="first",
                                dropna=False)
-    xs, ys = table.columns.to_numpy(float), table.index.to_numpy(float)
+    (x_edges, x_log), (y_edges, y_log) = (_cell_edges(table.columns.to_numpy(float)),
+                                          _cell_edges(table.index.to_numpy(float)))
     fig, ax = plt.subplots(figsize=(7, 5.5))
-    mesh = ax.pcolormesh(xs, ys, np.ma.masked_invalid(table.to_numpy(float)), shading="nearest",
-                         cmap="viridis")
+    mesh = ax.pcolormesh(x_edges, y_edges, np.ma.masked_invalid(table.to_numpy(float)),
+                         shading="flat", cmap="viridis")
+    if x_log:
+        ax.set_xscale("log")
+    if y_log:
+        ax.set_yscale("log")
     ax.set_facecolor("0.75")  # failed points show grey
     fig.colorbar(mesh, ax=ax, label=metric)
     ax.set_xlabel(x_name)

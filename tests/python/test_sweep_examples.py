@@ -55,8 +55,10 @@ def test_latin_hypercube_over_the_geometry(fmu_path, tmp_path):
 def _with_components(example, fmu_path, directory):
     """The example with its components the FMUs under test."""
     motor = packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
+    load = packed("FLYWHEEL_LOAD_FMU", "target/fmu/FlywheelLoad.fmu", "motor")
     text = (EXAMPLES / example).read_text()
     text = text.replace('"../../target/fmu/DcMotor.fmu"', f'"{motor.resolve()}"')
+    text = text.replace('"../../target/fmu/FlywheelLoad.fmu"', f'"{load.resolve()}"')
     text = text.replace('"../../target/fmu/CyclicMechanism.fmu"', f'"{fmu_path.resolve()}"')
     (directory / example).write_text(text)
     return directory / example
@@ -83,3 +85,17 @@ def test_coupled_motor_with_a_coupling_tolerance(fmu_path, tmp_path):
     assert (points["coupling_rejected"] <= 0.1 * points["coupling_steps"]).all()
     worst = points.loc[points["omega1_ripple"].idxmax()]
     assert 22.0 <= worst["motor.voltage"] <= 28.0 and worst["mechanism.d34"] == points["mechanism.d34"].min()
+
+
+def test_flywheel_on_a_stiff_shaft_with_a_coupling_tolerance(fmu_path, tmp_path):
+    """The second coupled example: every point ok within its coupling tolerance, few steps
+    rejected; a heavier flywheel takes more torque to swing, a stiffer shaft twists less."""
+    spec = _with_components("coupled_flywheel_tolerance.toml", fmu_path, tmp_path)
+    points, said = sweep(spec, fmu_path, tmp_path / "out")
+    assert len(points) == 100 and (points["status"] == "ok").all()
+    assert (points["coupling_error"] <= 1e-5).all() and (points["coupling_steps"] > 500).all()
+    assert (points["coupling_rejected"] <= 0.1 * points["coupling_steps"]).all()
+    by_k = points.sort_values("load.J").groupby("load.k")["peak_shaft_torque"]
+    assert (by_k.last() > 5 * by_k.first()).all()
+    by_j = points.sort_values("load.k").groupby("load.J")["peak_twist"]
+    assert (by_j.last() < by_j.first() / 10).all()
