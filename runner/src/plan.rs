@@ -99,6 +99,30 @@ pub struct Input {
 }
 
 impl Input {
+    /// The slope of the signal just after t: its table segment's, 0 beyond the table.
+    pub fn slope_after(&self, t: f64) -> f64 {
+        let (times, values) = (&self.table.times, &self.table.values);
+        let after = times.partition_point(|&ti| ti <= t);
+        if after == 0 || after == times.len() {
+            return 0.0;
+        }
+        (values[after] - values[after - 1]) / (times[after] - times[after - 1])
+    }
+
+    /// The table's times strictly between a and b, farther than `margin` from both.
+    pub fn breakpoints_within(
+        &self,
+        a: f64,
+        b: f64,
+        margin: f64,
+    ) -> impl Iterator<Item = f64> + '_ {
+        self.table
+            .times
+            .iter()
+            .copied()
+            .filter(move |&ti| ti > a + margin && ti < b - margin)
+    }
+
     /// The signal at t, linear between table points and held beyond them.
     pub fn at(&self, t: f64) -> f64 {
         let (times, values) = (&self.table.times, &self.table.values);
@@ -308,6 +332,12 @@ mod tests {
         assert_eq!(input.at(2.0), 15.0);
         assert_eq!(input.at(3.0), 20.0);
         assert_eq!(input.at(9.0), 20.0);
+        // The slope just after a time, and the breakpoints within a step.
+        assert_eq!((input.slope_after(0.0), input.slope_after(1.0)), (0.0, 5.0));
+        assert_eq!((input.slope_after(2.9), input.slope_after(3.0)), (5.0, 0.0));
+        let within = |a, b| input.breakpoints_within(a, b, 1e-9).collect::<Vec<_>>();
+        assert_eq!(within(0.5, 3.5), vec![1.0, 3.0]);
+        assert_eq!(within(1.0, 3.0), Vec::<f64>::new());
     }
 
     #[test]

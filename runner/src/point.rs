@@ -323,24 +323,42 @@ impl Runner {
         self.prepare(plan, assignments, row, true)?;
         self.size_buffers(plan);
         self.record(plan, 0, result)?;
-        let mut inputs_now: Vec<f64> = plan.inputs.iter().map(|i| i.at(plan.start)).collect();
+        let mut inputs_now: Vec<(f64, f64)> = plan
+            .inputs
+            .iter()
+            .map(|i| (i.at(plan.start), 0.0))
+            .collect();
+        // A system with a coupling tolerance takes the tables as they are: each input moves
+        // along its segment's slope, and its steps end on every breakpoint. Anything else
+        // has each input set at a step's start and held over the step.
+        let along = self
+            .instance
+            .as_ref()
+            .is_some_and(|i| i.coupling().is_some());
+        let mut ends = Vec::new();
         for k in 0..plan.n_steps {
             let (t, t_next) = (plan.time(k), plan.time(k + 1));
-            let instance = self.instance.as_mut().expect("prepared");
-            for (input, now) in plan.inputs.iter().zip(inputs_now.iter_mut()) {
-                let u = input.at(t);
-                // Set only a changed value: a set restarts many FMUs' integrators.
-                if u.to_bits() != now.to_bits() {
-                    let s = instance.set_real(&[input.value_reference], &[u]);
-                    if !s.proceeds() {
-                        return Err(failed("setting an input", s));
-                    }
-                    *now = u;
-                }
+            ends.clear();
+            if along {
+                let margin = 1e-9 * plan.step;
+                ends.extend(
+                    plan.inputs
+                        .iter()
+                        .flat_map(|i| i.breakpoints_within(t, t_next, margin)),
+                );
+                ends.sort_by(f64::total_cmp);
+                ends.dedup();
             }
-            let s = instance.do_step(t, t_next - t);
-            if !s.proceeds() {
-                return Err(failed(&format!("fmi2DoStep at t = {t}"), s));
+            ends.push(t_next);
+            let mut a = t;
+            for &b in &ends {
+                let instance = self.instance.as_mut().expect("prepared");
+                set_inputs(instance, plan, a, along, &mut inputs_now)?;
+                let s = instance.do_step(a, b - a);
+                if !s.proceeds() {
+                    return Err(failed(&format!("fmi2DoStep at t = {a}"), s));
+                }
+                a = b;
             }
             result.steps = k + 1;
             self.record(plan, k + 1, result)?;
@@ -456,4 +474,34 @@ impl Runner {
         }
         Ok(started.elapsed().as_secs_f64())
     }
+}
+
+/// Each input at `t`, set where its value changed (a set restarts many FMUs' integrators);
+/// with `along`, its slope after `t` too, where that changed. `now` holds what was set.
+fn set_inputs(
+    instance: &mut Running,
+    plan: &Plan,
+    t: f64,
+    along: bool,
+    now: &mut [(f64, f64)],
+) -> Result<(), Stop> {
+    for (input, (value, slope)) in plan.inputs.iter().zip(now.iter_mut()) {
+        let u = input.at(t);
+        if u.to_bits() != value.to_bits() {
+            let s = instance.set_real(&[input.value_reference], &[u]);
+            if !s.proceeds() {
+                return Err(failed("setting an input", s));
+            }
+            *value = u;
+        }
+        let du = input.slope_after(t);
+        if along && du.to_bits() != slope.to_bits() {
+            let s = instance.set_input_slope(input.value_reference, du);
+            if !s.proceeds() {
+                return Err(failed("setting an input's slope", s));
+            }
+            *slope = du;
+        }
+    }
+    Ok(())
 }

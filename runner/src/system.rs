@@ -62,6 +62,8 @@ struct ConnectionFile {
 struct Component {
     name: CString,
     library: Rc<Library>,
+    /// Whether it moves its inputs along derivatives a master sets.
+    interpolates: bool,
     // Removed when the system is dropped; the library stays loaded (see `Library`).
     _unpacked: Unpacked,
 }
@@ -127,6 +129,7 @@ impl SystemLibrary {
                 .map_err(|e| format!("component {}: {e}", c.name))?;
             components.push(Component {
                 name: CString::new(c.name.as_str()).map_err(|e| e.to_string())?,
+                interpolates: description.can_interpolate_inputs && library.exports_derivatives().1,
                 library,
                 _unpacked: unpacked,
             });
@@ -523,6 +526,18 @@ impl Unit for SystemInstance {
 
     fn coupling(&self) -> Option<CouplingReport> {
         self.controller.as_ref().map(Controller::report)
+    }
+
+    fn set_input_slope(&mut self, vr: u32, slope: f64) -> Status {
+        let Some(route) = self.system.route(vr, 0) else {
+            return Status::Error;
+        };
+        if !self.system.components[route.component].interpolates {
+            return Status::Ok;
+        }
+        self.passed_at = None;
+        let set = self.instances[route.component].set_input_derivatives(route.vr, &[slope]);
+        self.blame(route.component, "fmi2SetRealInputDerivatives", set)
     }
 }
 

@@ -55,4 +55,11 @@ impl Unit for Running {
             Running::System(unit) => unit.coupling(),
         }
     }
+
+    fn set_input_slope(&mut self, vr: u32, slope: f64) -> Status {
+        match self {
+            Running::Fmu(unit) => unit.set_input_slope(vr, slope),
+            Running::System(unit) => unit.set_input_slope(vr, slope),
+        }
+    }
 }

@@ -23,6 +23,12 @@ pub trait Unit {
     fn coupling(&self) -> Option<CouplingReport> {
         None
     }
+    /// For a system with a coupling tolerance: an input that moves on from its value along
+    /// `slope` over the steps to come, where its component interpolates inputs (held
+    /// otherwise). Not called on anything else.
+    fn set_input_slope(&mut self, _vr: u32, _slope: f64) -> Status {
+        Status::Ok
+    }
 }
 
 /// `$implement!` over every call of [`Unit`], written once here.

@@ -135,11 +135,16 @@ def solve(p, times, rtol=1e-12, method="DOP853"):
 
 @dataclass(frozen=True)
 class Motor:
-    """A DC motor on body 1 (examples/dc_motor): L·di/dt = V − R·i − k·ω1, torque k·i."""
+    """A DC motor on body 1 (examples/dc_motor): L·di/dt = V − R·i − k·ω1, torque k·i; the
+    voltage V, or piecewise linear through `V_table` ((times), (values)), held beyond it."""
     R: float = 0.5
     L: float = 0.01
     k: float = 2.0
     V: float = 24.0
+    V_table: tuple = ()
+
+    def voltage(self, t):
+        return np.interp(t, *self.V_table) if self.V_table else self.V
 
 
 def rhs_with_motor(t, y, p, motor):
@@ -147,18 +152,25 @@ def rhs_with_motor(t, y, p, motor):
     the input M_m, exactly, at every instant (no coupling step)."""
     current = y[8]
     mechanism = rhs(t, y[:8], replace(p, M_m=motor.k * current))
-    di = (motor.V - motor.R * current - motor.k * y[4]) / motor.L
+    di = (motor.voltage(t) - motor.R * current - motor.k * y[4]) / motor.L
     return np.append(mechanism, di)
 
 
 def solve_with_motor(p, motor, times, rtol=1e-12):
     """The monolithic reference of the motor-driven mechanism at `times` (columns φ1..φ4,
     ω1..ω4, i), the current starting at 0."""
-    y0 = np.append(initial_state(p), 0.0)
-    sol = solve_ivp(rhs_with_motor, (times[0], times[-1]), y0, method="DOP853", t_eval=times,
-                    rtol=rtol, atol=rtol, args=(p, motor))
-    assert sol.success, sol.message
-    return sol.y.T
+    y, rows = np.append(initial_state(p), 0.0), []
+    # Piece by piece between the voltage's breakpoints, where its slope jumps.
+    edges = sorted({times[0], times[-1], *(b for b in (motor.V_table[:1] or [()])[0]
+                                           if times[0] < b < times[-1])})
+    for a, b in zip(edges, edges[1:]):
+        inside = [t for t in times if a <= t < b] + ([b] if b == times[-1] else [])
+        sol = solve_ivp(rhs_with_motor, (a, b), y, method="DOP853", t_eval=inside,
+                        rtol=rtol, atol=rtol, args=(p, motor), dense_output=True)
+        assert sol.success, sol.message
+        rows.append(sol.y.T)
+        y = sol.sol(b)
+    return np.vstack(rows)
 
 
 @dataclass(frozen=True)
