@@ -110,17 +110,11 @@ impl Input {
     }
 
     /// The table's times strictly between a and b, farther than `margin` from both.
-    pub fn breakpoints_within(
-        &self,
-        a: f64,
-        b: f64,
-        margin: f64,
-    ) -> impl Iterator<Item = f64> + '_ {
-        self.table
-            .times
-            .iter()
-            .copied()
-            .filter(move |&ti| ti > a + margin && ti < b - margin)
+    pub fn breakpoints_within(&self, a: f64, b: f64, margin: f64) -> &[f64] {
+        let times = &self.table.times;
+        let first = times.partition_point(|&ti| ti <= a + margin);
+        let last = times.partition_point(|&ti| ti < b - margin);
+        &times[first..last.max(first)]
     }
 
     /// The signal at t, linear between table points and held beyond them.
@@ -335,9 +329,10 @@ mod tests {
         // The slope just after a time, and the breakpoints within a step.
         assert_eq!((input.slope_after(0.0), input.slope_after(1.0)), (0.0, 5.0));
         assert_eq!((input.slope_after(2.9), input.slope_after(3.0)), (5.0, 0.0));
-        let within = |a, b| input.breakpoints_within(a, b, 1e-9).collect::<Vec<_>>();
+        let within = |a, b| input.breakpoints_within(a, b, 1e-9).to_vec();
         assert_eq!(within(0.5, 3.5), vec![1.0, 3.0]);
         assert_eq!(within(1.0, 3.0), Vec::<f64>::new());
+        assert_eq!(within(3.5, 9.0), Vec::<f64>::new());
     }
 
     #[test]

@@ -341,11 +341,9 @@ impl Runner {
             ends.clear();
             if along {
                 let margin = 1e-9 * plan.step;
-                ends.extend(
-                    plan.inputs
-                        .iter()
-                        .flat_map(|i| i.breakpoints_within(t, t_next, margin)),
-                );
+                for input in &plan.inputs {
+                    ends.extend_from_slice(input.breakpoints_within(t, t_next, margin));
+                }
                 ends.sort_by(f64::total_cmp);
                 ends.dedup();
             }
@@ -494,8 +492,11 @@ fn set_inputs(
             }
             *value = u;
         }
+        if !along {
+            continue;
+        }
         let du = input.slope_after(t);
-        if along && du.to_bits() != slope.to_bits() {
+        if du.to_bits() != slope.to_bits() {
             let s = instance.set_input_slope(input.value_reference, du);
             if !s.proceeds() {
                 return Err(failed("setting an input's slope", s));

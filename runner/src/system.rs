@@ -148,11 +148,7 @@ impl SystemLibrary {
                 file.input_derivatives,
             )?;
             // A description may promise derivatives its binary does not export.
-            let (gives, takes) = (
-                components[from].library.exports_derivatives().0,
-                components[to].library.exports_derivatives().1,
-            );
-            if !(gives && takes) {
+            if !(components[from].library.exports_derivatives().0 && components[to].interpolates) {
                 link.derivatives = 0;
             }
             links.push(link);
@@ -291,10 +287,12 @@ pub struct SystemInstance {
     /// and derivatives its target was given at the step's start and its scale.
     controller: Option<Controller>,
     given: Vec<[f64; 3]>,
+    /// What the connections give at a controlled step's end, before it is accepted.
+    given_next: Vec<[f64; 3]>,
     scales: Vec<f64>,
-    /// The time at which every connection was last passed by a controlled step's end, until
-    /// a value is set from outside: the next step starts from those values.
-    passed_at: Option<f64>,
+    /// Whether the last controlled step's end passed every connection and nothing was set
+    /// since: the next step starts from those values.
+    passed: bool,
 }
 
 /// The first status that stops a run, else the worst; `calls` run in order until one stops.
@@ -332,8 +330,9 @@ impl SystemInstance {
                 .coupling_tolerance
                 .map(|tol| Controller::new(tol, fewest)),
             given: vec![[0.0; 3]; system.links.len()],
+            given_next: vec![[0.0; 3]; system.links.len()],
             scales: vec![1.0; system.links.len()],
-            passed_at: None,
+            passed: false,
         })
     }
 
@@ -463,7 +462,7 @@ impl Unit for SystemInstance {
             controller.restart();
         }
         self.scales.iter_mut().for_each(|s| *s = 1.0);
-        self.passed_at = None;
+        self.passed = false;
         self.each("fmi2Reset", Instance::reset)
     }
 
@@ -488,17 +487,17 @@ impl Unit for SystemInstance {
     }
 
     fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
-        self.passed_at = None;
+        self.passed = false;
         self.set((vr, values, 0), Instance::set_real)
     }
 
     fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Status {
-        self.passed_at = None;
+        self.passed = false;
         self.set((vr, values, 1), Instance::set_integer)
     }
 
     fn set_boolean(&mut self, vr: &[u32], values: &[i32]) -> Status {
-        self.passed_at = None;
+        self.passed = false;
         self.set((vr, values, 2), Instance::set_boolean)
     }
 
@@ -535,7 +534,7 @@ impl Unit for SystemInstance {
         if !self.system.components[route.component].interpolates {
             return Status::Ok;
         }
-        self.passed_at = None;
+        self.passed = false;
         let set = self.instances[route.component].set_input_derivatives(route.vr, &[slope]);
         self.blame(route.component, "fmi2SetRealInputDerivatives", set)
     }
@@ -575,16 +574,23 @@ impl SystemInstance {
     /// the estimate. A step whose estimate is too large is taken again, shorter, from the
     /// saved states (which hold the inputs passed at its start).
     fn controlled_steps(&mut self, time: f64, grid: f64) -> Status {
+        // The scratch values go back whatever the way out.
+        let mut next = std::mem::take(&mut self.given_next);
+        let status = self.controlled_steps_with(time, grid, &mut next);
+        self.given_next = next;
+        status
+    }
+
+    fn controlled_steps_with(&mut self, time: f64, grid: f64, next: &mut Vec<[f64; 3]>) -> Status {
         let end = time + grid;
         let mut worst = Status::Ok;
-        if self.passed_at != Some(time) {
+        if !self.passed {
             worst = self.jacobi_pass();
             if !worst.proceeds() {
                 return worst;
             }
         }
         let mut t = time;
-        let mut next = self.given.clone();
         while t < end {
             let h = self.controller().next_step(t, end, grid);
             let lands = h == end - t;
@@ -595,20 +601,20 @@ impl SystemInstance {
             let stepped = match self.step_all(t, h) {
                 Status::Discard => Status::Discard,
                 s if !s.proceeds() => return s,
-                s => s.max(self.pass_all(&mut next)),
+                s => s.max(self.pass_all(next)),
             };
             let estimate = match stepped {
                 Status::Discard => f64::INFINITY,
                 s if !s.proceeds() => return s,
-                _ => self.largest_drift(&next, h),
+                _ => self.largest_drift(next, h),
             };
             match self.controller_mut().judge(h, estimate, grid) {
                 Verdict::Accept => {
                     worst = worst.max(stepped).max(saved);
-                    std::mem::swap(&mut self.given, &mut next);
+                    std::mem::swap(&mut self.given, next);
                     self.widen_scales();
                     t = if lands { end } else { t + h };
-                    self.passed_at = Some(t);
+                    self.passed = true;
                 }
                 Verdict::Reject => {
                     let restored = self.each("fmi2SetFMUstate", Instance::restore_state);
