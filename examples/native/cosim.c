@@ -12,7 +12,7 @@
 /* The message is passed as the logger's format, with '%' doubled: masters that format it
  * and masters that print it as it is (FMPy's ctypes callback cannot read variadic
  * arguments) both show it. */
-void report(Fmu *m, fmi2Status status, const char *format, ...) {
+static void report(Fmu *m, fmi2Status status, const char *format, ...) {
     char message[512], escaped[1024];
     size_t i, j = 0;
     va_list args;

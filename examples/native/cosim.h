@@ -55,7 +55,5 @@ void model_output_rates(Fmu *m, fmi2ValueReference vr, double rates[2]);
 /* For the models: input `j` (in MODEL_INPUT_VRS order) and its first two derivatives, `s`
  * after the inputs were set. */
 void input_course(const Fmu *m, int j, double s, double u[3]);
-/* Log through the master's logger: the message as its format, '%' doubled. */
-void report(Fmu *m, fmi2Status status, const char *format, ...);
 
 #endif
