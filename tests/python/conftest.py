@@ -42,6 +42,16 @@ def compiled_slave(path, identifier, directory):
 
 
 @pytest.fixture(scope="session")
+def motor_path():
+    return packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
+
+
+@pytest.fixture(scope="session")
+def load_path():
+    return packed("FLYWHEEL_LOAD_FMU", "target/fmu/FlywheelLoad.fmu", "motor")
+
+
+@pytest.fixture(scope="session")
 def fmu_path():
     return packed("CYCLIC_MECHANISM_FMU", "target/fmu/CyclicMechanism.fmu", "fmu")
 

@@ -161,8 +161,8 @@ def solve_with_motor(p, motor, times, rtol=1e-12):
     ω1..ω4, i), the current starting at 0."""
     y, rows = np.append(initial_state(p), 0.0), []
     # Piece by piece between the voltage's breakpoints, where its slope jumps.
-    edges = sorted({times[0], times[-1], *(b for b in (motor.V_table[:1] or [()])[0]
-                                           if times[0] < b < times[-1])})
+    breaks = motor.V_table[0] if motor.V_table else ()
+    edges = sorted({times[0], times[-1], *(b for b in breaks if times[0] < b < times[-1])})
     for a, b in zip(edges, edges[1:]):
         inside = [t for t in times if a <= t < b] + ([b] if b == times[-1] else [])
         sol = solve_ivp(rhs_with_motor, (a, b), y, method="DOP853", t_eval=inside,

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from conftest import ROOT, packed
+from conftest import ROOT
 
 sys.path.insert(0, str(ROOT / "bench"))
 from bench_coupled_step import OUTPUTS, coupled_run  # noqa: E402
@@ -17,11 +17,6 @@ from bench_coupled_step import OUTPUTS, coupled_run  # noqa: E402
 # The benchmark's 10 s: the motor's run-up, the mechanism settling to its cycle, and the
 # cycles after (where the run at H = 5 ms once missed the tolerance).
 STOP = 10.0
-
-
-@pytest.fixture(scope="module")
-def motor_path():
-    return packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
 
 
 @pytest.fixture(scope="module")

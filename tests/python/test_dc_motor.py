@@ -14,18 +14,13 @@ import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import ROOT, compiled_slave, packed
+from conftest import ROOT, compiled_slave
 
 sys.path.insert(0, str(ROOT / "examples/dc_motor"))
 import coupling  # noqa: E402
 
 NATIVE = ROOT / "examples/dc_motor/native"
 R, L, K, V = 0.5, 0.01, 2.0, 24.0
-
-
-@pytest.fixture(scope="module")
-def motor_path():
-    return packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
 
 
 @pytest.fixture

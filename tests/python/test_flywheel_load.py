@@ -12,15 +12,10 @@ import pytest
 from fmpy.fmi1 import FMICallException
 from fmpy.validation import validate_fmu
 
-from conftest import ROOT, compiled_slave, packed
+from conftest import ROOT, compiled_slave
 
 NATIVE = ROOT / "examples/flywheel_load/native"
 K, D, J, C = 2000.0, 2.0, 0.5, 1.0
-
-
-@pytest.fixture(scope="module")
-def load_path():
-    return packed("FLYWHEEL_LOAD_FMU", "target/fmu/FlywheelLoad.fmu", "motor")
 
 
 @pytest.fixture
