@@ -103,12 +103,12 @@ def system_spec(fmu, other, stop, step, points, series=False, engine=("native", 
 
 
 def system_rate(fmu, other, points, tmp, engine=("native", 2), step=1e-3, tolerance=None,
-                system=MOTOR, fmu_tolerance=FMU_TOLERANCE, repeats=REPEATS):
-    """Points/s of 10 s runs, the best of `repeats` sweeps of the same points."""
+                system=MOTOR, fmu_tolerance=FMU_TOLERANCE):
+    """Points/s of 10 s runs, the best of REPEATS sweeps of the same points."""
     spec = system_spec(fmu, other, 10.0, step, points, engine=engine, tolerance=tolerance,
                        system=system, fmu_tolerance=fmu_tolerance)
     best = 0.0
-    for _ in range(repeats):
+    for _ in range(REPEATS):
         out = pathlib.Path(tempfile.mkdtemp(dir=tmp)) / "rate"
         r = run_sweep(spec, out=out, serial=True, progress=False, plots=False).report
         best = max(best, r.computed / r.point_seconds)
@@ -197,14 +197,24 @@ def tolerance_runs(fmu, other, points, tmp, system, fixed):
     return runs
 
 
-def bracketing_steps(curve, target):
-    """The two neighbouring steps of `curve` [(step, error, rate)] whose errors bracket
-    `target`, or the two nearest it."""
-    pairs = list(zip(curve, curve[1:]))
-    for a, b in pairs:
+def bracket(curve, target):
+    """The neighbouring points of `curve` [(step, error, rate)] whose errors bracket
+    `target`, and where `target` lies between them in log: (a, b, x); None outside."""
+    for a, b in zip(curve, curve[1:]):
         if min(a[1], b[1]) <= target <= max(a[1], b[1]):
-            return [a[0], b[0]]
-    a, b = pairs[0] if target < curve[0][1] else pairs[-1]
+            return a, b, np.log(target / a[1]) / np.log(b[1] / a[1])
+    return None
+
+
+def between_in_log(u, v, x):
+    return float(np.exp(np.log(u) + x * np.log(v / u)))
+
+
+def bracketing_steps(curve, target):
+    """The two neighbouring steps of `curve` whose errors bracket `target`, or the two
+    nearest it."""
+    found = bracket(curve, target)
+    a, b = found[:2] if found else (curve[:2] if target < curve[0][1] else curve[-2:])
     return [a[0], b[0]]
 
 
@@ -221,21 +231,15 @@ def error_by_window(fmu, other, tmp, system, step=2e-3, window=0.25):
 def interpolated_steps(curve, target, stop=2.0):
     """The communication steps over `stop` of fixed steps at coupling error `target` on
     `curve` [(step, error, rate)], the step log-log interpolated; None outside it."""
-    for (h0, e0, _), (h1, e1, _) in zip(curve, curve[1:]):
-        if min(e0, e1) <= target <= max(e0, e1):
-            x = np.log(target / e0) / np.log(e1 / e0)
-            return stop / float(np.exp(np.log(h0) + x * np.log(h1 / h0)))
-    return None
+    found = bracket(curve, target)
+    return stop / between_in_log(found[0][0], found[1][0], found[2]) if found else None
 
 
 def interpolated_rate(curve, target):
     """Points/s at coupling error `target` on an engine's curve [(step, error, rate)],
     log-log interpolated between measured steps; None outside the errors measured."""
-    for (h0, e0, r0), (h1, e1, r1) in zip(curve, curve[1:]):
-        if min(e0, e1) <= target <= max(e0, e1):
-            x = np.log(target / e0) / np.log(e1 / e0)
-            return float(np.exp(np.log(r0) + x * np.log(r1 / r0)))
-    return None
+    found = bracket(curve, target)
+    return between_in_log(found[0][2], found[1][2], found[2]) if found else None
 
 
 def rate_at_error(curve, target):
