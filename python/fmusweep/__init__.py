@@ -1,4 +1,4 @@
-"""fmusweep: scripted sweeps of an FMI 2.0 co-simulation FMU at the FMU's own speed.
+"""fmusweep: scripted sweeps of an FMI 2.0 or 3.0 co-simulation FMU at the FMU's own speed.
 
     from fmusweep import run_sweep
     results = run_sweep("examples/sweeps/rod_force_grid.toml", fmu="Model.fmu")

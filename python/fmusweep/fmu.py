@@ -74,10 +74,10 @@ def open_for_checks(fmu: str | os.PathLike[str] | None, spec_fmu: str | os.PathL
     version = fmi_version(target)
     if version is None:
         raise SpecError("fmu", f"{path} has no readable modelDescription.xml: it is not an FMU")
-    if version != "2.0":
+    if version not in ("2.0", "3.0"):
         raise SpecError("fmu", f"{path} is an FMI {version} FMU (its modelDescription.xml says "
-                               f"fmiVersion=\"{version}\"); fmusweep runs FMI 2.0 "
-                               f"Co-Simulation FMUs: give the model's FMI 2.0 archive")
+                               f"fmiVersion=\"{version}\"); fmusweep runs FMI 2.0 and FMI 3.0 "
+                               f"Co-Simulation FMUs")
     local = local_runner(target)
     return target, local, local.describe()
 

@@ -60,7 +60,8 @@ class CouplingRecord(TypedDict):
 class PointResult(TypedDict):
     """One point's outcome: ``status`` ok, or why not (``message``); the metrics in the
     plan's order (None where the run did not get far enough); the series' rows
-    (t, variables…) when the plan keeps a series; ``coupling`` for a system with a coupling
+    (t, variables…) when the plan keeps a series; ``events`` the events an FMI 3.0 FMU met
+    (each handled in its event mode); ``coupling`` for a system with a coupling
     tolerance; ``worker`` once a pool has placed it."""
     status: str
     message: str
@@ -68,6 +69,7 @@ class PointResult(TypedDict):
     t_end: float | None
     steps: int | None
     wall_s: float | None
+    events: NotRequired[int | None]
     series: NotRequired[npt.NDArray[np.float64]]
     coupling: NotRequired[CouplingRecord | None]
     worker: NotRequired[str]

@@ -76,6 +76,7 @@ def _tables(spec: Spec, study: Study, names: list[str], rows: Rows,
         columns[metric.name] = pa.array([r["metrics"][k] for r in results], pa.float64())
     columns["t_end"] = pa.array([r["t_end"] for r in results], pa.float64())
     columns["steps"] = pa.array([r["steps"] for r in results], pa.int64())
+    columns["events"] = pa.array([r.get("events") for r in results], pa.int64())
     columns["wall_s"] = pa.array([r["wall_s"] for r in results], pa.float64())
     columns["worker"] = pa.array([batch["worker"]] * len(results), pa.string())
     if spec.system is not None and spec.system.coupling_tolerance is not None:

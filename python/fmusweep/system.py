@@ -1,5 +1,5 @@
-"""Coupled systems named in a spec's ``[system]`` table: components (FMI 2.0 co-simulation
-FMUs) and connections from an output of one to an input of another::
+"""Coupled systems named in a spec's ``[system]`` table: components (FMI 2.0 or 3.0
+co-simulation FMUs) and connections from an output of one to an input of another::
 
     [system]
     components = { motor = "DcMotor.fmu", mechanism = "CyclicMechanism.fmu" }
@@ -145,7 +145,7 @@ class System:
             if target.causality != "input":
                 raise SpecError(where, f"{c.target}.{c.input} has causality {target.causality}; "
                                        "a connection ends at an input")
-            if source.type != target.type:
+            if _value_kind(source.type) != _value_kind(target.type):
                 raise SpecError(where, f"{c}: a {source.type} output cannot feed a {target.type} input")
             if (c.target, c.input) in fed:
                 raise SpecError(where, f"{c.target}.{c.input} is fed twice (also by connection "
@@ -293,9 +293,18 @@ def _description(name: str, path: pathlib.Path) -> Any:
         description = fmpy.read_model_description(str(path), validate=False)
     except Exception as e:
         raise SpecError(where, f"{path}: its modelDescription.xml cannot be read: {e}") from None
-    if description.fmiVersion != "2.0" or description.coSimulation is None:
-        raise SpecError(where, f"{path} is not an FMI 2.0 co-simulation FMU")
+    if description.fmiVersion not in ("2.0", "3.0") or description.coSimulation is None:
+        raise SpecError(where, f"{path} is not an FMI 2.0 or 3.0 co-simulation FMU")
     return description
+
+
+# FMI 3.0's names of the types FMI 2.0 calls Real and Integer: a system may mix versions.
+_FMI2_KIND = {"Float64": "Real", "Int32": "Integer"}
+
+
+def _value_kind(fmi_type: str) -> str:
+    """The kind of value a variable of this type passes, in FMI 2.0's words."""
+    return _FMI2_KIND.get(fmi_type, fmi_type)
 
 
 def _variable(description: Any, component: str, name: str, where: str) -> Any:

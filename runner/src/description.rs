@@ -1,5 +1,6 @@
-//! What the runner needs from `modelDescription.xml`: the GUID, the co-simulation model
-//! identifier and the scalar variables, read with quick-xml.
+//! What the runner needs from `modelDescription.xml`, FMI 2.0 or 3.0: the GUID (FMI 3.0's
+//! instantiation token), the co-simulation model identifier and capabilities, and the
+//! scalar variables, read with quick-xml.
 
 use std::path::Path;
 
@@ -7,7 +8,8 @@ use quick_xml::events::{BytesStart, Event};
 use quick_xml::Reader;
 use serde::Serialize;
 
-/// The FMI 2.0 base type of a scalar variable.
+/// The base type of a scalar variable, in FMI 2.0's words: FMI 3.0's Float64 is a Real and
+/// its Int32 an Integer; its other types are [`BaseType::Unsupported`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum BaseType {
@@ -16,6 +18,9 @@ pub enum BaseType {
     Boolean,
     String,
     Enumeration,
+    /// A type the runner neither sets nor reads (FMI 3.0's Float32, Int64, Binary, …, and
+    /// arrays); `fmi_type` names it.
+    Unsupported,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -31,6 +36,9 @@ pub struct Variable {
     pub max: Option<String>,
     pub declared_type: Option<String>,
     pub description: Option<String>,
+    /// The element that declares the type, as the standard names it (`Real`, `Float64`,
+    /// `Int64`, …; an array's with `[]`).
+    pub fmi_type: String,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -47,6 +55,10 @@ pub struct Description {
     pub max_output_derivative_order: u32,
     /// Whether the FMU can save and restore its state (canGetAndSetFMUstate).
     pub can_get_and_set_state: bool,
+    /// FMI 3.0: whether the FMU has an event mode its master may use (hasEventMode).
+    pub has_event_mode: bool,
+    /// The names of the FMU's log categories (`<LogCategories>`), in its order.
+    pub log_categories: Vec<String>,
     pub variables: Vec<Variable>,
 }
 
@@ -68,40 +80,33 @@ impl Description {
             can_interpolate_inputs: false,
             max_output_derivative_order: 0,
             can_get_and_set_state: false,
+            has_event_mode: false,
+            log_categories: Vec::new(),
             variables: Vec::new(),
         };
-        // The <ScalarVariable> being read: its type comes from the child element.
+        // The variable being read: an FMI 2.0 <ScalarVariable> takes its type from its
+        // child element; an FMI 3.0 one may have <Dimension> (an array) and <Alias>
+        // children.
         let mut open: Option<Variable> = None;
+        // The element that closes an open FMI 3.0 variable.
+        let mut open_tag: Vec<u8> = Vec::new();
+        let mut in_variables = false;
         loop {
             let event = reader.read_event().map_err(|e| e.to_string())?;
             match &event {
                 Event::Start(e) | Event::Empty(e) => {
                     let empty = matches!(event, Event::Empty(_));
-                    match e.local_name().as_ref() {
-                        b"fmiModelDescription" => {
-                            description.fmi_version =
-                                attribute(e, "fmiVersion")?.unwrap_or_default();
-                            description.model_name = attribute(e, "modelName")?.unwrap_or_default();
-                            description.guid = attribute(e, "guid")?.unwrap_or_default();
+                    let tag = e.local_name();
+                    let fmi3 = description.fmi_version.starts_with("3.");
+                    match tag.as_ref() {
+                        b"fmiModelDescription" => description.read_root(e)?,
+                        b"CoSimulation" => description.read_co_simulation(e)?,
+                        b"ModelVariables" => in_variables = !empty,
+                        b"Category" if !in_variables => {
+                            description.log_categories.extend(attribute(e, "name")?);
                         }
-                        b"CoSimulation" => {
-                            description.model_identifier = attribute(e, "modelIdentifier")?;
-                            description.can_handle_variable_step =
-                                attribute(e, "canHandleVariableCommunicationStepSize")?
-                                    .is_some_and(|v| v == "true");
-                            description.can_interpolate_inputs =
-                                attribute(e, "canInterpolateInputs")?.is_some_and(|v| v == "true");
-                            description.can_get_and_set_state =
-                                attribute(e, "canGetAndSetFMUstate")?.is_some_and(|v| v == "true");
-                            description.max_output_derivative_order =
-                                attribute(e, "maxOutputDerivativeOrder")?
-                                    .map_or(Ok(0), |v| v.parse())
-                                    .map_err(|_| {
-                                        "maxOutputDerivativeOrder is not a whole number"
-                                    })?;
-                        }
-                        b"ScalarVariable" => {
-                            let variable = scalar_variable(e)?;
+                        b"ScalarVariable" if !fmi3 => {
+                            let variable = variable(e, BaseType::Real, "Real")?;
                             if empty {
                                 return Err(format!(
                                     "variable {} has no type element",
@@ -110,38 +115,111 @@ impl Description {
                             }
                             open = Some(variable);
                         }
-                        tag @ (b"Real" | b"Integer" | b"Boolean" | b"String" | b"Enumeration") => {
+                        tag @ (b"Real" | b"Integer" | b"Boolean" | b"String" | b"Enumeration")
+                            if !fmi3 =>
+                        {
                             if let Some(variable) = open.as_mut() {
-                                variable.base_type = match tag {
-                                    b"Real" => BaseType::Real,
-                                    b"Integer" => BaseType::Integer,
-                                    b"Boolean" => BaseType::Boolean,
-                                    b"String" => BaseType::String,
-                                    _ => BaseType::Enumeration,
-                                };
+                                variable.base_type = fmi2_type(tag);
+                                variable.fmi_type = String::from_utf8_lossy(tag).into_owned();
                                 variable.start = attribute(e, "start")?;
                                 variable.min = attribute(e, "min")?;
                                 variable.max = attribute(e, "max")?;
                                 variable.declared_type = attribute(e, "declaredType")?;
                             }
                         }
+                        b"Dimension" if fmi3 => {
+                            if let Some(variable) = open.as_mut() {
+                                variable.base_type = BaseType::Unsupported;
+                                if !variable.fmi_type.ends_with("[]") {
+                                    variable.fmi_type.push_str("[]");
+                                }
+                            }
+                        }
+                        b"Alias" if fmi3 => {
+                            if let (Some(variable), Some(name)) =
+                                (open.as_ref(), attribute(e, "name")?)
+                            {
+                                let alias = Variable {
+                                    name,
+                                    description: attribute(e, "description")?,
+                                    ..variable.clone()
+                                };
+                                description.variables.push(alias);
+                            }
+                        }
+                        tag if fmi3 && in_variables && open.is_none() => {
+                            let variable = fmi3_variable(e, tag)?;
+                            if empty {
+                                description.variables.push(variable);
+                            } else {
+                                open = Some(variable);
+                                open_tag = tag.to_vec();
+                            }
+                        }
                         _ => {}
                     }
                 }
-                Event::End(e) if e.local_name().as_ref() == b"ScalarVariable" => {
-                    description.variables.extend(open.take());
-                }
+                Event::End(e) => match e.local_name().as_ref() {
+                    b"ModelVariables" => in_variables = false,
+                    b"ScalarVariable" => description.variables.extend(open.take()),
+                    tag if open.is_some() && tag == open_tag.as_slice() => {
+                        description.variables.extend(open.take());
+                    }
+                    _ => {}
+                },
                 Event::Eof => break,
                 _ => {}
             }
         }
-        if description.fmi_version != "2.0" {
-            return Err(format!(
-                "fmiVersion is {:?}; this runner loads FMI 2.0 FMUs",
-                description.fmi_version
-            ));
+        match description.fmi_version.as_str() {
+            "2.0" => {}
+            v if v.starts_with("3.") => description.refuse_clocks()?,
+            v => {
+                return Err(format!(
+                    "fmiVersion is {v:?}; this runner loads FMI 2.0 and FMI 3.0 FMUs"
+                ))
+            }
         }
         Ok(description)
+    }
+
+    fn read_root(&mut self, e: &BytesStart) -> Result<(), String> {
+        self.fmi_version = attribute(e, "fmiVersion")?.unwrap_or_default();
+        self.model_name = attribute(e, "modelName")?.unwrap_or_default();
+        let token = if self.fmi_version.starts_with("3.") {
+            "instantiationToken"
+        } else {
+            "guid"
+        };
+        self.guid = attribute(e, token)?.unwrap_or_default();
+        Ok(())
+    }
+
+    fn read_co_simulation(&mut self, e: &BytesStart) -> Result<(), String> {
+        let flag = |name: &str| -> Result<bool, String> {
+            Ok(attribute(e, name)?.is_some_and(|v| v == "true"))
+        };
+        self.model_identifier = attribute(e, "modelIdentifier")?;
+        self.can_handle_variable_step = flag("canHandleVariableCommunicationStepSize")?;
+        self.can_interpolate_inputs = flag("canInterpolateInputs")?;
+        // FMI 2.0 spells it FMUstate, FMI 3.0 FMUState.
+        self.can_get_and_set_state = flag("canGetAndSetFMUstate")? || flag("canGetAndSetFMUState")?;
+        self.has_event_mode = flag("hasEventMode")?;
+        self.max_output_derivative_order = attribute(e, "maxOutputDerivativeOrder")?
+            .map_or(Ok(0), |v| v.parse())
+            .map_err(|_| "maxOutputDerivativeOrder is not a whole number")?;
+        Ok(())
+    }
+
+    /// Clocks need a scheduling master the runner is not: an FMU with one is refused.
+    fn refuse_clocks(&self) -> Result<(), String> {
+        match self.variables.iter().find(|v| v.fmi_type == "Clock") {
+            Some(clock) => Err(format!(
+                "the FMU declares the clock {:?}; the runner does not run FMUs with clocks",
+                clock.name
+            )),
+            None => Ok(()),
+        }
     }
 
     pub fn variable(&self, name: &str) -> Result<&Variable, String> {
@@ -152,24 +230,63 @@ impl Description {
     }
 }
 
-fn scalar_variable(e: &BytesStart) -> Result<Variable, String> {
-    let name = attribute(e, "name")?.ok_or("a ScalarVariable without a name")?;
+/// A variable's name, value reference, causality, variability and description, with the
+/// type given (FMI 2.0 reads it from the child element next).
+fn variable(e: &BytesStart, base_type: BaseType, fmi_type: &str) -> Result<Variable, String> {
+    let name = attribute(e, "name")?.ok_or("a variable without a name")?;
     let value_reference = attribute(e, "valueReference")?
         .ok_or_else(|| format!("variable {name} has no valueReference"))?
         .parse()
         .map_err(|_| format!("variable {name}: valueReference is not an unsigned integer"))?;
+    let continuous = matches!(base_type, BaseType::Real);
     Ok(Variable {
         value_reference,
-        base_type: BaseType::Real,
+        base_type,
         causality: attribute(e, "causality")?.unwrap_or_else(|| "local".into()),
-        variability: attribute(e, "variability")?.unwrap_or_else(|| "continuous".into()),
+        variability: attribute(e, "variability")?.unwrap_or_else(|| {
+            if continuous || fmi_type == "Real" || fmi_type == "Float32" {
+                "continuous".into()
+            } else {
+                "discrete".into()
+            }
+        }),
         start: None,
         min: None,
         max: None,
         declared_type: None,
         description: attribute(e, "description")?,
+        fmi_type: fmi_type.into(),
         name,
     })
+}
+
+fn fmi2_type(tag: &[u8]) -> BaseType {
+    match tag {
+        b"Real" => BaseType::Real,
+        b"Integer" => BaseType::Integer,
+        b"Boolean" => BaseType::Boolean,
+        b"String" => BaseType::String,
+        _ => BaseType::Enumeration,
+    }
+}
+
+/// An FMI 3.0 variable: its element names its type, its attributes carry the rest.
+fn fmi3_variable(e: &BytesStart, tag: &[u8]) -> Result<Variable, String> {
+    let fmi_type = String::from_utf8_lossy(tag).into_owned();
+    let base_type = match tag {
+        b"Float64" => BaseType::Real,
+        b"Int32" => BaseType::Integer,
+        b"Boolean" => BaseType::Boolean,
+        b"String" => BaseType::String,
+        b"Enumeration" => BaseType::Enumeration,
+        _ => BaseType::Unsupported,
+    };
+    let mut variable = variable(e, base_type, &fmi_type)?;
+    variable.start = attribute(e, "start")?;
+    variable.min = attribute(e, "min")?;
+    variable.max = attribute(e, "max")?;
+    variable.declared_type = attribute(e, "declaredType")?;
+    Ok(variable)
 }
 
 fn attribute(e: &BytesStart, name: &str) -> Result<Option<String>, String> {
@@ -224,7 +341,81 @@ mod tests {
 
     #[test]
     fn refuses_other_fmi_versions() {
-        let xml = XML.replace("fmiVersion=\"2.0\"", "fmiVersion=\"3.0\"");
-        assert!(Description::parse(&xml).unwrap_err().contains("FMI 2.0"));
+        let xml = XML.replace("fmiVersion=\"2.0\"", "fmiVersion=\"1.0\"");
+        assert!(Description::parse(&xml)
+            .unwrap_err()
+            .contains("FMI 2.0 and FMI 3.0"));
+    }
+
+    const XML3: &str = r#"<?xml version="1.0"?>
+<fmiModelDescription fmiVersion="3.0" modelName="M" instantiationToken="{t}">
+  <CoSimulation modelIdentifier="Mid" canHandleVariableCommunicationStepSize="true"
+    canGetAndSetFMUState="true" hasEventMode="true" maxOutputDerivativeOrder="1"/>
+  <TypeDefinitions><Float64Type name="Angle" unit="rad"/></TypeDefinitions>
+  <LogCategories><Category name="logStatusError"/><Category name="logEvents"/></LogCategories>
+  <ModelVariables>
+    <Float64 name="time" valueReference="0" causality="independent"/>
+    <Float64 name="x" valueReference="3" causality="parameter" variability="tunable"
+      start="1.5" min="0" declaredType="Angle"/>
+    <Int32 name="n" valueReference="7" causality="output"/>
+    <Enumeration name="e" valueReference="8" causality="parameter" start="2">
+      <Alias name="e_alias"/>
+    </Enumeration>
+    <Boolean name="b" valueReference="9" causality="input" start="true"/>
+    <Float32 name="f" valueReference="10"/>
+    <Float64 name="v" valueReference="11" start="0 0"><Dimension start="2"/></Float64>
+  </ModelVariables>
+</fmiModelDescription>"#;
+
+    #[test]
+    fn reads_an_fmi3_description() {
+        let d = Description::parse(XML3).unwrap();
+        assert_eq!((d.guid.as_str(), d.fmi_version.as_str()), ("{t}", "3.0"));
+        assert!(d.can_handle_variable_step && d.can_get_and_set_state && d.has_event_mode);
+        assert!(!d.can_interpolate_inputs);
+        assert_eq!(d.max_output_derivative_order, 1);
+        assert_eq!(d.log_categories, ["logStatusError", "logEvents"]);
+        let x = d.variable("x").unwrap();
+        assert_eq!((x.value_reference, x.base_type), (3, BaseType::Real));
+        assert_eq!(
+            (x.start.as_deref(), x.min.as_deref()),
+            (Some("1.5"), Some("0"))
+        );
+        assert_eq!(
+            (x.variability.as_str(), x.declared_type.as_deref()),
+            ("tunable", Some("Angle"))
+        );
+        let n = d.variable("n").unwrap();
+        assert_eq!(
+            (n.base_type, n.variability.as_str()),
+            (BaseType::Integer, "discrete")
+        );
+        assert_eq!(d.variable("e").unwrap().base_type, BaseType::Enumeration);
+        assert_eq!(d.variable("e_alias").unwrap().value_reference, 8);
+        assert_eq!(d.variable("b").unwrap().base_type, BaseType::Boolean);
+        let f = d.variable("f").unwrap();
+        assert_eq!(
+            (f.base_type, f.fmi_type.as_str()),
+            (BaseType::Unsupported, "Float32")
+        );
+        let v = d.variable("v").unwrap();
+        assert_eq!(
+            (v.base_type, v.fmi_type.as_str()),
+            (BaseType::Unsupported, "Float64[]")
+        );
+        assert_eq!(d.variables.len(), 8);
+    }
+
+    #[test]
+    fn refuses_an_fmi3_description_with_clocks() {
+        let xml = XML3.replace(
+            "<Float32 name=\"f\" valueReference=\"10\"/>",
+            "<Clock name=\"tick\" valueReference=\"10\" causality=\"input\"/>",
+        );
+        let error = Description::parse(&xml).unwrap_err();
+        assert!(
+            error.contains("\"tick\"") && error.contains("clocks"),
+            "{error}"
+        );
     }
 }

@@ -1,6 +1,7 @@
-//! The one place in the project that loads an FMI 2.0 co-simulation FMU: unpack the
-//! archive ([`archive`]), read its description with quick-xml ([`description`]), load its
-//! binary and own its instances, freed on drop ([`fmi`]); a coupled system of such FMUs
+//! The one place in the project that loads an FMI 2.0 or 3.0 co-simulation FMU: unpack
+//! the archive ([`archive`]), read its description with quick-xml ([`description`]), load
+//! its binary and own its instances, freed on drop, FMI 3.0's events handled on the way
+//! ([`fmi`]); a coupled system of such FMUs
 //! is stepped as one unit ([`system`], [`unit`]), its communication steps chosen by an
 //! error estimate when it has a coupling tolerance ([`coupling`]). The `fmu-runner` binary serves
 //! sweep points over it ([`protocol`], [`plan`], [`point`], [`metrics`]); the benchmark

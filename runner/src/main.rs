@@ -13,7 +13,7 @@ fn main() {
     let dir = match args.as_slice() {
         [_, command, dir] if command == "serve" => dir,
         _ => {
-            eprintln!("usage: fmu-runner serve <directory of an unpacked FMI 2.0 FMU>");
+            eprintln!("usage: fmu-runner serve <directory of an unpacked FMI 2.0 or 3.0 co-simulation FMU>");
             std::process::exit(2);
         }
     };

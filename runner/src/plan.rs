@@ -86,9 +86,9 @@ pub fn type_group(variable: &Variable) -> Result<usize, String> {
         BaseType::Real => Ok(0),
         BaseType::Integer | BaseType::Enumeration => Ok(1),
         BaseType::Boolean => Ok(2),
-        BaseType::String => Err(format!(
-            "{}: String variables are not supported",
-            variable.name
+        BaseType::String | BaseType::Unsupported => Err(format!(
+            "{}: {} variables are not supported",
+            variable.name, variable.fmi_type
         )),
     }
 }
@@ -348,6 +348,7 @@ mod tests {
             max: None,
             declared_type: None,
             description: None,
+            fmi_type: String::new(),
         };
         let (i, r1, b, r2) = (
             v(BaseType::Integer),

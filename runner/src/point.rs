@@ -42,6 +42,8 @@ pub struct PointResult {
     /// The last communication point reached.
     pub t_end: f64,
     pub steps: u64,
+    /// The events the FMU met (FMI 3.0 in event mode), each handled by the master.
+    pub events: u64,
     pub wall_s: f64,
     /// Rows of (t, variables…), flattened.
     pub series: Vec<f64>,
@@ -169,6 +171,12 @@ pub struct Runner {
 /// A failed FMI call: the outcome it maps to and what the FMU said.
 struct Stop(Outcome, String);
 
+/// `call` (by its FMI 2.0 name, which `instance` names as its version does, with `at`
+/// after it) returned `status`, which stops the point.
+fn failed_in(instance: &Running, call: &str, at: &str, status: Status) -> Stop {
+    failed(&format!("{}{at}", instance.call_name(call)), status)
+}
+
 fn failed(call: &str, status: Status) -> Stop {
     let outcome = if status == Status::Discard {
         Outcome::Discard
@@ -218,11 +226,11 @@ impl Runner {
         let instance = self.fresh_instance()?;
         let s = instance.setup_experiment(plan.tolerance, plan.start, plan.stop);
         if !s.proceeds() {
-            return Err(failed("fmi2SetupExperiment", s));
+            return Err(failed_in(instance, "fmi2SetupExperiment", "", s));
         }
         let s = instance.enter_initialization_mode();
         if !s.proceeds() {
-            return Err(failed("fmi2EnterInitializationMode", s));
+            return Err(failed_in(instance, "fmi2EnterInitializationMode", "", s));
         }
         let s = assignments.apply(instance);
         if !s.proceeds() {
@@ -237,7 +245,7 @@ impl Runner {
         if initialise {
             let s = instance.exit_initialization_mode();
             if !s.proceeds() {
-                return Err(failed("fmi2ExitInitializationMode", s));
+                return Err(failed_in(instance, "fmi2ExitInitializationMode", "", s));
             }
         }
         Ok(())
@@ -268,7 +276,7 @@ impl Runner {
             ),
         ] {
             if !s.proceeds() {
-                return Err(failed(call, s));
+                return Err(failed_in(instance, call, "", s));
             }
         }
         let values = self
@@ -354,7 +362,8 @@ impl Runner {
                 set_inputs(instance, plan, a, along, &mut inputs_now)?;
                 let s = instance.do_step(a, b - a);
                 if !s.proceeds() {
-                    return Err(failed(&format!("fmi2DoStep at t = {a}"), s));
+                    let at = format!(" at t = {a}");
+                    return Err(failed_in(instance, "fmi2DoStep", &at, s));
                 }
                 a = b;
             }
@@ -389,12 +398,14 @@ impl Runner {
             metrics: Vec::new(),
             t_end: plan.start,
             steps: 0,
+            events: 0,
             wall_s: 0.0,
             series: Vec::new(),
             coupling: None,
         };
         let ended = self.simulate(plan, assignments, row, &mut result, started);
         result.coupling = self.instance.as_ref().and_then(Unit::coupling);
+        result.events = self.instance.as_ref().map_or(0, Unit::events);
         let said = messages::take();
         match ended {
             Ok(()) => {

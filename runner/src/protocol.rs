@@ -168,6 +168,7 @@ impl Session {
                     "metrics": r.metrics,
                     "t_end": r.t_end,
                     "steps": r.steps,
+                    "events": r.events,
                     "wall_s": r.wall_s,
                     "series_rows": r.series.len().checked_div(width).unwrap_or(0),
                     "coupling": r.coupling,

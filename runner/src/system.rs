@@ -1,5 +1,5 @@
-//! A coupled system of FMI 2.0 co-simulation FMUs, stepped here as one unit: the folder the
-//! runner serves holds `system.json` and the components' `.fmu` files,
+//! A coupled system of FMI 2.0 and 3.0 co-simulation FMUs, stepped here as one unit: the
+//! folder the runner serves holds `system.json` and the components' `.fmu` files,
 //!
 //! ```json
 //! {"components": [{"name": "motor", "file": "motor.fmu"}, …],
@@ -184,6 +184,8 @@ impl SystemLibrary {
             can_interpolate_inputs: false,
             max_output_derivative_order: 0,
             can_get_and_set_state: false,
+            has_event_mode: false,
+            log_categories: Vec::new(),
             variables,
         };
         if let Some(tolerance) = file.coupling_tolerance {
@@ -350,12 +352,11 @@ impl SystemInstance {
                 .iter()
                 .enumerate()
                 .map(|(k, &v)| match system.route(v, group) {
-                    Some(r) => blame(
-                        &system,
-                        r.component,
-                        name,
-                        call(&mut self.instances[r.component], r.vr, k),
-                    ),
+                    Some(r) => {
+                        let instance = &mut self.instances[r.component];
+                        let status = call(instance, r.vr, k);
+                        blame(&system, r.component, instance, name, status)
+                    }
                     None => Status::Error,
                 }),
         )
@@ -432,18 +433,34 @@ impl SystemInstance {
             self.instances
                 .iter_mut()
                 .enumerate()
-                .map(|(component, instance)| blame(system, component, name, call(instance))),
+                .map(|(component, instance)| {
+                    let status = call(instance);
+                    blame(system, component, instance, name, status)
+                }),
         )
     }
 
     fn blame(&self, component: usize, call: &str, status: Status) -> Status {
-        blame(&self.system, component, call, status)
+        blame(
+            &self.system,
+            component,
+            &self.instances[component],
+            call,
+            status,
+        )
     }
 }
 
-/// `status`, which `call` of `component` returned; when it stops the run, a message names
-/// the component (the FMU's own message does not).
-fn blame(system: &SystemLibrary, component: usize, call: &str, status: Status) -> Status {
+/// `status`, which `call` (by its FMI 2.0 name) of `component` returned; when it stops the
+/// run, a message names the component (the FMU's own message does not) and the call as
+/// the component's FMI version names it.
+fn blame(
+    system: &SystemLibrary,
+    component: usize,
+    instance: &Instance,
+    call: &str,
+    status: Status,
+) -> Status {
     if !status.proceeds() {
         let name = system.components[component].name.to_string_lossy();
         let level = if status == Status::Discard {
@@ -451,6 +468,7 @@ fn blame(system: &SystemLibrary, component: usize, call: &str, status: Status) -
         } else {
             log::Level::Error
         };
+        let call = instance.call_name(call);
         log::log!(level, "component {name}: {call} returned {status:?}");
     }
     status
@@ -521,6 +539,10 @@ impl Unit for SystemInstance {
             return self.controlled_steps(time, step);
         }
         self.jacobi_step(time, step)
+    }
+
+    fn events(&self) -> u64 {
+        self.instances.iter().map(Instance::events).sum()
     }
 
     fn coupling(&self) -> Option<CouplingReport> {

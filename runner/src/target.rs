@@ -5,9 +5,10 @@
 use std::rc::Rc;
 
 use crate::coupling::CouplingReport;
+use crate::fmi::each_call;
 use crate::fmi::{Instance, Library, Status};
 use crate::system::{SystemInstance, SystemLibrary};
-use crate::unit::{each_call, Unit};
+use crate::unit::Unit;
 
 /// What the runner loaded: one FMU's library, or a system's.
 #[derive(Clone)]
@@ -46,8 +47,26 @@ macro_rules! dispatch {
     };
 }
 
+impl Running {
+    /// What FMI 2.0 calls `fmi2_name`, as the running unit names it (a system, which may
+    /// mix versions, names its components' calls in its own messages).
+    pub fn call_name<'a>(&self, fmi2_name: &'a str) -> std::borrow::Cow<'a, str> {
+        match self {
+            Running::Fmu(instance) => instance.call_name(fmi2_name),
+            Running::System(_) => std::borrow::Cow::Borrowed(fmi2_name),
+        }
+    }
+}
+
 impl Unit for Running {
     each_call!(dispatch);
+
+    fn events(&self) -> u64 {
+        match self {
+            Running::Fmu(unit) => unit.events(),
+            Running::System(unit) => unit.events(),
+        }
+    }
 
     fn coupling(&self) -> Option<CouplingReport> {
         match self {

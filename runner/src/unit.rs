@@ -3,9 +3,10 @@
 //! point's master loop, metrics and series do not tell them apart ([`crate::target`]).
 
 use crate::coupling::CouplingReport;
-use crate::fmi::{Instance, Status};
+use crate::fmi::{each_call, Instance, Status};
 
-/// The FMI 2.0 co-simulation calls of a point's master loop.
+/// The co-simulation calls of a point's master loop, in FMI 2.0's words (an FMI 3.0
+/// instance maps them onto its own calls).
 pub trait Unit {
     fn reset(&mut self) -> Status;
     fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Status;
@@ -18,6 +19,9 @@ pub trait Unit {
     fn get_integer(&mut self, vr: &[u32], values: &mut [i32]) -> Status;
     fn get_boolean(&mut self, vr: &[u32], values: &mut [i32]) -> Status;
     fn do_step(&mut self, time: f64, step: f64) -> Status;
+    /// The events met since the unit was made or last reset (FMI 3.0 components in event
+    /// mode; 0 for anything else).
+    fn events(&self) -> u64;
     /// What a point's steps reported of the coupling, for a system with a coupling
     /// tolerance; None for anything else.
     fn coupling(&self) -> Option<CouplingReport> {
@@ -31,26 +35,6 @@ pub trait Unit {
     }
 }
 
-/// `$implement!` over every call of [`Unit`], written once here.
-macro_rules! each_call {
-    ($implement:ident) => {
-        $implement!(
-            reset(),
-            setup_experiment(tolerance: Option<f64>, start: f64, stop: f64),
-            enter_initialization_mode(),
-            exit_initialization_mode(),
-            set_real(vr: &[u32], values: &[f64]),
-            set_integer(vr: &[u32], values: &[i32]),
-            set_boolean(vr: &[u32], values: &[i32]),
-            get_real(vr: &[u32], values: &mut [f64]),
-            get_integer(vr: &[u32], values: &mut [i32]),
-            get_boolean(vr: &[u32], values: &mut [i32]),
-            do_step(time: f64, step: f64),
-        );
-    };
-}
-pub(crate) use each_call;
-
 /// Each call goes to the instance's method of the same name.
 macro_rules! delegate {
     ($($name:ident($($arg:ident: $t:ty),*)),* $(,)?) => {
@@ -62,4 +46,8 @@ macro_rules! delegate {
 
 impl Unit for Instance {
     each_call!(delegate);
+
+    fn events(&self) -> u64 {
+        Instance::events(self)
+    }
 }

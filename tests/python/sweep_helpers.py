@@ -114,3 +114,21 @@ def kill_during(sweep, victim, ready, timeout=300):
     thread.join(timeout=timeout)
     assert not thread.is_alive()
     return outcome["results"]
+
+
+def repacked(fmu, path, change):
+    """A copy of the archive `fmu` at `path`, each file passed through
+    `change(name, bytes)` (a None leaves the file out)."""
+    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(path, "w") as copy:
+        for item in source.infolist():
+            data = change(item.filename, source.read(item))
+            if data is not None:
+                copy.writestr(item, data)
+    return path
+
+
+def in_description(old, new):
+    """A `change` for `repacked`: `old` replaced by `new` in modelDescription.xml."""
+    def change(name, data):
+        return data.replace(old, new) if name == "modelDescription.xml" else data
+    return change

@@ -10,7 +10,7 @@ from fmpy.fmi2 import FMU2Slave
 
 import fmusweep
 from fmusweep import SpecError, native, run_sweep
-from sweep_helpers import PAPER_LAWS, faulty_fmu, grid_spec
+from sweep_helpers import PAPER_LAWS, faulty_fmu, grid_spec, in_description, repacked
 
 
 def test_a_grid_runs_and_a_point_that_cannot_assemble_is_a_row(fmu_path, tmp_path):
@@ -130,11 +130,14 @@ def test_every_mistake_of_a_spec_is_reported_in_one_pass(fmu_path, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_an_fmi3_archive_is_refused_naming_the_users_file(fmu3_path, tmp_path):
+def test_an_fmi1_archive_is_refused_naming_the_users_file(fmu_path, tmp_path):
+    old = repacked(fmu_path, tmp_path / "Old.fmu",
+                   in_description(b'fmiVersion="2.0"', b'fmiVersion="1.0"'))
     with pytest.raises(SpecError) as refused:
-        run_sweep(grid_spec(), fmu=fmu3_path, out=tmp_path / "out", serial=True, progress=False)
+        run_sweep(grid_spec(), fmu=old, out=tmp_path / "out", serial=True, progress=False)
     assert refused.value.field == "fmu"
-    assert str(fmu3_path) in str(refused.value) and "FMI 3.0" in str(refused.value)
+    said = str(refused.value)
+    assert str(old) in said and "FMI 1.0" in said and "FMI 2.0 and FMI 3.0" in said, said
     assert not (tmp_path / "out").exists()
 
 

@@ -99,3 +99,17 @@ def test_flywheel_on_a_stiff_shaft_with_a_coupling_tolerance(fmu_path, tmp_path)
     assert (by_k.last() > 5 * by_k.first()).all()
     by_j = points.sort_values("load.k").groupby("load.J")["peak_twist"]
     assert (by_j.last() < by_j.first() / 10).all()
+
+
+def test_linkages_through_their_change_point_with_the_fmi3_archive(fmu_path, fmu3_path,
+                                                                   tmp_path):
+    """The FMI 3.0 example on two Dask workers: every geometry goes through its change
+    point (an event each) on both branches, which part."""
+    text = (EXAMPLES / "change_point_branches.toml").read_text()
+    text = text.replace('"../../target/fmu/CyclicMechanism-fmi3.fmu"', f'"{fmu3_path.resolve()}"')
+    (tmp_path / "change_point_branches.toml").write_text(text)
+    points, said = sweep(tmp_path / "change_point_branches.toml", fmu_path, tmp_path / "out")
+    assert len(points) == 8 and (points["status"] == "ok").all(), points[["status", "message"]]
+    assert (points["events"] >= 1).all() and (points["linkage_class"] == 6).all()
+    ends = points.pivot(index="l3", columns="change_point_branch", values="phi4_end")
+    assert ((ends[1.0] - ends[2.0]).abs() > 0.5).all()

@@ -14,8 +14,8 @@ import pytest
 
 from conftest import ROOT
 from fmusweep import SpecError, run_sweep
-from sweep_helpers import (environment_for_workers, faulty_fmu, kill_during, start_cluster,
-                           stop_cluster)
+from sweep_helpers import (environment_for_workers, faulty_fmu, in_description, kill_during,
+                           repacked, start_cluster, stop_cluster)
 
 MECHANISM = {"Mm_a0": 0.0, "Mm_a1": 0.0, "Mm_a2": 0.0, "Mr_b0": 20.0, "Mr_b1": -0.05, "c4": 0.5}
 
@@ -186,14 +186,8 @@ def _bad_systems(fmu_path, motor_path, tmp):
 
 def without_state(fmu, directory):
     """A copy of `fmu` whose description says it cannot save its state."""
-    path = directory / "stateless.fmu"
-    with zipfile.ZipFile(fmu) as source, zipfile.ZipFile(path, "w") as copy:
-        for item in source.infolist():
-            data = source.read(item)
-            if item.filename == "modelDescription.xml":
-                data = data.replace(b'canGetAndSetFMUstate="true"', b'canGetAndSetFMUstate="false"')
-            copy.writestr(item, data)
-    return path
+    return repacked(fmu, directory / "stateless.fmu",
+                    in_description(b'canGetAndSetFMUstate="true"', b'canGetAndSetFMUstate="false"'))
 
 
 BAD = list(_bad_systems(None, None, pathlib.Path(".")))

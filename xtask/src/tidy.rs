@@ -22,7 +22,7 @@ const UNSAFE_ALLOWED: &[&str] = &[
     "src/instance/handles.rs",
     "src/instance/logger.rs",
     "src/drivers/isa.rs",
-    "runner/src/fmi.rs",
+    "runner/src/fmi/",
     "runner/src/stdio.rs",
     "tests/",
     "bench/src/",

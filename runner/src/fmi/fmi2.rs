@@ -1,67 +1,17 @@
-//! The FMU's shared library and its instances. With `stdio`, the only `unsafe` code of the
-//! runner: every FMI call goes through a safe method of [`Instance`] that passes slices
-//! with their true lengths and a component this type created and frees.
+//! FMI 2.0 co-simulation: the binary's functions and one instance's calls.
 
 use std::ffi::CString;
 use std::path::Path;
 use std::rc::Rc;
 
 use fmi_sys::fmi2::{
-    self, fmi2CallbackFunctions, fmi2Component, fmi2FMUstate, fmi2Status_fmi2Discard,
-    fmi2Status_fmi2Error, fmi2Status_fmi2Fatal, fmi2Status_fmi2OK, fmi2Status_fmi2Pending,
-    fmi2Status_fmi2Warning, fmi2Type_fmi2CoSimulation, Fmi2Binding,
+    self, fmi2CallbackFunctions, fmi2Component, fmi2FMUstate, fmi2Type_fmi2CoSimulation,
+    Fmi2Binding,
 };
 
+use super::{require, resources, Status};
 use crate::description::Description;
 
-/// An FMI 2.0 status as the runner reports it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Status {
-    Ok,
-    Warning,
-    Discard,
-    Error,
-    Fatal,
-    Pending,
-}
-
-impl Status {
-    // The status constants keep the FMI header's names.
-    #[allow(non_upper_case_globals)]
-    fn from_raw(raw: fmi2::fmi2Status) -> Status {
-        match raw {
-            fmi2Status_fmi2OK => Status::Ok,
-            fmi2Status_fmi2Warning => Status::Warning,
-            fmi2Status_fmi2Discard => Status::Discard,
-            fmi2Status_fmi2Error => Status::Error,
-            fmi2Status_fmi2Pending => Status::Pending,
-            fmi2Status_fmi2Fatal => Status::Fatal,
-            // A value outside the enumeration is the FMU's fault: treat it as fatal.
-            _ => Status::Fatal,
-        }
-    }
-
-    /// OK and Warning let the run go on.
-    pub fn proceeds(self) -> bool {
-        self <= Status::Warning
-    }
-}
-
-/// The platform folder of `binaries/` that this build of the runner loads from.
-pub const PLATFORM: &str = if cfg!(all(target_os = "linux", target_pointer_width = "64")) {
-    "linux64"
-} else if cfg!(all(target_os = "macos", target_pointer_width = "64")) {
-    "darwin64"
-} else if cfg!(all(target_os = "windows", target_pointer_width = "64")) {
-    "win64"
-} else {
-    "unsupported"
-};
-
-const LIBRARY_SUFFIX: &str = std::env::consts::DLL_SUFFIX;
-
-/// A loaded FMU binary. It is never unloaded while the runner lives: some FMUs keep
-/// process-wide state that does not survive `dlclose`.
 pub struct Library {
     binding: Fmi2Binding,
     guid: CString,
@@ -69,38 +19,14 @@ pub struct Library {
 }
 
 impl Library {
-    pub fn load(dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
-        let identifier = description
-            .model_identifier
-            .as_deref()
-            .ok_or("the FMU has no CoSimulation interface")?;
-        let path = dir
-            .join("binaries")
-            .join(PLATFORM)
-            .join(format!("{identifier}{LIBRARY_SUFFIX}"));
-        if !path.is_file() {
-            return Err(format!(
-                "the FMU has no binary for this platform: {} is missing",
-                path.display()
-            ));
-        }
+    /// The binary at `path` of the FMU unpacked in `dir`.
+    pub fn load(path: &Path, dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
         // SAFETY: loading a shared library runs its initialisers; the FMU is trusted as
         // far as its binary goes (a crash there ends only this runner process).
-        let binding = unsafe { Fmi2Binding::new(&path) }
+        let binding = unsafe { Fmi2Binding::new(path) }
             .map_err(|e| format!("cannot load {}: {e}", path.display()))?;
-        let missing = missing_functions(&binding);
-        if !missing.is_empty() {
-            return Err(format!(
-                "{} does not export {}",
-                path.display(),
-                missing.join(", ")
-            ));
-        }
-        let resources = dir.join("resources");
-        let uri = format!(
-            "file://{}/",
-            resources.canonicalize().unwrap_or(resources).display()
-        );
+        require(path, &functions(&binding))?;
+        let uri = format!("file://{}/", resources(dir).display());
         Ok(Rc::new(Library {
             binding,
             guid: CString::new(description.guid.as_str()).map_err(|e| e.to_string())?,
@@ -129,9 +55,10 @@ impl Library {
     }
 }
 
-/// The functions a co-simulation run calls; the others may be absent.
-fn missing_functions(b: &Fmi2Binding) -> Vec<&'static str> {
-    let present = [
+/// The functions a co-simulation run calls, and whether the binary has each; the others
+/// may be absent.
+fn functions(b: &Fmi2Binding) -> [(&'static str, bool); 13] {
+    [
         ("fmi2Instantiate", b.fmi2Instantiate.is_ok()),
         ("fmi2FreeInstance", b.fmi2FreeInstance.is_ok()),
         ("fmi2SetupExperiment", b.fmi2SetupExperiment.is_ok()),
@@ -151,12 +78,7 @@ fn missing_functions(b: &Fmi2Binding) -> Vec<&'static str> {
         ("fmi2GetInteger", b.fmi2GetInteger.is_ok()),
         ("fmi2GetBoolean", b.fmi2GetBoolean.is_ok()),
         ("fmi2DoStep", b.fmi2DoStep.is_ok()),
-    ];
-    present
-        .iter()
-        .filter(|(_, ok)| !ok)
-        .map(|(name, _)| *name)
-        .collect()
+    ]
 }
 
 /// `fmi2Set…(vr, values)` for one type; nothing is called for an empty list.
@@ -168,7 +90,7 @@ macro_rules! setter {
                 return Status::Ok;
             }
             // SAFETY: both slices hold vr.len() elements; a live component.
-            Status::from_raw(unsafe {
+            Status::from_code(unsafe {
                 self.b()
                     .$fmi(self.component, vr.as_ptr(), vr.len(), values.as_ptr())
             })
@@ -185,7 +107,7 @@ macro_rules! getter {
                 return Status::Ok;
             }
             // SAFETY: both slices hold vr.len() elements; a live component.
-            Status::from_raw(unsafe {
+            Status::from_code(unsafe {
                 self.b()
                     .$fmi(self.component, vr.as_ptr(), vr.len(), values.as_mut_ptr())
             })
@@ -244,13 +166,13 @@ impl Instance {
 
     pub fn reset(&mut self) -> Status {
         // SAFETY: a live component of this binding.
-        Status::from_raw(unsafe { self.b().fmi2Reset(self.component) })
+        Status::from_code(unsafe { self.b().fmi2Reset(self.component) })
     }
 
     pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Status {
         let (defined, tol) = (tolerance.is_some() as i32, tolerance.unwrap_or(0.0));
         // SAFETY: a live component; plain values.
-        Status::from_raw(unsafe {
+        Status::from_code(unsafe {
             self.b()
                 .fmi2SetupExperiment(self.component, defined, tol, start, 1, stop)
         })
@@ -258,12 +180,12 @@ impl Instance {
 
     pub fn enter_initialization_mode(&mut self) -> Status {
         // SAFETY: a live component.
-        Status::from_raw(unsafe { self.b().fmi2EnterInitializationMode(self.component) })
+        Status::from_code(unsafe { self.b().fmi2EnterInitializationMode(self.component) })
     }
 
     pub fn exit_initialization_mode(&mut self) -> Status {
         // SAFETY: a live component.
-        Status::from_raw(unsafe { self.b().fmi2ExitInitializationMode(self.component) })
+        Status::from_code(unsafe { self.b().fmi2ExitInitializationMode(self.component) })
     }
 
     setter!(set_real, fmi2SetReal, f64);
@@ -281,7 +203,7 @@ impl Instance {
         };
         let n = values.len().min(2);
         // SAFETY: the arrays hold n ≤ 2 elements; a live component of this binding.
-        Status::from_raw(unsafe {
+        Status::from_code(unsafe {
             get(
                 self.component,
                 [vr; 2].as_ptr(),
@@ -300,7 +222,7 @@ impl Instance {
         };
         let n = values.len().min(2);
         // SAFETY: the arrays hold n ≤ 2 elements; a live component of this binding.
-        Status::from_raw(unsafe {
+        Status::from_code(unsafe {
             set(
                 self.component,
                 [vr; 2].as_ptr(),
@@ -319,7 +241,7 @@ impl Instance {
             return Status::Error;
         };
         // SAFETY: a live component; `saved` is null or a state this component gave.
-        Status::from_raw(unsafe { get(self.component, &mut self.saved) })
+        Status::from_code(unsafe { get(self.component, &mut self.saved) })
     }
 
     /// Put the FMU back into the state last saved; Error when none was saved.
@@ -331,12 +253,12 @@ impl Instance {
             return Status::Error;
         }
         // SAFETY: a live component and a state it gave.
-        Status::from_raw(unsafe { set(self.component, self.saved) })
+        Status::from_code(unsafe { set(self.component, self.saved) })
     }
 
     pub fn do_step(&mut self, time: f64, step: f64) -> Status {
         // SAFETY: a live component; plain values.
-        Status::from_raw(unsafe { self.b().fmi2DoStep(self.component, time, step, 1) })
+        Status::from_code(unsafe { self.b().fmi2DoStep(self.component, time, step, 1) })
     }
 }
 

@@ -1,0 +1,572 @@
+//! FMI 3.0 co-simulation: the binary's functions and one instance's calls. The instance
+//! is its own master for what FMI 3.0 adds: it uses the FMU's event mode when the FMU has
+//! one, so that a step that meets an event ends early, the event is handled
+//! (`fmi3EnterEventMode`, `fmi3UpdateDiscreteStates` until the FMU needs no further
+//! iteration, `fmi3EnterStepMode`) and the step goes on from where it ended; a caller
+//! asks for a step as under FMI 2.0 and learns how many events it met.
+
+use std::ffi::{c_char, CStr, CString};
+use std::path::Path;
+use std::rc::Rc;
+
+use fmi_sys::fmi3::{fmi3FMUState, fmi3Instance, fmi3InstanceEnvironment, fmi3Status, Fmi3Binding};
+
+use super::{require, resources, Status};
+use crate::description::{BaseType, Description};
+
+/// The most early returns one communication step may take, and the most event iterations
+/// one event: an FMU past either is looping, and the point fails with that reason rather
+/// than run on.
+const MAX_EARLY_RETURNS: u32 = 100_000;
+const MAX_EVENT_ITERATIONS: u32 = 1_000;
+
+pub struct Library {
+    binding: Fmi3Binding,
+    token: CString,
+    resource_path: CString,
+    /// Whether instances use the FMU's event mode (its hasEventMode).
+    event_mode: bool,
+    /// The value references of enumerations, which FMI 3.0 sets and gets as Int64 (Int32
+    /// variables use the Int32 functions), sorted.
+    int64: Vec<u32>,
+    /// The FMU's categories for warnings, discards, errors and fatal errors, the only
+    /// messages the runner keeps (FMI 3.0 logs nothing at all while logging is off).
+    status_categories: Vec<CString>,
+}
+
+/// The standard's names of the categories of messages that come with a status above OK.
+const STATUS_CATEGORIES: [&str; 4] = [
+    "logStatusWarning",
+    "logStatusDiscard",
+    "logStatusError",
+    "logStatusFatal",
+];
+
+impl Library {
+    /// The binary at `path` of the FMU unpacked in `dir`.
+    pub fn load(path: &Path, dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
+        // SAFETY: loading a shared library runs its initialisers; the FMU is trusted as
+        // far as its binary goes (a crash there ends only this runner process).
+        let binding = unsafe { Fmi3Binding::new(path) }
+            .map_err(|e| format!("cannot load {}: {e}", path.display()))?;
+        let mut int64: Vec<u32> = description
+            .variables
+            .iter()
+            .filter(|v| v.base_type == BaseType::Enumeration)
+            .map(|v| v.value_reference)
+            .collect();
+        int64.sort_unstable();
+        int64.dedup();
+        require(
+            path,
+            &functions(&binding, description.has_event_mode, !int64.is_empty()),
+        )?;
+        // FMI 3.0 passes the resource folder as a path that ends in a separator.
+        let mut folder = resources(dir).into_os_string();
+        folder.push(std::path::MAIN_SEPARATOR_STR);
+        Ok(Rc::new(Library {
+            binding,
+            token: CString::new(description.guid.as_str()).map_err(|e| e.to_string())?,
+            resource_path: CString::new(folder.to_string_lossy().into_owned())
+                .map_err(|e| e.to_string())?,
+            event_mode: description.has_event_mode,
+            int64,
+            status_categories: description
+                .log_categories
+                .iter()
+                .filter(|c| STATUS_CATEGORIES.contains(&c.as_str()))
+                .filter_map(|c| CString::new(c.as_str()).ok())
+                .collect(),
+        }))
+    }
+
+    pub fn exports_output_derivatives(&self) -> bool {
+        self.binding.fmi3GetOutputDerivatives.is_ok()
+    }
+
+    /// Whether the binary exports fmi3GetFMUState, fmi3SetFMUState and fmi3FreeFMUState.
+    pub fn exports_state(&self) -> bool {
+        let b = &self.binding;
+        b.fmi3GetFMUState.is_ok() && b.fmi3SetFMUState.is_ok() && b.fmi3FreeFMUState.is_ok()
+    }
+}
+
+/// The functions a co-simulation run calls, and whether the binary has each: the event
+/// functions when the FMU has an event mode, Int64 access when it has enumerations.
+fn functions(b: &Fmi3Binding, events: bool, int64: bool) -> Vec<(&'static str, bool)> {
+    let mut present = vec![
+        (
+            "fmi3InstantiateCoSimulation",
+            b.fmi3InstantiateCoSimulation.is_ok(),
+        ),
+        ("fmi3FreeInstance", b.fmi3FreeInstance.is_ok()),
+        (
+            "fmi3EnterInitializationMode",
+            b.fmi3EnterInitializationMode.is_ok(),
+        ),
+        (
+            "fmi3ExitInitializationMode",
+            b.fmi3ExitInitializationMode.is_ok(),
+        ),
+        ("fmi3Reset", b.fmi3Reset.is_ok()),
+        ("fmi3SetFloat64", b.fmi3SetFloat64.is_ok()),
+        ("fmi3SetInt32", b.fmi3SetInt32.is_ok()),
+        ("fmi3SetBoolean", b.fmi3SetBoolean.is_ok()),
+        ("fmi3GetFloat64", b.fmi3GetFloat64.is_ok()),
+        ("fmi3GetInt32", b.fmi3GetInt32.is_ok()),
+        ("fmi3GetBoolean", b.fmi3GetBoolean.is_ok()),
+        ("fmi3DoStep", b.fmi3DoStep.is_ok()),
+    ];
+    if events {
+        present.extend([
+            ("fmi3EnterEventMode", b.fmi3EnterEventMode.is_ok()),
+            (
+                "fmi3UpdateDiscreteStates",
+                b.fmi3UpdateDiscreteStates.is_ok(),
+            ),
+            ("fmi3EnterStepMode", b.fmi3EnterStepMode.is_ok()),
+        ]);
+    }
+    if int64 {
+        present.extend([
+            ("fmi3SetInt64", b.fmi3SetInt64.is_ok()),
+            ("fmi3GetInt64", b.fmi3GetInt64.is_ok()),
+        ]);
+    }
+    present
+}
+
+/// The FMU's log messages go to the `log` crate, as fmi-sys does for FMI 2.0, at the
+/// level of their status (OK and Pending are not kept: logging is off).
+unsafe extern "C" fn log_message(
+    _environment: fmi3InstanceEnvironment,
+    status: fmi3Status,
+    category: *const c_char,
+    message: *const c_char,
+) {
+    let text = |p: *const c_char| {
+        if p.is_null() {
+            String::new()
+        } else {
+            // SAFETY: a non-null C string the FMU passes for the call's duration.
+            unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
+        }
+    };
+    let (category, message) = (text(category), text(message));
+    match Status::from_code(status) {
+        Status::Warning => log::warn!("[{category}] {message}"),
+        Status::Discard => log::trace!("[{category}] {message}"),
+        Status::Error | Status::Fatal => log::error!("[{category}] {message}"),
+        Status::Ok | Status::Pending => log::info!("[{category}] {message}"),
+    }
+}
+
+/// Logging is on from instantiation (else an FMU says nothing, not even why it failed):
+/// where the FMU names the standard's status categories, only those stay enabled, so that
+/// it does not format debug messages the runner drops.
+fn keep_status_messages(library: &Library, instance: fmi3Instance) {
+    let Ok(set) = library.binding.fmi3SetDebugLogging.as_ref() else {
+        return;
+    };
+    if library.status_categories.is_empty() {
+        return;
+    }
+    let names: Vec<*const c_char> = library
+        .status_categories
+        .iter()
+        .map(|c| c.as_ptr())
+        .collect();
+    // SAFETY: a live instance; `names` holds names.len() C strings that outlive the calls.
+    unsafe {
+        set(instance, false, 0, std::ptr::null());
+        set(instance, true, names.len(), names.as_ptr());
+    }
+}
+
+/// One co-simulation instance; freed when dropped.
+pub struct Instance {
+    library: Rc<Library>,
+    instance: fmi3Instance,
+    /// The one FMU state this instance keeps (`save_state`), null until it is first taken.
+    saved: fmi3FMUState,
+    /// What `setup_experiment` was told, passed on at `fmi3EnterInitializationMode` (FMI 3.0
+    /// has no separate set-up call).
+    experiment: (Option<f64>, f64, f64),
+    /// Events handled since the instance was made or last reset.
+    events: u64,
+    /// Booleans as FMI 3.0 passes them (one byte each), for the callers' 0/1 integers.
+    booleans: Vec<bool>,
+}
+
+impl Instance {
+    /// An instance named `name` (the name the FMU's messages carry).
+    pub fn new(library: &Rc<Library>, name: &CStr) -> Result<Instance, String> {
+        // SAFETY: every pointer is valid for the call; the FMU copies the strings.
+        let instance = unsafe {
+            library.binding.fmi3InstantiateCoSimulation(
+                name.as_ptr(),
+                library.token.as_ptr(),
+                library.resource_path.as_ptr(),
+                false,
+                true,
+                library.event_mode,
+                true,
+                std::ptr::null(),
+                0,
+                std::ptr::null_mut(),
+                Some(log_message),
+                None,
+            )
+        };
+        if instance.is_null() {
+            return Err("fmi3InstantiateCoSimulation returned NULL".into());
+        }
+        keep_status_messages(library, instance);
+        Ok(Instance {
+            library: Rc::clone(library),
+            instance,
+            saved: std::ptr::null_mut(),
+            experiment: (None, 0.0, 0.0),
+            events: 0,
+            booleans: Vec::new(),
+        })
+    }
+
+    fn b(&self) -> &Fmi3Binding {
+        &self.library.binding
+    }
+
+    pub fn events(&self) -> u64 {
+        self.events
+    }
+
+    pub fn reset(&mut self) -> Status {
+        self.events = 0;
+        // SAFETY: a live instance of this binding.
+        Status::from_code(unsafe { self.b().fmi3Reset(self.instance) })
+    }
+
+    pub fn setup_experiment(&mut self, tolerance: Option<f64>, start: f64, stop: f64) -> Status {
+        self.experiment = (tolerance, start, stop);
+        Status::Ok
+    }
+
+    pub fn enter_initialization_mode(&mut self) -> Status {
+        let (tolerance, start, stop) = self.experiment;
+        // SAFETY: a live instance; plain values.
+        Status::from_code(unsafe {
+            self.b().fmi3EnterInitializationMode(
+                self.instance,
+                tolerance.is_some(),
+                tolerance.unwrap_or(0.0),
+                start,
+                true,
+                stop,
+            )
+        })
+    }
+
+    /// Leave initialisation; with event mode used, the FMU is then in event mode, and its
+    /// initial event is handled here, so that the instance is ready to step.
+    pub fn exit_initialization_mode(&mut self) -> Status {
+        // SAFETY: a live instance.
+        let s = Status::from_code(unsafe { self.b().fmi3ExitInitializationMode(self.instance) });
+        if !s.proceeds() || !self.library.event_mode {
+            return s;
+        }
+        s.max(self.settle_and_step())
+    }
+
+    pub fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        // SAFETY: both slices hold vr.len() elements; a live instance.
+        Status::from_code(unsafe {
+            self.b().fmi3SetFloat64(
+                self.instance,
+                vr.as_ptr(),
+                vr.len(),
+                values.as_ptr(),
+                values.len(),
+            )
+        })
+    }
+
+    pub fn get_real(&mut self, vr: &[u32], values: &mut [f64]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        // SAFETY: both slices hold vr.len() elements; a live instance.
+        Status::from_code(unsafe {
+            self.b().fmi3GetFloat64(
+                self.instance,
+                vr.as_ptr(),
+                vr.len(),
+                values.as_mut_ptr(),
+                values.len(),
+            )
+        })
+    }
+
+    /// Int32 variables through fmi3SetInt32, enumerations through fmi3SetInt64.
+    pub fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        let mut worst = Status::Ok;
+        for (&r, &x) in vr.iter().zip(values) {
+            // SAFETY: one value for one reference; a live instance.
+            let s = Status::from_code(unsafe {
+                if self.is_int64(r) {
+                    self.b()
+                        .fmi3SetInt64(self.instance, &r, 1, &i64::from(x), 1)
+                } else {
+                    self.b().fmi3SetInt32(self.instance, &r, 1, &x, 1)
+                }
+            });
+            if !s.proceeds() {
+                return s;
+            }
+            worst = worst.max(s);
+        }
+        worst
+    }
+
+    /// Int32 variables through fmi3GetInt32, enumerations through fmi3GetInt64 (a value
+    /// beyond 32 bits is an error: the runner's integers are 32-bit).
+    pub fn get_integer(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        let mut worst = Status::Ok;
+        for (&r, slot) in vr.iter().zip(values.iter_mut()) {
+            let s = if self.is_int64(r) {
+                let mut wide = 0_i64;
+                // SAFETY: one value for one reference; a live instance.
+                let s = Status::from_code(unsafe {
+                    self.b().fmi3GetInt64(self.instance, &r, 1, &mut wide, 1)
+                });
+                match i32::try_from(wide) {
+                    Ok(x) => *slot = x,
+                    Err(_) => return Status::Error,
+                }
+                s
+            } else {
+                // SAFETY: one value for one reference; a live instance.
+                Status::from_code(unsafe { self.b().fmi3GetInt32(self.instance, &r, 1, slot, 1) })
+            };
+            if !s.proceeds() {
+                return s;
+            }
+            worst = worst.max(s);
+        }
+        worst
+    }
+
+    fn is_int64(&self, vr: u32) -> bool {
+        self.library.int64.binary_search(&vr).is_ok()
+    }
+
+    pub fn set_boolean(&mut self, vr: &[u32], values: &[i32]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        self.booleans.clear();
+        self.booleans.extend(values.iter().map(|&b| b != 0));
+        // SAFETY: both arrays hold vr.len() elements; a live instance.
+        Status::from_code(unsafe {
+            self.b().fmi3SetBoolean(
+                self.instance,
+                vr.as_ptr(),
+                vr.len(),
+                self.booleans.as_ptr(),
+                vr.len(),
+            )
+        })
+    }
+
+    pub fn get_boolean(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
+        assert_eq!(vr.len(), values.len());
+        if vr.is_empty() {
+            return Status::Ok;
+        }
+        self.booleans.clear();
+        self.booleans.resize(vr.len(), false);
+        let read = self.booleans.as_mut_ptr();
+        // SAFETY: both arrays hold vr.len() elements; a live instance.
+        let s = Status::from_code(unsafe {
+            self.b()
+                .fmi3GetBoolean(self.instance, vr.as_ptr(), vr.len(), read, vr.len())
+        });
+        for (slot, &b) in values.iter_mut().zip(&self.booleans) {
+            *slot = i32::from(b);
+        }
+        s
+    }
+
+    /// fmi3GetOutputDerivatives of output `vr`, orders 1 to `values.len()` (at most 2);
+    /// Error when the FMU does not export the function.
+    pub fn get_output_derivatives(&mut self, vr: u32, values: &mut [f64]) -> Status {
+        let Ok(get) = self.b().fmi3GetOutputDerivatives.as_ref() else {
+            return Status::Error;
+        };
+        let n = values.len().min(2);
+        // SAFETY: the arrays hold n ≤ 2 elements; a live instance of this binding.
+        Status::from_code(unsafe {
+            get(
+                self.instance,
+                [vr; 2].as_ptr(),
+                n,
+                [1, 2].as_ptr(),
+                values.as_mut_ptr(),
+                n,
+            )
+        })
+    }
+
+    /// FMI 3.0 has no input derivatives: always Error (a system never asks, as its
+    /// library says it has none).
+    pub fn set_input_derivatives(&mut self, _vr: u32, _values: &[f64]) -> Status {
+        Status::Error
+    }
+
+    /// Take the FMU's state now into the instance's one saved state (overwritten in
+    /// place, as FMI 3.0 lets a master ask); Error when the FMU does not export it.
+    pub fn save_state(&mut self) -> Status {
+        let Ok(get) = self.b().fmi3GetFMUState.as_ref() else {
+            return Status::Error;
+        };
+        // SAFETY: a live instance; `saved` is null or a state this instance gave.
+        Status::from_code(unsafe { get(self.instance, &mut self.saved) })
+    }
+
+    /// Put the FMU back into the state last saved; Error when none was saved.
+    pub fn restore_state(&mut self) -> Status {
+        let Ok(set) = self.b().fmi3SetFMUState.as_ref() else {
+            return Status::Error;
+        };
+        if self.saved.is_null() {
+            return Status::Error;
+        }
+        // SAFETY: a live instance and a state it gave.
+        Status::from_code(unsafe { set(self.instance, self.saved) })
+    }
+
+    /// One communication step from `time` to `time + step`, through every early return
+    /// and event on the way: after an early return the step goes on from the FMU's
+    /// lastSuccessfulTime. An FMU that asks to terminate ends the point with Discard and
+    /// a message that says when.
+    pub fn do_step(&mut self, time: f64, step: f64) -> Status {
+        let end = time + step;
+        let mut now = time;
+        let mut worst = Status::Ok;
+        for _ in 0..MAX_EARLY_RETURNS {
+            let (mut event, mut terminate, mut early, mut last) = (false, false, false, now);
+            // SAFETY: a live instance; the four flags and the time are writable locals.
+            let s = Status::from_code(unsafe {
+                self.b().fmi3DoStep(
+                    self.instance,
+                    now,
+                    end - now,
+                    false,
+                    &mut event,
+                    &mut terminate,
+                    &mut early,
+                    &mut last,
+                )
+            });
+            if !s.proceeds() {
+                return s;
+            }
+            worst = worst.max(s);
+            if terminate {
+                log::trace!("the FMU asked to terminate the simulation at t = {last}");
+                return Status::Discard;
+            }
+            if event {
+                let s = self.handle_event();
+                if !s.proceeds() {
+                    return s;
+                }
+                worst = worst.max(s);
+            }
+            if !early || last >= end {
+                return worst;
+            }
+            if !last.is_finite() || (last <= now && !event) {
+                log::error!(
+                    "fmi3DoStep returned early at t = {now} without advancing \
+                     (lastSuccessfulTime = {last})"
+                );
+                return Status::Error;
+            }
+            now = last;
+        }
+        log::error!(
+            "fmi3DoStep returned early more than {MAX_EARLY_RETURNS} times in the step from t = {time}"
+        );
+        Status::Error
+    }
+
+    /// The event the FMU asked for: event mode, its discrete states settled, step mode.
+    fn handle_event(&mut self) -> Status {
+        self.events += 1;
+        // SAFETY: a live instance in step mode.
+        let s = Status::from_code(unsafe { self.b().fmi3EnterEventMode(self.instance) });
+        if !s.proceeds() {
+            return s;
+        }
+        s.max(self.settle_and_step())
+    }
+
+    /// In event mode: fmi3UpdateDiscreteStates until the FMU needs no further iteration,
+    /// then fmi3EnterStepMode.
+    fn settle_and_step(&mut self) -> Status {
+        let mut worst = Status::Ok;
+        for _ in 0..MAX_EVENT_ITERATIONS {
+            let mut flags = [false; 5];
+            let mut next_event_time = 0.0;
+            let [again, terminate, nominals, values, next_defined] = &mut flags;
+            // SAFETY: a live instance in event mode; writable locals.
+            let s = Status::from_code(unsafe {
+                self.b().fmi3UpdateDiscreteStates(
+                    self.instance,
+                    again,
+                    terminate,
+                    nominals,
+                    values,
+                    next_defined,
+                    &mut next_event_time,
+                )
+            });
+            if !s.proceeds() {
+                return s;
+            }
+            worst = worst.max(s);
+            if *terminate {
+                log::trace!("the FMU asked to terminate the simulation in event mode");
+                return Status::Discard;
+            }
+            if !*again {
+                // SAFETY: a live instance in event mode.
+                let s = Status::from_code(unsafe { self.b().fmi3EnterStepMode(self.instance) });
+                return worst.max(s);
+            }
+        }
+        log::error!(
+            "the FMU's discrete states did not settle in {MAX_EVENT_ITERATIONS} event iterations"
+        );
+        Status::Error
+    }
+}
+
+impl Drop for Instance {
+    fn drop(&mut self) {
+        if let (false, Ok(free)) = (self.saved.is_null(), self.b().fmi3FreeFMUState.as_ref()) {
+            // SAFETY: a state this live instance gave, freed once, before the instance.
+            unsafe { free(self.instance, &mut self.saved) };
+        }
+        // SAFETY: the instance was created by this binding and is freed exactly once.
+        unsafe { self.b().fmi3FreeInstance(self.instance) }
+    }
+}

@@ -1,0 +1,255 @@
+//! The FMU's shared library and its instances, for FMI 2.0 ([`fmi2`]) and FMI 3.0
+//! ([`fmi3`]) co-simulation alike. With `stdio`, the only `unsafe` code of the runner: every
+//! FMI call goes through a safe method of an instance that passes slices with their true
+//! lengths and a component that instance created and frees. Above the two, [`Library`] and
+//! [`Instance`] give one set of calls whichever version the FMU is, so that a point, a
+//! system and its coupling do not know which they drive (a system may mix both).
+
+mod fmi2;
+mod fmi3;
+
+use std::borrow::Cow;
+use std::ffi::CStr;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+
+use crate::description::Description;
+
+/// An FMI status as the runner reports it (FMI 2.0 and 3.0 number them alike; Pending is
+/// FMI 2.0's alone).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Status {
+    Ok,
+    Warning,
+    Discard,
+    Error,
+    Fatal,
+    Pending,
+}
+
+impl Status {
+    /// The status an FMU returned, by its number in either standard.
+    fn from_code(code: u32) -> Status {
+        match code {
+            0 => Status::Ok,
+            1 => Status::Warning,
+            2 => Status::Discard,
+            3 => Status::Error,
+            4 => Status::Fatal,
+            5 => Status::Pending,
+            // A value outside the enumeration is the FMU's fault: treat it as fatal.
+            _ => Status::Fatal,
+        }
+    }
+
+    /// OK and Warning let the run go on.
+    pub fn proceeds(self) -> bool {
+        self <= Status::Warning
+    }
+}
+
+/// The platform folder of `binaries/` that this build of the runner loads from, as FMI 2.0
+/// and FMI 3.0 name it.
+pub const PLATFORM: &str = if cfg!(all(target_os = "linux", target_pointer_width = "64")) {
+    "linux64"
+} else if cfg!(all(target_os = "macos", target_pointer_width = "64")) {
+    "darwin64"
+} else if cfg!(all(target_os = "windows", target_pointer_width = "64")) {
+    "win64"
+} else {
+    "unsupported"
+};
+
+const PLATFORM_FMI3: &str = if cfg!(all(target_os = "linux", target_arch = "x86_64")) {
+    "x86_64-linux"
+} else if cfg!(all(target_os = "linux", target_arch = "aarch64")) {
+    "aarch64-linux"
+} else if cfg!(all(target_os = "macos", target_arch = "x86_64")) {
+    "x86_64-darwin"
+} else if cfg!(all(target_os = "macos", target_arch = "aarch64")) {
+    "aarch64-darwin"
+} else if cfg!(all(target_os = "windows", target_arch = "x86_64")) {
+    "x86_64-windows"
+} else {
+    "unsupported"
+};
+
+/// The binary of co-simulation model `identifier` for this platform, in the FMU unpacked
+/// in `dir`, or why there is none.
+fn binary_path(dir: &Path, platform: &str, identifier: &str) -> Result<PathBuf, String> {
+    let path = dir
+        .join("binaries")
+        .join(platform)
+        .join(format!("{identifier}{}", std::env::consts::DLL_SUFFIX));
+    if path.is_file() {
+        Ok(path)
+    } else {
+        Err(format!(
+            "the FMU has no binary for this platform: {} is missing",
+            path.display()
+        ))
+    }
+}
+
+/// The names in `present` whose function the binary lacks, or an error naming them.
+fn require(path: &Path, present: &[(&'static str, bool)]) -> Result<(), String> {
+    let missing: Vec<&str> = present
+        .iter()
+        .filter(|(_, ok)| !ok)
+        .map(|(name, _)| *name)
+        .collect();
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} does not export {}",
+            path.display(),
+            missing.join(", ")
+        ))
+    }
+}
+
+/// A loaded FMU binary. It is never unloaded while the runner lives: some FMUs keep
+/// process-wide state that does not survive `dlclose`.
+pub enum Library {
+    Fmi2(Rc<fmi2::Library>),
+    Fmi3(Rc<fmi3::Library>),
+}
+
+impl Library {
+    /// The co-simulation binary of the FMU unpacked in `dir`, for the version its
+    /// description declares.
+    pub fn load(dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
+        let identifier = description
+            .model_identifier
+            .as_deref()
+            .ok_or("the FMU has no CoSimulation interface")?;
+        let library = if description.fmi_version.starts_with("3.") {
+            let path = binary_path(dir, PLATFORM_FMI3, identifier)?;
+            Library::Fmi3(fmi3::Library::load(&path, dir, description)?)
+        } else {
+            let path = binary_path(dir, PLATFORM, identifier)?;
+            Library::Fmi2(fmi2::Library::load(&path, dir, description)?)
+        };
+        Ok(Rc::new(library))
+    }
+
+    /// Whether the binary exports the output-derivative getter, and the input-derivative
+    /// setter (whatever its description declares; FMI 3.0 has no such setter).
+    pub fn exports_derivatives(&self) -> (bool, bool) {
+        match self {
+            Library::Fmi2(l) => l.exports_derivatives(),
+            Library::Fmi3(l) => (l.exports_output_derivatives(), false),
+        }
+    }
+
+    /// Whether the binary exports the functions that get, set and free an FMU state
+    /// (whatever its description declares).
+    pub fn exports_state(&self) -> bool {
+        match self {
+            Library::Fmi2(l) => l.exports_state(),
+            Library::Fmi3(l) => l.exports_state(),
+        }
+    }
+}
+
+/// The resource folder of the FMU unpacked in `dir`, as a `file://` URI (FMI 2.0) or a
+/// path ending in a separator (FMI 3.0).
+fn resources(dir: &Path) -> PathBuf {
+    let resources = dir.join("resources");
+    resources.canonicalize().unwrap_or(resources)
+}
+
+/// FMI 3.0's name of the call FMI 2.0 names `fmi2_name`; for a call FMI 3.0 lacks, the
+/// one that does its work there.
+fn fmi3_name(fmi2_name: &str) -> String {
+    let call = fmi2_name.strip_prefix("fmi2").unwrap_or(fmi2_name);
+    let call = match call {
+        "SetReal" => "SetFloat64",
+        "GetReal" => "GetFloat64",
+        "SetInteger" => "SetInt32",
+        "GetInteger" => "GetInt32",
+        "GetFMUstate" => "GetFMUState",
+        "SetFMUstate" => "SetFMUState",
+        "GetRealOutputDerivatives" => "GetOutputDerivatives",
+        "SetupExperiment" => "EnterInitializationMode",
+        other => other,
+    };
+    format!("fmi3{call}")
+}
+
+/// One co-simulation instance; freed when dropped.
+pub enum Instance {
+    Fmi2(fmi2::Instance),
+    Fmi3(fmi3::Instance),
+}
+
+/// `$implement!` over every call of a point's master loop (the calls of
+/// [`crate::unit::Unit`]), written once here.
+macro_rules! each_call {
+    ($implement:ident) => {
+        $implement!(
+            reset(),
+            setup_experiment(tolerance: Option<f64>, start: f64, stop: f64),
+            enter_initialization_mode(),
+            exit_initialization_mode(),
+            set_real(vr: &[u32], values: &[f64]),
+            set_integer(vr: &[u32], values: &[i32]),
+            set_boolean(vr: &[u32], values: &[i32]),
+            get_real(vr: &[u32], values: &mut [f64]),
+            get_integer(vr: &[u32], values: &mut [i32]),
+            get_boolean(vr: &[u32], values: &mut [i32]),
+            do_step(time: f64, step: f64),
+        );
+    };
+}
+pub(crate) use each_call;
+
+/// Each call goes to the version's method of the same name.
+macro_rules! each_version {
+    ($($name:ident($($arg:ident: $t:ty),*)),* $(,)?) => {
+        $(#[inline]
+        pub fn $name(&mut self, $($arg: $t),*) -> Status {
+            match self {
+                Instance::Fmi2(i) => i.$name($($arg),*),
+                Instance::Fmi3(i) => i.$name($($arg),*),
+            }
+        })*
+    };
+}
+
+impl Instance {
+    /// An instance named `name` (the name the FMU's messages carry).
+    pub fn new(library: &Rc<Library>, name: &CStr) -> Result<Instance, String> {
+        Ok(match &**library {
+            Library::Fmi2(library) => Instance::Fmi2(fmi2::Instance::new(library, name)?),
+            Library::Fmi3(library) => Instance::Fmi3(fmi3::Instance::new(library, name)?),
+        })
+    }
+
+    each_call!(each_version);
+    each_version!(
+        get_output_derivatives(vr: u32, values: &mut [f64]),
+        set_input_derivatives(vr: u32, values: &[f64]),
+        save_state(),
+        restore_state(),
+    );
+
+    /// What FMI 2.0 calls `fmi2_name` (such as `fmi2SetReal`), as this instance's version
+    /// names it, for messages.
+    pub fn call_name<'a>(&self, fmi2_name: &'a str) -> Cow<'a, str> {
+        match self {
+            Instance::Fmi2(_) => Cow::Borrowed(fmi2_name),
+            Instance::Fmi3(_) => Cow::Owned(fmi3_name(fmi2_name)),
+        }
+    }
+
+    /// The events the master handled for this instance since it was made or last reset
+    /// (always 0 under FMI 2.0, whose co-simulation has none).
+    pub fn events(&self) -> u64 {
+        match self {
+            Instance::Fmi2(_) => 0,
+            Instance::Fmi3(i) => i.events(),
+        }
+    }
+}
