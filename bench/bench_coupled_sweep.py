@@ -11,8 +11,10 @@ examples/flywheel_load), the native engine with a coupling tolerance (1e-3 to 1e
 
 Engines: a [system] of the compiled motor and the mechanism run by the runner itself
 (`native`, with input derivatives of order 0, 1 or 2) or as one container FMU
-(`container`); FMPy's SSP support through fmusweep (the Python-written motor, as the SSP
-example packs it); and an FMPy master loop of FMPy's calls (the compiled motor).
+(`container`); the same system as an SSP file (examples/dc_motor/ssp, the compiled motor)
+run natively and through FMPy's SSP support; FMPy's SSP support with the Python-written
+motor, as the SSP example packs it by default; and an FMPy master loop of FMPy's calls
+(the compiled motor).
 Every points/s is the best of a few runs of the same points (the machine is shared).
 Writes results.json, results.md and coupled_sweep_curves.png.
 """
@@ -113,6 +115,40 @@ def system_rate(fmu, other, points, tmp, engine=("native", 2), step=1e-3, tolera
         r = run_sweep(spec, out=out, serial=True, progress=False, plots=False).report
         best = max(best, r.computed / r.point_seconds)
     return best
+
+
+def ssp_spec(ssp, points, engine="native"):
+    """The motor's SSP file (examples/dc_motor/ssp: the same load values as MECHANISM, from
+    its load.ssv) swept over d34 as system_spec sweeps the [system] table."""
+    return {"ssp": str(ssp), "system": {"engine": engine},
+            "scenario": {"stop": 10.0, "step": 1e-3, "tolerance": FMU_TOLERANCE},
+            "design": {"kind": "grid", "parameters": {
+                "mechanism.d34": {"linspace": [0.5, 1.5, points]}}},
+            "outputs": {"metrics": {"final": {"variable": "mechanism.omega1", "kind": "final"}}}}
+
+
+def ssp_rates(fmu, motor, points, slow_points, tmp):
+    """Points/s of the motor's SSP file with the compiled motor: run natively (the best of
+    REPEATS), and through FMPy's SSP support (`slow_points` points, once); and whether the
+    native run equals the [system] table's with the connections in the file's order."""
+    sys.path.insert(0, str(ROOT / "examples/dc_motor"))
+    import ssp as example
+    ssp = example.build_ssp(fmu, pathlib.Path(tempfile.mkdtemp(dir=tmp)), motor)
+    best, native = 0.0, None
+    for _ in range(REPEATS):
+        out = pathlib.Path(tempfile.mkdtemp(dir=tmp)) / "ssp"
+        native = run_sweep(ssp_spec(ssp, points), out=out, serial=True, progress=False, plots=False)
+        best = max(best, native.report.computed / native.report.point_seconds)
+    table = system_spec(fmu, motor, 10.0, 1e-3, points)
+    table["system"]["connections"] = [["mechanism.omega1", "motor.omega"],
+                                      ["motor.torque", "mechanism.M_m"]]
+    by_table = run_sweep(table, out=pathlib.Path(tempfile.mkdtemp(dir=tmp)) / "table",
+                         serial=True, progress=False, plots=False)
+    out = pathlib.Path(tempfile.mkdtemp(dir=tmp)) / "fmpy"
+    fmpy = run_sweep(ssp_spec(ssp, slow_points, "fmpy"), out=out, serial=True, progress=False,
+                     plots=False).report
+    return {"ssp_native": best, "ssp_fmpy_compiled": fmpy.computed / fmpy.point_seconds,
+            "ssp_native_equals_table": bool(native.points["final"].equals(by_table.points["final"]))}
 
 
 def master_loop_rate(fmu, motor, points):
@@ -329,9 +365,17 @@ def report(r) -> str:
         "10 s per point.", "",
         "| engine (one worker) | points/s | against the SSP path |", "| --- | --- | --- |",
         *[f"| [system], engine {n} | {rates[n]:.1f} | {rates[n] / rates['ssp']:.0f}× |" for n in names],
+        f"| SSP file run natively (engine native, input derivatives 2), compiled motor | "
+        f"{rates['ssp_native']:.1f} | {rates['ssp_native'] / rates['ssp']:.0f}× |",
+        f"| FMPy's SSP support through fmusweep, compiled motor | {rates['ssp_fmpy_compiled']:.2f} | "
+        f"{rates['ssp_fmpy_compiled'] / rates['ssp']:.1f}× |",
         f"| an FMPy master loop of FMPy's calls, compiled motor | {rates['master_loop']:.2f} | "
         f"{rates['master_loop'] / rates['ssp']:.1f}× |",
         f"| FMPy's SSP support through fmusweep, Python-written motor | {rates['ssp']:.2f} | 1× |", "",
+        f"The SSP file run natively against FMPy's SSP support with the same compiled motor: "
+        f"{rates['ssp_native'] / rates['ssp_fmpy_compiled']:.0f}×. Its results equal the [system] "
+        f"table's with the connections in the file's order, bit for bit: "
+        f"{'yes' if rates['ssp_native_equals_table'] else 'NO'}.", "",
         "## Coupling error and speed by communication step", "",
         "Error against the monolithic reference (motor and mechanism as one ODE, scipy's "
         "DOP853 at rtol 1e-11), worst over φ1..φ4, ω1..ω4 and the current at every "
@@ -436,6 +480,7 @@ def main():
             r["rates"][engine_name(*engine)] = system_rate(fmu, motor, points, tmp, engine)
         r["rates"]["master_loop"] = master_loop_rate(fmu, motor, 2 if quick else 5)
         r["rates"]["ssp"] = ssp_rate(fmu, 2 if quick else 4, stop=10.0)["points_per_s"]
+        r["rates"].update(ssp_rates(fmu, motor, points, 2 if quick else 4, tmp))
         print("bench-coupled-sweep: coupling error and speed by step", flush=True)
         for engine in ENGINES:
             errors = coupling_errors(fmu, motor, tmp, engine)

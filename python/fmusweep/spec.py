@@ -3,7 +3,8 @@
 A specification is a TOML file or the equivalent dict::
 
     fmu = "path/to/Model.fmu"          # optional: the caller may name the FMU instead
-    # or: ssp = "path/to/System.ssp"   # a coupled system, run through FMPy's SSP support
+    # or: ssp = "path/to/System.ssp"   # a coupled system in an SSP file, run natively
+    #                                  # ([system] engine = "fmpy": through FMPy's SSP support)
     # or a coupled system run natively (fmusweep.system):
     # [system]
     # components = { motor = "DcMotor.fmu", mechanism = "CyclicMechanism.fmu" }
@@ -50,6 +51,7 @@ from typing import Any
 
 from . import design as _design
 from .errors import Collector, SpecError, refuse
+from .ssd import SspContents, read_ssp
 from .system import System
 from .fields import number as _number
 from .fields import only as _only
@@ -148,17 +150,61 @@ class Scenario:
 
 
 def what_runs(raw: dict[str, Any], base_dir: pathlib.Path) -> tuple[str | None, str | None, System | None]:
-    """The spec's FMU path, SSP path or [system], at most one of them (each checked)."""
+    """The spec's FMU path, SSP path or [system], at most one of them (each checked); a
+    [system] beside an SSP file chooses how the file's system runs. For an SSP file, the
+    system it describes natively (None on FMPy's path), its default experiment and
+    parameter values taken into `raw`'s scenario where the spec sets none."""
     fmu, ssp = raw.get("fmu"), raw.get("ssp")
     for key, value in (("fmu", fmu), ("ssp", ssp)):
         if value is not None and not isinstance(value, str):
             raise SpecError(key, "must be a path (a string)")
     named = [key for key in ("fmu", "ssp", "system") if raw.get(key) is not None]
+    if ssp is not None and "system" in named:
+        named.remove("system")
     if len(named) > 1:
         raise SpecError(named[1], f"a spec names one of an FMU, an SSP system or a [system], "
                                   f"not {' and '.join(named)}")
+    if ssp is not None:
+        return fmu, ssp, _ssp_system(raw, base_dir / ssp)
     system = System.of(raw["system"], base_dir) if "system" in raw else None
     return fmu, ssp, system
+
+
+def _ssp_system(raw: dict[str, Any], path: pathlib.Path) -> System | None:
+    """The SSP file's system for the native runner, or None for FMPy's path
+    (``[system] engine = "fmpy"``)."""
+    contents = read_ssp(path)
+    _take_ssp_defaults(raw, contents)
+    table = raw.get("system")
+    if isinstance(table, dict) and table.get("engine") == "fmpy":
+        extra = sorted(set(table) - {"engine"})
+        if extra:
+            raise SpecError(f"system.{extra[0]}", "FMPy's SSP path holds inputs over each step "
+                                                  "at the scenario's step: it takes no other option")
+        return None
+    return System.from_ssp(path, contents, table)
+
+
+def _take_ssp_defaults(raw: dict[str, Any], contents: SspContents) -> None:
+    """The SSP file's default experiment (start, stop) and parameter values, into the
+    scenario where the spec gives none; a parameter the design or the fit varies is theirs."""
+    scenario = raw.setdefault("scenario", {})
+    if not isinstance(scenario, dict):
+        return
+    for key, value in (("start", contents.start), ("stop", contents.stop)):
+        if value is not None:
+            scenario.setdefault(key, value)
+    varied: set[str] = set()
+    for owner in ("design", "fit"):
+        table = raw.get(owner)
+        parameters = table.get("parameters") if isinstance(table, dict) else None
+        if isinstance(parameters, dict):
+            varied.update(parameters)
+    fixed = scenario.setdefault("parameters", {})
+    if isinstance(fixed, dict):
+        for name, value in contents.parameters.items():
+            if name not in varied:
+                fixed.setdefault(name, value)
 
 
 @dataclass

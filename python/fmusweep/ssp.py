@@ -1,8 +1,9 @@
-"""Coupled systems given as SSP files, run through FMPy's SSP support
-(``fmpy.ssp.simulation.simulate_ssp``): one call per point in the worker's Python, which
-extracts the archive, instantiates every FMU and runs FMPy's own master loop. The native
-runner drives one FMU, not a system; this path trades its speed for any SSP that FMPy
-runs (the benchmark measures it). Design parameters and fixed parameters are named
+"""SSP files run through FMPy's SSP support (``fmpy.ssp.simulation.simulate_ssp``), when a
+spec asks for it (``[system] engine = "fmpy"``; by default an SSP file runs natively, see
+``fmusweep.ssd``): one call per point in the worker's Python, which extracts the archive,
+instantiates every FMU and runs FMPy's own master loop. This path trades the native
+runner's speed for what only FMPy runs: Python-written components, the system's own
+connectors (the benchmark measures it). Design parameters and fixed parameters are named
 ``component.variable``; metrics and series may name any connector of the system
 (``mechanism.omega1``). There is no per-point time budget and no crash isolation on this
 path: an FMU that crashes takes its Dask worker with it, and that batch's rows say

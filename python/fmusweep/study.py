@@ -91,16 +91,19 @@ class Target:
         """The FMU the caller names, else the spec's SSP file, [system] or FMU, else
         $FMUSWEEP_FMU."""
         ssp = getattr(spec, "ssp", None)
-        if ssp is not None and fmu is None:
+        system: System | None = spec.system
+        if ssp is not None and system is None and fmu is None:
             archive = Archive.read(ssp)
             return Target(archive, {"ssp_name": archive.name, "ssp_sha256": archive.sha256},
                           describe_ssp(archive), None, run_ssp_batch, prepare_ssp_worker)
-        system: System | None = spec.system
         archive, local, description = open_target(system, fmu, spec.fmu, spec.scenario.step)
         if system is not None and fmu is None:
             identity: dict[str, Any] = {
                 "system": {name: str(path) for name, path in system.components.items()},
                 "connections": [str(c) for c in system.connections]}
+            if ssp is not None:
+                file = Archive.read(ssp)
+                identity.update(ssp_name=file.name, ssp_sha256=file.sha256)
         else:
             identity = {"fmu_name": archive.name, "fmu_guid": description["guid"]}
         return Target(archive, identity, description, local, run_batch, prepare_worker)

@@ -38,6 +38,7 @@ each connection's ends and types, inputs fed twice, algebraic loops.
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import hashlib
 import io
@@ -57,6 +58,7 @@ from .errors import SpecError
 from .fields import finite
 from .fmu import Archive, local_runner, open_for_checks
 from .native import NativeRunner, RunnerError
+from .ssd import SspContents
 
 __all__ = ["System", "load_system"]
 
@@ -75,6 +77,9 @@ class Connection:
 
 
 ENGINES = ("native", "container")
+# What a [system] table sets besides its components and connections (all a [system] beside
+# an SSP file may set).
+OPTIONS = ("engine", "input_derivatives", "coupling_tolerance")
 
 
 @dataclass
@@ -84,26 +89,20 @@ class System:
     engine: str = "native"
     input_derivatives: int = 2
     coupling_tolerance: float | None = None
+    # Where the components and connections were given, for the fields that name a mistake:
+    # the spec's [system] table, or an SSP file.
+    origin: str = "system"
 
     # --- the spec's fields ---------------------------------------------------------------
     @staticmethod
     def of(table: object, base_dir: pathlib.Path) -> System:
         if not isinstance(table, dict):
             raise SpecError("system", "must be a table with components and connections")
-        fields = {"components", "connections", "engine", "input_derivatives", "coupling_tolerance"}
+        fields = {"components", "connections", *OPTIONS}
         unknown = sorted(set(table) - fields)
         if unknown:
             raise SpecError(f"system.{unknown[0]}", "unknown field; expected " + ", ".join(sorted(fields)))
-        engine = table.get("engine", "native")
-        if engine not in ENGINES:
-            raise SpecError("system.engine", f"must be one of {', '.join(ENGINES)}, got {engine!r}")
-        derivatives = table.get("input_derivatives", 2 if engine == "native" else 0)
-        if isinstance(derivatives, bool) or derivatives not in (0, 1, 2):
-            raise SpecError("system.input_derivatives", f"must be 0, 1 or 2, got {derivatives!r}")
-        if engine == "container" and derivatives != 0:
-            raise SpecError("system.input_derivatives", "the container holds inputs over a step: "
-                                                        "only 0 with engine = \"container\"")
-        tolerance = _coupling_tolerance(table.get("coupling_tolerance"), engine)
+        engine, derivatives, tolerance = _options(table, ENGINES)
         components = table.get("components")
         if not isinstance(components, dict) or not components:
             raise SpecError("system.components", "must name at least one component: name = \"file.fmu\"")
@@ -123,20 +122,49 @@ class System:
         parsed = [_connection(i, c, paths) for i, c in enumerate(connections)]
         return System(paths, parsed, engine, derivatives, tolerance)
 
+    @staticmethod
+    def from_ssp(path: pathlib.Path, contents: SspContents, table: object) -> System:
+        """The system an SSP file describes (`contents`, read from `path`), its components
+        unpacked into this process's folder for them; `table` is the spec's [system]
+        beside it, which may only choose how it runs."""
+        options = {} if table is None else table
+        if not isinstance(options, dict):
+            raise SpecError("system", "must be a table")
+        unknown = sorted(set(options) - set(OPTIONS))
+        if unknown:
+            raise SpecError(f"system.{unknown[0]}", "the SSP file gives the components and "
+                            "connections; beside ssp, [system] takes " + ", ".join(OPTIONS))
+        # "fmpy" is handled before a system is made (it runs no system of the runner's).
+        engine, derivatives, tolerance = _options(options, (*ENGINES, "fmpy"))
+        directory = _unpacked_components(path, contents)
+        connections = [Connection(c.source, c.output, c.target, c.input)
+                       for c in contents.connections]
+        for i, c in enumerate(connections):
+            for component in (c.source, c.target):
+                if component not in contents.components:
+                    raise SpecError("ssp", f"{path.name}: connection {i} ({c}) names no component "
+                                           f"of the system ({', '.join(contents.components)})")
+        return System({name: directory / f"{name}.fmu" for name in contents.components},
+                      connections, engine, derivatives, tolerance, origin="ssp")
+
     # --- checks against the components -------------------------------------------------
     def check(self) -> dict[str, Any]:
         """Each component's model description; each connection checked against them."""
-        descriptions = {name: _description(name, path) for name, path in self.components.items()}
+        descriptions = {name: _description(f"{self.origin}.components.{name}", path)
+                        for name, path in self.components.items()}
+        if self.engine == "native":
+            for name, description in descriptions.items():
+                _refuse_python_written(f"{self.origin}.components.{name}", description)
         if self.coupling_tolerance is not None:
             for name, description in descriptions.items():
                 if not description.coSimulation.canGetAndSetFMUstate:
-                    raise SpecError(f"system.components.{name}",
+                    raise SpecError(f"{self.origin}.components.{name}",
                                     "system.coupling_tolerance takes a step again from every "
                                     "component's saved state, and this FMU cannot save its "
                                     "state (canGetAndSetFMUstate is false)")
         fed: dict[tuple[str, str], int] = {}
         for i, c in enumerate(self.connections):
-            where = f"system.connections[{i}]"
+            where = f"{self.origin}.connections[{i}]"
             source = _variable(descriptions[c.source], c.source, c.output, where)
             target = _variable(descriptions[c.target], c.target, c.input, where)
             if source.causality != "output":
@@ -153,8 +181,8 @@ class System:
             fed[(c.target, c.input)] = i
         loop = _algebraic_loop(self.connections, descriptions)
         if loop:
-            raise SpecError("system.connections", "an algebraic loop (each output depends directly "
-                                                  "on the input before it): " + " → ".join(loop))
+            raise SpecError(f"{self.origin}.connections", "an algebraic loop (each output depends "
+                            "directly on the input before it): " + " → ".join(loop))
         return descriptions
 
     def digest(self) -> str:
@@ -231,6 +259,55 @@ class System:
         return Archive(data, "system.fmu")
 
 
+def _options(table: dict[str, Any], engines: tuple[str, ...]) -> tuple[str, int, float | None]:
+    """The engine, the input derivatives and the coupling tolerance a table chooses."""
+    engine = table.get("engine", "native")
+    if engine not in engines:
+        raise SpecError("system.engine", f"must be one of {', '.join(engines)}, got {engine!r}")
+    derivatives = table.get("input_derivatives", 2 if engine == "native" else 0)
+    if isinstance(derivatives, bool) or derivatives not in (0, 1, 2):
+        raise SpecError("system.input_derivatives", f"must be 0, 1 or 2, got {derivatives!r}")
+    if engine == "container" and derivatives != 0:
+        raise SpecError("system.input_derivatives", "the container holds inputs over a step: "
+                                                    "only 0 with engine = \"container\"")
+    return engine, derivatives, _coupling_tolerance(table.get("coupling_tolerance"), engine)
+
+
+def _refuse_python_written(where: str, description: Any) -> None:
+    """A component written in Python (PythonFMU) runs Python at every step: the native
+    runner, whose point is running none, refuses it by name."""
+    tool = description.generationTool or ""
+    if tool.startswith("PythonFMU"):
+        raise SpecError(where, f"{description.modelName} is written in Python ({tool}); the "
+                               "native runner runs compiled FMUs only (an SSP file with it "
+                               "runs through FMPy with [system] engine = \"fmpy\")")
+
+
+# Per process: an SSP file's checksum -> the folder its components are unpacked into.
+_SSP_FOLDERS: dict[str, pathlib.Path] = {}
+
+
+def _unpacked_components(path: pathlib.Path, contents: SspContents) -> pathlib.Path:
+    """This process's folder of the SSP file's component FMUs, each as <name>.fmu; removed
+    when the process ends."""
+    data = path.read_bytes()
+    key = hashlib.sha256(data).hexdigest()
+    folder = _SSP_FOLDERS.get(key)
+    if folder is None:
+        folder = pathlib.Path(tempfile.mkdtemp(prefix=f"fmusweep-ssp-{key[:12]}-"))
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            for name, member in contents.components.items():
+                (folder / f"{name}.fmu").write_bytes(archive.read(member))
+        _SSP_FOLDERS[key] = folder
+    return folder
+
+
+@atexit.register
+def _remove_ssp_folders() -> None:
+    for folder in _SSP_FOLDERS.values():
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 def _coupling_tolerance(value: object, engine: str) -> float | None:
     if value is None:
         return None
@@ -275,9 +352,8 @@ def _connection(i: int, pair: object, components: dict[str, Any]) -> Connection:
     return Connection(source, output, target, input_)
 
 
-def _description(name: str, path: pathlib.Path) -> Any:
-    """The component's model description, as FMPy reads it."""
-    where = f"system.components.{name}"
+def _description(where: str, path: pathlib.Path) -> Any:
+    """The component's model description, as FMPy reads it (a mistake named by `where`)."""
     try:
         import fmpy
     except ImportError:

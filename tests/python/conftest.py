@@ -52,6 +52,11 @@ def load_path():
 
 
 @pytest.fixture(scope="session")
+def ball_path():
+    return packed("BOUNCING_BALL_FMU", "target/fmu/BouncingBall.fmu", "motor")
+
+
+@pytest.fixture(scope="session")
 def fmu_path():
     return packed("CYCLIC_MECHANISM_FMU", "target/fmu/CyclicMechanism.fmu", "fmu")
 

@@ -113,3 +113,20 @@ def test_linkages_through_their_change_point_with_the_fmi3_archive(fmu_path, fmu
     assert (points["events"] >= 1).all() and (points["linkage_class"] == 6).all()
     ends = points.pivot(index="l3", columns="change_point_branch", values="phi4_end")
     assert ((ends[1.0] - ends[2.0]).abs() > 0.5).all()
+
+
+def test_the_motor_system_as_an_ssp_file(fmu_path, tmp_path):
+    """The SSP example on two Dask workers: the file's system runs natively, its load
+    values and its 5 s default experiment hold, and more voltage turns the linkage faster."""
+    sys.path.insert(0, str(EXAMPLES.parents[0] / "dc_motor"))
+    import ssp as example  # examples/dc_motor/ssp.py
+    motor = packed("DC_MOTOR_FMU", "target/fmu/DcMotor.fmu", "motor")
+    ssp = example.build_ssp(fmu_path, tmp_path / "ssp", motor)
+    text = (EXAMPLES / "coupled_motor_ssp.toml").read_text()
+    text = text.replace('"../../target/fmu/MotorDrivenMechanism.ssp"', f'"{ssp.resolve()}"')
+    (tmp_path / "coupled_motor_ssp.toml").write_text(text)
+    points, said = sweep(tmp_path / "coupled_motor_ssp.toml", fmu_path, tmp_path / "out")
+    assert len(points) == 100 and (points["status"] == "ok").all(), points["message"].unique()
+    assert (points["t_end"] == 5.0).all() and "100 points" in said
+    speed = points.groupby("motor.voltage")["final_omega1"].mean()
+    assert speed.is_monotonic_increasing and speed.iloc[-1] > 2 * speed.iloc[0], speed

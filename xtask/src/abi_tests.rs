@@ -206,7 +206,7 @@ pub fn build_native_master(dir: &Path) -> Result<PathBuf> {
 /// Compile tests/platforms/master.c with `compiler` (its own options given) and the shared
 /// flags into `output`, linking `libraries`.
 fn compile_master(compiler: &mut Command, output: &Path, libraries: &[&str]) -> Result {
-    let fmi2 = crate::builders::fmi2_headers()?;
+    let fmi2 = crate::builders::fmi_headers("2")?;
     let fmi3 = fmi2
         .parent()
         .and_then(Path::parent)

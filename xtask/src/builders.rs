@@ -14,6 +14,15 @@ pub(crate) fn build_motor() -> Result<PathBuf> {
     build_compiled_fmu("DcMotor", "examples/dc_motor/native", "dc_motor.c")
 }
 
+/// Build and pack the bouncing ball (FMI 3.0, events); returns the archive.
+pub(crate) fn build_bouncing_ball() -> Result<PathBuf> {
+    build_compiled_fmu3(
+        "BouncingBall",
+        "examples/bouncing_ball/native",
+        "bouncing_ball.c",
+    )
+}
+
 /// Build and pack the flywheel load; returns the archive.
 pub(crate) fn build_flywheel_load() -> Result<PathBuf> {
     build_compiled_fmu(
@@ -23,12 +32,72 @@ pub(crate) fn build_flywheel_load() -> Result<PathBuf> {
     )
 }
 
+/// The motor driving the mechanism as an SSP file, `target/fmu/MotorDrivenMechanism.ssp`:
+/// `examples/dc_motor/ssp/`'s system structure and load parameters with the two packed
+/// FMUs (the worked SSP sweep runs it).
+pub(crate) fn build_motor_ssp(mechanism: &Path, motor: &Path) -> Result<PathBuf> {
+    let source = root().join("examples/dc_motor/ssp");
+    let ssp = root().join("target/fmu/MotorDrivenMechanism.ssp");
+    crate::fmu::pack(
+        &ssp,
+        &[
+            (
+                "SystemStructure.ssd".to_string(),
+                source.join("SystemStructure.ssd"),
+            ),
+            (
+                "resources/CyclicMechanism.fmu".to_string(),
+                mechanism.to_path_buf(),
+            ),
+            ("resources/DcMotor.fmu".to_string(), motor.to_path_buf()),
+            ("resources/load.ssv".to_string(), source.join("load.ssv")),
+        ],
+    )?;
+    Ok(ssp)
+}
+
 /// One model of `examples/` in C, linked with the co-simulation functions they share
-/// (`examples/native/cosim.c`) against glibc 2.17 with zig, packed as
-/// `target/fmu/{identifier}.fmu` with the model's `modelDescription.xml`.
+/// (`examples/native/cosim.c`, FMI 2.0), packed as `target/fmu/{identifier}.fmu`.
 fn build_compiled_fmu(identifier: &str, source: &str, model: &str) -> Result<PathBuf> {
-    let source = root().join(source);
     let shared = root().join("examples/native");
+    let fmi2 = Standard {
+        headers: fmi_headers("2")?,
+        platform: "linux64",
+    };
+    compile_and_pack(
+        identifier,
+        source,
+        &[model.into(), shared.join("cosim.c")],
+        &fmi2,
+    )
+}
+
+/// An FMI 3.0 model of `examples/` in C, all in one file, packed as
+/// `target/fmu/{identifier}.fmu`.
+fn build_compiled_fmu3(identifier: &str, source: &str, model: &str) -> Result<PathBuf> {
+    let fmi3 = Standard {
+        headers: fmi_headers("3")?,
+        platform: "x86_64-linux",
+    };
+    compile_and_pack(identifier, source, &[model.into()], &fmi3)
+}
+
+/// What a compiled FMU's version decides: the headers it is built against and the folder
+/// of `binaries/` its library goes in.
+struct Standard {
+    headers: PathBuf,
+    platform: &'static str,
+}
+
+/// The C files `files` (relative to `source`, or absolute) built against glibc 2.17 with
+/// zig and packed with `source`'s `modelDescription.xml`.
+fn compile_and_pack(
+    identifier: &str,
+    source: &str,
+    files: &[PathBuf],
+    standard: &Standard,
+) -> Result<PathBuf> {
+    let source = root().join(source);
     let zig = crate::platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
     let dir = root().join("target/compiled-fmus");
     std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
@@ -37,13 +106,12 @@ fn build_compiled_fmu(identifier: &str, source: &str, model: &str) -> Result<Pat
         .cc("x86_64-linux-gnu.2.17")
         .args(["-O2", "-std=c99", "-shared", "-fPIC", "-fvisibility=hidden"])
         .args(["-Wall", "-Wextra", "-Wno-unused-parameter", "-Werror", "-I"])
-        .arg(fmi2_headers()?)
+        .arg(&standard.headers)
         .arg("-I")
-        .arg(&shared)
+        .arg(root().join("examples/native"))
         .arg("-o")
         .arg(&library)
-        .arg(source.join(model))
-        .arg(shared.join("cosim.c"))
+        .args(files.iter().map(|f| source.join(f)))
         .arg("-lm"))?;
     check_glibc(&library)?;
     let fmu = root().join(format!("target/fmu/{identifier}.fmu"));
@@ -54,7 +122,10 @@ fn build_compiled_fmu(identifier: &str, source: &str, model: &str) -> Result<Pat
                 "modelDescription.xml".to_string(),
                 source.join("modelDescription.xml"),
             ),
-            (format!("binaries/linux64/{identifier}.so"), library),
+            (
+                format!("binaries/{}/{identifier}.so", standard.platform),
+                library,
+            ),
         ],
     )?;
     Ok(fmu)
@@ -130,8 +201,9 @@ pub(crate) fn ensure_sweep_package() -> Result<PathBuf> {
     Ok(python)
 }
 
-/// The FMI 2.0 headers that fmi-sys ships (fetched into cargo's registry by the build).
-pub(crate) fn fmi2_headers() -> Result<PathBuf> {
+/// The FMI headers of `version` ("2" or "3") that fmi-sys ships (fetched into cargo's
+/// registry by the build).
+pub(crate) fn fmi_headers(version: &str) -> Result<PathBuf> {
     let home = std::env::var_os("CARGO_HOME")
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")))
@@ -139,7 +211,13 @@ pub(crate) fn fmi2_headers() -> Result<PathBuf> {
     fs::read_dir(home.join("registry/src"))
         .into_iter()
         .flat_map(|d| d.flatten())
-        .map(|index| index.path().join("fmi-sys-0.6.0/fmi-standard2/headers"))
-        .find(|headers| headers.join("fmi2Functions.h").exists())
-        .ok_or_else(|| "fmi-sys 0.6.0's FMI 2.0 headers not found in cargo's registry".into())
+        .map(|index| {
+            index
+                .path()
+                .join(format!("fmi-sys-0.6.0/fmi-standard{version}/headers"))
+        })
+        .find(|headers| headers.join(format!("fmi{version}Functions.h")).exists())
+        .ok_or_else(|| {
+            format!("fmi-sys 0.6.0's FMI {version}.0 headers not found in cargo's registry")
+        })
 }

@@ -77,7 +77,7 @@ const JOBS: &[Job] = &[
     Job {
         name: "motor",
         operands: &[],
-        about: "build and pack target/fmu/DcMotor.fmu and FlywheelLoad.fmu, the compiled components of examples/",
+        about: "build and pack target/fmu/DcMotor.fmu, FlywheelLoad.fmu and BouncingBall.fmu, the compiled FMUs of examples/",
         flags: &[],
         run: motor::job,
     },

@@ -1,7 +1,7 @@
-//! `cargo xtask motor`: the compiled components of `examples/` (C, FMI 2.0 Co-Simulation),
-//! the DC motor and the flywheel load, built against glibc 2.17 with zig, checked and packed
-//! as `target/fmu/DcMotor.fmu` and `target/fmu/FlywheelLoad.fmu`, for coupling and
-//! sweeping the mechanism at native speed; and `cargo xtask bench-coupling`, which measures
+//! `cargo xtask motor`: the compiled FMUs of `examples/` (C), built against glibc 2.17 with
+//! zig, checked and packed into `target/fmu`: the DC motor and the flywheel load (FMI 2.0
+//! Co-Simulation), for coupling and sweeping the mechanism at native speed, and the
+//! bouncing ball (FMI 3.0 Co-Simulation with events), a subject with known solutions; and `cargo xtask bench-coupling`, which measures
 //! coupled steps and sweeps with them.
 
 use crate::cli::{Flag, Parsed};
@@ -11,6 +11,7 @@ use crate::Result;
 pub(crate) fn job(_: &Parsed) -> Result {
     println!("FMU: {}", crate::builders::build_motor()?.display());
     println!("FMU: {}", crate::builders::build_flywheel_load()?.display());
+    println!("FMU: {}", crate::builders::build_bouncing_ball()?.display());
     Ok(())
 }
 

@@ -14,12 +14,15 @@ pub(crate) fn job(parsed: &Parsed) -> Result {
 }
 
 /// `python -m fmusweep [SUBCOMMAND] OPERANDS FLAGS` with the packed FMU as the default FMU
-/// (and the compiled DC motor packed beside it, in target/fmu).
+/// (and the compiled DC motor, flywheel load and the motor's SSP file beside it, in
+/// target/fmu).
 pub(crate) fn run_fmusweep(subcommand: &[&str], parsed: &Parsed) -> Result {
     let fmu = fmu::build_fmu(false)?.fmu;
-    // The compiled motor and load too: the worked coupled systems use them.
-    crate::builders::build_motor()?;
+    // The compiled motor and load too, and the motor's system as an SSP file: the worked
+    // coupled systems use them.
+    let motor = crate::builders::build_motor()?;
     crate::builders::build_flywheel_load()?;
+    crate::builders::build_motor_ssp(&fmu, &motor)?;
     let python = crate::builders::ensure_sweep_package()?;
     // Run where the user is: spec paths are theirs.
     crate::setup::run(

@@ -34,6 +34,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
     let python = crate::builders::ensure_sweep_package()?;
     let motor = crate::builders::build_motor()?;
     let load = crate::builders::build_flywheel_load()?;
+    let ball = crate::builders::build_bouncing_ball()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(root().join("tests/python"))
@@ -41,6 +42,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .env("CYCLIC_MECHANISM_FMU3", &fmu3)
         .env("DC_MOTOR_FMU", &motor)
         .env("FLYWHEEL_LOAD_FMU", &load)
+        .env("BOUNCING_BALL_FMU", &ball)
         .current_dir(root()))?;
     // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
     // by the packed FMU, the test files, the installed packages and the selection and

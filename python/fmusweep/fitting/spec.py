@@ -107,7 +107,7 @@ class FitSpec:
         raw = copy.deepcopy(raw)
         base = pathlib.Path(base_dir)
         errors = Collector()
-        errors.run(lambda: only(raw, "spec", {"fmu", "system", "scenario", "data", "fit"}))
+        errors.run(lambda: only(raw, "spec", {"fmu", "ssp", "system", "scenario", "data", "fit"}))
         runs = errors.run(lambda: what_runs(raw, base))
         scenario = errors.run(lambda: Scenario.of(raw))
         data = (errors.run(lambda: Data.of(table(raw, "data", "spec", required=True), base,
@@ -116,14 +116,17 @@ class FitSpec:
         errors.raise_any()
         assert runs is not None and scenario is not None and data is not None
         assert settings is not None
-        fmu, _, system = runs
+        fmu, ssp, system = runs
+        if ssp is not None and system is None:
+            raise SpecError("system.engine", "a fit runs an SSP file natively only: not "
+                                             "with engine = \"fmpy\"")
         return FitSpec(raw, base, (base / fmu) if fmu else None, system, scenario, data,
                        *settings)
 
     def digest(self) -> str:
         """A hash of everything that decides the results: the spec and the data file's
         content (not where the FMU or the data file lie)."""
-        canonical = {k: v for k, v in self.raw.items() if k != "fmu"}
+        canonical = {k: v for k, v in self.raw.items() if k not in ("fmu", "ssp")}
         canonical["data"] = {k: v for k, v in canonical["data"].items() if k != "file"}
         if self.system is not None:  # the components' contents count, not where they lie
             canonical["system"] = self.system.digest()
