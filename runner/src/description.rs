@@ -59,6 +59,8 @@ pub struct Description {
     pub has_event_mode: bool,
     /// The names of the FMU's log categories (`<LogCategories>`), in its order.
     pub log_categories: Vec<String>,
+    /// Whether the FMU has a `<ModelExchange>` interface (which the runner does not run).
+    pub has_model_exchange: bool,
     pub variables: Vec<Variable>,
 }
 
@@ -82,6 +84,7 @@ impl Description {
             can_get_and_set_state: false,
             has_event_mode: false,
             log_categories: Vec::new(),
+            has_model_exchange: false,
             variables: Vec::new(),
         };
         // The variable being read: an FMI 2.0 <ScalarVariable> takes its type from its
@@ -101,6 +104,7 @@ impl Description {
                     match tag.as_ref() {
                         b"fmiModelDescription" => description.read_root(e)?,
                         b"CoSimulation" => description.read_co_simulation(e)?,
+                        b"ModelExchange" => description.has_model_exchange = true,
                         b"ModelVariables" => in_variables = !empty,
                         b"Category" if !in_variables => {
                             description.log_categories.extend(attribute(e, "name")?);

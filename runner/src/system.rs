@@ -186,6 +186,7 @@ impl SystemLibrary {
             can_get_and_set_state: false,
             has_event_mode: false,
             log_categories: Vec::new(),
+            has_model_exchange: false,
             variables,
         };
         if let Some(tolerance) = file.coupling_tolerance {

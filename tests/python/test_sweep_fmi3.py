@@ -6,6 +6,7 @@ enumeration is a design column like a Real; a system may mix FMI 2.0 and FMI 3.0
 components; an FMI 3.0 FMU the runner cannot run is refused by name before any point
 runs."""
 
+import re
 
 import fmpy
 import numpy as np
@@ -158,3 +159,15 @@ def test_an_unsupported_variable_type_is_refused_by_name(fmu3_path, tmp_path):
     with pytest.raises(SpecError, match="f32"):
         sweep(spec, bad, tmp_path / "out")
     assert not (tmp_path / "out" / "points.parquet").exists()
+
+
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_a_model_exchange_only_fmu_is_refused_by_name(fmu_path, fmu3_path, tmp_path, version):
+    def without_co_simulation(name, data):
+        if name != "modelDescription.xml":
+            return data
+        return re.sub(rb"<CoSimulation[^>]*/>", b"", data)
+    source = fmu_path if version == "2.0" else fmu3_path
+    bad = repacked(source, tmp_path / "Changed.fmu", without_co_simulation)
+    with pytest.raises(RunnerError, match="a ModelExchange interface only"):
+        sweep(grid_spec(), bad, tmp_path / "out")

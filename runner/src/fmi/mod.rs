@@ -120,10 +120,15 @@ impl Library {
     /// The co-simulation binary of the FMU unpacked in `dir`, for the version its
     /// description declares.
     pub fn load(dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
-        let identifier = description
-            .model_identifier
-            .as_deref()
-            .ok_or("the FMU has no CoSimulation interface")?;
+        let identifier =
+            description
+                .model_identifier
+                .as_deref()
+                .ok_or(if description.has_model_exchange {
+                    "the FMU has a ModelExchange interface only; the runner runs Co-Simulation FMUs"
+                } else {
+                    "the FMU has no CoSimulation interface"
+                })?;
         let library = if description.fmi_version.starts_with("3.") {
             let path = binary_path(dir, PLATFORM_FMI3, identifier)?;
             Library::Fmi3(fmi3::Library::load(&path, dir, description)?)
