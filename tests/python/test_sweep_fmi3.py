@@ -171,3 +171,19 @@ def test_a_model_exchange_only_fmu_is_refused_by_name(fmu_path, fmu3_path, tmp_p
     bad = repacked(source, tmp_path / "Changed.fmu", without_co_simulation)
     with pytest.raises(RunnerError, match="a ModelExchange interface only"):
         sweep(grid_spec(), bad, tmp_path / "out")
+
+
+def test_an_fmi3_sweep_resumes_what_was_lost(tmp_path):
+    """The change-point sweep in batches of two; a batch's part lost, the sweep resumed:
+    only its points run again, and the table is the uninterrupted one."""
+    whole = run_sweep(CHANGE_POINTS, out=tmp_path / "whole", serial=True, progress=False,
+                      plots=False, batch_size=2).points
+    parts = sorted((tmp_path / "whole" / "points").glob("part-*.parquet"))
+    assert len(parts) >= 3
+    parts[1].unlink()
+    (tmp_path / "whole" / "points.parquet").unlink()
+    again = run_sweep(CHANGE_POINTS, out=tmp_path / "whole", serial=True, progress=False,
+                      plots=False, batch_size=2, resume=True)
+    assert again.report.resumed == 8 - 2 and again.report.computed == 2
+    columns = ["point", "status", "phi4_end", "energy_end", "events", "t_end"]
+    assert again.points[columns].equals(whole[columns])
