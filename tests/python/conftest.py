@@ -57,6 +57,13 @@ def ball_path():
 
 
 @pytest.fixture(scope="session")
+def ball_me_paths():
+    """The bouncing ball's Model Exchange FMUs: FMI 2.0 and FMI 3.0."""
+    return {"2.0": packed("BOUNCING_BALL_ME_FMU", "target/fmu/BouncingBallME.fmu", "motor"),
+            "3.0": packed("BOUNCING_BALL_ME_FMU3", "target/fmu/BouncingBallME-fmi3.fmu", "motor")}
+
+
+@pytest.fixture(scope="session")
 def fmu_path():
     return packed("CYCLIC_MECHANISM_FMU", "target/fmu/CyclicMechanism.fmu", "fmu")
 

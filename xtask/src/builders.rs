@@ -59,27 +59,54 @@ pub(crate) fn build_motor_ssp(mechanism: &Path, motor: &Path) -> Result<PathBuf>
 /// One model of `examples/` in C, linked with the co-simulation functions they share
 /// (`examples/native/cosim.c`, FMI 2.0), packed as `target/fmu/{identifier}.fmu`.
 fn build_compiled_fmu(identifier: &str, source: &str, model: &str) -> Result<PathBuf> {
-    let shared = root().join("examples/native");
-    let fmi2 = Standard {
-        headers: fmi_headers("2")?,
-        platform: "linux64",
-    };
-    compile_and_pack(
-        identifier,
-        source,
-        &[model.into(), shared.join("cosim.c")],
-        &fmi2,
-    )
+    let shared = root().join("examples/native/cosim.c");
+    let files = [model.into(), shared];
+    compile_and_pack((identifier, identifier), source, &files, &fmi2_standard()?)
 }
 
 /// An FMI 3.0 model of `examples/` in C, all in one file, packed as
 /// `target/fmu/{identifier}.fmu`.
 fn build_compiled_fmu3(identifier: &str, source: &str, model: &str) -> Result<PathBuf> {
-    let fmi3 = Standard {
+    compile_and_pack(
+        (identifier, identifier),
+        source,
+        &[model.into()],
+        &fmi3_standard()?,
+    )
+}
+
+fn fmi2_standard() -> Result<Standard> {
+    Ok(Standard {
+        headers: fmi_headers("2")?,
+        platform: "linux64",
+    })
+}
+
+fn fmi3_standard() -> Result<Standard> {
+    Ok(Standard {
         headers: fmi_headers("3")?,
         platform: "x86_64-linux",
-    };
-    compile_and_pack(identifier, source, &[model.into()], &fmi3)
+    })
+}
+
+/// The bouncing ball's Model Exchange FMUs, FMI 2.0 and 3.0 (their masters integrate it):
+/// `target/fmu/BouncingBallME.fmu` and `BouncingBallME-fmi3.fmu`.
+pub(crate) fn build_bouncing_ball_me() -> Result<(PathBuf, PathBuf)> {
+    let source = "examples/bouncing_ball/model_exchange";
+    Ok((
+        compile_and_pack(
+            ("BouncingBallME", "BouncingBallME"),
+            &format!("{source}/fmi2"),
+            &["ball.c".into()],
+            &fmi2_standard()?,
+        )?,
+        compile_and_pack(
+            ("BouncingBallME", "BouncingBallME-fmi3"),
+            &format!("{source}/fmi3"),
+            &["ball.c".into(), "unsupported.c".into()],
+            &fmi3_standard()?,
+        )?,
+    ))
 }
 
 /// What a compiled FMU's version decides: the headers it is built against and the folder
@@ -90,9 +117,10 @@ struct Standard {
 }
 
 /// The C files `files` (relative to `source`, or absolute) built against glibc 2.17 with
-/// zig and packed with `source`'s `modelDescription.xml`.
+/// zig and packed with `source`'s `modelDescription.xml` as `target/fmu/{archive}.fmu`, the
+/// library named for the model's `identifier`.
 fn compile_and_pack(
-    identifier: &str,
+    (identifier, archive): (&str, &str),
     source: &str,
     files: &[PathBuf],
     standard: &Standard,
@@ -101,7 +129,7 @@ fn compile_and_pack(
     let zig = crate::platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
     let dir = root().join("target/compiled-fmus");
     std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-    let library = dir.join(format!("{identifier}.so"));
+    let library = dir.join(format!("{archive}.so"));
     run(zig
         .cc("x86_64-linux-gnu.2.17")
         .args(["-O2", "-std=c99", "-shared", "-fPIC", "-fvisibility=hidden"])
@@ -114,7 +142,7 @@ fn compile_and_pack(
         .args(files.iter().map(|f| source.join(f)))
         .arg("-lm"))?;
     check_glibc(&library)?;
-    let fmu = root().join(format!("target/fmu/{identifier}.fmu"));
+    let fmu = root().join(format!("target/fmu/{archive}.fmu"));
     crate::fmu::pack(
         &fmu,
         &[

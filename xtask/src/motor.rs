@@ -1,7 +1,8 @@
 //! `cargo xtask motor`: the compiled FMUs of `examples/` (C), built against glibc 2.17 with
 //! zig, checked and packed into `target/fmu`: the DC motor and the flywheel load (FMI 2.0
 //! Co-Simulation), for coupling and sweeping the mechanism at native speed, and the
-//! bouncing ball (FMI 3.0 Co-Simulation with events), a subject with known solutions; and `cargo xtask bench-coupling`, which measures
+//! bouncing ball, a subject with known solutions (FMI 3.0 Co-Simulation with events, and
+//! Model Exchange for FMI 2.0 and 3.0); and `cargo xtask bench-coupling`, which measures
 //! coupled steps and sweeps with them.
 
 use crate::cli::{Flag, Parsed};
@@ -12,6 +13,8 @@ pub(crate) fn job(_: &Parsed) -> Result {
     println!("FMU: {}", crate::builders::build_motor()?.display());
     println!("FMU: {}", crate::builders::build_flywheel_load()?.display());
     println!("FMU: {}", crate::builders::build_bouncing_ball()?.display());
+    let (me2, me3) = crate::builders::build_bouncing_ball_me()?;
+    println!("FMU: {}\nFMU: {}", me2.display(), me3.display());
     Ok(())
 }
 

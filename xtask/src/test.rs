@@ -35,6 +35,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
     let motor = crate::builders::build_motor()?;
     let load = crate::builders::build_flywheel_load()?;
     let ball = crate::builders::build_bouncing_ball()?;
+    let (ball_me, ball_me3) = crate::builders::build_bouncing_ball_me()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(root().join("tests/python"))
@@ -43,6 +44,8 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .env("DC_MOTOR_FMU", &motor)
         .env("FLYWHEEL_LOAD_FMU", &load)
         .env("BOUNCING_BALL_FMU", &ball)
+        .env("BOUNCING_BALL_ME_FMU", &ball_me)
+        .env("BOUNCING_BALL_ME_FMU3", &ball_me3)
         .current_dir(root()))?;
     // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
     // by the packed FMU, the test files, the installed packages and the selection and
