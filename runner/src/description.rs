@@ -242,18 +242,14 @@ fn variable(e: &BytesStart, base_type: BaseType, fmi_type: &str) -> Result<Varia
         .ok_or_else(|| format!("variable {name} has no valueReference"))?
         .parse()
         .map_err(|_| format!("variable {name}: valueReference is not an unsigned integer"))?;
-    let continuous = matches!(base_type, BaseType::Real);
+    // Only floating-point variables default to continuous.
+    let continuous = base_type == BaseType::Real || fmi_type == "Float32";
     Ok(Variable {
         value_reference,
         base_type,
         causality: attribute(e, "causality")?.unwrap_or_else(|| "local".into()),
-        variability: attribute(e, "variability")?.unwrap_or_else(|| {
-            if continuous || fmi_type == "Real" || fmi_type == "Float32" {
-                "continuous".into()
-            } else {
-                "discrete".into()
-            }
-        }),
+        variability: attribute(e, "variability")?
+            .unwrap_or_else(|| if continuous { "continuous" } else { "discrete" }.into()),
         start: None,
         min: None,
         max: None,

@@ -311,9 +311,25 @@ impl Instance {
         })
     }
 
-    /// Int32 variables through fmi3SetInt32, enumerations through fmi3SetInt64.
+    /// Int32 variables through fmi3SetInt32, enumerations through fmi3SetInt64: one call
+    /// for them all where none is an enumeration (the common case), else one per value.
     pub fn set_integer(&mut self, vr: &[u32], values: &[i32]) -> Status {
         assert_eq!(vr.len(), values.len());
+        if !vr.iter().any(|&r| self.is_int64(r)) {
+            if vr.is_empty() {
+                return Status::Ok;
+            }
+            // SAFETY: both slices hold vr.len() elements; a live instance.
+            return Status::from_code(unsafe {
+                self.b().fmi3SetInt32(
+                    self.instance,
+                    vr.as_ptr(),
+                    vr.len(),
+                    values.as_ptr(),
+                    values.len(),
+                )
+            });
+        }
         let mut worst = Status::Ok;
         for (&r, &x) in vr.iter().zip(values) {
             // SAFETY: one value for one reference; a live instance.
@@ -333,10 +349,26 @@ impl Instance {
         worst
     }
 
-    /// Int32 variables through fmi3GetInt32, enumerations through fmi3GetInt64 (a value
-    /// beyond 32 bits is an error: the runner's integers are 32-bit).
+    /// Int32 variables through fmi3GetInt32, enumerations through fmi3GetInt64, as
+    /// `set_integer` sets them (a value beyond 32 bits is an error: the runner's integers
+    /// are 32-bit).
     pub fn get_integer(&mut self, vr: &[u32], values: &mut [i32]) -> Status {
         assert_eq!(vr.len(), values.len());
+        if !vr.iter().any(|&r| self.is_int64(r)) {
+            if vr.is_empty() {
+                return Status::Ok;
+            }
+            // SAFETY: both slices hold vr.len() elements; a live instance.
+            return Status::from_code(unsafe {
+                self.b().fmi3GetInt32(
+                    self.instance,
+                    vr.as_ptr(),
+                    vr.len(),
+                    values.as_mut_ptr(),
+                    values.len(),
+                )
+            });
+        }
         let mut worst = Status::Ok;
         for (&r, slot) in vr.iter().zip(values.iter_mut()) {
             let s = if self.is_int64(r) {
@@ -345,10 +377,11 @@ impl Instance {
                 let s = Status::from_code(unsafe {
                     self.b().fmi3GetInt64(self.instance, &r, 1, &mut wide, 1)
                 });
-                match i32::try_from(wide) {
-                    Ok(x) => *slot = x,
-                    Err(_) => return Status::Error,
-                }
+                let Ok(x) = i32::try_from(wide) else {
+                    log::error!("value reference {r} = {wide} does not fit 32 bits");
+                    return Status::Error;
+                };
+                *slot = x;
                 s
             } else {
                 // SAFETY: one value for one reference; a live instance.
