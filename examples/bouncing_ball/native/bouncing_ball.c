@@ -8,92 +8,71 @@
  * With event mode used and early return allowed, a step stops at the first event inside
  * it (returning early, or at its end) and asks the master to handle it; the master's
  * fmi3UpdateDiscreteStates applies it. Otherwise the FMU handles its events inside the
- * step. Counters: n_bounces (the bounces so far) and n_kicks. */
+ * step. Counters: n_bounces (the bounces so far) and n_kicks. The model (its variables,
+ * checks, bounce and kick) is ../ball.h, which the Model Exchange balls share; the exact
+ * step between events is this file's. */
 
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
 
+#include "../ball.h"
 #include "fmi3Functions.h"
-
-enum { VR_TIME, VR_H, VR_V, VR_G, VR_E, VR_H0, VR_V0, VR_V_MIN, VR_T_KICK, VR_DV, VR_BOUNCES, VR_KICKS };
-enum { FLOATS = VR_DV + 1 };
 
 typedef enum { INSTANTIATED, INITIALIZATION, EVENT, STEP, TERMINATED } Mode;
 typedef enum { NONE, BOUNCE, KICK } Event;
 
 typedef struct {
-    double x[FLOATS]; /* time, h, v and the parameters, by value reference */
-    int bounces, kicks, resting;
-    Event pending;    /* the event a step stopped at, for the master to handle */
+    Ball ball;
+    Event pending; /* the event a step stopped at, for the master to handle */
     int event_mode, early_return;
     Mode mode;
     fmi3InstanceEnvironment environment;
     fmi3LogMessageCallback log;
     char name[64];
-} Ball;
+} Instance;
 
 static const char TOKEN[] = "{5b3f0e6e-2f55-4d8e-9a3b-bouncing-ball}";
 
-static void say(const Ball *b, fmi3Status status, const char *message) {
+static void say(const Instance *b, fmi3Status status, const char *message) {
     if (b->log) b->log(b->environment, status, "logStatusError", message);
 }
 
-static fmi3Status refuse(const Ball *b, const char *message) {
+static fmi3Status refuse(const Instance *b, const char *message) {
     say(b, fmi3Error, message);
     return fmi3Error;
 }
 
-static void defaults(Ball *b) {
-    memset(b->x, 0, sizeof b->x);
-    b->x[VR_G] = 9.81;
-    b->x[VR_E] = 0.7;
-    b->x[VR_H0] = 1.0;
-    b->x[VR_V_MIN] = 0.1;
-    b->x[VR_T_KICK] = 1e300; /* no kick unless one is set */
-    b->x[VR_DV] = 0.0;
-    b->bounces = b->kicks = b->resting = 0;
+static void defaults(Instance *b) {
+    ball_defaults(&b->ball);
     b->pending = NONE;
 }
 
 /* The time from now until the ball reaches the ground; infinity at rest. */
-static double time_to_ground(const Ball *b) {
-    double h = b->x[VR_H], v = b->x[VR_V], g = b->x[VR_G];
-    if (b->resting) return INFINITY;
+static double time_to_ground(const Instance *b) {
+    double h = b->ball.x[VR_H], v = b->ball.x[VR_V], g = b->ball.x[VR_G];
+    if (b->ball.resting) return INFINITY;
     /* The larger root of h + v τ − g τ²/2 = 0, written so that it does not cancel. */
     double root = sqrt(v * v + 2.0 * g * h);
     return v >= 0.0 ? (v + root) / g : 2.0 * h / (root - v);
 }
 
-static void fly(Ball *b, double tau) {
-    if (b->resting) return;
-    double g = b->x[VR_G];
-    b->x[VR_H] += tau * (b->x[VR_V] - 0.5 * g * tau);
-    b->x[VR_V] -= g * tau;
+static void fly(Instance *b, double tau) {
+    if (b->ball.resting) return;
+    double g = b->ball.x[VR_G];
+    b->ball.x[VR_H] += tau * (b->ball.x[VR_V] - 0.5 * g * tau);
+    b->ball.x[VR_V] -= g * tau;
 }
 
-static void apply(Ball *b, Event e) {
-    if (e == BOUNCE) {
-        b->x[VR_H] = 0.0;
-        b->x[VR_V] = -b->x[VR_E] * b->x[VR_V];
-        b->bounces++;
-        if (b->x[VR_V] < b->x[VR_V_MIN]) {
-            b->x[VR_V] = 0.0;
-            b->resting = 1;
-        }
-    } else if (e == KICK) {
-        b->x[VR_V] += b->x[VR_DV];
-        b->kicks++;
-        if (b->x[VR_V] > 0.0) b->resting = 0;
-    }
+static void apply(Instance *b, Event e) {
+    if (e == BOUNCE) ball_bounce(&b->ball);
+    else if (e == KICK) ball_kick(&b->ball);
 }
 
 /* The first event after now and no later than `end`, and its time; NONE when none. */
-static Event next_event(const Ball *b, double end, double *when) {
-    double now = b->x[VR_TIME];
+static Event next_event(const Instance *b, double end, double *when) {
+    double now = b->ball.x[VR_TIME];
     double ground = now + time_to_ground(b);
-    double kick = b->kicks == 0 && b->x[VR_T_KICK] > now ? b->x[VR_T_KICK] : INFINITY;
+    double kick = b->ball.kicks == 0 && b->ball.x[VR_T_KICK] > now ? b->ball.x[VR_T_KICK] : INFINITY;
     Event e = NONE;
     *when = end;
     if (kick <= end) { e = KICK; *when = kick; }
@@ -102,7 +81,7 @@ static Event next_event(const Ball *b, double end, double *when) {
 }
 
 /* A change of mode the standard allows only from `from`. */
-static fmi3Status switch_mode(Ball *b, Mode from, Mode to, const char *refusal) {
+static fmi3Status switch_mode(Instance *b, Mode from, Mode to, const char *refusal) {
     if (b->mode != from) return refuse(b, refusal);
     b->mode = to;
     return fmi3OK;
@@ -121,7 +100,7 @@ FMI3_Export fmi3Instance fmi3InstantiateCoSimulation(
     const fmi3ValueReference required[], size_t n_required, fmi3InstanceEnvironment environment,
     fmi3LogMessageCallback log, fmi3IntermediateUpdateCallback intermediate) {
     if (!token || strcmp(token, TOKEN) != 0) return NULL;
-    Ball *b = calloc(1, sizeof *b);
+    Instance *b = calloc(1, sizeof *b);
     if (!b) return NULL;
     snprintf(b->name, sizeof b->name, "%s", name ? name : "");
     b->environment = environment;
@@ -138,17 +117,17 @@ FMI3_Export void fmi3FreeInstance(fmi3Instance instance) { free(instance); }
 FMI3_Export fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean has_tol,
                                                    fmi3Float64 tol, fmi3Float64 start,
                                                    fmi3Boolean has_stop, fmi3Float64 stop) {
-    Ball *b = instance;
-    b->x[VR_TIME] = b->mode == INSTANTIATED ? start : b->x[VR_TIME];
+    Instance *b = instance;
+    b->ball.x[VR_TIME] = b->mode == INSTANTIATED ? start : b->ball.x[VR_TIME];
     return switch_mode(b, INSTANTIATED, INITIALIZATION,
                        "fmi3EnterInitializationMode: not instantiated");
 }
 
 FMI3_Export fmi3Status fmi3ExitInitializationMode(fmi3Instance instance) {
-    Ball *b = instance;
+    Instance *b = instance;
     if (b->mode != INITIALIZATION) return refuse(b, "fmi3ExitInitializationMode: not initialising");
-    b->x[VR_H] = b->x[VR_H0];
-    b->x[VR_V] = b->x[VR_V0];
+    b->ball.x[VR_H] = b->ball.x[VR_H0];
+    b->ball.x[VR_V] = b->ball.x[VR_V0];
     b->mode = b->event_mode ? EVENT : STEP;
     return fmi3OK;
 }
@@ -161,7 +140,7 @@ FMI3_Export fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boole
                                                 fmi3Boolean *terminate, fmi3Boolean *nominals,
                                                 fmi3Boolean *values, fmi3Boolean *next_defined,
                                                 fmi3Float64 *next_time) {
-    Ball *b = instance;
+    Instance *b = instance;
     if (b->mode != EVENT) return refuse(b, "fmi3UpdateDiscreteStates: not in event mode");
     int changed = b->pending != NONE;
     apply(b, b->pending);
@@ -170,8 +149,8 @@ FMI3_Export fmi3Status fmi3UpdateDiscreteStates(fmi3Instance instance, fmi3Boole
     *terminate = fmi3False;
     *nominals = fmi3False;
     *values = changed;
-    *next_defined = b->kicks == 0 && b->x[VR_T_KICK] > b->x[VR_TIME] && b->x[VR_T_KICK] < 1e299;
-    *next_time = *next_defined ? b->x[VR_T_KICK] : 0.0;
+    *next_defined = b->ball.kicks == 0 && b->ball.x[VR_T_KICK] > b->ball.x[VR_TIME] && b->ball.x[VR_T_KICK] < 1e299;
+    *next_time = *next_defined ? b->ball.x[VR_T_KICK] : 0.0;
     return fmi3OK;
 }
 
@@ -183,17 +162,17 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 now, fmi3Fl
                                   fmi3Boolean no_set_prior, fmi3Boolean *event,
                                   fmi3Boolean *terminate, fmi3Boolean *early,
                                   fmi3Float64 *last) {
-    Ball *b = instance;
+    Instance *b = instance;
     if (b->mode != STEP) return refuse(b, "fmi3DoStep: not in step mode");
-    if (!(h > 0.0) || fabs(now - b->x[VR_TIME]) > 1e-12 * fmax(1.0, fabs(now)))
+    if (!(h > 0.0) || fabs(now - b->ball.x[VR_TIME]) > 1e-12 * fmax(1.0, fabs(now)))
         return refuse(b, "fmi3DoStep: the step does not start at the FMU's time or is not positive");
     double end = now + h, when;
     int stop_at_events = b->event_mode && b->early_return;
     *event = *terminate = *early = fmi3False;
     for (int guard = 0; guard < 1000000; guard++) {
         Event e = next_event(b, end, &when);
-        fly(b, when - b->x[VR_TIME]);
-        b->x[VR_TIME] = when;
+        fly(b, when - b->ball.x[VR_TIME]);
+        b->ball.x[VR_TIME] = when;
         if (e == NONE) break;
         if (stop_at_events) {
             b->pending = e;
@@ -203,18 +182,18 @@ FMI3_Export fmi3Status fmi3DoStep(fmi3Instance instance, fmi3Float64 now, fmi3Fl
         }
         apply(b, e);
     }
-    b->x[VR_TIME] = *early ? when : end;
-    *last = b->x[VR_TIME];
+    b->ball.x[VR_TIME] = *early ? when : end;
+    *last = b->ball.x[VR_TIME];
     return fmi3OK;
 }
 
 FMI3_Export fmi3Status fmi3Terminate(fmi3Instance instance) {
-    ((Ball *)instance)->mode = TERMINATED;
+    ((Instance *)instance)->mode = TERMINATED;
     return fmi3OK;
 }
 
 FMI3_Export fmi3Status fmi3Reset(fmi3Instance instance) {
-    Ball *b = instance;
+    Instance *b = instance;
     defaults(b);
     b->mode = INSTANTIATED;
     return fmi3OK;
@@ -224,7 +203,7 @@ static int parameter(fmi3ValueReference vr) { return vr >= VR_G && vr <= VR_DV; 
 
 FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueReference vr[],
                                       size_t n, const fmi3Float64 values[], size_t nv) {
-    Ball *b = instance;
+    Instance *b = instance;
     if (n != nv) return refuse(b, "fmi3SetFloat64: one value per value reference");
     for (size_t i = 0; i < n; i++) {
         char why[160];
@@ -232,39 +211,33 @@ FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueRefe
         if (b->mode != INSTANTIATED && b->mode != INITIALIZATION)
             return refuse(b, "fmi3SetFloat64: the parameters are fixed after initialisation");
         double x = values[i];
-        int bad = !isfinite(x) || (vr[i] == VR_G && x <= 0.0) ||
-                  (vr[i] == VR_E && (x < 0.0 || x >= 1.0)) || (vr[i] == VR_H0 && x < 0.0) ||
-                  (vr[i] == VR_V_MIN && x <= 0.0);
-        if (bad) {
+        if (!ball_allowed(vr[i], x)) {
             snprintf(why, sizeof why, "fmi3SetFloat64: value reference %u = %g is out of range "
                      "(g > 0, 0 <= e < 1, h0 >= 0, v_min > 0)", (unsigned)vr[i], x);
             return refuse(b, why);
         }
-        b->x[vr[i]] = x;
+        b->ball.x[vr[i]] = x;
     }
     return fmi3OK;
 }
 
 FMI3_Export fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[],
                                       size_t n, fmi3Float64 values[], size_t nv) {
-    Ball *b = instance;
+    Instance *b = instance;
     if (n != nv) return refuse(b, "fmi3GetFloat64: one value per value reference");
-    for (size_t i = 0; i < n; i++) {
-        if (vr[i] >= FLOATS) return refuse(b, "fmi3GetFloat64: not a Float64 value reference");
-        values[i] = b->x[vr[i]];
-    }
+    for (size_t i = 0; i < n; i++)
+        if (vr[i] >= FLOATS || !ball_real(&b->ball, vr[i], &values[i]))
+            return refuse(b, "fmi3GetFloat64: not a Float64 value reference");
     return fmi3OK;
 }
 
 FMI3_Export fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueReference vr[],
                                     size_t n, fmi3Int32 values[], size_t nv) {
-    Ball *b = instance;
+    Instance *b = instance;
     if (n != nv) return refuse(b, "fmi3GetInt32: one value per value reference");
-    for (size_t i = 0; i < n; i++) {
-        if (vr[i] == VR_BOUNCES) values[i] = b->bounces;
-        else if (vr[i] == VR_KICKS) values[i] = b->kicks;
-        else return refuse(b, "fmi3GetInt32: not an Int32 value reference");
-    }
+    for (size_t i = 0; i < n; i++)
+        if (!ball_integer(&b->ball, vr[i], &values[i]))
+            return refuse(b, "fmi3GetInt32: not an Int32 value reference");
     return fmi3OK;
 }
 

@@ -3,7 +3,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "../ball.h"
+#include "../../ball.h"
 #include "fmi2Functions.h"
 
 typedef enum { INSTANTIATED, INITIALIZATION, EVENT, CONTINUOUS, TERMINATED } Mode;
@@ -186,11 +186,9 @@ FMI2_Export fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[
 FMI2_Export fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t n,
                                       fmi2Integer values[]) {
     Instance *m = c;
-    for (size_t i = 0; i < n; i++) {
-        if (vr[i] != VR_BOUNCES && vr[i] != VR_KICKS)
+    for (size_t i = 0; i < n; i++)
+        if (!ball_integer(&m->ball, vr[i], &values[i]))
             return refuse(m, "fmi2GetInteger: not an Integer value reference");
-        values[i] = vr[i] == VR_BOUNCES ? m->ball.bounces : m->ball.kicks;
-    }
     return fmi2OK;
 }
 

@@ -3,7 +3,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "../ball.h"
+#include "../../ball.h"
 #include "fmi3Functions.h"
 
 typedef enum { INSTANTIATED, INITIALIZATION, EVENT, CONTINUOUS, TERMINATED } Mode;
@@ -192,10 +192,8 @@ FMI3_Export fmi3Status fmi3GetInt32(fmi3Instance instance, const fmi3ValueRefere
                                     size_t n, fmi3Int32 values[], size_t nv) {
     Instance *m = instance;
     if (n != nv) return refuse(m, "fmi3GetInt32: one value per value reference");
-    for (size_t i = 0; i < n; i++) {
-        if (vr[i] != VR_BOUNCES && vr[i] != VR_KICKS)
+    for (size_t i = 0; i < n; i++)
+        if (!ball_integer(&m->ball, vr[i], &values[i]))
             return refuse(m, "fmi3GetInt32: not an Int32 value reference");
-        values[i] = vr[i] == VR_BOUNCES ? m->ball.bounces : m->ball.kicks;
-    }
     return fmi3OK;
 }

@@ -1,8 +1,8 @@
-/* The bouncing ball's equations for its Model Exchange FMUs (FMI 2.0 and 3.0), whose
- * masters integrate them: states h (height) and v (upward speed), h' = v, v' = −g; one
+/* The bouncing ball, the model its three FMUs share: the Co-Simulation one (native/, which
+ * steps it exactly) and the Model Exchange ones (model_exchange/, FMI 2.0 and 3.0, whose
+ * masters integrate it). States h (height) and v (upward speed), h' = v, v' = −g; one
  * event indicator, the height, whose fall through zero is a bounce (v reverses, times e;
- * slower than v_min the ball stays at rest); a time event at t_kick adds dv to v. The
- * variables are numbered as in the Co-Simulation ball (examples/bouncing_ball/native). */
+ * slower than v_min the ball stays at rest); a time event at t_kick adds dv to v. */
 #ifndef BALL_H
 #define BALL_H
 
@@ -61,31 +61,52 @@ static inline int ball_kick_due(const Ball *b) {
     return b->kicks == 0 && b->x[VR_T_KICK] < 1e299;
 }
 
-/* The discrete update at an event: a bounce where the ball is at or below the ground and
- * falling, the kick once its time has come. Returns whether the states changed. */
+/* A bounce: the speed reverses, times e, and the ball leaves from the least positive
+ * height (so that the indicator starts above zero); slower than v_min it stays at rest. */
+static inline void ball_bounce(Ball *b) {
+    b->x[VR_V] = -b->x[VR_E] * b->x[VR_V];
+    b->x[VR_H] = DBL_MIN;
+    b->bounces++;
+    if (b->x[VR_V] < b->x[VR_V_MIN]) {
+        b->x[VR_V] = 0.0;
+        b->x[VR_H] = 0.0;
+        b->resting = 1;
+    }
+}
+
+/* The kick: dv added to the speed; upward, it lifts a resting ball. */
+static inline void ball_kick(Ball *b) {
+    b->x[VR_V] += b->x[VR_DV];
+    b->kicks++;
+    if (b->resting && b->x[VR_V] > 0.0) {
+        b->resting = 0;
+        b->x[VR_H] = DBL_MIN;
+    }
+}
+
+/* The discrete update at an event of an integrating master: a bounce where the ball is at
+ * or below the ground and falling, the kick once its time has come. Returns whether the
+ * states changed. */
 static inline int ball_update(Ball *b) {
     int changed = 0;
     if (!b->resting && b->x[VR_H] <= 0.0 && b->x[VR_V] < 0.0) {
-        b->x[VR_V] = -b->x[VR_E] * b->x[VR_V];
-        b->x[VR_H] = DBL_MIN;
-        b->bounces++;
-        if (b->x[VR_V] < b->x[VR_V_MIN]) {
-            b->x[VR_V] = 0.0;
-            b->x[VR_H] = 0.0;
-            b->resting = 1;
-        }
+        ball_bounce(b);
         changed = 1;
     }
     if (ball_kick_due(b) && b->x[VR_TIME] >= b->x[VR_T_KICK]) {
-        b->x[VR_V] += b->x[VR_DV];
-        b->kicks++;
-        if (b->resting && b->x[VR_V] > 0.0) {
-            b->resting = 0;
-            b->x[VR_H] = DBL_MIN;
-        }
+        ball_kick(b);
         changed = 1;
     }
     return changed;
+}
+
+/* An Int32 (Integer) variable by value reference: the bounces or the kicks; 0 when `vr`
+ * is neither. */
+static inline int ball_integer(const Ball *b, unsigned vr, int *value) {
+    if (vr == VR_BOUNCES) *value = b->bounces;
+    else if (vr == VR_KICKS) *value = b->kicks;
+    else return 0;
+    return 1;
 }
 
 static inline int ball_real(const Ball *b, unsigned vr, double *value) {
