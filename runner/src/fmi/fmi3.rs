@@ -137,28 +137,30 @@ fn functions(b: &Fmi3Binding, events: bool, int64: bool) -> Vec<(&'static str, b
 }
 
 /// The FMU's log messages go to the `log` crate, as fmi-sys does for FMI 2.0, at the
-/// level of their status (OK and Pending are not kept: logging is off).
+/// level of their status (OK and Pending are not kept: the runner keeps no debug log).
 unsafe extern "C" fn log_message(
     _environment: fmi3InstanceEnvironment,
     status: fmi3Status,
     category: *const c_char,
     message: *const c_char,
 ) {
+    let level = match Status::from_code(status) {
+        Status::Warning => log::Level::Warn,
+        Status::Discard => log::Level::Trace,
+        Status::Error | Status::Fatal => log::Level::Error,
+        // An FMU without the standard's categories may report every step at OK: nothing
+        // is copied for what is not kept.
+        Status::Ok | Status::Pending => return,
+    };
     let text = |p: *const c_char| {
         if p.is_null() {
-            String::new()
+            std::borrow::Cow::Borrowed("")
         } else {
             // SAFETY: a non-null C string the FMU passes for the call's duration.
-            unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
+            unsafe { CStr::from_ptr(p) }.to_string_lossy()
         }
     };
-    let (category, message) = (text(category), text(message));
-    match Status::from_code(status) {
-        Status::Warning => log::warn!("[{category}] {message}"),
-        Status::Discard => log::trace!("[{category}] {message}"),
-        Status::Error | Status::Fatal => log::error!("[{category}] {message}"),
-        Status::Ok | Status::Pending => log::info!("[{category}] {message}"),
-    }
+    log::log!(level, "[{}] {}", text(category), text(message));
 }
 
 /// Logging is on from instantiation (else an FMU says nothing, not even why it failed):
