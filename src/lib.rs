@@ -13,8 +13,10 @@
 //! - [`plant`]: the mechanism as a master sees it: variables, checks, outputs, derivatives;
 //! - [`variables`]: the one table of FMI variables, from which both the value-reference
 //!   dispatch and `modelDescription.xml` are derived;
-//! - [`model`]: the mechanism alone (physics, constraint, projection, energy);
-//! - [`solver`]: integrators that know nothing of the mechanism.
+//! - [`model`]: the mechanism alone (physics, constraint, projection, energy).
+//!
+//! The integrators, which know nothing of the mechanism, are the crate `integrators`
+//! (`integrators/` at the repository's root), which the sweep's runner uses too.
 
 mod abi;
 pub mod description;
@@ -24,7 +26,4 @@ pub mod fmi3;
 pub mod instance;
 pub mod model;
 pub mod plant;
-pub mod snapshot;
-pub mod solver;
-pub mod text;
 pub mod variables;

@@ -15,12 +15,12 @@ use crate::model::{
     self, Chart, Coordinates, Dual, Independent, Inputs, ModelError, Parameters, Projected, Scalar,
     State, STATE_SIZE,
 };
-use crate::snapshot::{FormatError, Reader, Writer};
-use crate::solver::{Choice, Method, Statistics};
 use crate::variables::{
     build_table, variable, Branch, Input, Local, Output, Slot, Statistic, VarType, Variable,
     SOLVER_ITEMS,
 };
+use integrators::snapshot::{FormatError, Reader, Writer};
+use integrators::{Choice, Method, Statistics};
 
 /// Time steps (s) of the central differences along the flow used for output derivatives
 /// that have no closed form: about 1e-8 relative accuracy for one difference at the paper's

@@ -19,9 +19,9 @@ use common::{long_steps, Rng, RUNAWAY};
 use cyclic_mechanism::drivers::cosimulation::CALL_WORK;
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::instance::{FmuState, State, Version};
-use cyclic_mechanism::snapshot::fnv1a_64;
 use cyclic_mechanism::variables::{count, variable, VarType};
 use fmi_sys::fmi2::*;
+use integrators::snapshot::fnv1a_64;
 
 /// A value reference: mostly the FMU's, some past them, some anything.
 fn vr(rng: &mut Rng) -> u32 {

@@ -6,8 +6,8 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use cyclic_mechanism::snapshot::{Reader, Writer};
-use cyclic_mechanism::solver::{Dop853, OdeSystem, Radau5, Rk4, Stepper, Tolerances};
+use integrators::snapshot::{Reader, Writer};
+use integrators::{Dop853, OdeSystem, Radau5, Rk4, Stepper, Tolerances};
 
 /// Counts this thread's allocations while `COUNTING` is set.
 struct Counting;

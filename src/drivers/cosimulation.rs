@@ -14,8 +14,8 @@
 use crate::model::change_point::{self, Crossing};
 use crate::model::{self, Inputs, ModelError, Parameters, Projected, State, STATE_SIZE};
 use crate::plant::{check_inputs, Activity, InputDerivatives, Plant};
-use crate::snapshot::{same_bits, FormatError, Reader, Writer};
-use crate::solver::{Integrator, OdeSystem, SolverError, Statistics, Tolerances};
+use integrators::snapshot::{same_bits, FormatError, Reader, Writer};
+use integrators::{Integrator, OdeSystem, SolverError, Statistics, Tolerances};
 
 use super::Experiment;
 
@@ -61,7 +61,7 @@ pub const CALL_WORK: u64 = 2_000_000;
 pub const CROSSING_WORK: u64 = 2_000;
 
 /// A gap to the next communication point that the integrator does not resolve (it takes
-/// no step below 16·ε·|t|; see `solver::check_step_size`), with a margin.
+/// no step below 16·ε·|t|; see `integrators::check_step_size`), with a margin.
 const UNRESOLVED_STEP: f64 = 64.0 * f64::EPSILON;
 
 /// The mechanism as the integrator sees it: parameters, and inputs as polynomials in time.

@@ -14,8 +14,8 @@ use super::{isa, Experiment};
 use crate::model::change_point::{locate_node, Crossing};
 use crate::model::{classify, LinkageClass};
 use crate::plant::Plant;
-use crate::solver::SolverError;
-use crate::text::number;
+use integrators::text::number;
+use integrators::SolverError;
 
 /// What the master handles: FMI 3.0's `eventModeUsed` and `earlyReturnAllowed`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -10,7 +10,7 @@
 
 use super::{CoSimulation, Experiment};
 use crate::plant::Plant;
-use crate::solver::SolverError;
+use integrators::SolverError;
 
 /// [`CoSimulation::advance`], through the AVX copy where the processor has AVX and POPCNT
 /// (the stiffness test then counts the bits of its window in one instruction; both are

@@ -8,7 +8,7 @@ use super::status::Failure;
 use crate::description::{self, DEFAULT_EXPERIMENT};
 use crate::drivers::{CoSimulation, Exchange, Experiment};
 use crate::plant::{Activity, Plant};
-use crate::snapshot::{fnv1a_64, FormatError, Reader, Writer};
+use integrators::snapshot::{fnv1a_64, FormatError, Reader, Writer};
 
 /// The driver of an instance, by interface; each exists once initialisation (or, in
 /// initialization mode, a read) has assembled the plant, so that in initialization mode a

@@ -26,7 +26,7 @@ use crate::drivers::events::EventHandling;
 pub use crate::drivers::events::StepEnd;
 use crate::drivers::model_exchange::CONTINUOUS_STATES;
 use crate::drivers::{CoSimulation, Exchange, Experiment};
-use crate::text::number;
+use integrators::text::number;
 
 pub struct Instance {
     name: CString,

@@ -8,8 +8,8 @@ use crate::drivers::cosimulation::CALL_WORK;
 use crate::drivers::events::{self, Happening};
 use crate::drivers::{isa, CoSimulation, Experiment};
 use crate::plant::Plant;
-use crate::solver::SolverError;
-use crate::text::number;
+use integrators::text::number;
+use integrators::SolverError;
 
 /// Relative mismatch accepted between the master's communication point and the FMU's time.
 const TIME_MATCH: f64 = 1e-12;

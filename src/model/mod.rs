@@ -33,7 +33,7 @@ pub struct Inputs<T = f64> {
     pub load_torque: T,
 }
 
-pub use crate::text::number;
+pub use integrators::text::number;
 
 /// A model error: the message says which variable and which rule.
 #[derive(Clone, Debug, PartialEq)]

@@ -1,12 +1,15 @@
 //! Integrators, generic over a small trait and ignorant of the problem they solve.
-//! Fixed-size state (`[f64; N]`), no heap allocation while stepping.
+//! Fixed-size state (`[f64; N]`), no heap allocation while stepping. The FMU steps its
+//! mechanism with them, and the sweep's runner a Model Exchange FMU's states.
 
 pub mod dop853;
 mod dop853_tableau;
 mod linear;
 pub mod radau5;
 pub mod rk4;
+pub mod snapshot;
 pub mod switching;
+pub mod text;
 
 pub use dop853::Dop853;
 pub use radau5::Radau5;
@@ -26,6 +29,14 @@ pub trait OdeSystem<const N: usize> {
     /// left the region where the solution is determined; the step is then an error.
     fn project(&self, _previous: &[f64; N], _y: &mut [f64; N]) -> Result<(), String> {
         Ok(())
+    }
+
+    /// How many of the N components are the problem's: the others are padding whose value
+    /// and derivative stay zero (a problem whose size is known only at run time is solved
+    /// in the next size the methods are compiled for). Error norms average over these
+    /// alone and difference Jacobians skip the rest, so the padding changes no number.
+    fn dimension(&self) -> usize {
+        N
     }
 }
 
@@ -297,8 +308,10 @@ pub(crate) fn first_step<S: OdeSystem<N>, const N: usize>(
 }
 
 /// Hairer's starting step size (HNW I, II.4) for a method of order `order` at (t, y) with
-/// f(t, y) = `f0`, bounded by the span to integrate. Costs one evaluation.
-fn initial_step<S: OdeSystem<N>, const N: usize>(
+/// f(t, y) = `f0`, bounded by the span to integrate. Costs one evaluation. Public for a
+/// caller that steps one accepted step at a time (its target just past t would bound the
+/// first step to nothing): it proposes the first step with this.
+pub fn initial_step<S: OdeSystem<N>, const N: usize>(
     system: &S,
     (t, y, f0): (f64, &[f64; N], &[f64; N]),
     span: f64,

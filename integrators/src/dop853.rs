@@ -187,7 +187,7 @@ impl<const N: usize> Dop853<N> {
             return 0.0;
         }
         // Hairer's combination of the 5th- and 3rd-order estimates (dop853.f).
-        h.abs() * err5 / ((err5 + 0.01 * err3) * N as f64).sqrt()
+        h.abs() * err5 / ((err5 + 0.01 * err3) * system.dimension() as f64).sqrt()
     }
 
     /// |hλ| along the last step: f at its end `y_end` (slot 12) against f at its last stage
@@ -594,8 +594,8 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::combine;
-    use crate::solver::test_problems::{tol, Oscillator};
+    use crate::combine;
+    use crate::test_problems::{tol, Oscillator};
 
     #[test]
     fn step_size_carries_over_between_calls() {

@@ -109,7 +109,7 @@ impl<const N: usize> Rk4<N> {
             let scale = atol + rtol * y[n].abs().max(y_new[n].abs());
             sum += (sixth * (k4[n] - f_new[n]) / scale).powi(2);
         }
-        let error = (sum / N as f64).sqrt();
+        let error = (sum / system.dimension() as f64).sqrt();
         match projection {
             Err(reason) if error <= 1.0 => Err(reason),
             _ => Ok(error),
@@ -307,7 +307,7 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::test_problems::{tol, Oscillator};
+    use crate::test_problems::{tol, Oscillator};
 
     /// The estimate h/6·(k4 − k5) falls as h⁴ (a third-order solution against a
     /// fourth-order one), and the fourth-order end's own error as h⁵.

@@ -377,8 +377,9 @@ impl<const N: usize> Radau5<N> {
         let scale: [f64; N] =
             std::array::from_fn(|n| atol + rtol * y[n].abs().max((y[n] + z[2][n]).abs()));
         let ze = combine(&E, z).map(|v| v / h);
+        let dimension = system.dimension() as f64;
         let norm = |e: &[f64; N]| {
-            ((0..N).map(|n| (e[n] / scale[n]).powi(2)).sum::<f64>() / N as f64)
+            ((0..N).map(|n| (e[n] / scale[n]).powi(2)).sum::<f64>() / dimension)
                 .sqrt()
                 .max(1e-10)
         };
@@ -437,10 +438,11 @@ impl<const N: usize> Radau5<N> {
         }
     }
 
-    /// Forward-difference Jacobian at (t, y), with f(t, y) = `self.f0`: N evaluations.
+    /// Forward-difference Jacobian at (t, y), with f(t, y) = `self.f0`: one evaluation per
+    /// component of the problem ([`OdeSystem::dimension`]).
     fn update_jacobian<S: OdeSystem<N>>(&mut self, system: &S, t: f64, y: &[f64; N]) {
         let mut shifted = *y;
-        for j in 0..N {
+        for j in 0..system.dimension() {
             let delta = (f64::EPSILON * 1e-5f64.max(y[j].abs())).sqrt();
             shifted[j] = y[j] + delta;
             let f = evaluate(system, &mut self.progress.stats, t, &shifted);
@@ -701,8 +703,8 @@ impl<const N: usize> Stepper<N> for Radau5<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::solver::test_problems::tol;
-    use crate::solver::Dop853;
+    use crate::test_problems::tol;
+    use crate::Dop853;
 
     /// The Radau IIA (order 5) coefficient matrix, from its closed form.
     fn radau_matrix() -> [[f64; 3]; 3] {
