@@ -6,7 +6,7 @@ use std::rc::Rc;
 
 use fmu_runner::archive::Unpacked;
 use fmu_runner::description::Description;
-use fmu_runner::fmi::{Instance, Library, Status};
+use fmu_runner::fmi::{Instance, Interface, Library, Status};
 
 use crate::{Run, Scenario};
 
@@ -27,7 +27,7 @@ impl Fmu {
     pub fn load(path: &Path) -> Result<Self, String> {
         let unpacked = Unpacked::new(path)?;
         let description = Description::read(unpacked.dir())?;
-        let library = Library::load(unpacked.dir(), &description)?;
+        let library = Library::load(unpacked.dir(), &description, Interface::CoSimulation)?;
         Ok(Self {
             library,
             description,

@@ -45,6 +45,7 @@ class Plan(TypedDict):
     metrics: list[MetricPlan]
     series: SeriesPlan | None
     timeout_s: float | None
+    interface: NotRequired[str | None]  # "co_simulation" or "model_exchange"
 
 
 class CouplingRecord(TypedDict):

@@ -15,6 +15,7 @@ A specification is a TOML file or the equivalent dict::
     stop = 10.0
     step = 0.01                        # communication step
     tolerance = 1e-8                   # optional: passed to fmi2SetupExperiment
+    interface = "model_exchange"       # optional: the FMU's ME interface, integrated here
     timeout = 60.0                     # optional: wall-time budget per point, seconds
     parameters = { d34 = 0.5 }         # fixed for every point (a Boolean: true or false)
     inputs = { M_r = 5.0, M_m = { times = [0, 1], values = [0, 10] } }
@@ -77,6 +78,11 @@ class MetricSpec:
     end: float | None
 
 
+# The interfaces a single FMU may run through (``[scenario] interface``): a Model Exchange
+# FMU's states are integrated by the runner's DOP853 at the scenario's tolerance.
+INTERFACES = ("co_simulation", "model_exchange")
+
+
 @dataclass(frozen=True)
 class Scenario:
     """The ``[scenario]`` table: the time grid, the tolerance, the per-point budget and
@@ -88,6 +94,9 @@ class Scenario:
     timeout: float | None
     parameters: dict[str, Any]
     inputs: dict[str, Any]
+    # "co_simulation" or "model_exchange": the interface an FMU with both runs through
+    # (None: co-simulation where the FMU has it).
+    interface: str | None = None
 
     @property
     def steps(self) -> int:
@@ -96,7 +105,8 @@ class Scenario:
     @staticmethod
     def of(raw: dict[str, Any]) -> "Scenario":
         scenario = _table(raw, "scenario", "spec", required=True)
-        _only(scenario, "scenario", {"start", "stop", "step", "tolerance", "timeout", "parameters", "inputs"})
+        _only(scenario, "scenario", {"start", "stop", "step", "tolerance", "timeout", "parameters", "inputs",
+                                     "interface"})
         start = _number(scenario.get("start", 0.0), "scenario.start")
         stop = _number(scenario.get("stop"), "scenario.stop")
         step = _number(scenario.get("step"), "scenario.step")
@@ -125,7 +135,11 @@ class Scenario:
             name: _input(value, f"scenario.inputs.{name}")
             for name, value in _table(scenario, "inputs", "scenario").items()
         }
-        return Scenario(start, stop, step, tolerance, timeout, parameters, inputs)
+        interface = scenario.get("interface")
+        if interface is not None and interface not in INTERFACES:
+            raise SpecError("scenario.interface", f"must be one of {', '.join(map(repr, INTERFACES))}, "
+                                                  f"got {interface!r}")
+        return Scenario(start, stop, step, tolerance, timeout, parameters, inputs, interface)
 
     def refuse_also_set(self, name: str, where: str, what: str) -> None:
         """`name` is varied at `where` (a design column, a fitted parameter): refused if
@@ -146,7 +160,8 @@ class Scenario:
             tolerance = FMU_TOLERANCE_RATIO * system.coupling_tolerance
         return {"start": self.start, "stop": self.stop, "step": self.step,
                 "tolerance": tolerance, "fixed": self.parameters, "inputs": self.inputs,
-                "metrics": metrics, "series": series, "timeout_s": self.timeout}
+                "metrics": metrics, "series": series, "timeout_s": self.timeout,
+                "interface": self.interface}
 
 
 def what_runs(raw: dict[str, Any], base_dir: pathlib.Path) -> tuple[str | None, str | None, System | None]:
@@ -252,6 +267,9 @@ class Spec:
         errors.raise_any()
         assert runs and scenario and header and outputs
         fmu, ssp, system = runs
+        if system is not None and scenario.interface == "model_exchange":
+            raise SpecError("scenario.interface", "a coupled system runs its components' "
+                                                  "co-simulation interfaces")
         design, kind, seed = header
         metrics, series_variables, every = outputs
         spec = Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,

@@ -59,8 +59,14 @@ pub struct Description {
     pub has_event_mode: bool,
     /// The names of the FMU's log categories (`<LogCategories>`), in its order.
     pub log_categories: Vec<String>,
-    /// Whether the FMU has a `<ModelExchange>` interface (which the runner does not run).
+    /// Whether the FMU has a `<ModelExchange>` interface.
     pub has_model_exchange: bool,
+    /// The Model Exchange interface's model identifier (`None` without one).
+    pub exchange_identifier: Option<String>,
+    /// The number of continuous states (the model structure's derivatives) and of event
+    /// indicators, which a Model Exchange master integrates and watches.
+    pub continuous_states: usize,
+    pub event_indicators: usize,
     pub variables: Vec<Variable>,
 }
 
@@ -85,8 +91,13 @@ impl Description {
             has_event_mode: false,
             log_categories: Vec::new(),
             has_model_exchange: false,
+            exchange_identifier: None,
+            continuous_states: 0,
+            event_indicators: 0,
             variables: Vec::new(),
         };
+        // Inside FMI 2.0's <ModelStructure><Derivatives>, whose <Unknown>s are the states.
+        let mut in_derivatives = false;
         // The variable being read: an FMI 2.0 <ScalarVariable> takes its type from its
         // child element; an FMI 3.0 one may have <Dimension> (an array) and <Alias>
         // children.
@@ -104,7 +115,18 @@ impl Description {
                     match tag.as_ref() {
                         b"fmiModelDescription" => description.read_root(e)?,
                         b"CoSimulation" => description.read_co_simulation(e)?,
-                        b"ModelExchange" => description.has_model_exchange = true,
+                        b"ModelExchange" => {
+                            description.has_model_exchange = true;
+                            description.exchange_identifier = attribute(e, "modelIdentifier")?;
+                        }
+                        b"Derivatives" if !fmi3 => in_derivatives = !empty,
+                        b"Unknown" if in_derivatives => description.continuous_states += 1,
+                        b"ContinuousStateDerivative" if fmi3 && !in_variables => {
+                            description.continuous_states += 1;
+                        }
+                        b"EventIndicator" if fmi3 && !in_variables => {
+                            description.event_indicators += 1;
+                        }
                         b"ModelVariables" => in_variables = !empty,
                         b"Category" if !in_variables => {
                             description.log_categories.extend(attribute(e, "name")?);
@@ -165,6 +187,7 @@ impl Description {
                 }
                 Event::End(e) => match e.local_name().as_ref() {
                     b"ModelVariables" => in_variables = false,
+                    b"Derivatives" => in_derivatives = false,
                     b"ScalarVariable" => description.variables.extend(open.take()),
                     tag if open.is_some() && tag == open_tag.as_slice() => {
                         description.variables.extend(open.take());
@@ -196,6 +219,11 @@ impl Description {
             "guid"
         };
         self.guid = attribute(e, token)?.unwrap_or_default();
+        if let Some(count) = attribute(e, "numberOfEventIndicators")? {
+            self.event_indicators = count
+                .parse()
+                .map_err(|_| "numberOfEventIndicators is not a whole number")?;
+        }
         Ok(())
     }
 

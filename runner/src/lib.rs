@@ -1,7 +1,8 @@
-//! The one place in the project that loads an FMI 2.0 or 3.0 co-simulation FMU: unpack
+//! The one place in the project that loads an FMI 2.0 or 3.0 FMU: unpack
 //! the archive ([`archive`]), read its description with quick-xml ([`description`]), load
 //! its binary and own its instances, freed on drop, FMI 3.0's events handled on the way
-//! ([`fmi`]); a coupled system of such FMUs
+//! ([`fmi`]); a Model Exchange FMU is integrated by the project's own DOP853 and run as a
+//! co-simulation unit ([`exchange`]); a coupled system of such FMUs
 //! is stepped as one unit ([`system`], [`unit`]), its communication steps chosen by an
 //! error estimate when it has a coupling tolerance ([`coupling`]). The `fmu-runner` binary serves
 //! sweep points over it ([`protocol`], [`plan`], [`point`], [`metrics`]); the benchmark
@@ -10,6 +11,7 @@
 pub mod archive;
 pub mod coupling;
 pub mod description;
+pub mod exchange;
 pub mod fmi;
 pub mod messages;
 pub mod metrics;

@@ -24,6 +24,9 @@ pub struct PlanSpec {
     pub metrics: Vec<MetricSpec>,
     pub series: Option<SeriesSpec>,
     pub timeout_s: Option<f64>,
+    /// `co_simulation` or `model_exchange`: the interface a single FMU runs through (by
+    /// default its co-simulation one where it has both).
+    pub interface: Option<String>,
 }
 
 /// A piecewise-linear signal, held beyond its ends; one point makes a constant.

@@ -8,7 +8,7 @@
 //! of a batch that crashed that way.
 
 use std::io::{BufRead, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use std::time::{Duration, Instant};
 
@@ -16,7 +16,8 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 
 use crate::description::Description;
-use crate::fmi::Library;
+use crate::exchange::Shape;
+use crate::fmi::{Interface, Library};
 use crate::plan::{Plan, PlanSpec};
 use crate::point::{Assignments, Runner};
 use crate::system::{is_system, SystemLibrary};
@@ -52,7 +53,10 @@ enum Request {
 }
 
 pub struct Session {
+    dir: PathBuf,
     description: Description,
+    /// The interface a single FMU runs through (`None` for a system).
+    interface: Option<Interface>,
     runner: Runner,
     plan: Option<Plan>,
 }
@@ -60,19 +64,46 @@ pub struct Session {
 impl Session {
     /// Serve the FMU unpacked in `dir`, or the coupled system it holds.
     pub fn open(dir: &Path) -> Result<Self, String> {
-        let (description, target) = if is_system(dir) {
+        let (description, target, interface) = if is_system(dir) {
             let (description, system) = SystemLibrary::load(dir)?;
-            (description, Target::System(system))
+            (description, Target::System(system), None)
         } else {
             let description = Description::read(dir)?;
-            let library = Library::load(dir, &description)?;
-            (description, Target::Fmu(library))
+            let interface = Interface::default_for(&description);
+            let target = fmu_target(dir, &description, interface)?;
+            (description, target, Some(interface))
         };
         Ok(Session {
+            dir: dir.to_path_buf(),
             description,
+            interface,
             runner: Runner::new(target),
             plan: None,
         })
+    }
+
+    /// Run the FMU through the interface a plan names (or, naming none, its default), if
+    /// it is not the one loaded: a runner kept between studies may have run another.
+    fn choose_interface(&mut self, name: Option<&str>) -> Result<(), String> {
+        let wanted = match name {
+            Some(name) => Interface::from_name(name)?,
+            None if self.interface.is_none() => return Ok(()),
+            None => Interface::default_for(&self.description),
+        };
+        match self.interface {
+            None if wanted == Interface::ModelExchange => Err(
+                "interface \"model_exchange\": a coupled system runs its components' \
+                 co-simulation interfaces"
+                    .into(),
+            ),
+            Some(current) if current != wanted => {
+                let target = fmu_target(&self.dir, &self.description, wanted)?;
+                self.runner = Runner::new(target);
+                self.interface = Some(wanted);
+                Ok(())
+            }
+            _ => Ok(()),
+        }
     }
 
     /// Serve requests until standard input closes.
@@ -94,7 +125,10 @@ impl Session {
     fn answer(&mut self, request: Request, out: &mut impl Write) -> std::io::Result<()> {
         match request {
             Request::Describe => reply(out, &json!({"description": self.description})),
-            Request::Configure { plan } => match Plan::resolve(plan, &self.description) {
+            Request::Configure { plan } => match self
+                .choose_interface(plan.interface.as_deref())
+                .and_then(|()| Plan::resolve(plan, &self.description))
+            {
                 Ok(plan) => {
                     let columns: Vec<_> = plan.read_names.clone();
                     self.plan = Some(plan);
@@ -205,6 +239,27 @@ impl Session {
             .collect();
         reply(out, &json!({"checked": results}))
     }
+}
+
+/// What runs the FMU unpacked in `dir` through `interface`: its co-simulation instances,
+/// or its Model Exchange instances integrated by the runner.
+fn fmu_target(
+    dir: &Path,
+    description: &Description,
+    interface: Interface,
+) -> Result<Target, String> {
+    let library = Library::load(dir, description, interface)?;
+    Ok(match interface {
+        Interface::CoSimulation => Target::Fmu(library),
+        Interface::ModelExchange => {
+            let shape = Shape {
+                states: description.continuous_states,
+                indicators: description.event_indicators,
+            };
+            shape.check()?;
+            Target::Exchange(library, shape)
+        }
+    })
 }
 
 fn reply(out: &mut impl Write, value: &Value) -> std::io::Result<()> {

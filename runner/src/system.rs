@@ -30,7 +30,7 @@ use serde::Deserialize;
 use crate::archive::Unpacked;
 use crate::coupling::{drift, Controller, CouplingReport, Verdict};
 use crate::description::{Description, Variable};
-use crate::fmi::{Instance, Library, Status};
+use crate::fmi::{Instance, Interface, Library, Status};
 use crate::plan::type_group;
 use crate::unit::Unit;
 
@@ -125,7 +125,7 @@ impl SystemLibrary {
             let unpacked = Unpacked::within(&dir.join(&c.file), dir)?;
             let description = Description::read(unpacked.dir())
                 .map_err(|e| format!("component {}: {e}", c.name))?;
-            let library = Library::load(unpacked.dir(), &description)
+            let library = Library::load(unpacked.dir(), &description, Interface::CoSimulation)
                 .map_err(|e| format!("component {}: {e}", c.name))?;
             components.push(Component {
                 name: CString::new(c.name.as_str()).map_err(|e| e.to_string())?,
@@ -187,6 +187,9 @@ impl SystemLibrary {
             has_event_mode: false,
             log_categories: Vec::new(),
             has_model_exchange: false,
+            exchange_identifier: None,
+            continuous_states: 0,
+            event_indicators: 0,
             variables,
         };
         if let Some(tolerance) = file.coupling_tolerance {

@@ -5,15 +5,18 @@
 use std::rc::Rc;
 
 use crate::coupling::CouplingReport;
+use crate::exchange::{Exchange, Shape};
 use crate::fmi::each_call;
 use crate::fmi::{Instance, Library, Status};
 use crate::system::{SystemInstance, SystemLibrary};
 use crate::unit::Unit;
 
-/// What the runner loaded: one FMU's library, or a system's.
+/// What the runner loaded: one FMU's library (co-simulation, or Model Exchange that the
+/// runner integrates), or a system's.
 #[derive(Clone)]
 pub enum Target {
     Fmu(Rc<Library>),
+    Exchange(Rc<Library>, Shape),
     System(Rc<SystemLibrary>),
 }
 
@@ -22,6 +25,9 @@ impl Target {
     pub fn instantiate(&self) -> Result<Running, String> {
         Ok(match self {
             Target::Fmu(library) => Running::Fmu(Instance::new(library, c"sweep")?),
+            Target::Exchange(library, shape) => {
+                Running::Exchange(Exchange::new(Instance::new(library, c"sweep")?, *shape))
+            }
             Target::System(system) => Running::System(SystemInstance::new(system)?),
         })
     }
@@ -31,6 +37,7 @@ impl Target {
 /// calls on the runner's per-step path stay direct (and inlinable), as without systems.
 pub enum Running {
     Fmu(Instance),
+    Exchange(Exchange),
     System(SystemInstance),
 }
 
@@ -41,6 +48,7 @@ macro_rules! dispatch {
         fn $name(&mut self, $($arg: $t),*) -> Status {
             match self {
                 Running::Fmu(unit) => Unit::$name(unit, $($arg),*),
+                Running::Exchange(unit) => Unit::$name(unit, $($arg),*),
                 Running::System(unit) => Unit::$name(unit, $($arg),*),
             }
         })*
@@ -53,6 +61,7 @@ impl Running {
     pub fn call_name<'a>(&self, fmi2_name: &'a str) -> std::borrow::Cow<'a, str> {
         match self {
             Running::Fmu(instance) => instance.call_name(fmi2_name),
+            Running::Exchange(unit) => unit.call_name(fmi2_name),
             Running::System(_) => std::borrow::Cow::Borrowed(fmi2_name),
         }
     }
@@ -64,6 +73,7 @@ impl Unit for Running {
     fn events(&self) -> u64 {
         match self {
             Running::Fmu(unit) => unit.events(),
+            Running::Exchange(unit) => unit.events(),
             Running::System(unit) => unit.events(),
         }
     }
@@ -71,6 +81,7 @@ impl Unit for Running {
     fn coupling(&self) -> Option<CouplingReport> {
         match self {
             Running::Fmu(unit) => unit.coupling(),
+            Running::Exchange(unit) => unit.coupling(),
             Running::System(unit) => unit.coupling(),
         }
     }
@@ -78,6 +89,7 @@ impl Unit for Running {
     fn set_input_slope(&mut self, vr: u32, slope: f64) -> Status {
         match self {
             Running::Fmu(unit) => unit.set_input_slope(vr, slope),
+            Running::Exchange(unit) => unit.set_input_slope(vr, slope),
             Running::System(unit) => unit.set_input_slope(vr, slope),
         }
     }

@@ -114,7 +114,7 @@ impl Run {
         ));
     }
 
-    pub fn advance(&mut self, t: f64) -> Result<(), cyclic_mechanism::solver::SolverError> {
+    pub fn advance(&mut self, t: f64) -> Result<(), integrators::SolverError> {
         let driver = self.driver.as_mut().expect("initialised");
         driver.advance(&mut self.plant, t, &self.experiment)
     }
@@ -140,7 +140,7 @@ impl Run {
         self.plant.get(vr, &activity)
     }
 
-    pub fn statistics(&self) -> cyclic_mechanism::solver::Statistics {
+    pub fn statistics(&self) -> integrators::Statistics {
         self.driver.as_ref().expect("initialised").statistics()
     }
 }

@@ -130,3 +130,17 @@ def test_the_motor_system_as_an_ssp_file(fmu_path, tmp_path):
     assert (points["t_end"] == 5.0).all() and "100 points" in said
     speed = points.groupby("motor.voltage")["final_omega1"].mean()
     assert speed.is_monotonic_increasing and speed.iloc[-1] > 2 * speed.iloc[0], speed
+
+
+def test_the_rod_force_grid_through_model_exchange(fmu_path, tmp_path):
+    points, said = sweep("rod_force_model_exchange.toml", fmu_path, tmp_path / "me")
+    assert len(points) == 100 and (points["status"] == "ok").all(), points["message"].unique()
+    assert "100 points" in said
+    # The same grid through co-simulation at the same tolerance: the same forces to the
+    # tolerance's order (two integrations of one model, each held to 1e-8).
+    text = (EXAMPLES / "rod_force_model_exchange.toml").read_text()
+    (tmp_path / "cs.toml").write_text(text.replace('interface = "model_exchange"', ""))
+    cosimulation, _ = sweep(tmp_path / "cs.toml", fmu_path, tmp_path / "cs")
+    mine, theirs = points.sort_values("point"), cosimulation.sort_values("point")
+    force = mine["peak_rod_force"].to_numpy() / theirs["peak_rod_force"].to_numpy()
+    assert abs(force - 1).max() < 1e-6, abs(force - 1).max()

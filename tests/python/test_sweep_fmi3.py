@@ -161,18 +161,6 @@ def test_an_unsupported_variable_type_is_refused_by_name(fmu3_path, tmp_path):
     assert not (tmp_path / "out" / "points.parquet").exists()
 
 
-@pytest.mark.parametrize("version", ["2.0", "3.0"])
-def test_a_model_exchange_only_fmu_is_refused_by_name(fmu_path, fmu3_path, tmp_path, version):
-    def without_co_simulation(name, data):
-        if name != "modelDescription.xml":
-            return data
-        return re.sub(rb"<CoSimulation[^>]*/>", b"", data)
-    source = fmu_path if version == "2.0" else fmu3_path
-    bad = repacked(source, tmp_path / "Changed.fmu", without_co_simulation)
-    with pytest.raises(RunnerError, match="a ModelExchange interface only"):
-        sweep(grid_spec(), bad, tmp_path / "out")
-
-
 def test_an_fmi3_sweep_resumes_what_was_lost(tmp_path):
     """The change-point sweep in batches of two; a batch's part lost, the sweep resumed:
     only its points run again, and the table is the uninterrupted one."""

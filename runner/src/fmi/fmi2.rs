@@ -1,34 +1,42 @@
-//! FMI 2.0 co-simulation: the binary's functions and one instance's calls.
+//! FMI 2.0: the binary's functions and one instance's calls, for co-simulation and for
+//! Model Exchange (whose integration is the runner's, `crate::exchange`).
 
 use std::ffi::CString;
 use std::path::Path;
 use std::rc::Rc;
 
 use fmi_sys::fmi2::{
-    self, fmi2CallbackFunctions, fmi2Component, fmi2FMUstate, fmi2Type_fmi2CoSimulation,
-    Fmi2Binding,
+    self, fmi2CallbackFunctions, fmi2Component, fmi2EventInfo, fmi2FMUstate,
+    fmi2Type_fmi2CoSimulation, fmi2Type_fmi2ModelExchange, Fmi2Binding,
 };
 
-use super::{require, resources, Status};
+use super::{require, resources, EventUpdate, Interface, Status};
 use crate::description::Description;
 
 pub struct Library {
     binding: Fmi2Binding,
+    interface: Interface,
     guid: CString,
     resource_uri: CString,
 }
 
 impl Library {
     /// The binary at `path` of the FMU unpacked in `dir`.
-    pub fn load(path: &Path, dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
+    pub fn load(
+        path: &Path,
+        dir: &Path,
+        description: &Description,
+        interface: Interface,
+    ) -> Result<Rc<Library>, String> {
         // SAFETY: loading a shared library runs its initialisers; the FMU is trusted as
         // far as its binary goes (a crash there ends only this runner process).
         let binding = unsafe { Fmi2Binding::new(path) }
             .map_err(|e| format!("cannot load {}: {e}", path.display()))?;
-        require(path, &functions(&binding))?;
+        require(path, &functions(&binding, interface))?;
         let uri = format!("file://{}/", resources(dir).display());
         Ok(Rc::new(Library {
             binding,
+            interface,
             guid: CString::new(description.guid.as_str()).map_err(|e| e.to_string())?,
             resource_uri: CString::new(uri).map_err(|e| e.to_string())?,
         }))
@@ -55,10 +63,10 @@ impl Library {
     }
 }
 
-/// The functions a co-simulation run calls, and whether the binary has each; the others
-/// may be absent.
-fn functions(b: &Fmi2Binding) -> [(&'static str, bool); 13] {
-    [
+/// The functions a run through `interface` calls, and whether the binary has each; the
+/// others may be absent.
+fn functions(b: &Fmi2Binding, interface: Interface) -> Vec<(&'static str, bool)> {
+    let mut present = vec![
         ("fmi2Instantiate", b.fmi2Instantiate.is_ok()),
         ("fmi2FreeInstance", b.fmi2FreeInstance.is_ok()),
         ("fmi2SetupExperiment", b.fmi2SetupExperiment.is_ok()),
@@ -77,8 +85,32 @@ fn functions(b: &Fmi2Binding) -> [(&'static str, bool); 13] {
         ("fmi2GetReal", b.fmi2GetReal.is_ok()),
         ("fmi2GetInteger", b.fmi2GetInteger.is_ok()),
         ("fmi2GetBoolean", b.fmi2GetBoolean.is_ok()),
-        ("fmi2DoStep", b.fmi2DoStep.is_ok()),
-    ]
+    ];
+    match interface {
+        Interface::CoSimulation => present.push(("fmi2DoStep", b.fmi2DoStep.is_ok())),
+        Interface::ModelExchange => present.extend([
+            ("fmi2SetTime", b.fmi2SetTime.is_ok()),
+            ("fmi2SetContinuousStates", b.fmi2SetContinuousStates.is_ok()),
+            ("fmi2GetContinuousStates", b.fmi2GetContinuousStates.is_ok()),
+            ("fmi2GetDerivatives", b.fmi2GetDerivatives.is_ok()),
+            ("fmi2GetEventIndicators", b.fmi2GetEventIndicators.is_ok()),
+            (
+                "fmi2GetNominalsOfContinuousStates",
+                b.fmi2GetNominalsOfContinuousStates.is_ok(),
+            ),
+            ("fmi2EnterEventMode", b.fmi2EnterEventMode.is_ok()),
+            ("fmi2NewDiscreteStates", b.fmi2NewDiscreteStates.is_ok()),
+            (
+                "fmi2EnterContinuousTimeMode",
+                b.fmi2EnterContinuousTimeMode.is_ok(),
+            ),
+            (
+                "fmi2CompletedIntegratorStep",
+                b.fmi2CompletedIntegratorStep.is_ok(),
+            ),
+        ]),
+    }
+    present
 }
 
 /// `fmi2Set…(vr, values)` for one type; nothing is called for an empty list.
@@ -128,8 +160,13 @@ pub struct Instance {
 }
 
 impl Instance {
-    /// An instance named `name` (the name the FMU's messages carry).
+    /// An instance named `name` (the name the FMU's messages carry), of the library's
+    /// interface.
     pub fn new(library: &Rc<Library>, name: &std::ffi::CStr) -> Result<Instance, String> {
+        let kind = match library.interface {
+            Interface::CoSimulation => fmi2Type_fmi2CoSimulation,
+            Interface::ModelExchange => fmi2Type_fmi2ModelExchange,
+        };
         let callbacks = Box::new(fmi2CallbackFunctions {
             logger: Some(fmi2::logger::callback_logger_handler),
             allocateMemory: Some(libc::calloc),
@@ -141,7 +178,7 @@ impl Instance {
         let component = unsafe {
             library.binding.fmi2Instantiate(
                 name.as_ptr(),
-                fmi2Type_fmi2CoSimulation,
+                kind,
                 library.guid.as_ptr(),
                 library.resource_uri.as_ptr(),
                 &*callbacks,
@@ -259,6 +296,90 @@ impl Instance {
     pub fn do_step(&mut self, time: f64, step: f64) -> Status {
         // SAFETY: a live component; plain values.
         Status::from_code(unsafe { self.b().fmi2DoStep(self.component, time, step, 1) })
+    }
+}
+
+/// `fmi2…(component, array, length)` for one array call of Model Exchange.
+macro_rules! array_call {
+    ($name:ident, $fmi:ident, $ptr:ident, $t:ty) => {
+        pub fn $name(&mut self, values: $t) -> Status {
+            if values.is_empty() {
+                return Status::Ok;
+            }
+            // SAFETY: the slice holds values.len() elements; a live component.
+            Status::from_code(unsafe { self.b().$fmi(self.component, values.$ptr(), values.len()) })
+        }
+    };
+}
+
+/// Model Exchange: the calls of the runner's integration (`crate::exchange`).
+impl Instance {
+    pub fn set_time(&mut self, time: f64) -> Status {
+        // SAFETY: a live component; a plain value.
+        Status::from_code(unsafe { self.b().fmi2SetTime(self.component, time) })
+    }
+
+    array_call!(
+        set_continuous_states,
+        fmi2SetContinuousStates,
+        as_ptr,
+        &[f64]
+    );
+    array_call!(
+        get_continuous_states,
+        fmi2GetContinuousStates,
+        as_mut_ptr,
+        &mut [f64]
+    );
+    array_call!(get_derivatives, fmi2GetDerivatives, as_mut_ptr, &mut [f64]);
+    array_call!(
+        get_event_indicators,
+        fmi2GetEventIndicators,
+        as_mut_ptr,
+        &mut [f64]
+    );
+    array_call!(
+        get_nominals,
+        fmi2GetNominalsOfContinuousStates,
+        as_mut_ptr,
+        &mut [f64]
+    );
+
+    pub fn enter_event_mode(&mut self) -> Status {
+        // SAFETY: a live component.
+        Status::from_code(unsafe { self.b().fmi2EnterEventMode(self.component) })
+    }
+
+    pub fn update_discrete_states(&mut self, update: &mut EventUpdate) -> Status {
+        let mut info = fmi2EventInfo::default();
+        // SAFETY: a live component; a writable event info.
+        let s =
+            Status::from_code(unsafe { self.b().fmi2NewDiscreteStates(self.component, &mut info) });
+        *update = EventUpdate {
+            again: info.newDiscreteStatesNeeded != 0,
+            terminate: info.terminateSimulation != 0,
+            nominals_changed: info.nominalsOfContinuousStatesChanged != 0,
+            states_changed: info.valuesOfContinuousStatesChanged != 0,
+            next_event_time: (info.nextEventTimeDefined != 0).then_some(info.nextEventTime),
+        };
+        s
+    }
+
+    pub fn enter_continuous_time_mode(&mut self) -> Status {
+        // SAFETY: a live component.
+        Status::from_code(unsafe { self.b().fmi2EnterContinuousTimeMode(self.component) })
+    }
+
+    /// fmi2CompletedIntegratorStep: whether the FMU asks for event mode, and to terminate.
+    pub fn completed_integrator_step(&mut self, asks: &mut (bool, bool)) -> Status {
+        let (mut event, mut terminate) = (0, 0);
+        // SAFETY: a live component; writable locals.
+        let s = Status::from_code(unsafe {
+            self.b()
+                .fmi2CompletedIntegratorStep(self.component, 1, &mut event, &mut terminate)
+        });
+        *asks = (event != 0, terminate != 0);
+        s
     }
 }
 

@@ -1,5 +1,6 @@
-//! FMI 3.0 co-simulation: the binary's functions and one instance's calls. The instance
-//! is its own master for what FMI 3.0 adds: it uses the FMU's event mode when the FMU has
+//! FMI 3.0: the binary's functions and one instance's calls, for co-simulation and for
+//! Model Exchange (whose integration is the runner's, `crate::exchange`). In co-simulation
+//! the instance is its own master for what FMI 3.0 adds: it uses the FMU's event mode when the FMU has
 //! one, so that a step that meets an event ends early, the event is handled
 //! (`fmi3EnterEventMode`, `fmi3UpdateDiscreteStates` until the FMU needs no further
 //! iteration, `fmi3EnterStepMode`) and the step goes on from where it ended; a caller
@@ -11,7 +12,7 @@ use std::rc::Rc;
 
 use fmi_sys::fmi3::{fmi3FMUState, fmi3Instance, fmi3InstanceEnvironment, fmi3Status, Fmi3Binding};
 
-use super::{require, resources, Status};
+use super::{require, resources, EventUpdate, Interface, Status};
 use crate::description::{BaseType, Description};
 
 /// The most early returns one communication step may take, and the most event iterations
@@ -22,9 +23,10 @@ const MAX_EVENT_ITERATIONS: u32 = 1_000;
 
 pub struct Library {
     binding: Fmi3Binding,
+    interface: Interface,
     token: CString,
     resource_path: CString,
-    /// Whether instances use the FMU's event mode (its hasEventMode).
+    /// Whether co-simulation instances use the FMU's event mode (its hasEventMode).
     event_mode: bool,
     /// The value references of enumerations, which FMI 3.0 sets and gets as Int64 (Int32
     /// variables use the Int32 functions), sorted.
@@ -44,7 +46,12 @@ const STATUS_CATEGORIES: [&str; 4] = [
 
 impl Library {
     /// The binary at `path` of the FMU unpacked in `dir`.
-    pub fn load(path: &Path, dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
+    pub fn load(
+        path: &Path,
+        dir: &Path,
+        description: &Description,
+        interface: Interface,
+    ) -> Result<Rc<Library>, String> {
         // SAFETY: loading a shared library runs its initialisers; the FMU is trusted as
         // far as its binary goes (a crash there ends only this runner process).
         let binding = unsafe { Fmi3Binding::new(path) }
@@ -57,19 +64,21 @@ impl Library {
             .collect();
         int64.sort_unstable();
         int64.dedup();
+        let event_mode = interface == Interface::CoSimulation && description.has_event_mode;
         require(
             path,
-            &functions(&binding, description.has_event_mode, !int64.is_empty()),
+            &functions(&binding, interface, event_mode, !int64.is_empty()),
         )?;
         // FMI 3.0 passes the resource folder as a path that ends in a separator.
         let mut folder = resources(dir).into_os_string();
         folder.push(std::path::MAIN_SEPARATOR_STR);
         Ok(Rc::new(Library {
             binding,
+            interface,
             token: CString::new(description.guid.as_str()).map_err(|e| e.to_string())?,
             resource_path: CString::new(folder.to_string_lossy().into_owned())
                 .map_err(|e| e.to_string())?,
-            event_mode: description.has_event_mode,
+            event_mode,
             int64,
             status_categories: description
                 .log_categories
@@ -91,14 +100,56 @@ impl Library {
     }
 }
 
-/// The functions a co-simulation run calls, and whether the binary has each: the event
-/// functions when the FMU has an event mode, Int64 access when it has enumerations.
-fn functions(b: &Fmi3Binding, events: bool, int64: bool) -> Vec<(&'static str, bool)> {
-    let mut present = vec![
-        (
-            "fmi3InstantiateCoSimulation",
-            b.fmi3InstantiateCoSimulation.is_ok(),
-        ),
+/// The functions a run through `interface` calls, and whether the binary has each: in
+/// co-simulation the event functions when the FMU has an event mode, and Int64 access
+/// when it has enumerations.
+fn functions(
+    b: &Fmi3Binding,
+    interface: Interface,
+    events: bool,
+    int64: bool,
+) -> Vec<(&'static str, bool)> {
+    let mut present = match interface {
+        Interface::CoSimulation => vec![
+            (
+                "fmi3InstantiateCoSimulation",
+                b.fmi3InstantiateCoSimulation.is_ok(),
+            ),
+            ("fmi3DoStep", b.fmi3DoStep.is_ok()),
+        ],
+        Interface::ModelExchange => vec![
+            (
+                "fmi3InstantiateModelExchange",
+                b.fmi3InstantiateModelExchange.is_ok(),
+            ),
+            ("fmi3SetTime", b.fmi3SetTime.is_ok()),
+            ("fmi3SetContinuousStates", b.fmi3SetContinuousStates.is_ok()),
+            ("fmi3GetContinuousStates", b.fmi3GetContinuousStates.is_ok()),
+            (
+                "fmi3GetContinuousStateDerivatives",
+                b.fmi3GetContinuousStateDerivatives.is_ok(),
+            ),
+            ("fmi3GetEventIndicators", b.fmi3GetEventIndicators.is_ok()),
+            (
+                "fmi3GetNominalsOfContinuousStates",
+                b.fmi3GetNominalsOfContinuousStates.is_ok(),
+            ),
+            ("fmi3EnterEventMode", b.fmi3EnterEventMode.is_ok()),
+            (
+                "fmi3UpdateDiscreteStates",
+                b.fmi3UpdateDiscreteStates.is_ok(),
+            ),
+            (
+                "fmi3EnterContinuousTimeMode",
+                b.fmi3EnterContinuousTimeMode.is_ok(),
+            ),
+            (
+                "fmi3CompletedIntegratorStep",
+                b.fmi3CompletedIntegratorStep.is_ok(),
+            ),
+        ],
+    };
+    present.extend([
         ("fmi3FreeInstance", b.fmi3FreeInstance.is_ok()),
         (
             "fmi3EnterInitializationMode",
@@ -115,8 +166,7 @@ fn functions(b: &Fmi3Binding, events: bool, int64: bool) -> Vec<(&'static str, b
         ("fmi3GetFloat64", b.fmi3GetFloat64.is_ok()),
         ("fmi3GetInt32", b.fmi3GetInt32.is_ok()),
         ("fmi3GetBoolean", b.fmi3GetBoolean.is_ok()),
-        ("fmi3DoStep", b.fmi3DoStep.is_ok()),
-    ];
+    ]);
     if events {
         present.extend([
             ("fmi3EnterEventMode", b.fmi3EnterEventMode.is_ok()),
@@ -185,7 +235,45 @@ fn keep_status_messages(library: &Library, instance: fmi3Instance) {
     }
 }
 
-/// One co-simulation instance; freed when dropped.
+/// fmi3InstantiateCoSimulation with the library's event mode and early return allowed;
+/// null when the FMU refuses.
+fn instantiate_co_simulation(library: &Library, name: &CStr) -> fmi3Instance {
+    // SAFETY: every pointer is valid for the call; the FMU copies the strings.
+    unsafe {
+        library.binding.fmi3InstantiateCoSimulation(
+            name.as_ptr(),
+            library.token.as_ptr(),
+            library.resource_path.as_ptr(),
+            false,
+            true,
+            library.event_mode,
+            true,
+            std::ptr::null(),
+            0,
+            std::ptr::null_mut(),
+            Some(log_message),
+            None,
+        )
+    }
+}
+
+/// fmi3InstantiateModelExchange; null when the FMU refuses.
+fn instantiate_model_exchange(library: &Library, name: &CStr) -> fmi3Instance {
+    // SAFETY: every pointer is valid for the call; the FMU copies the strings.
+    unsafe {
+        library.binding.fmi3InstantiateModelExchange(
+            name.as_ptr(),
+            library.token.as_ptr(),
+            library.resource_path.as_ptr(),
+            false,
+            true,
+            std::ptr::null_mut(),
+            Some(log_message),
+        )
+    }
+}
+
+/// One instance; freed when dropped.
 pub struct Instance {
     library: Rc<Library>,
     instance: fmi3Instance,
@@ -201,27 +289,21 @@ pub struct Instance {
 }
 
 impl Instance {
-    /// An instance named `name` (the name the FMU's messages carry).
+    /// An instance named `name` (the name the FMU's messages carry), of the library's
+    /// interface.
     pub fn new(library: &Rc<Library>, name: &CStr) -> Result<Instance, String> {
-        // SAFETY: every pointer is valid for the call; the FMU copies the strings.
-        let instance = unsafe {
-            library.binding.fmi3InstantiateCoSimulation(
-                name.as_ptr(),
-                library.token.as_ptr(),
-                library.resource_path.as_ptr(),
-                false,
-                true,
-                library.event_mode,
-                true,
-                std::ptr::null(),
-                0,
-                std::ptr::null_mut(),
-                Some(log_message),
-                None,
-            )
+        let instance = match library.interface {
+            Interface::CoSimulation => instantiate_co_simulation(library, name),
+            Interface::ModelExchange => instantiate_model_exchange(library, name),
         };
         if instance.is_null() {
-            return Err("fmi3InstantiateCoSimulation returned NULL".into());
+            return Err(format!(
+                "fmi3Instantiate{} returned NULL",
+                match library.interface {
+                    Interface::CoSimulation => "CoSimulation",
+                    Interface::ModelExchange => "ModelExchange",
+                }
+            ));
         }
         keep_status_messages(library, instance);
         Ok(Instance {
@@ -592,6 +674,106 @@ impl Instance {
             "the FMU's discrete states did not settle in {MAX_EVENT_ITERATIONS} event iterations"
         );
         Status::Error
+    }
+}
+
+/// `fmi3…(instance, array, length)` for one array call of Model Exchange.
+macro_rules! array_call {
+    ($name:ident, $fmi:ident, $ptr:ident, $t:ty) => {
+        pub fn $name(&mut self, values: $t) -> Status {
+            if values.is_empty() {
+                return Status::Ok;
+            }
+            // SAFETY: the slice holds values.len() elements; a live instance.
+            Status::from_code(unsafe { self.b().$fmi(self.instance, values.$ptr(), values.len()) })
+        }
+    };
+}
+
+/// Model Exchange: the calls of the runner's integration (`crate::exchange`).
+impl Instance {
+    pub fn set_time(&mut self, time: f64) -> Status {
+        // SAFETY: a live instance; a plain value.
+        Status::from_code(unsafe { self.b().fmi3SetTime(self.instance, time) })
+    }
+
+    array_call!(
+        set_continuous_states,
+        fmi3SetContinuousStates,
+        as_ptr,
+        &[f64]
+    );
+    array_call!(
+        get_continuous_states,
+        fmi3GetContinuousStates,
+        as_mut_ptr,
+        &mut [f64]
+    );
+    array_call!(
+        get_derivatives,
+        fmi3GetContinuousStateDerivatives,
+        as_mut_ptr,
+        &mut [f64]
+    );
+    array_call!(
+        get_event_indicators,
+        fmi3GetEventIndicators,
+        as_mut_ptr,
+        &mut [f64]
+    );
+    array_call!(
+        get_nominals,
+        fmi3GetNominalsOfContinuousStates,
+        as_mut_ptr,
+        &mut [f64]
+    );
+
+    pub fn enter_event_mode(&mut self) -> Status {
+        // SAFETY: a live instance.
+        Status::from_code(unsafe { self.b().fmi3EnterEventMode(self.instance) })
+    }
+
+    pub fn update_discrete_states(&mut self, update: &mut EventUpdate) -> Status {
+        let mut flags = [false; 5];
+        let mut next_event_time = 0.0;
+        let [again, terminate, nominals, values, next_defined] = &mut flags;
+        // SAFETY: a live instance in event mode; writable locals.
+        let s = Status::from_code(unsafe {
+            self.b().fmi3UpdateDiscreteStates(
+                self.instance,
+                again,
+                terminate,
+                nominals,
+                values,
+                next_defined,
+                &mut next_event_time,
+            )
+        });
+        *update = EventUpdate {
+            again: *again,
+            terminate: *terminate,
+            nominals_changed: *nominals,
+            states_changed: *values,
+            next_event_time: next_defined.then_some(next_event_time),
+        };
+        s
+    }
+
+    pub fn enter_continuous_time_mode(&mut self) -> Status {
+        // SAFETY: a live instance.
+        Status::from_code(unsafe { self.b().fmi3EnterContinuousTimeMode(self.instance) })
+    }
+
+    /// fmi3CompletedIntegratorStep: whether the FMU asks for event mode, and to terminate.
+    pub fn completed_integrator_step(&mut self, asks: &mut (bool, bool)) -> Status {
+        let (mut event, mut terminate) = (false, false);
+        // SAFETY: a live instance; writable locals.
+        let s = Status::from_code(unsafe {
+            self.b()
+                .fmi3CompletedIntegratorStep(self.instance, true, &mut event, &mut terminate)
+        });
+        *asks = (event, terminate);
+        s
     }
 }
 

@@ -1,5 +1,6 @@
 //! The FMU's shared library and its instances, for FMI 2.0 ([`fmi2`]) and FMI 3.0
-//! ([`fmi3`]) co-simulation alike. With `stdio`, the only `unsafe` code of the runner: every
+//! ([`fmi3`]) alike, through either interface (co-simulation, or Model Exchange, which
+//! `crate::exchange` integrates). With `stdio`, the only `unsafe` code of the runner: every
 //! FMI call goes through a safe method of an instance that passes slices with their true
 //! lengths and a component that instance created and frees. Above the two, [`Library`] and
 //! [`Instance`] give one set of calls whichever version the FMU is, so that a point, a
@@ -46,6 +47,54 @@ impl Status {
     pub fn proceeds(self) -> bool {
         self <= Status::Warning
     }
+}
+
+/// Which of an FMU's interfaces a library's instances use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interface {
+    CoSimulation,
+    ModelExchange,
+}
+
+impl Interface {
+    /// The interface a plan names (`co_simulation` or `model_exchange`).
+    pub fn from_name(name: &str) -> Result<Interface, String> {
+        match name {
+            "co_simulation" => Ok(Interface::CoSimulation),
+            "model_exchange" => Ok(Interface::ModelExchange),
+            other => Err(format!(
+                "interface {other:?} is neither \"co_simulation\" nor \"model_exchange\""
+            )),
+        }
+    }
+
+    /// The interface an FMU is run through when the plan names none: co-simulation where
+    /// the FMU has it, else Model Exchange.
+    pub fn default_for(description: &Description) -> Interface {
+        if description.model_identifier.is_none() && description.exchange_identifier.is_some() {
+            Interface::ModelExchange
+        } else {
+            Interface::CoSimulation
+        }
+    }
+
+    fn element(self) -> &'static str {
+        match self {
+            Interface::CoSimulation => "CoSimulation",
+            Interface::ModelExchange => "ModelExchange",
+        }
+    }
+}
+
+/// What an FMU answered at the end of one event iteration (Model Exchange).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct EventUpdate {
+    /// Another iteration is needed.
+    pub again: bool,
+    pub terminate: bool,
+    pub nominals_changed: bool,
+    pub states_changed: bool,
+    pub next_event_time: Option<f64>,
 }
 
 /// The platform folder of `binaries/` that this build of the runner loads from, as FMI 2.0
@@ -117,24 +166,25 @@ pub enum Library {
 }
 
 impl Library {
-    /// The co-simulation binary of the FMU unpacked in `dir`, for the version its
+    /// The binary of the FMU unpacked in `dir` for `interface`, for the version its
     /// description declares.
-    pub fn load(dir: &Path, description: &Description) -> Result<Rc<Library>, String> {
-        let identifier =
-            description
-                .model_identifier
-                .as_deref()
-                .ok_or(if description.has_model_exchange {
-                    "the FMU has a ModelExchange interface only; the runner runs Co-Simulation FMUs"
-                } else {
-                    "the FMU has no CoSimulation interface"
-                })?;
+    pub fn load(
+        dir: &Path,
+        description: &Description,
+        interface: Interface,
+    ) -> Result<Rc<Library>, String> {
+        let identifier = match interface {
+            Interface::CoSimulation => description.model_identifier.as_deref(),
+            Interface::ModelExchange => description.exchange_identifier.as_deref(),
+        };
+        let identifier = identifier
+            .ok_or_else(|| format!("the FMU has no {} interface", interface.element()))?;
         let library = if description.fmi_version.starts_with("3.") {
             let path = binary_path(dir, PLATFORM_FMI3, identifier)?;
-            Library::Fmi3(fmi3::Library::load(&path, dir, description)?)
+            Library::Fmi3(fmi3::Library::load(&path, dir, description, interface)?)
         } else {
             let path = binary_path(dir, PLATFORM, identifier)?;
-            Library::Fmi2(fmi2::Library::load(&path, dir, description)?)
+            Library::Fmi2(fmi2::Library::load(&path, dir, description, interface)?)
         };
         Ok(Rc::new(library))
     }
@@ -183,7 +233,7 @@ fn fmi3_name(fmi2_name: &str) -> String {
     format!("fmi3{call}")
 }
 
-/// One co-simulation instance; freed when dropped.
+/// One instance; freed when dropped.
 pub enum Instance {
     Fmi2(fmi2::Instance),
     Fmi3(fmi3::Instance),
@@ -238,6 +288,19 @@ impl Instance {
         set_input_derivatives(vr: u32, values: &[f64]),
         save_state(),
         restore_state(),
+    );
+    // Model Exchange.
+    each_version!(
+        set_time(time: f64),
+        set_continuous_states(values: &[f64]),
+        get_continuous_states(values: &mut [f64]),
+        get_derivatives(values: &mut [f64]),
+        get_event_indicators(values: &mut [f64]),
+        get_nominals(values: &mut [f64]),
+        enter_event_mode(),
+        update_discrete_states(update: &mut EventUpdate),
+        enter_continuous_time_mode(),
+        completed_integrator_step(asks: &mut (bool, bool)),
     );
 
     /// What FMI 2.0 calls `fmi2_name` (such as `fmi2SetReal`), as this instance's version

@@ -1,0 +1,101 @@
+"""Model Exchange swept by the native runner, which integrates the FMU's states with the
+project's own DOP853 and handles its events: the Model Exchange balls written here (FMI 2.0
+and 3.0) follow their exact motion and count every bounce and kick; this FMU's Model
+Exchange interface keeps the tolerance at every communication point against a reference
+run at 1e-12; an FMU with only a Model Exchange interface runs through it; a wrong
+interface is refused by name."""
+
+import re
+
+import numpy as np
+import pytest
+
+from fmusweep import RunnerError, SpecError, run_sweep
+from sweep_helpers import grid_spec, repacked
+from test_sweep_events import exact, spec as ball_spec
+from test_sweep_system import system_spec
+
+STATES = ["phi1", "omega1", "phi2", "omega2", "phi3", "omega3", "phi4", "omega4"]
+METRICS = ["peak_rod_force", "omega1_ripple"]
+
+
+def sweep(spec, fmu, out, **options):
+    return run_sweep(spec, fmu=fmu, out=out, serial=True, progress=False, plots=False,
+                     **options)
+
+
+@pytest.mark.parametrize("version", ["2.0", "3.0"])
+def test_the_model_exchange_balls_follow_their_exact_motion(ball_me_paths, tmp_path, version):
+    spec = ball_spec()
+    spec["scenario"]["tolerance"] = 1e-8
+    results = sweep(spec, ball_me_paths[version], tmp_path / "out")
+    p = results.points
+    assert (p["status"] == "ok").all(), p["message"]
+    series = results.series()
+    times = 0.01 * np.arange(301)
+    for point, row in p.iterrows():
+        want = exact(row["e"], row["t_kick"], times)
+        mine = series[series["point"] == point]
+        h = mine[mine["variable"] == "h"].sort_values("time")["value"].to_numpy()
+        v = mine[mine["variable"] == "v"].sort_values("time")["value"].to_numpy()
+        # The motion is a parabola between events, which DOP853 follows to rounding; the
+        # bounce times are located to a few ulps.
+        np.testing.assert_allclose(h, want[:, 0], rtol=0, atol=1e-10)
+        np.testing.assert_allclose(v, want[:, 1], rtol=0, atol=1e-10)
+        assert (row["bounces"], row["kicks"]) == tuple(want[-1, 2:]), row
+        assert row["events"] == row["bounces"] + row["kicks"], row
+    assert p["events"].sum() > 30
+
+
+def _states(fmu, out, tolerance, interface):
+    spec = grid_spec(stop=5.0)
+    spec["scenario"]["tolerance"] = tolerance
+    spec["scenario"]["interface"] = interface
+    spec["outputs"]["series"] = {"variables": STATES}
+    results = sweep(spec, fmu, out)
+    series = results.series().sort_values(["point", "variable", "time"])
+    return results.points, series.reset_index(drop=True)
+
+
+@pytest.mark.parametrize("tolerance", [1e-6, 1e-8])
+def test_this_fmus_model_exchange_keeps_the_tolerance_at_every_point(fmu_path, tmp_path,
+                                                                      tolerance):
+    _, reference = _states(fmu_path, tmp_path / "ref", 1e-12, "co_simulation")
+    points, mine = _states(fmu_path, tmp_path / "me", tolerance, "model_exchange")
+    assert (points["status"] == "ok").sum() == 8 and (points["status"] == "error").sum() == 4
+    assert len(mine) == len(reference) > 8 * 8 * 500
+    assert (mine[["point", "variable", "time"]] == reference[["point", "variable", "time"]]).all().all()
+    scaled = (mine["value"] - reference["value"]).abs() / (1 + reference["value"].abs())
+    assert scaled.max() <= 10 * tolerance, scaled.max()
+    assert scaled.max() > 0  # a different integration, not a copy of the co-simulation
+
+
+def test_an_fmu_with_only_model_exchange_runs_through_it(fmu_path, tmp_path):
+    def without_co_simulation(name, data):
+        if name != "modelDescription.xml":
+            return data
+        return re.sub(rb"<CoSimulation[^>]*/>", b"", data)
+    only = repacked(fmu_path, tmp_path / "OnlyME.fmu", without_co_simulation)
+    spec = grid_spec()
+    chosen = sweep({**spec, "scenario": {**spec["scenario"], "interface": "model_exchange"}},
+                   fmu_path, tmp_path / "chosen")
+    alone = sweep(spec, only, tmp_path / "alone")
+    assert (alone.points["status"] == "ok").sum() == 8
+    # The same integration either way (the point ids differ: the specs do).
+    columns = ["status", "message", "t_end", "steps", "events"] + METRICS
+    assert chosen.points[columns].equals(alone.points[columns])
+    with pytest.raises(RunnerError, match="no CoSimulation interface"):
+        sweep({**spec, "scenario": {**spec["scenario"], "interface": "co_simulation"}},
+              only, tmp_path / "refused")
+
+
+def test_a_wrong_interface_is_refused_by_name(fmu_path, motor_path, tmp_path):
+    spec = grid_spec()
+    spec["scenario"]["interface"] = "model-exchange"
+    with pytest.raises(SpecError, match=r"scenario\.interface.*'model_exchange'"):
+        sweep(spec, fmu_path, tmp_path / "a")
+    coupled = system_spec(fmu_path, motor_path)
+    coupled["scenario"]["interface"] = "model_exchange"
+    with pytest.raises(SpecError, match=r"scenario\.interface.*co-simulation"):
+        run_sweep(coupled, out=tmp_path / "b", serial=True, progress=False, plots=False)
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b" / "points.parquet").exists()
