@@ -626,6 +626,15 @@ impl Plant {
         Ok(var.slot)
     }
 
+    /// The Model Exchange states' derivatives, `Local::Derivative(0..6)` in one call: the
+    /// accelerations are computed once (each slot alone computes them all), the same
+    /// numbers bit for bit.
+    pub fn exchange_derivatives(&self) -> [f64; 6] {
+        let (y, lead) = (&self.state, self.chart.leader());
+        let a = model::accelerations(&self.params, &self.inputs, y).omega_dot;
+        [y[4], y[lead + 4], y[7], a[0], a[lead], a[3]]
+    }
+
     /// The event indicator of the leading angle's chart at the current configuration:
     /// positive while it determines the loop (docs/model.md §6).
     pub fn handover_indicator(&self) -> f64 {
