@@ -37,6 +37,9 @@ static inline int ball_allowed(unsigned vr, double x) {
     return vr >= VR_G && vr <= VR_DV;
 }
 
+/* Whether a parameter may change after initialisation (in event mode): e alone, which
+ * takes effect at the next bounce. */
+static inline int ball_tunable(unsigned vr) { return vr == VR_E; }
 static inline void ball_start(Ball *b) {
     b->x[VR_H] = b->x[VR_H0];
     b->x[VR_V] = b->x[VR_V0];

@@ -51,7 +51,16 @@ class Variables:
         for name in scenario.parameters:
             errors.run(lambda: self.get(name, f"scenario.parameters.{name}", SETTABLE, VALUE_TYPES))
         for name in scenario.inputs:
-            errors.run(lambda: self.get(name, f"scenario.inputs.{name}", ("input",), ("real",)))
+            errors.run(lambda: self.driven(name, f"scenario.inputs.{name}"))
+
+    def driven(self, name: str, where: str) -> Variable:
+        """A variable a table may drive over the run: a Real input, or a tunable Real
+        parameter (which the runner sets in event mode where the FMU has one)."""
+        v = self.get(name, where, ("input", "parameter"), ("real",), what="input")
+        if v["causality"] == "parameter" and v["variability"] != "tunable":
+            raise SpecError(where, f"{name} is a {v['variability']} parameter; only inputs and "
+                                   f"tunable parameters can change during a run")
+        return v
 
     def check_columns(self, names: list[str], columns: Sequence[Rows], field: str) -> None:
         """Each column of a design (or a fit's parameters) is a settable variable, and the

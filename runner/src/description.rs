@@ -70,7 +70,28 @@ pub struct Description {
     pub variables: Vec<Variable>,
 }
 
+impl Variable {
+    /// A parameter the master may change after initialisation (in event mode where the
+    /// FMU has one).
+    pub fn is_tunable(&self) -> bool {
+        self.causality == "parameter" && self.variability == "tunable"
+    }
+}
+
 impl Description {
+    /// The value references of the tunable parameters, sorted.
+    pub fn tunable(&self) -> Vec<u32> {
+        let mut found: Vec<u32> = self
+            .variables
+            .iter()
+            .filter(|v| v.is_tunable())
+            .map(|v| v.value_reference)
+            .collect();
+        found.sort_unstable();
+        found.dedup();
+        found
+    }
+
     pub fn read(dir: &Path) -> Result<Self, String> {
         let path = dir.join("modelDescription.xml");
         let xml = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;

@@ -52,10 +52,12 @@ const MAX_EVENTS_AT_ONE_TIME: u32 = 1_000;
 const EVENT_ULPS: f64 = 4.0;
 
 /// What a Model Exchange run needs to know of the FMU beyond its instance.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Shape {
     pub states: usize,
     pub indicators: usize,
+    /// The tunable parameters, sorted: set in event mode once integrating.
+    pub tunable: Vec<u32>,
 }
 
 impl Shape {
@@ -279,13 +281,13 @@ impl Exchange {
     pub fn new(fmu: Instance, shape: Shape) -> Exchange {
         Exchange {
             fmu,
-            shape,
             tolerance: DEFAULT_TOLERANCE,
             stop: f64::INFINITY,
             nominals: vec![1.0; shape.states],
             indicators: vec![0.0; shape.indicators],
             probe: vec![0.0; shape.indicators],
             x: vec![0.0; shape.states],
+            shape,
             integration: None,
             next_time_event: None,
             pending: None,
@@ -437,14 +439,9 @@ impl Exchange {
     fn after_step(&mut self, start: f64) -> Status {
         let integration = self.integration.as_mut().expect("integrating");
         let end = integration.now(&mut self.x, &self.nominals);
-        let s = self
-            .fmu
-            .set_time(end)
-            .max(self.fmu.set_continuous_states(&self.x));
-        if !s.proceeds() {
-            return s;
-        }
-        let s = s.max(self.fmu.get_event_indicators(&mut self.probe));
+        // DOP853's last evaluation of a step is f at its end (the next step's first
+        // stage): the FMU holds that time and state already.
+        let s = self.fmu.get_event_indicators(&mut self.probe);
         if !s.proceeds() {
             return s;
         }
@@ -601,13 +598,35 @@ macro_rules! to_instance {
 impl Unit for Exchange {
     to_instance!(
         enter_initialization_mode(),
-        set_real(vr: &[u32], values: &[f64]) => true,
         set_integer(vr: &[u32], values: &[i32]) => true,
         set_boolean(vr: &[u32], values: &[i32]) => true,
         get_real(vr: &[u32], values: &mut [f64]),
         get_integer(vr: &[u32], values: &mut [i32]),
         get_boolean(vr: &[u32], values: &mut [i32]),
     );
+
+    /// Real values; once integrating, a tunable parameter among them is set in event
+    /// mode at the communication point (the only mode that takes it), and the
+    /// integration restarts there.
+    fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
+        let tunable = |r: &u32| self.shape.tunable.binary_search(r).is_ok();
+        if self.integration.is_none() || !vr.iter().any(tunable) {
+            if self.integration.is_some() {
+                self.inputs_changed = true;
+            }
+            return self.fmu.set_real(vr, values);
+        }
+        let s = self.fmu.enter_event_mode();
+        if !s.proceeds() {
+            return s;
+        }
+        let s = s.max(self.fmu.set_real(vr, values));
+        if !s.proceeds() {
+            return s;
+        }
+        self.inputs_changed = false;
+        s.max(self.settle(self.now))
+    }
 
     fn reset(&mut self) -> Status {
         self.integration = None;

@@ -287,8 +287,12 @@ fn buffer_layout(vars: &[&Variable]) -> Vec<usize> {
 
 fn resolve_input(description: &Description, name: &str, table: TableSpec) -> Result<Input, String> {
     let variable = description.variable(name)?;
-    if variable.causality != "input" || variable.base_type != BaseType::Real {
-        return Err(format!("{name} is not a Real input of the FMU"));
+    if !(variable.causality == "input" || variable.is_tunable())
+        || variable.base_type != BaseType::Real
+    {
+        return Err(format!(
+            "{name} is neither a Real input nor a tunable Real parameter of the FMU"
+        ));
     }
     if table.times.is_empty() || table.times.len() != table.values.len() {
         return Err(format!(

@@ -255,6 +255,7 @@ fn fmu_target(
             let shape = Shape {
                 states: description.continuous_states,
                 indicators: description.event_indicators,
+                tunable: description.tunable(),
             };
             shape.check()?;
             Target::Exchange(library, shape)

@@ -25,9 +25,10 @@ impl Target {
     pub fn instantiate(&self) -> Result<Running, String> {
         Ok(match self {
             Target::Fmu(library) => Running::Fmu(Instance::new(library, c"sweep")?),
-            Target::Exchange(library, shape) => {
-                Running::Exchange(Exchange::new(Instance::new(library, c"sweep")?, *shape))
-            }
+            Target::Exchange(library, shape) => Running::Exchange(Exchange::new(
+                Instance::new(library, c"sweep")?,
+                shape.clone(),
+            )),
             Target::System(system) => Running::System(SystemInstance::new(system)?),
         })
     }

@@ -13,10 +13,10 @@ from fmusweep import SpecError, run_sweep
 G, H0, V_MIN, DV = 9.81, 1.0, 0.1, 3.0
 
 
-def exact(e, t_kick, times):
+def exact(e, t_kick, times, e_after=None, t_change=np.inf):
     """(h, v, bounces, kicks) at each of `times`, event by event in closed form: between
-    events h = h0 + v0·τ − g·τ²/2; a contact reverses v times e (at rest below V_MIN); the
-    kick adds DV to v."""
+    events h = h0 + v0·τ − g·τ²/2; a contact reverses v times e (at rest below V_MIN), e
+    becoming `e_after` from `t_change` on; the kick adds DV to v."""
     rows, t, h, v, bounces, kicks, resting = [], 0.0, H0, 0.0, 0, 0, False
     for target in times:
         while True:
@@ -31,7 +31,7 @@ def exact(e, t_kick, times):
             if when == kick:
                 v, kicks, resting = v + DV, kicks + 1, resting and v + DV <= 0
             else:
-                h, v, bounces = 0.0, -e * v, bounces + 1
+                h, v, bounces = 0.0, -(e if when < t_change else e_after) * v, bounces + 1
                 if v < V_MIN:
                     v, resting = 0.0, True
         if not resting:

@@ -99,3 +99,37 @@ def test_a_wrong_interface_is_refused_by_name(fmu_path, motor_path, tmp_path):
     with pytest.raises(SpecError, match=r"scenario\.interface.*co-simulation"):
         run_sweep(coupled, out=tmp_path / "b", serial=True, progress=False, plots=False)
     assert not (tmp_path / "a").exists() and not (tmp_path / "b" / "points.parquet").exists()
+
+
+@pytest.mark.parametrize("kind", ["co_simulation_fmi3", "model_exchange_fmi2", "model_exchange_fmi3"])
+def test_a_tunable_parameter_driven_by_a_table_changes_in_event_mode(ball_path, ball_me_paths,
+                                                                      tmp_path, kind):
+    """The restitution e, tunable, from 0.8 to 0.5 between t = 1.0 and 1.01 (a table the
+    runner sets at each communication point where it changed): each FMU takes it in event
+    mode, and every later bounce uses it."""
+    fmu = {"co_simulation_fmi3": ball_path, "model_exchange_fmi2": ball_me_paths["2.0"],
+           "model_exchange_fmi3": ball_me_paths["3.0"]}[kind]
+    spec = ball_spec(t_kick={"values": [0.5, 2.345]})
+    spec["scenario"]["tolerance"] = 1e-8
+    spec["scenario"]["inputs"] = {"e": {"times": [0.0, 1.0, 1.01], "values": [0.8, 0.8, 0.5]}}
+    results = sweep(spec, fmu, tmp_path / "out")
+    p = results.points
+    assert (p["status"] == "ok").all(), p["message"]
+    series = results.series()
+    times = 0.01 * np.arange(301)
+    for point, row in p.iterrows():
+        want = exact(0.8, row["t_kick"], times, e_after=0.5, t_change=1.01)
+        mine = series[series["point"] == point]
+        h = mine[mine["variable"] == "h"].sort_values("time")["value"].to_numpy()
+        np.testing.assert_allclose(h, want[:, 0], rtol=0, atol=1e-10)
+        assert (row["bounces"], row["kicks"]) == tuple(want[-1, 2:]), row
+    # Held at 0.8 the motion differs: the change took effect.
+    held = exact(0.8, 0.5, times)
+    assert abs(held[-1, 0] - exact(0.8, 0.5, times, 0.5, 1.01)[-1, 0]) > 1e-3
+
+
+def test_a_fixed_parameter_cannot_be_driven_by_a_table(fmu_path, tmp_path):
+    spec = grid_spec()
+    spec["scenario"]["inputs"] = {"l3": {"times": [0.0, 1.0], "values": [0.5, 0.6]}}
+    with pytest.raises(SpecError, match=r"scenario\.inputs\.l3.*tunable"):
+        sweep(spec, fmu_path, tmp_path / "out")

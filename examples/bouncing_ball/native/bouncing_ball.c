@@ -208,8 +208,11 @@ FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueRefe
     for (size_t i = 0; i < n; i++) {
         char why[160];
         if (!parameter(vr[i])) return refuse(b, "fmi3SetFloat64: only the parameters can be set");
-        if (b->mode != INSTANTIATED && b->mode != INITIALIZATION)
-            return refuse(b, "fmi3SetFloat64: the parameters are fixed after initialisation");
+        int tunable_now = ball_tunable(vr[i]) &&
+                          (b->mode == EVENT || (b->mode == STEP && !b->event_mode));
+        if (b->mode != INSTANTIATED && b->mode != INITIALIZATION && !tunable_now)
+            return refuse(b, "fmi3SetFloat64: the parameters are fixed after initialisation "
+                             "(e, tunable, may change in event mode, or in step mode without it)");
         double x = values[i];
         if (!ball_allowed(vr[i], x)) {
             snprintf(why, sizeof why, "fmi3SetFloat64: value reference %u = %g is out of range "

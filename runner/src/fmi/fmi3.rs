@@ -28,6 +28,8 @@ pub struct Library {
     resource_path: CString,
     /// Whether co-simulation instances use the FMU's event mode (its hasEventMode).
     event_mode: bool,
+    /// The tunable parameters, sorted: with event mode, set in event mode once stepping.
+    tunable: Vec<u32>,
     /// The value references of enumerations, which FMI 3.0 sets and gets as Int64 (Int32
     /// variables use the Int32 functions), sorted.
     int64: Vec<u32>,
@@ -79,6 +81,7 @@ impl Library {
             resource_path: CString::new(folder.to_string_lossy().into_owned())
                 .map_err(|e| e.to_string())?,
             event_mode,
+            tunable: description.tunable(),
             int64,
             status_categories: description
                 .log_categories
@@ -284,6 +287,8 @@ pub struct Instance {
     experiment: (Option<f64>, f64, f64),
     /// Events handled since the instance was made or last reset.
     events: u64,
+    /// Initialised and in step mode (until reset): a tunable parameter is set in event mode.
+    stepping: bool,
     /// Booleans as FMI 3.0 passes them (one byte each), for the callers' 0/1 integers.
     booleans: Vec<bool>,
 }
@@ -312,6 +317,7 @@ impl Instance {
             saved: std::ptr::null_mut(),
             experiment: (None, 0.0, 0.0),
             events: 0,
+            stepping: false,
             booleans: Vec::new(),
         })
     }
@@ -326,6 +332,7 @@ impl Instance {
 
     pub fn reset(&mut self) -> Status {
         self.events = 0;
+        self.stepping = false;
         // SAFETY: a live instance of this binding.
         Status::from_code(unsafe { self.b().fmi3Reset(self.instance) })
     }
@@ -356,12 +363,35 @@ impl Instance {
         // SAFETY: a live instance.
         let s = Status::from_code(unsafe { self.b().fmi3ExitInitializationMode(self.instance) });
         if !s.proceeds() || !self.library.event_mode {
+            self.stepping = s.proceeds();
             return s;
         }
-        s.max(self.settle_and_step())
+        let s = s.max(self.settle_and_step());
+        self.stepping = s.proceeds();
+        s
     }
 
+    /// Float64 values; once stepping with event mode, a tunable parameter among them is
+    /// set in event mode (entered for it, its discrete states settled, back to step mode),
+    /// as FMI 3.0 allows it there only.
     pub fn set_real(&mut self, vr: &[u32], values: &[f64]) -> Status {
+        let tunable = |r: &u32| self.library.tunable.binary_search(r).is_ok();
+        if self.stepping && self.library.event_mode && vr.iter().any(tunable) {
+            // SAFETY: a live instance in step mode.
+            let s = Status::from_code(unsafe { self.b().fmi3EnterEventMode(self.instance) });
+            if !s.proceeds() {
+                return s;
+            }
+            let s = s.max(self.set_float64(vr, values));
+            if !s.proceeds() {
+                return s;
+            }
+            return s.max(self.settle_and_step());
+        }
+        self.set_float64(vr, values)
+    }
+
+    fn set_float64(&mut self, vr: &[u32], values: &[f64]) -> Status {
         assert_eq!(vr.len(), values.len());
         if vr.is_empty() {
             return Status::Ok;

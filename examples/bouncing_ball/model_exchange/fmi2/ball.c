@@ -164,8 +164,10 @@ FMI2_Export fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[
                                    const fmi2Real values[]) {
     Instance *m = c;
     for (size_t i = 0; i < n; i++) {
-        if (m->mode != INSTANTIATED && m->mode != INITIALIZATION)
-            return refuse(m, "fmi2SetReal: the parameters are fixed after initialisation");
+        if (m->mode != INSTANTIATED && m->mode != INITIALIZATION &&
+            !(m->mode == EVENT && ball_tunable(vr[i])))
+            return refuse(m, "fmi2SetReal: the parameters are fixed after initialisation "
+                             "(e, tunable, may change in event mode)");
         if (!ball_allowed(vr[i], values[i]))
             return refuse(m, "fmi2SetReal: a value out of range or not a parameter "
                              "(g > 0, 0 <= e < 1, h0 >= 0, v_min > 0)");

@@ -168,8 +168,10 @@ FMI3_Export fmi3Status fmi3SetFloat64(fmi3Instance instance, const fmi3ValueRefe
     Instance *m = instance;
     if (n != nv) return refuse(m, "fmi3SetFloat64: one value per value reference");
     for (size_t i = 0; i < n; i++) {
-        if (m->mode != INSTANTIATED && m->mode != INITIALIZATION)
-            return refuse(m, "fmi3SetFloat64: the parameters are fixed after initialisation");
+        if (m->mode != INSTANTIATED && m->mode != INITIALIZATION &&
+            !(m->mode == EVENT && ball_tunable(vr[i])))
+            return refuse(m, "fmi3SetFloat64: the parameters are fixed after initialisation "
+                             "(e, tunable, may change in event mode)");
         if (!ball_allowed(vr[i], values[i]))
             return refuse(m, "fmi3SetFloat64: a value out of range or not a parameter "
                              "(g > 0, 0 <= e < 1, h0 >= 0, v_min > 0)");
