@@ -1,5 +1,6 @@
 """The sweep benchmark: points per second per worker against a bare C-ABI master loop and
-FMPy's simulate_fmu, Dask's share of the wall time, scaling from 1 to 2 workers, the
+FMPy's simulate_fmu, each kind of FMU the sweep takes (FMI 2.0 and 3.0 Co-Simulation, Model
+Exchange integrated by the runner, against FMPy's Model Exchange), Dask's share of the wall time, scaling from 1 to 2 workers, the
 per-task cost behind the cluster sizing advice, worker memory over 100 000 points,
 every process's memory over a 10⁶-point sweep (10⁴ with --quick), and the client's
 high-water mark against the sweep's size (9·10⁴ and 10⁶ points).
@@ -58,11 +59,6 @@ def per_worker_rates(fmu, n, repeats):
     runner.configure(plan)
     r = rows(n)
 
-    def timed(f):
-        t0 = time.perf_counter()
-        f()
-        return time.perf_counter() - t0
-
     bare = best_of(repeats, lambda: runner.bare(["k34"], r))
     metrics = best_of(repeats, lambda: timed(lambda: runner.run(["k34"], r)))
     runner.configure(dict(plan, series={"variables": ["rod_force", "omega1", "n_rhs"], "every": 1}))
@@ -101,6 +97,72 @@ def per_worker_rates(fmu, n, repeats):
         "simulate_fmu": rate(simulate_fmu),
         "simulate_fmu_all_outputs": rate(simulate_fmu_all),
     }
+
+
+STATES = ["phi1", "omega1", "phi2", "omega2", "phi3", "omega3", "phi4", "omega4"]
+
+
+def timed(f):
+    t0 = time.perf_counter()
+    f()
+    return time.perf_counter() - t0
+
+
+def interface_rates(fmu, n, repeats):
+    """Points/s of one worker through the runner for each kind of FMU the sweep takes, on
+    paper case 1 (10 s, H = 0.01, tol 1e-8, metrics only): the FMU's FMI 2.0 and FMI 3.0
+    Co-Simulation archives, its Model Exchange interface integrated by the runner's DOP853,
+    and FMPy's simulate_fmu through Model Exchange (CVODE at the same tolerance); and the
+    Model Exchange run's worst state error at every communication point against the
+    Co-Simulation at tol 1e-12, scaled by 1 + |reference|."""
+    fmi3 = fmu.with_name("CyclicMechanism-fmi3.fmu")
+    plan = {"start": 0.0, "stop": 10.0, "step": 0.01, "tolerance": 1e-8, "fixed": PAPER_LAWS,
+            "metrics": [{"variable": m["variable"], "kind": m["kind"], "from": m.get("from")}
+                        for m in METRICS.values() if m["variable"] != "n_rhs"],
+            "series": None, "timeout_s": None}
+    r = rows(n)
+
+    def rate(archive, interface):
+        runner = local_runner(Archive.read(archive))
+        runner.configure(dict(plan, interface=interface))
+        return n / best_of(repeats, lambda: timed(lambda: runner.run(["k34"], r)))
+
+    found = {"points": n, "co_simulation_fmi2": rate(fmu, "co_simulation"),
+             "model_exchange_fmi2": rate(fmu, "model_exchange")}
+    if fmi3.exists():
+        found["co_simulation_fmi3"] = rate(fmi3, "co_simulation")
+        found["model_exchange_fmi3"] = rate(fmi3, "model_exchange")
+    import fmpy
+    unzipped = fmpy.extract(str(fmu))
+    k = max(3, n // 100)
+
+    def simulate():
+        for k34 in r[:k, 0]:
+            fmpy.simulate_fmu(unzipped, fmi_type="ModelExchange", stop_time=10.0,
+                              start_values=dict(PAPER_LAWS, k34=k34), output_interval=0.01,
+                              relative_tolerance=1e-8, output=["rod_force", "omega1"])
+    found["simulate_fmu_model_exchange"] = k / best_of(repeats, lambda: timed(simulate))
+    found["model_exchange_error"] = model_exchange_error(fmu)
+    return found
+
+
+def model_exchange_error(fmu, points=5):
+    """The worst scaled state error of the Model Exchange sweep at every communication
+    point, against the Co-Simulation sweep at tol 1e-12, for tol 1e-6 and 1e-8."""
+    def states(tolerance, interface):
+        s = spec(points, series=False)
+        s["scenario"].update(tolerance=tolerance, interface=interface)
+        s["outputs"]["series"] = {"variables": STATES}
+        with tempfile.TemporaryDirectory() as out:
+            series = run_sweep(s, fmu=fmu, out=pathlib.Path(out) / "s", serial=True,
+                               progress=False, plots=False).series()
+        return series.sort_values(["point", "variable", "time"])["value"].to_numpy()
+    reference = states(1e-12, "co_simulation")
+    found = {}
+    for tolerance in (1e-6, 1e-8):
+        mine = states(tolerance, "model_exchange")
+        found[str(tolerance)] = float((abs(mine - reference) / (1 + abs(reference))).max())
+    return found
 
 
 def dask_runs(fmu, n_scaling, n_small, repeats=3):
@@ -301,6 +363,7 @@ def report(r) -> str:
     lines += ["", f"Sweep (metrics) against simulate_fmu per worker: "
               f"{w['sweep_serial_metrics'] / w['simulate_fmu']:.0f}× (the same 3 outputs), "
               f"{w['sweep_serial_metrics'] / w['simulate_fmu_all_outputs']:.0f}× (its default outputs).", "",
+              ] + interface_report(r["interfaces"]) + [
               "| LocalCluster (fastest of 3) | points/s | batch | batches | Dask's share of the dispatch time | start-up s |",
               "| --- | --- | --- | --- | --- | --- |"]
     for n in (1, 2):
@@ -348,6 +411,27 @@ def report(r) -> str:
     return "\n".join(lines) + "\n"
 
 
+def interface_report(k) -> list[str]:
+    cs = k["co_simulation_fmi2"]
+    lines = ["Each kind of FMU the sweep takes, one worker, the runner through its Python client "
+             f"(paper case 1, metrics only, {k['points']} points; FMPy per point):", "",
+             "| kind | points/s | of FMI 2.0 Co-Simulation |", "| --- | --- | --- |"]
+    for key, label in (("co_simulation_fmi2", "FMI 2.0 Co-Simulation (the FMU's own integrator)"),
+                       ("co_simulation_fmi3", "FMI 3.0 Co-Simulation, event mode"),
+                       ("model_exchange_fmi2", "FMI 2.0 Model Exchange, the runner's DOP853"),
+                       ("model_exchange_fmi3", "FMI 3.0 Model Exchange, the runner's DOP853"),
+                       ("simulate_fmu_model_exchange", "FMPy simulate_fmu, Model Exchange (CVODE)")):
+        if k.get(key):
+            lines.append(f"| {label} | {k[key]:,.1f} | {k[key] / cs:.1%} |")
+    e = k["model_exchange_error"]
+    lines += ["", f"Model Exchange through the runner against FMPy's: "
+              f"{k['model_exchange_fmi2'] / k['simulate_fmu_model_exchange']:.0f}×. Its worst "
+              f"state error at every communication point, against the Co-Simulation at tol "
+              f"1e-12 (scaled by 1 + |reference|): {e['1e-06']:.2e} at tol 1e-6, "
+              f"{e['1e-08']:.2e} at tol 1e-8.", ""]
+    return lines
+
+
 def main():
     fmu, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
     quick = "--quick" in sys.argv
@@ -355,6 +439,8 @@ def main():
     r = {"machine": machine(), "quick": quick}
     print("bench-sweep: per-worker rates", flush=True)
     r["per_worker"] = per_worker_rates(fmu, 200 if quick else 2000, 2 if quick else 5)
+    print("bench-sweep: each kind of FMU", flush=True)
+    r["interfaces"] = interface_rates(fmu, 100 if quick else 1000, 2 if quick else 5)
     print("bench-sweep: Dask runs", flush=True)
     r["dask"] = dask_runs(fmu, 1000 if quick else 8000, 1000)
     print("bench-sweep: an SSP system through FMPy", flush=True)

@@ -51,6 +51,29 @@ def test_a_real_scheduler_and_workers_give_the_serial_results(fmu_path, tmp_path
     assert {"w0", "w1"} <= set(results.points["worker"])
 
 
+def test_every_kind_of_fmu_on_a_real_scheduler_gives_the_serial_results(
+        fmu_path, fmu3_path, ball_me_paths, tmp_path, dask_cluster):
+    """FMI 3.0 Co-Simulation, and Model Exchange (this FMU's, and a ball's with events),
+    on the scheduler's workers as in this process."""
+    me = grid_spec()
+    me["scenario"]["interface"] = "model_exchange"
+    ball = {"scenario": {"stop": 2.0, "step": 0.01},
+            "design": {"kind": "grid", "parameters": {"e": {"linspace": [0.4, 0.9, 6]},
+                                                      "t_kick": {"values": [0.5, 1.234]}}},
+            "outputs": {"metrics": {"h_end": {"variable": "h", "kind": "final"},
+                                    "bounces": {"variable": "n_bounces", "kind": "final"}}}}
+    for name, spec, fmu, metrics in (("fmi3", grid_spec(), fmu3_path, METRICS),
+                                     ("me", me, fmu_path, METRICS[:2]),
+                                     ("ball", ball, ball_me_paths["3.0"], ["h_end", "bounces"])):
+        serial = run_sweep(spec, fmu=fmu, out=tmp_path / f"{name}-serial", serial=True,
+                           progress=False, plots=False)
+        remote = run_sweep(spec, fmu=fmu, out=tmp_path / name, scheduler=dask_cluster,
+                           batch_size=2, progress=False, plots=False)
+        assert same_results(remote.points, serial.points, metrics + ["events"]), name
+        assert {"w0", "w1"} <= set(remote.points["worker"]), name
+        assert (serial.points["status"] == "ok").sum() >= 6, name
+
+
 def test_a_crash_on_a_worker_is_one_row(tmp_path):
     fmu = faulty_fmu(tmp_path)
     xs = [float(x) for x in range(1, 31) if x not in (3, 5, 7, 21)]
