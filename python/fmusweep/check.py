@@ -34,6 +34,7 @@ class Variables:
 
     def __init__(self, description: dict[str, Any]):
         self.by_name: dict[str, Variable] = {v["name"]: v for v in description["variables"]}
+        self.description = description
 
     def get(self, name: str, where: str, causalities: Sequence[str] | None = None,
             types: Sequence[str] | None = None, what: str = "variable") -> Variable:
@@ -48,10 +49,27 @@ class Variables:
         return v
 
     def check_scenario(self, scenario: Scenario, errors: Collector) -> None:
+        errors.run(lambda: self.check_interface(scenario))
         for name in scenario.parameters:
             errors.run(lambda: self.get(name, f"scenario.parameters.{name}", SETTABLE, VALUE_TYPES))
         for name in scenario.inputs:
             errors.run(lambda: self.driven(name, f"scenario.inputs.{name}"))
+
+    def check_interface(self, scenario: Scenario) -> None:
+        """The interface asked for is the FMU's; an integrator is asked for only where the
+        runner integrates (Model Exchange)."""
+        co_simulation = bool(self.description.get("model_identifier"))
+        exchange = bool(self.description.get("exchange_identifier"))
+        for name, has in (("co_simulation", co_simulation), ("model_exchange", exchange)):
+            if scenario.interface == name and not has:
+                raise SpecError("scenario.interface", f"the FMU has no {name} interface")
+        runs_exchange = scenario.interface == "model_exchange" or (
+            scenario.interface is None and not co_simulation)
+        if scenario.integrator is not None and not runs_exchange:
+            raise SpecError("scenario.integrator", "applies to Model Exchange only: this FMU "
+                                                   "runs through its co_simulation interface, "
+                                                   "which integrates itself (set interface = "
+                                                   "\"model_exchange\")")
 
     def driven(self, name: str, where: str) -> Variable:
         """A variable a table may drive over the run: a Real input, or a tunable Real

@@ -46,6 +46,7 @@ class Plan(TypedDict):
     series: SeriesPlan | None
     timeout_s: float | None
     interface: NotRequired[str | None]  # "co_simulation" or "model_exchange"
+    integrator: NotRequired[str | None]  # "dop853" or "radau5" (Model Exchange)
 
 
 class CouplingRecord(TypedDict):

@@ -16,6 +16,7 @@ A specification is a TOML file or the equivalent dict::
     step = 0.01                        # communication step
     tolerance = 1e-8                   # optional: passed to fmi2SetupExperiment
     interface = "model_exchange"       # optional: the FMU's ME interface, integrated here
+    integrator = "radau5"              # optional, Model Exchange: dop853 (default) or radau5
     timeout = 60.0                     # optional: wall-time budget per point, seconds
     parameters = { d34 = 0.5 }         # fixed for every point (a Boolean: true or false)
     inputs = { M_r = 5.0, M_m = { times = [0, 1], values = [0, 10] } }
@@ -81,6 +82,9 @@ class MetricSpec:
 # The interfaces a single FMU may run through (``[scenario] interface``): a Model Exchange
 # FMU's states are integrated by the runner's DOP853 at the scenario's tolerance.
 INTERFACES = ("co_simulation", "model_exchange")
+# What integrates a Model Exchange FMU (``[scenario] integrator``): DOP853 by default, or
+# Radau IIA for a stiff one.
+INTEGRATORS = ("dop853", "radau5")
 
 
 @dataclass(frozen=True)
@@ -97,6 +101,8 @@ class Scenario:
     # "co_simulation" or "model_exchange": the interface an FMU with both runs through
     # (None: co-simulation where the FMU has it).
     interface: str | None = None
+    # "dop853" or "radau5": what integrates a Model Exchange FMU (None: DOP853).
+    integrator: str | None = None
 
     @property
     def steps(self) -> int:
@@ -106,7 +112,7 @@ class Scenario:
     def of(raw: dict[str, Any]) -> "Scenario":
         scenario = _table(raw, "scenario", "spec", required=True)
         _only(scenario, "scenario", {"start", "stop", "step", "tolerance", "timeout", "parameters", "inputs",
-                                     "interface"})
+                                     "interface", "integrator"})
         start = _number(scenario.get("start", 0.0), "scenario.start")
         stop = _number(scenario.get("stop"), "scenario.stop")
         step = _number(scenario.get("step"), "scenario.step")
@@ -139,7 +145,12 @@ class Scenario:
         if interface is not None and interface not in INTERFACES:
             raise SpecError("scenario.interface", f"must be one of {', '.join(map(repr, INTERFACES))}, "
                                                   f"got {interface!r}")
-        return Scenario(start, stop, step, tolerance, timeout, parameters, inputs, interface)
+        integrator = scenario.get("integrator")
+        if integrator is not None and integrator not in INTEGRATORS:
+            raise SpecError("scenario.integrator", f"must be one of {', '.join(map(repr, INTEGRATORS))}, "
+                                                   f"got {integrator!r}")
+        return Scenario(start, stop, step, tolerance, timeout, parameters, inputs, interface,
+                        integrator)
 
     def refuse_also_set(self, name: str, where: str, what: str) -> None:
         """`name` is varied at `where` (a design column, a fitted parameter): refused if
@@ -161,7 +172,7 @@ class Scenario:
         return {"start": self.start, "stop": self.stop, "step": self.step,
                 "tolerance": tolerance, "fixed": self.parameters, "inputs": self.inputs,
                 "metrics": metrics, "series": series, "timeout_s": self.timeout,
-                "interface": self.interface}
+                "interface": self.interface, "integrator": self.integrator}
 
 
 def what_runs(raw: dict[str, Any], base_dir: pathlib.Path) -> tuple[str | None, str | None, System | None]:

@@ -1,12 +1,13 @@
 //! A Model Exchange FMU run as a co-simulation unit: the runner integrates its continuous
-//! states with the project's own DOP853 (the crate `integrators`, which the FMU's own
-//! co-simulation uses too), so that a point's master loop, metrics and series treat it like any
-//! other [`Unit`].
+//! states with the project's own DOP853 or Radau IIA (the crate `integrators`, which the
+//! FMU's own co-simulation uses too), so that a point's master loop, metrics and series
+//! treat it like any other [`Unit`].
 //!
-//! Between communication points the integrator steps freely, one accepted step at a time,
-//! past a communication point where no event intervenes (the state there comes from the
-//! step's dense output), and lands exactly on the FMU's next time event and on the stop
-//! time. After each accepted step:
+//! Between communication points the integrator steps freely, one accepted step at a time:
+//! DOP853 past a communication point where no event intervenes (the state there comes
+//! from the step's dense output), Radau IIA (whose collocation polynomial is only third
+//! order between its nodes) landing on each; both land exactly on the FMU's next time
+//! event and on the stop time. After each accepted step:
 //! - the event indicators at its end are compared with those at its start; where one
 //!   changed sign (the domain z > 0 was left or entered), the crossing is located on the
 //!   step's dense output by bisection to a few ulps of t, on the side where the sign has
@@ -26,7 +27,7 @@
 
 use std::cell::{Cell, RefCell};
 
-use integrators::{initial_step, Dop853, OdeSystem, SolverError, Stepper, Tolerances};
+use integrators::{initial_step, Dop853, OdeSystem, Radau5, SolverError, Stepper, Tolerances};
 
 use crate::fmi::{EventUpdate, Instance, Status};
 use crate::unit::Unit;
@@ -51,11 +52,32 @@ const MAX_EVENTS_AT_ONE_TIME: u32 = 1_000;
 /// Bisection on an event indicator stops when the bracket is this many ulps of t wide.
 const EVENT_ULPS: f64 = 4.0;
 
+/// The integration method of a Model Exchange run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    Dop853,
+    Radau5,
+}
+
+impl Method {
+    /// The method a plan names (`dop853` or `radau5`; DOP853 when it names none).
+    pub fn from_name(name: Option<&str>) -> Result<Method, String> {
+        match name {
+            None | Some("dop853") => Ok(Method::Dop853),
+            Some("radau5") => Ok(Method::Radau5),
+            Some(other) => Err(format!(
+                "integrator {other:?} is neither \"dop853\" nor \"radau5\""
+            )),
+        }
+    }
+}
+
 /// What a Model Exchange run needs to know of the FMU beyond its instance.
 #[derive(Clone, Debug)]
 pub struct Shape {
     pub states: usize,
     pub indicators: usize,
+    pub method: Method,
     /// The tunable parameters, sorted: set in event mode once integrating.
     pub tunable: Vec<u32>,
 }
@@ -143,15 +165,37 @@ trait Integration {
     fn step(&mut self, fmu: &mut Instance, nominals: &[f64], limit: f64) -> Result<f64, Failure>;
     /// The state at `t` within the last accepted step, into `x`; false when there is none.
     fn state_at(&mut self, fmu: &mut Instance, nominals: &[f64], t: f64, x: &mut [f64]) -> bool;
+    /// Whether the method's last evaluation in a step is f at the step's end, so that the
+    /// FMU holds the end's time and state after it.
+    fn evaluates_at_end(&self) -> bool;
 }
 
-/// DOP853's order, for Hairer's starting-step formula.
-const ORDER: i32 = 8;
+/// What the integration needs of a method beyond [`Stepper`].
+trait Stepping<const N: usize>: Stepper<N> {
+    /// The order in Hairer's starting-step formula.
+    const ORDER: i32;
+    /// Whether it steps past its target (DOP853, whose last evaluation of a step is f at
+    /// its end, the next step's first stage) rather than land on it (Radau IIA).
+    const STEPS_PAST_TARGET: bool;
+}
 
-/// DOP853 on `N` (padded) states. (Radau IIA lands on its target instead of stepping past
-/// it, so it cannot take the one free step at a time this integration needs.)
-struct Driver<const N: usize> {
-    method: Dop853<N>,
+impl<const N: usize> Stepping<N> for Dop853<N> {
+    const ORDER: i32 = 8;
+    const STEPS_PAST_TARGET: bool = true;
+}
+
+impl<const N: usize> Stepping<N> for Radau5<N> {
+    const ORDER: i32 = 5;
+    const STEPS_PAST_TARGET: bool = false;
+}
+
+/// The most times a landing method's call is retried shorter when a rejection made it
+/// take several steps (an event is located within one step).
+const MAX_RETRIES: u32 = 8;
+
+/// A method on `N` (padded) states.
+struct Driver<const N: usize, M> {
+    method: M,
     t: f64,
     y: [f64; N],
     tolerances: Tolerances,
@@ -166,7 +210,7 @@ fn scaled<'a>(fmu: &'a mut Instance, nominals: &'a [f64]) -> Scaled<'a> {
     }
 }
 
-impl<const N: usize> Integration for Driver<N> {
+impl<const N: usize, M: Stepping<N>> Integration for Driver<N, M> {
     fn restart(&mut self, t: f64, x: &[f64], nominals: &[f64]) {
         self.t = t;
         self.y = [0.0; N];
@@ -195,24 +239,47 @@ impl<const N: usize> Integration for Driver<N> {
                 (self.t, &self.y, &f0),
                 limit - self.t,
                 self.tolerances,
-                ORDER,
+                M::ORDER,
                 stats,
             );
             self.method.progress_mut().next_step = Some(h);
         }
-        let start = self.t;
-        // A target just past t: exactly one accepted step.
-        let target = self.t.next_up().min(limit);
-        let result = self
-            .method
-            .integrate(&system, &mut self.t, &mut self.y, target, limit);
-        if let Some(status) = system.failure.get() {
-            return Err(Failure::Fmu(status));
+        let (start, y0) = (self.t, self.y);
+        for _ in 0..MAX_RETRIES {
+            // DOP853 with a target just past t takes exactly one accepted step; Radau IIA
+            // lands on its target, so the target is its proposed step's end.
+            let target = if M::STEPS_PAST_TARGET {
+                self.t.next_up()
+            } else {
+                self.t + self.method.progress().next_step.unwrap_or(limit - self.t)
+            }
+            .min(limit);
+            let steps = self.method.statistics().n_steps;
+            let result = self
+                .method
+                .integrate(&system, &mut self.t, &mut self.y, target, limit);
+            if let Some(status) = system.failure.get() {
+                return Err(Failure::Fmu(status));
+            }
+            if let Err(e) = result {
+                return Err(Failure::Solver(e, system.discarded.get()));
+            }
+            let taken = self.method.statistics().n_steps - steps;
+            if taken <= 1 {
+                return Ok(start);
+            }
+            // A rejection shortened the first step and the call went on in more: again
+            // from the start, the first step as long as the steps taken were on average.
+            let shorter = (self.t - start) / taken as f64;
+            (self.t, self.y) = (start, y0);
+            self.method.invalidate();
+            self.method.progress_mut().next_step = Some(shorter);
         }
-        match result {
-            Ok(()) => Ok(start),
-            Err(e) => Err(Failure::Solver(e, system.discarded.get())),
-        }
+        Ok(start)
+    }
+
+    fn evaluates_at_end(&self) -> bool {
+        M::STEPS_PAST_TARGET
     }
 
     fn state_at(&mut self, fmu: &mut Instance, nominals: &[f64], t: f64, x: &mut [f64]) -> bool {
@@ -231,21 +298,30 @@ impl<const N: usize> Integration for Driver<N> {
     }
 }
 
-fn driver<const N: usize>(tolerances: Tolerances) -> Box<dyn Integration> {
-    Box::new(Driver {
-        method: Dop853::<N>::new(tolerances),
-        t: 0.0,
-        y: [0.0; N],
-        tolerances,
-    })
+fn driver<const N: usize>(method: Method, tolerances: Tolerances) -> Box<dyn Integration> {
+    let (t, y) = (0.0, [0.0; N]);
+    match method {
+        Method::Dop853 => Box::new(Driver {
+            method: Dop853::<N>::new(tolerances),
+            t,
+            y,
+            tolerances,
+        }),
+        Method::Radau5 => Box::new(Driver {
+            method: Radau5::<N>::new(tolerances),
+            t,
+            y,
+            tolerances,
+        }),
+    }
 }
 
 /// An integration for `states` states: the smallest compiled size that holds them.
-fn integration(states: usize, tolerances: Tolerances) -> Box<dyn Integration> {
+fn integration(states: usize, method: Method, tolerances: Tolerances) -> Box<dyn Integration> {
     macro_rules! sized {
         ($($n:literal)*) => {
             $(if states <= $n {
-                return driver::<$n>(tolerances);
+                return driver::<$n>(method, tolerances);
             })*
         };
     }
@@ -439,9 +515,17 @@ impl Exchange {
     fn after_step(&mut self, start: f64) -> Status {
         let integration = self.integration.as_mut().expect("integrating");
         let end = integration.now(&mut self.x, &self.nominals);
-        // DOP853's last evaluation of a step is f at its end (the next step's first
-        // stage): the FMU holds that time and state already.
-        let s = self.fmu.get_event_indicators(&mut self.probe);
+        let mut s = Status::Ok;
+        if !integration.evaluates_at_end() {
+            s = self
+                .fmu
+                .set_time(end)
+                .max(self.fmu.set_continuous_states(&self.x));
+            if !s.proceeds() {
+                return s;
+            }
+        }
+        let s = s.max(self.fmu.get_event_indicators(&mut self.probe));
         if !s.proceeds() {
             return s;
         }
@@ -660,7 +744,11 @@ impl Unit for Exchange {
             rtol: internal,
             atol: internal,
         };
-        self.integration = Some(integration(self.shape.states, tolerances));
+        self.integration = Some(integration(
+            self.shape.states,
+            self.shape.method,
+            tolerances,
+        ));
         s.max(self.settle_initial())
     }
 

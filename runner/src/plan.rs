@@ -27,6 +27,8 @@ pub struct PlanSpec {
     /// `co_simulation` or `model_exchange`: the interface a single FMU runs through (by
     /// default its co-simulation one where it has both).
     pub interface: Option<String>,
+    /// `dop853` (the default) or `radau5`: what integrates a Model Exchange FMU.
+    pub integrator: Option<String>,
 }
 
 /// A piecewise-linear signal, held beyond its ends; one point makes a constant.

@@ -16,7 +16,7 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 
 use crate::description::Description;
-use crate::exchange::Shape;
+use crate::exchange::{Method, Shape};
 use crate::fmi::{Interface, Library};
 use crate::plan::{Plan, PlanSpec};
 use crate::point::{Assignments, Runner};
@@ -55,8 +55,10 @@ enum Request {
 pub struct Session {
     dir: PathBuf,
     description: Description,
-    /// The interface a single FMU runs through (`None` for a system).
+    /// The interface a single FMU runs through (`None` for a system), and the method that
+    /// integrates it under Model Exchange.
     interface: Option<Interface>,
+    method: Method,
     runner: Runner,
     plan: Option<Plan>,
 }
@@ -70,22 +72,25 @@ impl Session {
         } else {
             let description = Description::read(dir)?;
             let interface = Interface::default_for(&description);
-            let target = fmu_target(dir, &description, interface)?;
+            let target = fmu_target(dir, &description, interface, Method::Dop853)?;
             (description, target, Some(interface))
         };
         Ok(Session {
             dir: dir.to_path_buf(),
             description,
             interface,
+            method: Method::Dop853,
             runner: Runner::new(target),
             plan: None,
         })
     }
 
-    /// Run the FMU through the interface a plan names (or, naming none, its default), if
-    /// it is not the one loaded: a runner kept between studies may have run another.
-    fn choose_interface(&mut self, name: Option<&str>) -> Result<(), String> {
-        let wanted = match name {
+    /// Run the FMU through the interface and the method a plan names (or, naming none,
+    /// the defaults), if they are not the ones loaded: a runner kept between studies may
+    /// have run others.
+    fn choose_interface(&mut self, plan: &PlanSpec) -> Result<(), String> {
+        let method = Method::from_name(plan.integrator.as_deref())?;
+        let wanted = match plan.interface.as_deref() {
             Some(name) => Interface::from_name(name)?,
             None if self.interface.is_none() => return Ok(()),
             None => Interface::default_for(&self.description),
@@ -96,10 +101,11 @@ impl Session {
                  co-simulation interfaces"
                     .into(),
             ),
-            Some(current) if current != wanted => {
-                let target = fmu_target(&self.dir, &self.description, wanted)?;
+            Some(current) if current != wanted || method != self.method => {
+                let target = fmu_target(&self.dir, &self.description, wanted, method)?;
                 self.runner = Runner::new(target);
                 self.interface = Some(wanted);
+                self.method = method;
                 Ok(())
             }
             _ => Ok(()),
@@ -126,7 +132,7 @@ impl Session {
         match request {
             Request::Describe => reply(out, &json!({"description": self.description})),
             Request::Configure { plan } => match self
-                .choose_interface(plan.interface.as_deref())
+                .choose_interface(&plan)
                 .and_then(|()| Plan::resolve(plan, &self.description))
             {
                 Ok(plan) => {
@@ -247,6 +253,7 @@ fn fmu_target(
     dir: &Path,
     description: &Description,
     interface: Interface,
+    method: Method,
 ) -> Result<Target, String> {
     let library = Library::load(dir, description, interface)?;
     Ok(match interface {
@@ -255,6 +262,7 @@ fn fmu_target(
             let shape = Shape {
                 states: description.continuous_states,
                 indicators: description.event_indicators,
+                method,
                 tunable: description.tunable(),
             };
             shape.check()?;

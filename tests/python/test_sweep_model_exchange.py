@@ -10,7 +10,7 @@ import re
 import numpy as np
 import pytest
 
-from fmusweep import RunnerError, SpecError, run_sweep
+from fmusweep import SpecError, run_sweep
 from sweep_helpers import grid_spec, repacked
 from test_sweep_events import exact, spec as ball_spec
 from test_sweep_system import system_spec
@@ -24,10 +24,14 @@ def sweep(spec, fmu, out, **options):
                      **options)
 
 
-@pytest.mark.parametrize("version", ["2.0", "3.0"])
-def test_the_model_exchange_balls_follow_their_exact_motion(ball_me_paths, tmp_path, version):
+@pytest.mark.parametrize("version,integrator", [("2.0", None), ("3.0", None),
+                                                ("3.0", "radau5")])
+def test_the_model_exchange_balls_follow_their_exact_motion(ball_me_paths, tmp_path, version,
+                                                            integrator):
     spec = ball_spec()
     spec["scenario"]["tolerance"] = 1e-8
+    if integrator:
+        spec["scenario"]["integrator"] = integrator
     results = sweep(spec, ball_me_paths[version], tmp_path / "out")
     p = results.points
     assert (p["status"] == "ok").all(), p["message"]
@@ -47,21 +51,23 @@ def test_the_model_exchange_balls_follow_their_exact_motion(ball_me_paths, tmp_p
     assert p["events"].sum() > 30
 
 
-def _states(fmu, out, tolerance, interface):
+def _states(fmu, out, tolerance, interface, integrator=None):
     spec = grid_spec(stop=5.0)
     spec["scenario"]["tolerance"] = tolerance
     spec["scenario"]["interface"] = interface
+    if integrator:
+        spec["scenario"]["integrator"] = integrator
     spec["outputs"]["series"] = {"variables": STATES}
     results = sweep(spec, fmu, out)
     series = results.series().sort_values(["point", "variable", "time"])
     return results.points, series.reset_index(drop=True)
 
 
-@pytest.mark.parametrize("tolerance", [1e-6, 1e-8])
+@pytest.mark.parametrize("tolerance,integrator", [(1e-6, None), (1e-8, None), (1e-8, "radau5")])
 def test_this_fmus_model_exchange_keeps_the_tolerance_at_every_point(fmu_path, tmp_path,
-                                                                      tolerance):
+                                                                      tolerance, integrator):
     _, reference = _states(fmu_path, tmp_path / "ref", 1e-12, "co_simulation")
-    points, mine = _states(fmu_path, tmp_path / "me", tolerance, "model_exchange")
+    points, mine = _states(fmu_path, tmp_path / "me", tolerance, "model_exchange", integrator)
     assert (points["status"] == "ok").sum() == 8 and (points["status"] == "error").sum() == 4
     assert len(mine) == len(reference) > 8 * 8 * 500
     assert (mine[["point", "variable", "time"]] == reference[["point", "variable", "time"]]).all().all()
@@ -84,7 +90,7 @@ def test_an_fmu_with_only_model_exchange_runs_through_it(fmu_path, tmp_path):
     # The same integration either way (the point ids differ: the specs do).
     columns = ["status", "message", "t_end", "steps", "events"] + METRICS
     assert chosen.points[columns].equals(alone.points[columns])
-    with pytest.raises(RunnerError, match="no CoSimulation interface"):
+    with pytest.raises(SpecError, match=r"scenario\.interface.*no co_simulation interface"):
         sweep({**spec, "scenario": {**spec["scenario"], "interface": "co_simulation"}},
               only, tmp_path / "refused")
 
@@ -94,6 +100,13 @@ def test_a_wrong_interface_is_refused_by_name(fmu_path, motor_path, tmp_path):
     spec["scenario"]["interface"] = "model-exchange"
     with pytest.raises(SpecError, match=r"scenario\.interface.*'model_exchange'"):
         sweep(spec, fmu_path, tmp_path / "a")
+    spec = grid_spec()
+    spec["scenario"]["integrator"] = "radau5"
+    with pytest.raises(SpecError, match=r"scenario\.integrator.*Model Exchange only"):
+        sweep(spec, fmu_path, tmp_path / "c")
+    spec["scenario"]["integrator"] = "rk45"
+    with pytest.raises(SpecError, match=r"scenario\.integrator.*'radau5'"):
+        sweep(spec, fmu_path, tmp_path / "d")
     coupled = system_spec(fmu_path, motor_path)
     coupled["scenario"]["interface"] = "model_exchange"
     with pytest.raises(SpecError, match=r"scenario\.interface.*co-simulation"):
