@@ -1,7 +1,7 @@
 //! The one place in the project that loads an FMI 2.0 or 3.0 FMU: unpack
 //! the archive ([`archive`]), read its description with quick-xml ([`description`]), load
 //! its binary and own its instances, freed on drop, FMI 3.0's events handled on the way
-//! ([`fmi`]); a Model Exchange FMU is integrated by the project's own DOP853 and run as a
+//! ([`fmi`]); a Model Exchange FMU is integrated by the project's own DOP853 or Radau IIA and run as a
 //! co-simulation unit ([`exchange`]); a coupled system of such FMUs
 //! is stepped as one unit ([`system`], [`unit`]), its communication steps chosen by an
 //! error estimate when it has a coupling tolerance ([`coupling`]). The `fmu-runner` binary serves
