@@ -364,3 +364,49 @@ pub(crate) mod test_problems {
         Tolerances { rtol, atol: rtol }
     }
 }
+
+#[cfg(test)]
+mod padding {
+    use super::test_problems::{tol, Oscillator};
+    use super::*;
+
+    /// A damped, driven oscillator (so that both components and time matter), in the first
+    /// two of `N` components; the rest are padding.
+    struct Padded<const N: usize>;
+    impl<const N: usize> OdeSystem<N> for Padded<N> {
+        fn rhs(&self, t: f64, y: &[f64; N], dy: &mut [f64; N]) {
+            *dy = [0.0; N];
+            dy[0] = y[1];
+            dy[1] = -y[0] - 0.1 * y[1] + t.sin();
+        }
+        fn dimension(&self) -> usize {
+            2
+        }
+    }
+
+    /// The first two components at each of ten points, stepped by `M` on `N` components.
+    fn run<const N: usize, M: Stepper<N>>() -> Vec<[u64; 2]> {
+        let mut method = M::new(tol(1e-9));
+        let (mut t, mut y) = (0.0, [0.0; N]);
+        y[0] = 1.0;
+        let mut out = Vec::new();
+        for k in 1..=10 {
+            let target = 0.7 * k as f64;
+            method
+                .integrate(&Padded::<N>, &mut t, &mut y, target, target)
+                .unwrap();
+            out.push([y[0].to_bits(), y[1].to_bits()]);
+        }
+        assert!(y[2..].iter().all(|&p| p == 0.0), "the padding stays zero");
+        out
+    }
+
+    #[test]
+    fn padding_a_problem_changes_no_number() {
+        assert_eq!(run::<2, Dop853<2>>(), run::<5, Dop853<5>>());
+        assert_eq!(run::<2, Radau5<2>>(), run::<7, Radau5<7>>());
+        assert_eq!(run::<2, Rk4<2>>(), run::<3, Rk4<3>>());
+        // The oscillator's own dimension is its size.
+        assert_eq!(OdeSystem::<2>::dimension(&Oscillator), 2);
+    }
+}

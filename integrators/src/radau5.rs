@@ -329,7 +329,7 @@ impl<const N: usize> Radau5<N> {
                         / scale[n].powi(2)
                 })
                 .sum::<f64>()
-                / (3 * N) as f64)
+                / (3 * system.dimension()) as f64)
                 .sqrt();
             if iteration > 0 {
                 let rate = norm / previous_norm;
