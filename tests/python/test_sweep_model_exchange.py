@@ -146,3 +146,20 @@ def test_a_fixed_parameter_cannot_be_driven_by_a_table(fmu_path, tmp_path):
     spec["scenario"]["inputs"] = {"l3": {"times": [0.0, 1.0], "values": [0.5, 0.6]}}
     with pytest.raises(SpecError, match=r"scenario\.inputs\.l3.*tunable"):
         sweep(spec, fmu_path, tmp_path / "out")
+
+
+def test_a_model_exchange_sweep_resumes_what_was_lost(ball_me_paths, tmp_path):
+    """The ball's sweep in batches of two; a batch's part lost, the sweep resumed: only
+    its points run again, and the table is the uninterrupted one."""
+    spec = ball_spec(e={"linspace": [0.4, 0.9, 6]}, t_kick={"values": [0.5, 1.234]})
+    options = dict(fmu=ball_me_paths["2.0"], out=tmp_path / "whole", serial=True,
+                   progress=False, plots=False, batch_size=2)
+    whole = run_sweep(spec, **options).points
+    parts = sorted((tmp_path / "whole" / "points").glob("part-*.parquet"))
+    assert len(parts) >= 3
+    parts[1].unlink()
+    (tmp_path / "whole" / "points.parquet").unlink()
+    again = run_sweep(spec, resume=True, **options)
+    assert again.report.resumed == 12 - 2 and again.report.computed == 2
+    columns = ["point", "status", "h_end", "bounces", "kicks", "events", "t_end"]
+    assert again.points[columns].equals(whole[columns])
