@@ -63,10 +63,15 @@ def _states(fmu, out, tolerance, interface, integrator=None):
     return results.points, series.reset_index(drop=True)
 
 
+@pytest.fixture(scope="module")
+def reference(fmu_path, tmp_path_factory):
+    """The grid's states through the co-simulation at tol 1e-12."""
+    return _states(fmu_path, tmp_path_factory.mktemp("ref") / "out", 1e-12, "co_simulation")[1]
+
+
 @pytest.mark.parametrize("tolerance,integrator", [(1e-6, None), (1e-8, None), (1e-8, "radau5")])
-def test_this_fmus_model_exchange_keeps_the_tolerance_at_every_point(fmu_path, tmp_path,
+def test_this_fmus_model_exchange_keeps_the_tolerance_at_every_point(fmu_path, tmp_path, reference,
                                                                       tolerance, integrator):
-    _, reference = _states(fmu_path, tmp_path / "ref", 1e-12, "co_simulation")
     points, mine = _states(fmu_path, tmp_path / "me", tolerance, "model_exchange", integrator)
     assert (points["status"] == "ok").sum() == 8 and (points["status"] == "error").sum() == 4
     assert len(mine) == len(reference) > 8 * 8 * 500
