@@ -670,31 +670,18 @@ impl Instance {
     /// then fmi3EnterStepMode.
     fn settle_and_step(&mut self) -> Status {
         let mut worst = Status::Ok;
+        let mut update = EventUpdate::default();
         for _ in 0..MAX_EVENT_ITERATIONS {
-            let mut flags = [false; 5];
-            let mut next_event_time = 0.0;
-            let [again, terminate, nominals, values, next_defined] = &mut flags;
-            // SAFETY: a live instance in event mode; writable locals.
-            let s = Status::from_code(unsafe {
-                self.b().fmi3UpdateDiscreteStates(
-                    self.instance,
-                    again,
-                    terminate,
-                    nominals,
-                    values,
-                    next_defined,
-                    &mut next_event_time,
-                )
-            });
+            let s = self.update_discrete_states(&mut update);
             if !s.proceeds() {
                 return s;
             }
             worst = worst.max(s);
-            if *terminate {
+            if update.terminate {
                 log::trace!("the FMU asked to terminate the simulation in event mode");
                 return Status::Discard;
             }
-            if !*again {
+            if !update.again {
                 // SAFETY: a live instance in event mode.
                 let s = Status::from_code(unsafe { self.b().fmi3EnterStepMode(self.instance) });
                 return worst.max(s);
