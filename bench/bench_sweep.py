@@ -343,6 +343,15 @@ def machine():
     return f"{platform.machine()}, {os.cpu_count()} cores ({cpu}), Linux {platform.release()}"
 
 
+def arguments():
+    """A benchmark's command line, FMU OUT [--quick]: the FMU, the output directory
+    (made), whether quick, and the results begun with the machine."""
+    fmu, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
+    quick = "--quick" in sys.argv
+    out.mkdir(parents=True, exist_ok=True)
+    return fmu, out, quick, {"machine": machine(), "quick": quick}
+
+
 def write_results(out: pathlib.Path, r: dict, text: str):
     """results.json (every figure) and results.md (the report), and the report shown."""
     (out / "results.json").write_text(json.dumps(r, indent=2))
@@ -445,10 +454,7 @@ def interface_report(k) -> list[str]:
 
 
 def main():
-    fmu, out = pathlib.Path(sys.argv[1]), pathlib.Path(sys.argv[2])
-    quick = "--quick" in sys.argv
-    out.mkdir(parents=True, exist_ok=True)
-    r = {"machine": machine(), "quick": quick}
+    fmu, out, quick, r = arguments()
     print("bench-sweep: per-worker rates", flush=True)
     r["per_worker"] = per_worker_rates(fmu, 200 if quick else 2000, 2 if quick else 5)
     print("bench-sweep: each kind of FMU", flush=True)

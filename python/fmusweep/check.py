@@ -121,11 +121,12 @@ def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
 
 
 def ask_the_fmu(plan: Plan, names: list[str], first: Rows, columns: Sequence[Rows],
-                runner: NativeRunner, field: str, fixed_field: str) -> None:
+                runner: NativeRunner, field: str, fixed_field: str,
+                column_fields: Sequence[str] | None = None) -> None:
     """Set the fixed values, then the first point, then each column's extremes from it, and
-    report what the FMU refuses. Single-variable rules are caught here; a combination that
-    cannot run (a geometry that does not assemble) is a result of the sweep, not a mistake
-    in it."""
+    report what the FMU refuses (a column's refusal under ``column_fields[j]`` where given,
+    else `field`). Single-variable rules are caught here; a combination that cannot run (a
+    geometry that does not assemble) is a result of the sweep, not a mistake in it."""
     runner.configure(plan)
     fixed = runner.check([], [[]])[0]
     if fixed["status"] != "ok":
@@ -141,10 +142,11 @@ def ask_the_fmu(plan: Plan, names: list[str], first: Rows, columns: Sequence[Row
             probe = first[0].copy()
             probe[j] = value
             probes.append(probe)
-            owners.append((name, float(value)))
-    for (name, value), answer in zip(owners, runner.check(names, np.array(probes))):
+            owners.append((j, name, float(value)))
+    for (j, name, value), answer in zip(owners, runner.check(names, np.array(probes))):
         if answer["status"] != "ok":
-            raise SpecError(f"{field}.{name}",
+            where = column_fields[j] if column_fields is not None else field
+            raise SpecError(f"{where}.{name}",
                             f"the FMU refuses {name} = {value:g}: {answer['message']}")
 
 

@@ -106,6 +106,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     return 0
 
 
+def _interval(bounds: list[float | None], profile: bool) -> str:
+    """A printed interval; a profile's missing bound is open, a Wald one's undetermined."""
+    low, high = bounds
+    if not profile and (low is None or high is None):
+        return "undetermined"
+    return (f"[{'open' if low is None else f'{low:.6g}'}, "
+            f"{'open' if high is None else f'{high:.6g}'}]")
+
+
 def fit_main(argv: Sequence[str]) -> int:
     from .fitting import fit
     parser = argparse.ArgumentParser(prog="fmusweep fit", description="Fit an FMU's parameters "
@@ -125,14 +134,15 @@ def fit_main(argv: Sequence[str]) -> int:
         return result
     s = result.summary
     print(f"fmusweep fit: {s['status']} after {s['iterations']} iterations, cost {s['cost']}, "
-          f"{s['evaluations']} evaluations ({s['resumed']} read back) in {s['wall_s']:.1f} s on "
+          f"{s['evaluations']} runs ({s['resumed']} made before or reused) in {s['wall_s']:.1f} s on "
           f"{s['workers']} worker(s), {s['engine']}")
     if s["engine_choice"] != "as asked":
         print(f"fmusweep fit: engine: {s['engine_choice']}")
     for name, p in s["parameters"].items():
-        low, high = p["ci95"]
-        interval = f"[{low:.6g}, {high:.6g}]" if low is not None else "undetermined"
-        print(f"  {name} = {p['estimate']:.6g}  (95 %: {interval})")
+        wald, profile = p["wald_ci95"], p.get("profile_ci95")
+        said = (_interval(p["ci95"], False) if profile is None
+                else f"Wald {_interval(wald, False)}, profile {_interval(profile, True)}")
+        print(f"  {name} = {p['estimate']:.6g}  (95 %: {said})")
     for warning in s["warnings"]:
         print(f"fmusweep fit: warning: {warning}")
     print(f"fmusweep fit: results in {result.out}/fit.json, every run in {result.out}/points.parquet")

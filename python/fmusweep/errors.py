@@ -17,6 +17,7 @@ class SpecError(ValueError):
     def __init__(self, field_name: str, rule: str):
         super().__init__(f"{field_name}: {rule}")
         self.field = field_name
+        self.rule = rule
 
 
 def refuse(field_name: str, rule: str) -> None:

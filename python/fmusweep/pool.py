@@ -19,7 +19,10 @@ import numpy as np
 from .native import failed_result
 from .records import Batch, BatchFunction, Plan, PointResult, Points, PrepareFunction, Rows
 
-__all__ = ["Pool", "IN_FLIGHT_PER_WORKER", "without_message_log"]
+__all__ = ["Pool", "Task", "IN_FLIGHT_PER_WORKER", "without_message_log"]
+
+# What a chunk of points runs: its plan, the names it sets and its rows.
+Task = tuple[Plan, list[str], Rows]
 
 # Batches in flight per worker on Dask: one running and the next ones queued, so that no
 # worker waits; the rest stay with the caller as indices until a slot frees.
@@ -106,11 +109,16 @@ class Pool:
         and each batch's future is released as soon as it is yielded, so that neither the
         workers nor the scheduler keep its result: memory stays flat whatever the count.
         A batch whose worker was lost again and again comes back as rows ``crashed``."""
+        return self._stream(lambda chunk: (self.plan, names, rows_of(chunk)), chunks, key)
+
+    def _stream(self, task_of: Callable[[Points], Task], chunks: Iterable[Points],
+                key: Callable[[Points], str] | None = None) -> Iterator[Batch]:
+        """``stream`` of chunks that each bring their own plan and names (`task_of`)."""
         if self.serial:
             for chunk in chunks:
+                plan, names, rows = task_of(chunk)
                 with self._serial_lock:
-                    batch = self.batch_function(self.target, self.plan, names, rows_of(chunk),
-                                                chunk)
+                    batch = self.batch_function(self.target, plan, names, rows, chunk)
                 yield batch
             return
         from distributed import as_completed
@@ -118,27 +126,27 @@ class Pool:
         name = key or (lambda chunk: f"{self.prefix}{next(self._keys)}")
         waiting = iter(chunks)
         finished = as_completed()
-        pending: dict[Any, Points] = {}
+        pending: dict[Any, tuple[Points, Plan]] = {}
 
         def submit_next() -> None:
             chunk = next(waiting, None)
             if chunk is not None:
-                future = self.client.submit(self.batch_function, self._target_future, self.plan,
-                                            names, rows_of(chunk), chunk, key=name(chunk),
-                                            pure=False)
-                pending[future] = chunk
+                plan, names, rows = task_of(chunk)
+                future = self.client.submit(self.batch_function, self._target_future, plan,
+                                            names, rows, chunk, key=name(chunk), pure=False)
+                pending[future] = (chunk, plan)
                 finished.add(future)
 
         try:
             for _ in range(IN_FLIGHT_PER_WORKER * max(self.workers, 1)):
                 submit_next()
             for future in finished:
-                chunk = pending.pop(future)
+                chunk, plan = pending.pop(future)
                 try:
                     batch = future.result()
                 except KilledWorker as e:
                     lost = failed_result("crashed", f"the batch failed on the cluster: {e!r}",
-                                         self.plan)
+                                         plan)
                     batch = {"points": chunk, "worker": "",
                              "results": [PointResult(**lost) for _ in chunk]}
                 future.release()
@@ -149,17 +157,35 @@ class Pool:
             for future in pending:
                 future.cancel()
 
-    def run(self, names: list[str], rows: Rows) -> list[PointResult]:
+    def run(self, names: list[str], rows: Rows, plan: Plan | None = None) -> list[PointResult]:
         """Every row's result, in order: the rows cut into one batch per worker, run at
-        once, and gathered."""
-        rows = np.asarray(rows, dtype=float).reshape(len(rows), len(names))
-        parts = min(len(rows), 1 if self.serial else self.workers)
-        chunks = [c for c in np.array_split(np.arange(len(rows)), max(parts, 1)) if len(c)]
-        results: list[PointResult | None] = [None] * len(rows)
-        for batch in self.stream(names, lambda chunk: rows[chunk], chunks):
+        once (under `plan`, else the pool's), and gathered."""
+        return self.run_each([(plan or self.plan, names, rows)])[0]
+
+    def run_each(self, tasks: list[Task]) -> list[list[PointResult]]:
+        """Each task's results, in order, every task's rows in flight at once: the rows cut
+        into about one batch per worker overall, none of them mixing two tasks."""
+        offsets = np.cumsum([0] + [len(rows) for _, _, rows in tasks])
+        total = int(offsets[-1])
+        chunks: list[Points] = []
+        for k, (_, names, rows) in enumerate(tasks):
+            share = 1 if self.serial else max(1, round(self.workers * len(rows) / max(total, 1)))
+            parts = min(len(rows), share)
+            chunks += [c + offsets[k] for c in np.array_split(np.arange(len(rows)), max(parts, 1))
+                       if len(c)]
+
+        def task_of(chunk: Points) -> Task:
+            k = int(np.searchsorted(offsets, chunk[0], side="right")) - 1
+            plan, names, rows = tasks[k]
+            shaped = np.asarray(rows, dtype=float).reshape(len(rows), len(names))
+            return plan, names, shaped[chunk - offsets[k]]
+
+        results: list[PointResult | None] = [None] * total
+        for batch in self._stream(task_of, chunks):
             for i, result in zip(batch["points"], batch["results"]):
                 results[int(i)] = PointResult(**result, worker=batch["worker"])
-        return [r for r in results if r is not None]
+        return [[r for r in results[offsets[k]:offsets[k + 1]] if r is not None]
+                for k in range(len(tasks))]
 
     def held_by_scheduler(self) -> int | None:
         """How many finished batches of this pool the scheduler still holds in memory

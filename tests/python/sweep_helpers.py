@@ -132,3 +132,25 @@ def in_description(old, new):
     def change(name, data):
         return data.replace(old, new) if name == "modelDescription.xml" else data
     return change
+
+
+def fit_command(fmu_path, spec, *options, cwd=None):
+    """`python -m fmusweep fit SPEC OPTIONS…` on the FMU under test, as a user runs it."""
+    env = dict(environment_for_workers(), FMUSWEEP_FMU=str(fmu_path))
+    return subprocess.run([sys.executable, "-m", "fmusweep", "fit", str(spec), *map(str, options)],
+                          env=env, capture_output=True, text=True, cwd=cwd)
+
+
+def lose_the_later_parts(out):
+    """Delete the later half of a study's Parquet parts and their series, as a kill leaves
+    them (with the final table and fit.json not yet written); the rows lost."""
+    import pandas as pd
+    for name in ("fit.json", "points.parquet"):
+        (out / name).unlink(missing_ok=True)
+    parts = sorted((out / "points").glob("part-*.parquet"))
+    lost = 0
+    for part in parts[len(parts) // 2:]:
+        lost += len(pd.read_parquet(part))
+        part.unlink()
+        (out / "series" / part.name).unlink(missing_ok=True)
+    return lost

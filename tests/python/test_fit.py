@@ -18,7 +18,8 @@ from fmusweep import fit
 from fmusweep.fmu import Archive, local_runner
 from fmusweep.spec import Scenario
 from conftest import packed
-from sweep_helpers import environment_for_workers, start_cluster, stop_cluster
+from sweep_helpers import (environment_for_workers, fit_command, lose_the_later_parts, start_cluster,
+                           stop_cluster)
 
 TRUTH = {"k34": 150.0, "d34": 0.8}
 SIGMA = 0.05
@@ -177,14 +178,7 @@ def test_an_interrupted_fit_resumes_without_running_its_points_again(fmu_path, t
     write_csv(tmp_path / "measured.csv", noisy(truth_rows, 8))
     whole = fit(fit_spec(fmu_path, tmp_path), out=tmp_path / "whole", serial=True, plots=False).summary
     shutil.copytree(tmp_path / "whole", tmp_path / "cut")
-    (tmp_path / "cut/fit.json").unlink()
-    (tmp_path / "cut/points.parquet").unlink()
-    parts = sorted((tmp_path / "cut/points").glob("part-*.parquet"))
-    lost = 0
-    for part in parts[len(parts) // 2:]:
-        lost += len(pd.read_parquet(part))
-        part.unlink()
-        (tmp_path / "cut/series" / part.name).unlink(missing_ok=True)
+    lost = lose_the_later_parts(tmp_path / "cut")
     with pytest.raises(FileExistsError):
         fit(fit_spec(fmu_path, tmp_path), out=tmp_path / "cut", serial=True, plots=False)
     resumed = fit(fit_spec(fmu_path, tmp_path), out=tmp_path / "cut", serial=True, resume=True, plots=False).summary
@@ -297,18 +291,17 @@ EXAMPLE = pathlib.Path(__file__).resolve().parents[2] / "examples/fit"
 
 
 def test_the_example_measurements_are_what_their_script_makes(fmu_path, tmp_path):
-    """measured.csv is the output of make_measurements.py on this FMU, bit for bit."""
-    made = tmp_path / "measured.csv"
-    done = subprocess.run([sys.executable, str(EXAMPLE / "make_measurements.py"), str(fmu_path), str(made)],
+    """The examples' data files are the output of make_measurements.py on this FMU, bit for
+    bit."""
+    done = subprocess.run([sys.executable, str(EXAMPLE / "make_measurements.py"), str(fmu_path), str(tmp_path)],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    assert made.read_bytes() == (EXAMPLE / "measured.csv").read_bytes()
+    for name in ("measured.csv", "braked.csv", "boosted.csv"):
+        assert (tmp_path / name).read_bytes() == (EXAMPLE / name).read_bytes(), name
 
 
 def test_the_example_fit_runs_from_the_command_line_and_finds_the_truth(fmu_path, tmp_path):
-    env = dict(environment_for_workers(), FMUSWEEP_FMU=str(fmu_path))
-    done = subprocess.run([sys.executable, "-m", "fmusweep", "fit", str(EXAMPLE / "fit.toml"),
-                           "--out", str(tmp_path / "out")], env=env, capture_output=True, text=True)
+    done = fit_command(fmu_path, EXAMPLE / "fit.toml", "--out", tmp_path / "out")
     assert done.returncode == 0, done.stderr
     assert "fmusweep fit: converged" in done.stdout and "engine: serial" in done.stdout
     summary = json.loads((tmp_path / "out/fit.json").read_text())

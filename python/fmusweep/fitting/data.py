@@ -48,60 +48,62 @@ class Data:
         return self.steps // self.every
 
     @staticmethod
-    def of(table: dict[str, Any], base_dir: pathlib.Path, scenario: Scenario) -> Data:
-        only(table, "data", {"file", "sigma"})
+    def of(table: dict[str, Any], base_dir: pathlib.Path, scenario: Scenario,
+           where: str = "data") -> Data:
+        """The data table at `where` (``data``, or an experiment's ``experiment.NAME.data``)."""
+        only(table, where, {"file", "sigma"})
         name = table.get("file")
         if not isinstance(name, str):
-            raise SpecError("data.file", "must name a CSV file (a path relative to the spec)")
+            raise SpecError(f"{where}.file", "must name a CSV file (a path relative to the spec)")
         path = base_dir / name
         try:
             content = path.read_bytes()
         except OSError as e:
-            raise SpecError("data.file", f"cannot read {path}: {e.strerror}") from None
-        columns, times, values = _parse(content, path)
-        steps = _grid_steps(times, scenario, path)
+            raise SpecError(f"{where}.file", f"cannot read {path}: {e.strerror}") from None
+        columns, times, values = _parse(content, path, where)
+        steps = _grid_steps(times, scenario, path, where)
         every = math.gcd(scenario.steps, *steps.tolist())
-        sigma, given = _sigma(table.get("sigma"), columns)
+        sigma, given = _sigma(table.get("sigma"), columns, where)
         return Data(path, hashlib.sha256(content).hexdigest(), times, columns, values, sigma,
                     given, steps, every)
 
 
-def _parse(content: bytes, path: pathlib.Path) -> tuple[list[str], Rows, Rows]:
+def _parse(content: bytes, path: pathlib.Path, where: str) -> tuple[list[str], Rows, Rows]:
     try:
         text = content.decode("utf-8-sig")
     except UnicodeDecodeError:
-        raise SpecError("data.file", f"{path} is not UTF-8 text") from None
+        raise SpecError(f"{where}.file", f"{path} is not UTF-8 text") from None
     lines = list(csv.reader(text.splitlines()))
     while lines and not any(cell.strip() for cell in lines[-1]):
         lines.pop()
     if not lines:
-        raise SpecError("data.file", f"{path} is empty")
+        raise SpecError(f"{where}.file", f"{path} is empty")
     header = [cell.strip() for cell in lines[0]]
     if "time" not in header:
-        raise SpecError("data.file", f"{path} has no time column (its header: {', '.join(header)})")
+        raise SpecError(f"{where}.file", f"{path} has no time column (its header: {', '.join(header)})")
     if len(set(header)) != len(header):
         twice = sorted({h for h in header if header.count(h) > 1})
-        raise SpecError("data.file", f"{path} names the column {twice[0]!r} twice")
+        raise SpecError(f"{where}.file", f"{path} names the column {twice[0]!r} twice")
     if any(not h for h in header):
-        raise SpecError("data.file", f"{path} has a column without a name")
+        raise SpecError(f"{where}.file", f"{path} has a column without a name")
     columns = [h for h in header if h != "time"]
     if not columns:
-        raise SpecError("data.file", f"{path} has a time column and no measured column")
+        raise SpecError(f"{where}.file", f"{path} has a time column and no measured column")
     body = lines[1:]
     if not body:
-        raise SpecError("data.file", f"{path} has a header and no data")
+        raise SpecError(f"{where}.file", f"{path} has a header and no data")
     table = np.empty((len(body), len(header)))
     for i, row in enumerate(body):
         line = i + 2
         if len(row) != len(header):
-            raise SpecError("data.file", f"{path} line {line}: {len(row)} cells, the header has {len(header)}")
+            raise SpecError(f"{where}.file", f"{path} line {line}: {len(row)} cells, the header has {len(header)}")
         for j, cell in enumerate(row):
             try:
                 x = float(cell)
             except ValueError:
                 x = math.nan
             if not math.isfinite(x):
-                raise SpecError("data.file", f"{path} line {line}, column {header[j]}: "
+                raise SpecError(f"{where}.file", f"{path} line {line}, column {header[j]}: "
                                              f"{cell.strip()!r} is not a finite number")
             table[i, j] = x
     t = table[:, header.index("time")]
@@ -109,22 +111,22 @@ def _parse(content: bytes, path: pathlib.Path) -> tuple[list[str], Rows, Rows]:
     return columns, t, table[:, keep]
 
 
-def _grid_steps(times: Rows, scenario: Scenario, path: pathlib.Path) -> Points:
+def _grid_steps(times: Rows, scenario: Scenario, path: pathlib.Path, where: str) -> Points:
     decreasing = np.flatnonzero(np.diff(times) <= 0)
     if len(decreasing):
         line = int(decreasing[0]) + 3
-        raise SpecError("data.file", f"{path} line {line}: time {times[decreasing[0] + 1]} does "
+        raise SpecError(f"{where}.file", f"{path} line {line}: time {times[decreasing[0] + 1]} does "
                                      f"not increase (the times must be strictly increasing)")
     for i, t in enumerate(times):
         if not scenario.start - GRID_SLACK * scenario.step <= t <= scenario.stop + GRID_SLACK * scenario.step:
-            raise SpecError("data.file", f"{path} line {i + 2}: time {t} lies outside the scenario "
+            raise SpecError(f"{where}.file", f"{path} line {i + 2}: time {t} lies outside the scenario "
                                          f"[{scenario.start}, {scenario.stop}]")
     k = (times - scenario.start) / scenario.step
     steps = np.round(k).astype(np.int64)
     off = np.flatnonzero(np.abs(k - steps) > GRID_SLACK)
     if len(off):
         i = int(off[0])
-        raise SpecError("data.file", f"{path} line {i + 2}: time {times[i]} is not on the "
+        raise SpecError(f"{where}.file", f"{path} line {i + 2}: time {times[i]} is not on the "
                                      f"scenario's communication grid (start {scenario.start} + k·"
                                      f"{scenario.step}); the model is compared at communication "
                                      "points: choose a step that divides the sampling interval, "
@@ -132,20 +134,20 @@ def _grid_steps(times: Rows, scenario: Scenario, path: pathlib.Path) -> Points:
     return steps
 
 
-def _sigma(table: object, columns: list[str]) -> tuple[Rows, list[bool]]:
+def _sigma(table: object, columns: list[str], where: str) -> tuple[Rows, list[bool]]:
     sigma = np.ones(len(columns))
     given = [False] * len(columns)
     if table is None:
         return sigma, given
     if not isinstance(table, dict):
-        raise SpecError("data.sigma", f"must be a table of column = standard deviation, got {table!r}")
+        raise SpecError(f"{where}.sigma", f"must be a table of column = standard deviation, got {table!r}")
     for name, value in table.items():
-        where = f"data.sigma.{name}"
+        field = f"{where}.sigma.{name}"
         if name not in columns:
-            raise SpecError(where, f"names no measured column of data.file ({', '.join(columns)})")
+            raise SpecError(field, f"names no measured column of {where}.file ({', '.join(columns)})")
         if (isinstance(value, bool) or not isinstance(value, (int, float))
                 or not math.isfinite(value) or value <= 0):
-            raise SpecError(where, f"must be a finite number > 0, got {value!r}")
+            raise SpecError(field, f"must be a finite number > 0, got {value!r}")
         j = columns.index(name)
         sigma[j], given[j] = float(value), True
     return sigma, given

@@ -59,10 +59,15 @@ def solve_all(problem: Problem, starts: Rows, concurrency: int) -> list[Start]:
         return list(threads.map(lambda item: solve(problem, item[1], item[0]), enumerate(starts)))
 
 
-def solve(problem: Problem, start: Rows, index: int) -> Start:
+def solve(problem: Problem, start: Rows, index: int, free: list[int] | None = None,
+          role: str = "trial") -> Start:
+    """One optimisation from `start`, of the parameters `free` (default: all; the others
+    held at their values in `start`)."""
     from scipy.optimize import least_squares
     spec = problem.spec
-    low, width = spec.lows, spec.highs - spec.lows
+    free = list(range(len(spec.fitted))) if free is None else free
+    low, width = spec.lows[free], (spec.highs - spec.lows)[free]
+    held = np.array(start, dtype=float)
     outcome = Start(index, start)
     # The Jacobian of the last evaluated point: the trust region asks for the Jacobian of
     # an accepted trial, always the point it evaluated last.
@@ -70,12 +75,14 @@ def solve(problem: Problem, start: Rows, index: int) -> Start:
     failure = ""
 
     def theta(z: Any) -> Rows:
-        moved: Rows = low + np.asarray(z) * width
+        moved: Rows = held.copy()
+        moved[free] = low + np.asarray(z) * width
         return moved
 
     def residuals(z: Any) -> Rows:
         nonlocal last, failure
-        f, jacobian, message = _evaluate_with_jacobian(problem, theta(z), index, outcome.notes)
+        f, jacobian, message = _evaluate_with_jacobian(problem, theta(z), index, outcome.notes,
+                                                       free, role)
         if jacobian is None:
             # Asked for only at the start (scipy then stops on the infinite residuals):
             # any finite matrix will do.
@@ -90,7 +97,7 @@ def solve(problem: Problem, start: Rows, index: int) -> Start:
         assert last is not None
         return last[1]
 
-    z0 = (start - low) / width
+    z0 = (held[free] - low) / width
     try:
         result = least_squares(residuals, z0, jac=jacobian, bounds=(0.0, 1.0), method="trf",
                                max_nfev=spec.max_iterations)
@@ -108,28 +115,31 @@ def solve(problem: Problem, start: Rows, index: int) -> Start:
     return outcome
 
 
-def _evaluate_with_jacobian(problem: Problem, theta: Rows, start: int,
-                           notes: list[str]) -> tuple[Rows, Rows | None, str]:
-    """The residuals at theta and their Jacobian in parameter units, from one batch of
-    theta and its perturbed points (and a second batch for a column whose perturbed run
-    failed, perturbed the other way)."""
+def _evaluate_with_jacobian(problem: Problem, theta: Rows, start: int, notes: list[str],
+                            free: list[int], role: str) -> tuple[Rows, Rows | None, str]:
+    """The residuals at theta and their Jacobian in the free parameters' units, from one
+    batch of theta and its perturbed points (and a second batch for a column whose
+    perturbed run failed, perturbed the other way). An experiment a perturbation does not
+    touch is not run again (``Problem.evaluate``)."""
     spec = problem.spec
     steps = _steps(spec, theta)
-    rows = [theta] + [theta + np.eye(len(theta))[j] * steps[j] for j in range(len(theta))]
-    evaluations = problem.evaluate(np.array(rows), start, ["trial"] + ["jacobian"] * len(theta))
+    unit = np.eye(len(theta))
+    rows = [theta] + [theta + unit[j] * steps[j] for j in free]
+    evaluations = problem.evaluate(np.array(rows), start, [role] + ["jacobian"] * len(free))
     if not evaluations[0].ok:
         return problem.residuals(evaluations[0]), None, evaluations[0].message
     f = problem.residuals(evaluations[0])
     columns: list[Rows | None] = [None if not e.ok else (problem.residuals(e) - f) / steps[j]
-                                  for j, e in enumerate(evaluations[1:])]
-    retry = [j for j, c in enumerate(columns) if c is None]
+                                  for j, e in zip(free, evaluations[1:])]
+    retry = [c for c, col in enumerate(columns) if col is None]
     if retry:
-        back = np.array([theta - np.eye(len(theta))[j] * steps[j] for j in retry])
-        for j, e in zip(retry, problem.evaluate(back, start, ["jacobian"] * len(retry))):
+        back = np.array([theta - unit[free[c]] * steps[free[c]] for c in retry])
+        for c, e in zip(retry, problem.evaluate(back, start, ["jacobian"] * len(retry))):
+            j = free[c]
             if e.ok:
-                columns[j] = (f - problem.residuals(e)) / steps[j]
+                columns[c] = (f - problem.residuals(e)) / steps[j]
             else:
-                columns[j] = np.zeros_like(f)
+                columns[c] = np.zeros_like(f)
                 notes.append(f"{spec.names[j]}: the runs perturbed both ways from {theta[j]:g} "
                              f"failed ({e.message}); its Jacobian column was taken as zero")
     return f, np.column_stack([c for c in columns if c is not None]), ""

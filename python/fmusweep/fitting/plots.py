@@ -12,20 +12,32 @@ from ..plots import _pyplot, _save
 from ..records import Rows
 
 if TYPE_CHECKING:
+    from .data import Data
     from .problem import Evaluation
     from .spec import FitSpec
 
 __all__ = ["plot_fit"]
 
 
-def plot_fit(spec: FitSpec, best: Evaluation, summary: dict[str, Any],
+def plot_fit(spec: FitSpec, best: list[Evaluation], summary: dict[str, Any],
              out: pathlib.Path) -> list[pathlib.Path]:
-    assert best.predictions is not None, "plotted only after a run that reached its end"
+    """The pictures of the best fit's runs (`best`, one per experiment): each experiment's
+    own pair, named after it where there are several, and the correlation matrix."""
     out.mkdir(parents=True, exist_ok=True)
-    written = [_trajectories(spec, best.predictions, summary, out / "fit_trajectories.png"),
-               _residuals(spec, best.predictions, out / "fit_residuals.png")]
+    written = []
+    several = len(spec.experiments) > 1
+    for experiment, run in zip(spec.experiments, best):
+        assert run.predictions is not None, "plotted only after runs that reached their end"
+        suffix = f"_{experiment.name}" if several else ""
+        title = f"{experiment.name}: " if several else ""
+        written += [_trajectories(experiment.data, run.predictions, summary, title,
+                                  out / f"fit_trajectories{suffix}.png"),
+                    _residuals(experiment.data, run.predictions, title,
+                               out / f"fit_residuals{suffix}.png")]
     if len(spec.names) > 1:
         written.append(_correlation(spec, summary, out / "fit_correlation.png"))
+    if summary.get("profiles"):
+        written.append(_profiles(summary, out / "fit_profiles.png"))
     return written
 
 
@@ -38,10 +50,9 @@ def _estimates_text(summary: dict[str, Any]) -> str:
     return ", ".join(parts)
 
 
-def _trajectories(spec: FitSpec, predictions: Rows, summary: dict[str, Any],
+def _trajectories(data: Data, predictions: Rows, summary: dict[str, Any], title: str,
                   path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
-    data = spec.data
     n = len(data.columns)
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n + 0.6), sharex=True, squeeze=False)
     for j, (ax, name) in enumerate(zip(axes[:, 0], data.columns)):
@@ -51,13 +62,13 @@ def _trajectories(spec: FitSpec, predictions: Rows, summary: dict[str, Any],
         ax.grid(alpha=0.3)
     axes[0, 0].legend(loc="best", fontsize=8)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle(f"Measured and fitted (95 % intervals): {_estimates_text(summary)}", fontsize=9)
+    fig.suptitle(f"{title or 'M'}{'m' if title else ''}easured and fitted (95 % intervals): "
+                 f"{_estimates_text(summary)}", fontsize=9, wrap=True)
     return _save(fig, path)
 
 
-def _residuals(spec: FitSpec, predictions: Rows, path: pathlib.Path) -> pathlib.Path:
+def _residuals(data: Data, predictions: Rows, title: str, path: pathlib.Path) -> pathlib.Path:
     plt = _pyplot()
-    data = spec.data
     n = len(data.columns)
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.2 * n + 0.6), sharex=True, squeeze=False)
     for j, (ax, name) in enumerate(zip(axes[:, 0], data.columns)):
@@ -70,7 +81,7 @@ def _residuals(spec: FitSpec, predictions: Rows, path: pathlib.Path) -> pathlib.
         ax.set_ylabel(f"{name}: fitted − measured", fontsize=8)
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("time (s)")
-    fig.suptitle("Residuals (dashed: ± 2 σ where σ is given)", fontsize=9)
+    fig.suptitle(f"{title or 'R'}{'r' if title else ''}esiduals (dashed: ± 2 σ where σ is given)", fontsize=9)
     return _save(fig, path)
 
 
@@ -86,7 +97,8 @@ def _correlation(spec: FitSpec, summary: dict[str, Any], path: pathlib.Path) -> 
                 matrix[i, j] = np.nan if value is None else value
     fig, ax = plt.subplots(figsize=(1.3 * p + 2.5, 1.1 * p + 1.8))
     image = ax.imshow(matrix, vmin=-1, vmax=1, cmap="RdBu_r")
-    ax.set_xticks(range(p), names)
+    long = max(len(n) for n in names) > 8  # an experiment's own parameter: turned, not overlapping
+    ax.set_xticks(range(p), names, rotation=30 if long else 0, ha="right" if long else "center")
     ax.set_yticks(range(p), names)
     for i in range(p):
         for j in range(p):
@@ -96,4 +108,42 @@ def _correlation(spec: FitSpec, summary: dict[str, Any], path: pathlib.Path) -> 
                     color="white" if dark else "black")
     fig.colorbar(image, ax=ax, shrink=0.8)
     ax.set_title("Correlation of the estimates", fontsize=10)
+    return _save(fig, path)
+
+
+def _profiles(summary: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
+    """Each profiled parameter's cost rise against its value, the 95 % threshold, and the
+    two intervals: the profile's (where the curve crosses) and the Wald one."""
+    plt = _pyplot()
+    profiles = summary["profiles"]
+    n = len(profiles)
+    columns = min(n, 3)
+    rows = -(-n // columns)
+    fig, axes = plt.subplots(rows, columns, figsize=(4.2 * columns + 0.6, 3.4 * rows + 0.4),
+                             squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
+    for ax, (name, pr) in zip(axes.ravel(), profiles.items()):
+        ax.xaxis.set_major_locator(plt.MaxNLocator(5))
+        best = summary["cost"]
+        values = np.array(pr["values"])
+        rise = np.array([np.nan if c is None else c - best for c in pr["cost"]])
+        limit = pr["threshold"] - best
+        ax.plot(values, rise, "o-", ms=3, lw=1.0, color="C0", label="profile")
+        ax.axhline(limit, color="0.3", lw=0.8, ls=":", label="95 % threshold")
+        wald = summary["parameters"][name]["wald_ci95"]
+        if wald[0] is not None and wald[1] is not None:
+            ax.axvspan(wald[0], wald[1], color="C1", alpha=0.15, label="Wald 95 %")
+        for k, bound in enumerate(b for b in pr["ci95"] if b is not None):
+            ax.axvline(bound, color="C0", lw=1.0, ls="--", label=None if k else "profile 95 %")
+        open_sides = [side for side, b in zip(("below", "above"), pr["ci95"]) if b is None]
+        ax.set_title(name + (f" (open {' and '.join(open_sides)})" if open_sides else ""), fontsize=9)
+        ax.set_xlabel(name)
+        ax.set_ylim(bottom=min(0.0, float(np.nanmin(rise))) if np.isfinite(rise).any() else 0.0,
+                    top=2.5 * limit)
+        ax.grid(alpha=0.3)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("cost − least cost")
+    axes[0, 0].legend(loc="upper center", fontsize=7)
+    fig.suptitle("Likelihood profiles: the other parameters re-optimised at each point", fontsize=9)
     return _save(fig, path)

@@ -1,8 +1,10 @@
 """The fit's model evaluations: parameter vectors in, weighted residuals out, run as
-batches on the sweep's pool, and every evaluated point written in the sweep's Parquet
-format (points and, in long form, the model's values at the data times). A point that an
-earlier, interrupted fit already evaluated is read back instead of run again, so that
-resuming replays the same deterministic path at no cost up to where it stopped."""
+batches on the sweep's pool, and every run written in the sweep's Parquet format (a row
+per experiment's run in the points, and in long form the model's values at its data
+times). A vector's evaluation is one run per experiment; a run that another vector
+already made (an experiment whose parameters a perturbation did not touch) is not made
+again, and a run that an earlier, interrupted fit made is read back, so that resuming
+replays the same deterministic path at no cost up to where it stopped."""
 
 from __future__ import annotations
 
@@ -19,18 +21,21 @@ from ..native import NativeRunner
 from ..records import PointResult, Points, Rows
 from ..store import ResultStore, coupling_columns
 from .data import Data
+from .spec import SINGLE_EXPERIMENT
 
 if TYPE_CHECKING:
+    from ..pool import Task
     from ..study import Study
-    from .spec import FitSpec
+    from .spec import Experiment, FitSpec
 
-__all__ = ["Problem", "Evaluation", "check_fit_against_fmu"]
+__all__ = ["Problem", "Evaluation", "Trial", "check_fit_against_fmu"]
 
 READABLE = ("output", "local")
 
 
 @dataclass
 class Evaluation:
+    """One experiment's run."""
     status: str
     message: str
     predictions: Rows | None  # (data times, columns) when the run reached the end
@@ -40,21 +45,51 @@ class Evaluation:
         return self.status == "ok" and self.predictions is not None
 
 
+@dataclass
+class Trial:
+    """A parameter vector's evaluation: one run per experiment, in the spec's order."""
+    runs: list[Evaluation]
+    experiments: list[str]
+
+    @property
+    def ok(self) -> bool:
+        return all(r.ok for r in self.runs)
+
+    @property
+    def message(self) -> str:
+        """The first failed run's message (naming its experiment where there are several)."""
+        for name, run in zip(self.experiments, self.runs):
+            if not run.ok:
+                return run.message if len(self.runs) == 1 else f"experiment {name}: {run.message}"
+        return ""
+
+
 def check_fit_against_fmu(spec: FitSpec, description: dict[str, Any],
                           runner: NativeRunner) -> None:
     """Every name against the FMU, every mistake reported at once; then the values."""
     variables = Variables(description)
     errors = Collector()
-    variables.check_scenario(spec.scenario, errors)
-    for name in spec.data.columns:
-        errors.run(lambda: variables.get(name, "data.file", READABLE, VALUE_TYPES, what="output"))
-    names = spec.names
-    rows = np.array([[p.start for p in spec.fitted], spec.lows, spec.highs])
-    columns = list(rows.T)
-    errors.run(lambda: variables.check_columns(names, columns, "fit.parameters"))
+    for e in spec.experiments:
+        variables.check_scenario(e.scenario, errors)
+        where = "data.file" if e.name == SINGLE_EXPERIMENT else f"experiment.{e.name}.data.file"
+        for name in e.data.columns:
+            errors.run(lambda: variables.get(name, where, READABLE, VALUE_TYPES, what="output"))
+    for j, p in enumerate(spec.fitted):
+        column = np.array([p.start, p.low, p.high])
+        errors.run(lambda: variables.check_columns([p.variable], [column],
+                                                   _parameters_field(p.experiment)))
     errors.raise_any()
-    ask_the_fmu(spec.plan(), names, rows[:1], columns, runner, "fit.parameters",
-                "scenario.parameters")
+    for e in spec.experiments:
+        fitted = [spec.fitted[j] for j in e.columns]
+        rows = np.array([[p.start for p in fitted], [p.low for p in fitted],
+                         [p.high for p in fitted]])
+        ask_the_fmu(e.plan(spec.system), e.variables, rows[:1], list(rows.T), runner,
+                    "fit.parameters", "scenario.parameters",
+                    [_parameters_field(p.experiment) for p in fitted])
+
+
+def _parameters_field(experiment: str | None) -> str:
+    return "fit.parameters" if experiment is None else f"experiment.{experiment}.parameters"
 
 
 class Problem:
@@ -66,66 +101,99 @@ class Problem:
         self.study = study
         self.pool = study.pool
         self.store = study.store
+        self.plans = [e.plan(spec.system) for e in spec.experiments]
         self.lock = threading.Lock()
         self.cache: dict[str, Evaluation] = _stored_evaluations(self.store, spec)
         self.next_point = _next_point(self.store)
         self.computed = 0
         self.reused = 0
 
-    def residuals(self, evaluation: Evaluation) -> Rows:
-        """Weighted residuals (model − data) / sigma, row by row; +inf for a failed run,
-        which a trust-region step treats as infinitely bad."""
-        data = self.spec.data
-        if evaluation.predictions is None or not evaluation.ok:
-            return np.full(data.values.size, np.inf)
-        weighted: Rows = ((evaluation.predictions - data.values) / data.sigma).ravel()
-        return weighted
+    def residuals(self, trial: Trial) -> Rows:
+        """Weighted residuals (model − data) / sigma, experiment by experiment and row by
+        row; +inf for a failed run, which a trust-region step treats as infinitely bad."""
+        parts = [_weighted(e.data, run) for e, run in zip(self.spec.experiments, trial.runs)]
+        if not trial.ok:
+            return np.full(sum(len(p) for p in parts), np.inf)
+        return np.concatenate(parts)
 
-    def cached(self, theta: Rows) -> Evaluation | None:
-        """The evaluation of a point already run (or read back), without running it."""
-        [key] = self.study.ids(self.spec.names, np.atleast_2d(theta))
+    def cost(self, trial: Trial) -> float:
+        return 0.5 * float(np.sum(self.residuals(trial) ** 2)) if trial.ok else float("inf")
+
+    def cached(self, theta: Rows) -> Trial | None:
+        """The evaluation of a vector already run (or read back), without running it."""
+        keys = self._keys(np.atleast_2d(theta))[0]
         with self.lock:
-            return self.cache.get(key)
+            runs = [self.cache.get(k) for k in keys]
+        if any(r is None for r in runs):
+            return None
+        return Trial([r for r in runs if r is not None], [e.name for e in self.spec.experiments])
 
-    def evaluate(self, thetas: Rows, start: int, roles: list[str]) -> list[Evaluation]:
+    def _keys(self, thetas: Rows) -> list[list[str]]:
+        """Each vector's run ids, one per experiment: a hash of the experiment and the
+        values it runs with."""
+        per_experiment = []
+        for e in self.spec.experiments:
+            names = e.variables if e.name == SINGLE_EXPERIMENT else [f"{e.name}/{v}" for v in e.variables]
+            per_experiment.append(self.study.ids(names, thetas[:, e.columns]))
+        return [list(keys) for keys in zip(*per_experiment)]
+
+    def evaluate(self, thetas: Rows, start: int, roles: list[str]) -> list[Trial]:
         thetas = np.atleast_2d(np.asarray(thetas, dtype=float))
-        ids = self.study.ids(self.spec.names, thetas)
+        experiments = self.spec.experiments
+        keys = self._keys(thetas)
+        # The runs to make: each (experiment, id) once, from the first vector that needs it.
+        missing: dict[tuple[int, str], int] = {}
         with self.lock:
-            found: list[Evaluation | None] = [self.cache.get(i) for i in ids]
-        missing = [k for k, e in enumerate(found) if e is None]
+            for i, row in enumerate(keys):
+                for k, key in enumerate(row):
+                    if key not in self.cache and (k, key) not in missing:
+                        missing[(k, key)] = i
         if missing:
-            results = self.pool.run(self.spec.names, thetas[missing])
-            fresh = [self._evaluation(r) for r in results]
-            with self.lock:
-                self.computed += len(missing)
-                points = np.arange(self.next_point, self.next_point + len(missing))
-                self.next_point += len(missing)
-                for k, e in zip(missing, fresh):
-                    self.cache[ids[k]] = e
-                    found[k] = e
-            self._write(points, [ids[k] for k in missing], thetas[missing], results, fresh,
-                        start, [roles[k] for k in missing])
+            self._run(thetas, missing, start, roles)
         with self.lock:
-            self.reused += len(thetas) - len(missing)
-        return [e for e in found if e is not None]
+            self.reused += sum(len(row) for row in keys) - len(missing)
+            return [Trial([self.cache[key] for key in row], [e.name for e in experiments])
+                    for row in keys]
 
-    def _evaluation(self, result: PointResult) -> Evaluation:
-        series = result.get("series")
-        rows = self.spec.data.rows
-        if result["status"] != "ok" or series is None or len(series) <= rows[-1]:
-            return Evaluation(result["status"] if result["status"] != "ok" else "error",
-                              result["message"] or "the run ended before the last data time", None)
-        return Evaluation("ok", result["message"], np.array(series[rows, 1:]))
-
-    def _write(self, points: Points, ids: list[str], thetas: Rows, results: list[PointResult],
-               evaluations: list[Evaluation], start: int, roles: list[str]) -> None:
+    def _run(self, thetas: Rows, missing: dict[tuple[int, str], int], start: int,
+             roles: list[str]) -> None:
+        """Make the missing runs, every experiment's at once, and keep them."""
         spec = self.spec
-        columns = {"point": pa.array(points, pa.int64()), "point_id": pa.array(ids, pa.string())}
+        by_experiment: dict[int, list[tuple[str, int]]] = {}
+        for (k, key), i in missing.items():
+            by_experiment.setdefault(k, []).append((key, i))
+        order = sorted(by_experiment)
+        tasks: list[Task] = [(self.plans[k], spec.experiments[k].variables,
+                              thetas[[i for _, i in by_experiment[k]]][:, spec.experiments[k].columns])
+                             for k in order]
+        answers = self.pool.run_each(tasks)
+        for k, results in zip(order, answers):
+            e = spec.experiments[k]
+            made = by_experiment[k]
+            fresh = [_evaluation(e, r) for r in results]
+            with self.lock:
+                self.computed += len(made)
+                points = np.arange(self.next_point, self.next_point + len(made))
+                self.next_point += len(made)
+                for (key, _), evaluation in zip(made, fresh):
+                    self.cache[key] = evaluation
+            self._write(e, points, [key for key, _ in made], thetas[[i for _, i in made]],
+                        results, fresh, start, [roles[i] for _, i in made])
+
+    def _write(self, experiment: Experiment, points: Points, ids: list[str], thetas: Rows,
+               results: list[PointResult], evaluations: list[Evaluation], start: int,
+               roles: list[str]) -> None:
+        spec = self.spec
+        columns = {"point": pa.array(points, pa.int64()), "point_id": pa.array(ids, pa.string()),
+                   "experiment": pa.array([experiment.name] * len(points), pa.string())}
         for j, name in enumerate(spec.names):
-            columns[name] = pa.array(thetas[:, j], pa.float64())
+            # Another experiment's own parameter does not take part in this run: null.
+            values = thetas[:, j] if j in experiment.columns else [None] * len(points)
+            columns[name] = pa.array(values, pa.float64())
         columns["status"] = pa.array([e.status for e in evaluations], pa.string())
         columns["message"] = pa.array([e.message for e in evaluations], pa.string())
-        costs = [0.5 * float(np.sum(self.residuals(e) ** 2)) if e.ok else None for e in evaluations]
+        costs = [0.5 * float(np.sum(_weighted(experiment.data, e) ** 2)) if e.ok else None
+                 for e in evaluations]
         columns["cost"] = pa.array(costs, pa.float64())
         columns["start"] = pa.array([start] * len(points), pa.int64())
         columns["role"] = pa.array(roles, pa.string())
@@ -136,41 +204,62 @@ class Problem:
             columns.update(coupling_columns(results))
         long = [(int(p), e.predictions) for p, e in zip(points, evaluations)
                 if e.ok and e.predictions is not None]
-        self.store.write_batch(pa.table(columns), _long_form(long, spec.data) if long else None)
+        self.store.write_batch(pa.table(columns),
+                               _long_form(long, experiment.data, spec.measured_columns)
+                               if long else None)
 
 
-def _long_form(runs: list[tuple[int, Rows]], data: Data) -> pa.Table:
+def _weighted(data: Data, run: Evaluation) -> Rows:
+    if run.predictions is None or not run.ok:
+        return np.full(data.values.size, np.inf)
+    weighted: Rows = ((run.predictions - data.values) / data.sigma).ravel()
+    return weighted
+
+
+def _evaluation(experiment: Experiment, result: PointResult) -> Evaluation:
+    series = result.get("series")
+    rows = experiment.data.rows
+    if result["status"] != "ok" or series is None or len(series) <= rows[-1]:
+        return Evaluation(result["status"] if result["status"] != "ok" else "error",
+                          result["message"] or "the run ended before the last data time", None)
+    return Evaluation("ok", result["message"], np.array(series[rows, 1:]))
+
+
+def _long_form(runs: list[tuple[int, Rows]], data: Data, measured: list[str]) -> pa.Table:
+    """The runs' values at the data times; the variables coded over every experiment's
+    measured columns, so that all parts of the store share one dictionary."""
     n_t, n_c = data.values.shape
+    codes = np.array([measured.index(c) for c in data.columns], dtype=np.int8)
     point = np.repeat(np.array([p for p, _ in runs], dtype=np.int64), n_t * n_c)
-    variable = np.tile(np.repeat(np.arange(n_c, dtype=np.int8), n_t), len(runs))
+    variable = np.tile(np.repeat(codes, n_t), len(runs))
     time_ = np.tile(np.tile(data.times, n_c), len(runs))
     value = np.concatenate([pred.T.ravel() for _, pred in runs])
     return pa.table({"point": pa.array(point),
-                     "variable": pa.DictionaryArray.from_arrays(pa.array(variable), pa.array(data.columns)),
+                     "variable": pa.DictionaryArray.from_arrays(pa.array(variable), pa.array(measured)),
                      "time": pa.array(time_), "value": pa.array(value)})
 
 
 def _stored_evaluations(store: ResultStore, spec: FitSpec) -> dict[str, Evaluation]:
-    """The points an earlier run of this fit wrote (none for a new fit)."""
+    """The runs an earlier run of this fit wrote (none for a new fit)."""
     try:
         points = ResultStore.points_table_of(store.out).to_pandas()
     except FileNotFoundError:
         return {}
     series = ResultStore.series_table_of(store.out)
-    by_point: dict[int, Rows] = {}
-    if series is not None:
-        frame = series.to_pandas()
-        n_t = len(spec.data.times)
-        for point, group in frame.groupby("point"):
-            values = np.empty((n_t, len(spec.data.columns)))
-            for j, name in enumerate(spec.data.columns):
-                values[:, j] = group[group["variable"] == name].sort_values("time")["value"].to_numpy()
-            by_point[int(point)] = values
+    frames = dict(iter(series.to_pandas().groupby("point"))) if series is not None else {}
+    experiments = {e.name: e for e in spec.experiments}
     cache: dict[str, Evaluation] = {}
     for row in points.itertuples(index=False):
-        predictions = by_point.get(row.point)
-        if row.status == "ok" and predictions is None:
+        group = frames.get(row.point)
+        if row.status == "ok" and group is None:
             continue  # its series part was lost: run it again
+        predictions = None
+        if group is not None:
+            data = experiments[row.experiment].data
+            predictions = np.empty((len(data.times), len(data.columns)))
+            for j, name in enumerate(data.columns):
+                mine = group[group["variable"] == name]
+                predictions[:, j] = mine.sort_values("time")["value"].to_numpy()
         cache[row.point_id] = Evaluation(row.status, row.message, predictions)
     return cache
 

@@ -15,6 +15,8 @@ from ..store import ResultStore, atomic_write_text
 from ..study import Study, Target, load_spec
 from .method import Start, solve_all, starting_points
 from .problem import Problem, check_fit_against_fmu
+from .profile import Profile, profile_all
+from .profile import summary_of as profile_summary
 from .spec import FitSpec
 from .statistics import uncertainty
 
@@ -68,10 +70,10 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
     target = Target.open(spec, fmu)
     assert target.local is not None  # a fit names no SSP file
     check_fit_against_fmu(spec, target.description, target.local)
-    plan = spec.plan()
+    plan = spec.experiments[0].plan(spec.system)
     target.local.configure(plan)
     serial, engine_note = _choose_engine(spec, target, serial, workers, scheduler)
-    record = {"data_sha256": spec.data.sha256, "metrics": ["cost"],
+    record = {"data_sha256": [e.data.sha256 for e in spec.experiments], "metrics": ["cost"],
               "design": {"kind": "fit", "names": spec.names, "points": None}}
     study = Study("fit", spec, target, plan, out=out, resume=resume, record=record,
                   workers=workers, scheduler=scheduler, serial=serial)
@@ -80,9 +82,14 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
         solving = time.perf_counter()
         starts = solve_all(problem, starting_points(spec), 1 if serial else pool.workers)
         solve_s = time.perf_counter() - solving
+        profiling = time.perf_counter()
+        profiles = _profiles(problem, starts, 1 if serial else pool.workers)
+        profile_s = time.perf_counter() - profiling
     study.finish()
-    summary = _summary(spec, problem, starts, study, time.perf_counter() - started)
+    summary = _summary(spec, problem, starts, study, time.perf_counter() - started, profiles)
     summary["solve_s"] = solve_s
+    if profiles:
+        summary["profile_s"] = profile_s
     summary["engine_choice"] = engine_note
     out_dir = study.store.out
     atomic_write_text(json.dumps(summary, indent=2), out_dir / "fit.json")
@@ -93,8 +100,10 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
         # The optimiser's last accepted point: run, and kept, on the way.
         assert best.estimate is not None
         at_best = problem.cached(best.estimate)
-        if at_best is not None and at_best.ok:
-            written = plot_fit(spec, at_best, summary, out_dir / "plots")
+        runs = at_best.runs if at_best is not None and at_best.ok else None
+        if runs is not None:
+            written = plot_fit(spec, runs, summary, out_dir / "plots")
+
     return FitResult(out_dir, summary, written)
 
 
@@ -105,7 +114,8 @@ def _choose_engine(spec: FitSpec, target: Target, serial: bool, workers: int | N
     if serial or workers is not None or scheduler is not None:
         return serial, "as asked"
     assert target.local is not None
-    [probe] = target.local.run(spec.names, [[p.start for p in spec.fitted]])
+    first = spec.experiments[0]
+    [probe] = target.local.run(first.variables, [[spec.fitted[j].start for j in first.columns]])
     run_s = probe["wall_s"] or 0.0
     if run_s < SERIAL_BELOW_S:
         return True, (f"serial: a run takes {run_s * 1e3:.1f} ms, less than a round trip "
@@ -113,10 +123,43 @@ def _choose_engine(spec: FitSpec, target: Target, serial: bool, workers: int | N
     return False, f"a LocalCluster: a run takes {run_s * 1e3:.0f} ms"
 
 
-def _summary(spec: FitSpec, problem: Problem, starts: list[Start], study: Study,
-             wall_s: float) -> Summary:
+def _best(starts: list[Start]) -> Start | None:
     finished = [s for s in starts if s.estimate is not None]
-    best = min(finished, key=lambda s: s.cost) if finished else None
+    return min(finished, key=lambda s: s.cost) if finished else None
+
+
+def _profiles(problem: Problem, starts: list[Start], concurrency: int) -> list[Profile]:
+    """The profiles the spec asks for, walked from the best start's estimate with the Wald
+    standard errors as first steps (none when no start finished)."""
+    spec = problem.spec
+    best = _best(starts)
+    if not spec.profiled or best is None:
+        return []
+    assert best.estimate is not None and best.jacobian is not None and best.residuals is not None
+    wald = uncertainty(spec, best.estimate, best.jacobian, best.residuals)["parameters"]
+    return profile_all(problem, best, {n: wald[n]["stderr"] for n in spec.profiled}, concurrency)
+
+
+def _with_profiles(spec: FitSpec, summary: Summary, profiles: list[Profile]) -> None:
+    """Each parameter's Wald interval as ``wald_ci95`` and its profile interval, where it
+    has one, as ``profile_ci95``; ``ci95`` is the profile's with intervals = "profile"."""
+    for name, p in summary["parameters"].items():
+        p["wald_ci95"] = list(p["ci95"])
+    for pr in profiles:
+        p = summary["parameters"][pr.name]
+        p["profile_ci95"] = list(pr.interval)
+        if spec.intervals == "profile":
+            p["ci95"] = list(pr.interval)
+        for side in (pr.low, pr.high):
+            if side.note:
+                summary["warnings"].append(side.note)
+    if profiles:
+        summary["profiles"] = profile_summary(profiles)
+
+
+def _summary(spec: FitSpec, problem: Problem, starts: list[Start], study: Study,
+             wall_s: float, profiles: list[Profile]) -> Summary:
+    best = _best(starts)
     pool = study.pool
     summary: Summary = {
         "status": best.status if best else "failed",
@@ -126,8 +169,8 @@ def _summary(spec: FitSpec, problem: Problem, starts: list[Start], study: Study,
         "computed": problem.computed, "resumed": problem.reused,
         "iterations": best.iterations if best else None,
         "start": best.index if best else None,
-        "data": {"file": str(spec.data.path), "times": len(spec.data.times),
-                 "columns": spec.data.columns},
+        "experiments": {e.name: {"file": str(e.data.path), "times": len(e.data.times),
+                                 "columns": e.data.columns} for e in spec.experiments},
         "engine": pool.engine, "workers": pool.workers, "wall_s": wall_s,
         "startup_s": pool.startup_s,
         "starts": [{"start": dict(zip(spec.names, map(float, s.start))), "status": s.status,
@@ -142,8 +185,23 @@ def _summary(spec: FitSpec, problem: Problem, starts: list[Start], study: Study,
         return summary
     assert best.estimate is not None and best.jacobian is not None and best.residuals is not None
     summary.update(uncertainty(spec, best.estimate, best.jacobian, best.residuals))
-    weighted = best.residuals.reshape(spec.data.values.shape)
-    summary["residual_rms"] = {c: float(np.sqrt(np.mean((weighted[:, j] * spec.data.sigma[j]) ** 2)))
-                               for j, c in enumerate(spec.data.columns)}
+    summary["residual_rms"] = _residual_rms(spec, best.residuals)
     summary["warnings"] = summary["warnings"] + [n for s in starts for n in s.notes]
+    _with_profiles(spec, summary, profiles)
     return summary
+
+
+def _residual_rms(spec: FitSpec, weighted: np.ndarray) -> dict[str, Any]:
+    """Each measured column's root mean square residual in its own units; per experiment
+    where there are several."""
+    by_experiment: dict[str, dict[str, float]] = {}
+    offset = 0
+    for e in spec.experiments:
+        size = e.data.values.size
+        part = weighted[offset:offset + size].reshape(e.data.values.shape)
+        offset += size
+        by_experiment[e.name] = {c: float(np.sqrt(np.mean((part[:, j] * e.data.sigma[j]) ** 2)))
+                                 for j, c in enumerate(e.data.columns)}
+    if len(spec.experiments) == 1:
+        return by_experiment[spec.experiments[0].name]
+    return by_experiment

@@ -32,7 +32,7 @@ def uncertainty(spec: FitSpec, estimate: Rows, jacobian: Rows, residuals: Rows) 
     names = spec.names
     m, p = jacobian.shape
     dof = m - p
-    absolute = all(spec.data.sigma_given)
+    absolute = spec.absolute_sigma
     _, s, vt = np.linalg.svd(jacobian, full_matrices=False)
     singular = s <= SINGULAR_RATIO * s[0] if s[0] > 0 else np.ones_like(s, dtype=bool)
     variance = 1.0 if absolute else (float(residuals @ residuals) / dof if dof > 0 else np.inf)
