@@ -57,7 +57,7 @@ def _engine_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, help="LocalCluster worker processes (default: every core)")
     parser.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
     parser.add_argument("--serial", action="store_true", help="no Dask: run in this process")
-    parser.add_argument("--no-plots", action="store_true", help="no plots")
+    parser.add_argument("--no-plots", action="store_true", help="no plots and no report.html")
 
 
 def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
@@ -103,6 +103,8 @@ def main(argv: Sequence[str] | None = None) -> int:
           + (f", series in {r.out}/series/" if results.meta["spec"].get("outputs", {}).get("series") else ""))
     for path in results.plots:
         print(f"fmusweep: plot {path}")
+    if results.report_html is not None:
+        print(f"fmusweep: report {results.report_html} (open it in a browser)")
     return 0
 
 
@@ -148,4 +150,6 @@ def fit_main(argv: Sequence[str]) -> int:
     print(f"fmusweep fit: results in {result.out}/fit.json, every run in {result.out}/points.parquet")
     for path in result.plots:
         print(f"fmusweep fit: plot {path}")
+    if (result.out / "report.html").exists():
+        print(f"fmusweep fit: report {result.out / 'report.html'} (open it in a browser)")
     return 0 if s["status"] != "failed" else 1

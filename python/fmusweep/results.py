@@ -22,7 +22,8 @@ class Results:
     """``points``: one row per point (parameters, status, message, metrics, t_end, steps,
     wall_s, worker); ``series()``: the time series in long form; ``meta``: what
     ``sweep.json`` records; ``report``: counts and times of the run that returned it;
-    ``sensitivity``: indices per metric for sobol and morris designs."""
+    ``sensitivity``: indices per metric for sobol and morris designs; ``plots`` and
+    ``report_html``: the pictures and the interactive report, where written."""
 
     def __init__(self, out: str | os.PathLike[str], points: pd.DataFrame | None,
                  meta: dict[str, Any], report: SweepReport | None = None):
@@ -33,6 +34,8 @@ class Results:
         path = self.out / "sensitivity.json"
         self.sensitivity: dict[str, Any] = json.loads(path.read_text()) if path.exists() else {}
         self.plots: list[pathlib.Path] = sorted((self.out / "plots").glob("*.png"))
+        found = self.out / "report.html"
+        self.report_html: pathlib.Path | None = found if found.exists() else None
 
     @property
     def points(self) -> pd.DataFrame:
@@ -60,6 +63,9 @@ class Results:
             atomic_write_text(json.dumps(self.sensitivity, indent=2), self.out / "sensitivity.json")
         self.plots = plot_all(design, self.points, self.meta["metrics"], self.sensitivity,
                               self.out / "plots")
+        from .report import first_series, sweep_report
+        self.report_html = sweep_report(self.out, design.names, self.points, self.meta["metrics"],
+                                        self.sensitivity, first_series(self.out, self.points))
 
     def __repr__(self) -> str:
         counts = self.points["status"].value_counts().to_dict()

@@ -131,6 +131,13 @@ const JOBS: &[Job] = &[
         run: fit::job_bench,
     },
     Job {
+        name: "bench-report",
+        operands: &[],
+        about: "the interactive reports in headless Chromium: size and time to open, into target/bench-report",
+        flags: &[QUICK],
+        run: sweep::job_bench_report,
+    },
+    Job {
         name: "instructions",
         operands: &[],
         about: "instructions per communication point (callgrind) into docs/bench/instructions.md",

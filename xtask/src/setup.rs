@@ -91,6 +91,15 @@ pub(crate) fn is_libclang(name: &str) -> bool {
     })
 }
 
+/// Debian's Chromium, in which the report tests and benchmark open the reports, headless.
+pub(crate) fn ensure_chromium() -> Result {
+    if Command::new("chromium").arg("--version").output().is_err() {
+        println!("xtask: installing chromium");
+        apt_install(&["chromium"])?;
+    }
+    Ok(())
+}
+
 pub(crate) fn apt_install(packages: &[&str]) -> Result {
     run(Command::new("apt-get").args(["update", "-qq"]))?;
     run(Command::new("apt-get")

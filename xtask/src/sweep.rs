@@ -1,5 +1,5 @@
-//! `cargo xtask sweep`, `wheel` and `bench-sweep`: the sweep package with its native runner,
-//! a sweep of a spec, and the sweep benchmark.
+//! `cargo xtask sweep`, `wheel`, `bench-sweep` and `bench-report`: the sweep package with its
+//! native runner, a sweep of a spec, and the sweep's and the reports' benchmarks.
 
 use std::fs;
 use std::process::Command;
@@ -37,6 +37,12 @@ pub(crate) fn run_fmusweep(subcommand: &[&str], parsed: &Parsed) -> Result {
 
 pub(crate) fn job_bench(parsed: &Parsed) -> Result {
     run_bench_script("bench/bench_sweep.py", "target/bench-sweep", parsed)
+}
+
+/// `cargo xtask bench-report`: the reports opened in headless Chromium (installed if missing).
+pub(crate) fn job_bench_report(parsed: &Parsed) -> Result {
+    crate::setup::ensure_chromium()?;
+    run_bench_script("bench/bench_report.py", "target/bench-report", parsed)
 }
 
 /// A Python benchmark of the sweep package: `python SCRIPT FMU OUT FLAGS`.

@@ -36,6 +36,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
     let load = crate::builders::build_flywheel_load()?;
     let ball = crate::builders::build_bouncing_ball()?;
     let (ball_me, ball_me3) = crate::builders::build_bouncing_ball_me()?;
+    ensure_chromium()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
         .arg(root().join("tests/python"))

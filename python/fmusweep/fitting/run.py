@@ -103,7 +103,8 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
         runs = at_best.runs if at_best is not None and at_best.ok else None
         if runs is not None:
             written = plot_fit(spec, runs, summary, out_dir / "plots")
-
+        from ..report import fit_report
+        fit_report(out_dir, spec, runs, summary)
     return FitResult(out_dir, summary, written)
 
 

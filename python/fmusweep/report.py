@@ -1,0 +1,310 @@
+"""An interactive report of a sweep or a fit: ``report.html`` beside ``points.parquet``, one
+self-contained file (Plotly's JavaScript inlined, no network needed) that any browser
+opens from disk.
+
+A sweep's report: the design's points against each other, failed points marked with their
+status and message; each metric against each varied parameter; hovering a point names it
+(its number and id) and its parameter values; clicking it shows its time series where the
+sweep kept series; Sobol' or Morris bars for a design that has them. A fit's report: the
+estimates and both kinds of intervals, measured against fitted per output and experiment,
+the residuals, the correlation matrix and the likelihood profiles.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import pathlib
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+if TYPE_CHECKING:
+    from .fitting.problem import Evaluation
+    from .fitting.spec import FitSpec
+
+__all__ = ["sweep_report", "fit_report", "first_series", "SERIES_POINTS", "SERIES_SAMPLES"]
+
+# The time series a report embeds, at most: the points' whose series the sweep kept, the
+# first this many (the Parquet store has them all), each thinned to this many samples.
+SERIES_POINTS = 200
+SERIES_SAMPLES = 1000
+OK, FAILED = "#1f77b4", "#d62728"
+# Markers as SVG up to this many in a trace, beyond it WebGL: SVG's cost grows with every
+# marker, WebGL's mostly does not, but a browser without a GPU (a headless one, a remote
+# desktop) starts WebGL in software, which a small trace does not repay.
+WEBGL_ABOVE = 1000
+
+
+def _scatter(n: int) -> str:
+    return "scattergl" if n > WEBGL_ABOVE else "scatter"
+
+
+def _page(title: str, intro: str, sections: list[str], script: str = "") -> str:
+    from plotly.offline import get_plotlyjs
+    return (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
+            "<style>body{font-family:sans-serif;margin:1.5em;max-width:1400px}"
+            "table{border-collapse:collapse;font-size:0.9em}td,th{border:1px solid #ccc;padding:2px 6px}"
+            ".plot{width:100%;height:420px}.note{color:#555}</style>"
+            f"<script>{get_plotlyjs()}</script></head><body>"
+            f"<h1>{html.escape(title)}</h1><p>{intro}</p>{''.join(sections)}"
+            f"<script>{script}</script></body></html>\n")
+
+
+def _plot(div: str, data: list[dict[str, Any]], layout: dict[str, Any], height: int = 420) -> str:
+    """A div and the script that draws it (the data as JSON, NaN as null)."""
+    figure = json.dumps({"data": data, "layout": layout}, default=_json_default, allow_nan=False)
+    return (f"<div id=\"{div}\" class=\"plot\" style=\"height:{height}px\"></div><script>"
+            f"(function(){{const f={figure};Plotly.newPlot('{div}',f.data,f.layout,"
+            "{responsive:true});})();</script>")
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return [None if isinstance(v, float) and not math.isfinite(v) else v for v in value.tolist()]
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    raise TypeError(f"not JSON: {type(value).__name__}")
+
+
+def _finite(values: Any) -> list[float | None]:
+    return [float(v) if v is not None and math.isfinite(float(v)) else None
+            for v in np.asarray(values, dtype=float)]
+
+
+def _hover(points: pd.DataFrame, names: list[str]) -> list[str]:
+    """Each point's label: its number, id and parameter values, and why it failed."""
+    labels = []
+    for row in points[["point", "point_id", "status", "message", *names]].to_dict("records"):
+        values = "<br>".join(f"{html.escape(n)} = {float(row[n]):.6g}" for n in names)
+        label = f"point {row['point']} ({row['point_id']})<br>{values}"
+        if row["status"] != "ok":
+            label += f"<br><b>{html.escape(str(row['status']))}</b>: {html.escape(str(row['message']))[:200]}"
+        labels.append(label)
+    return labels
+
+
+def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metrics: list[str],
+                 sensitivity: dict[str, Any], series: pd.DataFrame | None) -> pathlib.Path:
+    """Write ``out/report.html`` for a sweep's points (parameters `names`) and return it."""
+    points = points.sort_values("point").reset_index(drop=True)
+    varied = [n for n in names if points[n].nunique() > 1] or names[:1]
+    labels = _hover(points, names)
+    failed = points["status"] != "ok"
+    counts = points["status"].value_counts().to_dict()
+    intro = (f"{len(points)} points: " + ", ".join(f"{v} {html.escape(k)}" for k, v in counts.items())
+             + ". Hover a point for its number, id and values; click one to see its time series"
+             + (" (kept for the first points of the sweep)." if series is not None else "."))
+    sections = [_design_section(points, varied, labels, failed)]
+    for k, metric in enumerate(metrics):
+        sections.append(_metric_section(k, metric, points, varied, labels, failed))
+    sections += [_sensitivity_section(m, s) for m, s in sensitivity.items() if "names" in s]
+    sections.append(_failed_table(points, names))
+    kept = _series_json(series, points) if series is not None else {}
+    if kept:
+        sections.append("<h2>Time series of the chosen point</h2><p id=\"series-note\" class=\"note\">"
+                        "Click a point above.</p><div id=\"series\" class=\"plot\"></div>")
+    script = (f"const SERIES={json.dumps(kept, allow_nan=False)};" + _CLICK_SCRIPT) if kept else ""
+    path = out / "report.html"
+    path.write_text(_page(f"Sweep {out.name}", intro, sections, script))
+    return path
+
+
+def _design_section(points: pd.DataFrame, varied: list[str], labels: list[str],
+                    failed: pd.Series) -> str:
+    groups = [("ok", ~failed, OK, "circle"), ("failed", failed, FAILED, "x")]
+    if len(varied) <= 2:
+        one = len(varied) == 1
+        data = [{"type": _scatter(int(mask.sum())), "mode": "markers", "name": name,
+                 "x": points.loc[mask, varied[0]].to_numpy(),
+                 "y": np.zeros(int(mask.sum())) if one else points.loc[mask, varied[1]].to_numpy(),
+                 "customdata": points.loc[mask, "point"].to_numpy(),
+                 "text": [labels[i] for i in np.flatnonzero(mask)],
+                 "hoverinfo": "text", "marker": {"color": color, "symbol": symbol, "size": 7}}
+                for name, mask, color, symbol in groups if mask.any()]
+        layout = {"xaxis": {"title": {"text": varied[0]}}, "hovermode": "closest",
+                  "yaxis": {"visible": False} if one else {"title": {"text": varied[1]}}}
+        return "<h2>The design</h2>" + _plot("design", data, layout, 220 if one else 420)
+    dimensions = [{"label": n, "values": points[n].to_numpy()} for n in varied]
+    data = [{"type": "splom", "name": name, "dimensions": [dict(d, values=d["values"][mask.to_numpy()]) for d in dimensions],
+             "text": [labels[i] for i in np.flatnonzero(mask)], "hoverinfo": "text", "diagonal": {"visible": False},
+             "showupperhalf": False,
+             "marker": {"color": color, "symbol": symbol, "size": 5}}
+            for name, mask, color, symbol in groups if mask.any()]
+    size = 180 * len(varied) + 120
+    return "<h2>The design</h2>" + _plot("design", data, {"height": size, "hovermode": "closest"}, size)
+
+
+def _metric_section(k: int, metric: str, points: pd.DataFrame, varied: list[str], labels: list[str],
+                    failed: pd.Series) -> str:
+    """The metric against each varied parameter; failed points drawn below the others."""
+    values = points[metric].to_numpy(dtype=float)
+    finite = values[np.isfinite(values)]
+    floor = float(finite.min() - 0.05 * (np.ptp(finite) or 1.0)) if len(finite) else 0.0
+    data, layout = [], {"hovermode": "closest", "title": {"text": metric}, "showlegend": False,
+                        "grid": {"rows": 1, "columns": len(varied), "pattern": "independent"}}
+    for j, name in enumerate(varied):
+        axis = "" if j == 0 else str(j + 1)
+        for group, mask, color, symbol in (("ok", ~failed, OK, "circle"), ("failed", failed, FAILED, "x")):
+            if not mask.any():
+                continue
+            y = values[mask.to_numpy()] if group == "ok" else np.full(int(mask.sum()), floor)
+            data.append({"type": _scatter(int(mask.sum())), "mode": "markers",
+                         "x": points.loc[mask, name].to_numpy(),
+                         "y": y, "xaxis": f"x{axis}", "yaxis": f"y{axis}", "name": group,
+                         "customdata": points.loc[mask, "point"].to_numpy(),
+                         "text": [labels[i] for i in np.flatnonzero(mask)], "hoverinfo": "text",
+                         "marker": {"color": color, "symbol": symbol, "size": 6}})
+        layout[f"xaxis{axis}"] = {"title": {"text": name}}
+        layout[f"yaxis{axis}"] = {"title": {"text": metric if j == 0 else ""}}
+    return (f"<h2>{html.escape(metric)}</h2><p class=\"note\">Failed points (✕, red) are drawn "
+            "below the others: they have no value.</p>" + _plot(f"metric-{k}", data, layout))
+
+
+def _sensitivity_section(metric: str, s: dict[str, Any]) -> str:
+    div = f"sensitivity-{html.escape(metric)}"
+    if s.get("method") == "sobol":
+        data = [{"type": "bar", "name": key, "x": s["names"], "y": s[key],
+                 "error_y": {"type": "data", "array": s[f"{key}_conf"]}} for key in ("S1", "ST")]
+        layout = {"barmode": "group", "title": {"text": f"Sobol' indices of {metric} (95 % confidence)"}}
+    else:
+        data = [{"type": "scatter", "mode": "markers+text", "x": s["mu_star"], "y": s["sigma"],
+                 "text": s["names"], "textposition": "top right"}]
+        layout = {"title": {"text": f"Morris screening of {metric}"}, "xaxis": {"title": {"text": "μ*"}},
+                  "yaxis": {"title": {"text": "σ"}}}
+    return _plot(div, data, layout)
+
+
+def _failed_table(points: pd.DataFrame, names: list[str]) -> str:
+    failed = points[points["status"] != "ok"]
+    if failed.empty:
+        return "<h2>Failed points</h2><p>None.</p>"
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in ["point", *names, "status", "message"])
+    rows = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in
+                                    [r["point"], *(f"{r[n]:.6g}" for n in names), r["status"], r["message"]])
+                   + "</tr>" for _, r in failed.head(500).iterrows())
+    more = f"<p class=\"note\">… and {len(failed) - 500} more.</p>" if len(failed) > 500 else ""
+    return f"<h2>Failed points ({len(failed)})</h2><table><tr>{head}</tr>{rows}</table>{more}"
+
+
+def first_series(out: pathlib.Path, points: pd.DataFrame) -> pd.DataFrame | None:
+    """The kept series of the first SERIES_POINTS points, read part by part with a filter,
+    so that a large sweep's series are never all in memory; None when none were kept."""
+    import pyarrow.parquet as pq
+    parts = sorted((out / "series").glob("part-*.parquet"))
+    if not parts:
+        return None
+    cutoff = int(np.sort(points["point"].to_numpy())[:SERIES_POINTS].max()) + 1
+    frames = [pq.read_table(p, filters=[("point", "<", cutoff)]).to_pandas() for p in parts]
+    frame = pd.concat([f for f in frames if len(f)] or frames[:1])
+    frame["variable"] = frame["variable"].astype(str)
+    return frame
+
+
+def _series_json(series: pd.DataFrame, points: pd.DataFrame) -> dict[str, Any]:
+    """The kept series of the first SERIES_POINTS points, thinned: {point: {variable: [t, v]}}."""
+    chosen = set(points["point"].head(SERIES_POINTS).tolist())
+    kept: dict[str, Any] = {}
+    frame = series[series["point"].isin(chosen)]
+    for (point, variable), group in frame.groupby(["point", "variable"], observed=True):
+        group = group.sort_values("time")
+        step = max(1, math.ceil(len(group) / SERIES_SAMPLES))
+        kept.setdefault(str(int(point)), {})[str(variable)] = [
+            _finite(group["time"].to_numpy()[::step]), _finite(group["value"].to_numpy()[::step])]
+    return kept
+
+
+# Clicking a point of any plot with its point number in customdata draws that point's
+# series, or says that the report does not hold it.
+_CLICK_SCRIPT = """
+document.querySelectorAll('.plot').forEach(function(gd){
+  if(!gd.on){return;}
+  gd.on('plotly_click', function(ev){
+    const p = ev.points[0]; if(p.customdata === undefined){return;}
+    const kept = SERIES[String(p.customdata)];
+    const note = document.getElementById('series-note');
+    if(!kept){ note.textContent = 'point ' + p.customdata + ': its series is not in this report (see series/).'; return; }
+    note.textContent = 'point ' + p.customdata;
+    const traces = Object.keys(kept).map(function(v){ return {x: kept[v][0], y: kept[v][1], name: v, mode: 'lines'}; });
+    Plotly.react('series', traces, {title: {text: 'point ' + p.customdata}, xaxis: {title: {text: 'time (s)'}}});
+  });
+});
+"""
+
+
+def fit_report(out: pathlib.Path, spec: FitSpec, best: list[Evaluation] | None,
+               summary: dict[str, Any]) -> pathlib.Path:
+    """Write ``out/report.html`` for a fit and return it."""
+    sections = [_estimates_table(summary)]
+    if best is not None:
+        for experiment, run in zip(spec.experiments, best):
+            if run.predictions is not None:
+                sections.append(_experiment_section(experiment.name, experiment.data, run.predictions,
+                                                    len(spec.experiments) > 1))
+    if len(summary.get("parameters", {})) > 1:
+        names = list(summary["parameters"])
+        matrix = [[1.0 if a == b else summary["correlation"][a][b] for b in names] for a in names]
+        sections.append("<h2>Correlation of the estimates</h2>" + _plot(
+            "correlation", [{"type": "heatmap", "z": matrix, "x": names, "y": names, "zmin": -1, "zmax": 1,
+                             "colorscale": "RdBu", "reversescale": True,
+                             "text": [[f"{v:+.3f}" if v is not None else "n/a" for v in row] for row in matrix],
+                             "texttemplate": "%{text}"}],
+            {"yaxis": {"autorange": "reversed"}}, 120 + 60 * len(names)))
+    for name, profile in summary.get("profiles", {}).items():
+        sections.append(_profile_section(name, profile, summary))
+    warnings = "".join(f"<li>{html.escape(w)}</li>" for w in summary.get("warnings", []))
+    intro = (f"Status {html.escape(str(summary['status']))}, cost {summary['cost']}, "
+             f"{summary['evaluations']} runs. " + (f"<ul>{warnings}</ul>" if warnings else "No warnings."))
+    path = out / "report.html"
+    path.write_text(_page(f"Fit {out.name}", intro, sections))
+    return path
+
+
+def _bound(x: float | None) -> str:
+    return "open" if x is None else f"{x:.6g}"
+
+
+def _estimates_table(summary: dict[str, Any]) -> str:
+    rows = []
+    for name, p in summary.get("parameters", {}).items():
+        wald = p.get("wald_ci95", p["ci95"])
+        profile = p.get("profile_ci95")
+        rows.append(f"<tr><td>{html.escape(name)}</td><td>{p['estimate']:.6g}</td>"
+                    f"<td>[{_bound(wald[0])}, {_bound(wald[1])}]</td>"
+                    f"<td>{'' if profile is None else f'[{_bound(profile[0])}, {_bound(profile[1])}]'}</td></tr>")
+    return ("<h2>Estimates</h2><table><tr><th>parameter</th><th>estimate</th><th>Wald 95 %</th>"
+            f"<th>profile 95 %</th></tr>{''.join(rows)}</table>")
+
+
+def _experiment_section(name: str, data: Any, predictions: np.ndarray, several: bool) -> str:
+    title = f"Experiment {name}" if several else "Measured and fitted"
+    parts = [f"<h2>{html.escape(title)}</h2>"]
+    for j, column in enumerate(data.columns):
+        div = f"fit-{name}-{column}"
+        parts.append(_plot(div, [
+            {"type": "scatter", "mode": "markers", "name": "measured", "x": data.times, "y": data.values[:, j],
+             "marker": {"size": 3, "color": "#444"}},
+            {"type": "scatter", "mode": "lines", "name": "fitted", "x": data.times, "y": predictions[:, j]},
+            {"type": "scatter", "mode": "markers", "name": "fitted − measured", "x": data.times,
+             "y": predictions[:, j] - data.values[:, j], "yaxis": "y2", "marker": {"size": 3, "color": FAILED}}],
+            {"title": {"text": column}, "yaxis": {"domain": [0.35, 1.0], "title": {"text": column}},
+             "yaxis2": {"domain": [0.0, 0.25], "title": {"text": "residual"}}, "hovermode": "closest"}, 460))
+    return "".join(parts)
+
+
+def _profile_section(name: str, profile: dict[str, Any], summary: dict[str, Any]) -> str:
+    best = summary["cost"]
+    rise = [None if c is None else c - best for c in profile["cost"]]
+    limit = profile["threshold"] - best
+    data = [{"type": "scatter", "mode": "lines+markers", "name": "profile", "x": profile["values"], "y": rise},
+            {"type": "scatter", "mode": "lines", "name": "95 % threshold", "line": {"dash": "dot"},
+             "x": [min(profile["values"]), max(profile["values"])], "y": [limit, limit]}]
+    wald = summary["parameters"][name]["wald_ci95"]
+    shapes = [{"type": "rect", "xref": "x", "yref": "paper", "x0": wald[0], "x1": wald[1], "y0": 0, "y1": 1,
+               "fillcolor": "orange", "opacity": 0.15, "line": {"width": 0}}] if None not in wald else []
+    layout = {"title": {"text": f"{name}: profile (line) and Wald interval (shaded)"}, "shapes": shapes,
+              "xaxis": {"title": {"text": name}}, "yaxis": {"title": {"text": "cost − least cost"},
+                                                            "range": [0, 2.5 * limit]}}
+    return _plot(f"profile-{name}", data, layout, 360)
