@@ -165,6 +165,8 @@ class Pool:
     def run_each(self, tasks: list[Task]) -> list[list[PointResult]]:
         """Each task's results, in order, every task's rows in flight at once: the rows cut
         into about one batch per worker overall, none of them mixing two tasks."""
+        tasks = [(plan, names, np.asarray(rows, dtype=float).reshape(len(rows), len(names)))
+                 for plan, names, rows in tasks]
         offsets = np.cumsum([0] + [len(rows) for _, _, rows in tasks])
         total = int(offsets[-1])
         chunks: list[Points] = []
@@ -177,8 +179,7 @@ class Pool:
         def task_of(chunk: Points) -> Task:
             k = int(np.searchsorted(offsets, chunk[0], side="right")) - 1
             plan, names, rows = tasks[k]
-            shaped = np.asarray(rows, dtype=float).reshape(len(rows), len(names))
-            return plan, names, shaped[chunk - offsets[k]]
+            return plan, names, rows[chunk - offsets[k]]
 
         results: list[PointResult | None] = [None] * total
         for batch in self._stream(task_of, chunks):

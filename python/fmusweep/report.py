@@ -62,16 +62,12 @@ def _plot(div: str, data: list[dict[str, Any]], layout: dict[str, Any], height: 
 
 
 def _json_default(value: Any) -> Any:
+    """numpy's arrays and numbers as JSON; a value that is not finite as null."""
     if isinstance(value, np.ndarray):
         return [None if isinstance(v, float) and not math.isfinite(v) else v for v in value.tolist()]
     if isinstance(value, (np.floating, np.integer)):
         return value.item()
     raise TypeError(f"not JSON: {type(value).__name__}")
-
-
-def _finite(values: Any) -> list[float | None]:
-    return [float(v) if v is not None and math.isfinite(float(v)) else None
-            for v in np.asarray(values, dtype=float)]
 
 
 def _hover(points: pd.DataFrame, names: list[str]) -> list[str]:
@@ -106,7 +102,8 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
     if kept:
         sections.append("<h2>Time series of the chosen point</h2><p id=\"series-note\" class=\"note\">"
                         "Click a point above.</p><div id=\"series\" class=\"plot\"></div>")
-    script = (f"const SERIES={json.dumps(kept, allow_nan=False)};" + _CLICK_SCRIPT) if kept else ""
+    script = (f"const SERIES={json.dumps(kept, default=_json_default, allow_nan=False)};"
+              + _CLICK_SCRIPT) if kept else ""
     path = out / "report.html"
     path.write_text(_page(f"Sweep {out.name}", intro, sections, script))
     return path
@@ -212,7 +209,7 @@ def _series_json(series: pd.DataFrame, points: pd.DataFrame) -> dict[str, Any]:
         group = group.sort_values("time")
         step = max(1, math.ceil(len(group) / SERIES_SAMPLES))
         kept.setdefault(str(int(point)), {})[str(variable)] = [
-            _finite(group["time"].to_numpy()[::step]), _finite(group["value"].to_numpy()[::step])]
+            group["time"].to_numpy(dtype=float)[::step], group["value"].to_numpy(dtype=float)[::step]]
     return kept
 
 

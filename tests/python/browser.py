@@ -31,6 +31,7 @@ class Browser:
         self.width, self.height = width, height
         self.loop = asyncio.new_event_loop()
         self.errors = []
+        self.loaded = False
         self.next_id = 0
 
     def __enter__(self):

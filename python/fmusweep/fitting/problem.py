@@ -74,7 +74,7 @@ def check_fit_against_fmu(spec: FitSpec, description: dict[str, Any],
         where = "data.file" if e.name == SINGLE_EXPERIMENT else f"experiment.{e.name}.data.file"
         for name in e.data.columns:
             errors.run(lambda: variables.get(name, where, READABLE, VALUE_TYPES, what="output"))
-    for j, p in enumerate(spec.fitted):
+    for p in spec.fitted:
         column = np.array([p.start, p.low, p.high])
         errors.run(lambda: variables.check_columns([p.variable], [column],
                                                    _parameters_field(p.experiment)))

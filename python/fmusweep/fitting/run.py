@@ -82,11 +82,16 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
         solving = time.perf_counter()
         starts = solve_all(problem, starting_points(spec), 1 if serial else pool.workers)
         solve_s = time.perf_counter() - solving
+        best = _best(starts)
+        wald = _wald(spec, best)
         profiling = time.perf_counter()
-        profiles = _profiles(problem, starts, 1 if serial else pool.workers)
+        profiles = (profile_all(problem, best, {n: wald["parameters"][n]["stderr"] for n in spec.profiled},
+                                1 if serial else pool.workers)
+                    if best is not None and wald is not None and spec.profiled else [])
         profile_s = time.perf_counter() - profiling
     study.finish()
-    summary = _summary(spec, problem, starts, study, time.perf_counter() - started, profiles)
+    summary = _summary(spec, problem, starts, best, wald, study, time.perf_counter() - started,
+                       profiles)
     summary["solve_s"] = solve_s
     if profiles:
         summary["profile_s"] = profile_s
@@ -94,9 +99,8 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
     out_dir = study.store.out
     atomic_write_text(json.dumps(summary, indent=2), out_dir / "fit.json")
     written: list[pathlib.Path] = []
-    if plots and summary["status"] != "failed":
+    if plots and best is not None and summary["status"] != "failed":
         from .plots import plot_fit
-        best = min(starts, key=lambda s: s.cost)
         # The optimiser's last accepted point: run, and kept, on the way.
         assert best.estimate is not None
         at_best = problem.cached(best.estimate)
@@ -129,16 +133,13 @@ def _best(starts: list[Start]) -> Start | None:
     return min(finished, key=lambda s: s.cost) if finished else None
 
 
-def _profiles(problem: Problem, starts: list[Start], concurrency: int) -> list[Profile]:
-    """The profiles the spec asks for, walked from the best start's estimate with the Wald
-    standard errors as first steps (none when no start finished)."""
-    spec = problem.spec
-    best = _best(starts)
-    if not spec.profiled or best is None:
-        return []
+def _wald(spec: FitSpec, best: Start | None) -> dict[str, Any] | None:
+    """The statistics from the Jacobian at the best estimate (``statistics``); none when no
+    start finished. The profiles take their first steps from its standard errors."""
+    if best is None:
+        return None
     assert best.estimate is not None and best.jacobian is not None and best.residuals is not None
-    wald = uncertainty(spec, best.estimate, best.jacobian, best.residuals)["parameters"]
-    return profile_all(problem, best, {n: wald[n]["stderr"] for n in spec.profiled}, concurrency)
+    return uncertainty(spec, best.estimate, best.jacobian, best.residuals)
 
 
 def _with_profiles(spec: FitSpec, summary: Summary, profiles: list[Profile]) -> None:
@@ -158,9 +159,9 @@ def _with_profiles(spec: FitSpec, summary: Summary, profiles: list[Profile]) -> 
         summary["profiles"] = profile_summary(profiles)
 
 
-def _summary(spec: FitSpec, problem: Problem, starts: list[Start], study: Study,
-             wall_s: float, profiles: list[Profile]) -> Summary:
-    best = _best(starts)
+def _summary(spec: FitSpec, problem: Problem, starts: list[Start], best: Start | None,
+             wald: dict[str, Any] | None, study: Study, wall_s: float,
+             profiles: list[Profile]) -> Summary:
     pool = study.pool
     summary: Summary = {
         "status": best.status if best else "failed",
@@ -181,11 +182,11 @@ def _summary(spec: FitSpec, problem: Problem, starts: list[Start], study: Study,
                     "iterations": s.iterations, "message": s.message, "notes": s.notes}
                    for s in starts],
     }
-    if best is None:
+    if best is None or wald is None:
         summary.update(parameters={}, correlation={}, residual_rms={}, warnings=[summary["message"]])
         return summary
-    assert best.estimate is not None and best.jacobian is not None and best.residuals is not None
-    summary.update(uncertainty(spec, best.estimate, best.jacobian, best.residuals))
+    assert best.residuals is not None
+    summary.update(wald)
     summary["residual_rms"] = _residual_rms(spec, best.residuals)
     summary["warnings"] = summary["warnings"] + [n for s in starts for n in s.notes]
     _with_profiles(spec, summary, profiles)

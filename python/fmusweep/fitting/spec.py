@@ -177,8 +177,8 @@ class FitSpec:
         if ssp is not None and system is None:
             raise SpecError("system.engine", "a fit runs an SSP file natively only: not "
                                              "with engine = \"fmpy\"")
-        numbered, fitted = _numbered(experiments, shared)
-        starts, seed, max_iterations, relative_step, intervals, profiled = settings
+        shared_fitted, starts, seed, max_iterations, relative_step, intervals, profiled = settings
+        numbered, fitted = _numbered(experiments, shared_fitted)
         return FitSpec(raw, base, (base / fmu) if fmu else None, system, numbered, fitted,
                        starts, seed, max_iterations, relative_step, intervals, profiled)
 
@@ -285,12 +285,10 @@ def _own_parameter(variable: str, entry: object, scenario: Scenario, where: str,
 
 
 def _numbered(parsed: list[_Parsed],
-              shared: list[tuple[str, Any]]) -> tuple[list[Experiment], list[FitParameter]]:
+              shared: list[FitParameter]) -> tuple[list[Experiment], list[FitParameter]]:
     """The experiments with their columns of the parameter vector: the shared parameters
     first, then each experiment's own."""
-    first = parsed[0].scenario
-    fitted = [_parameter(name, entry, first, f"fit.parameters.{name}", name, None)
-              for name, entry in shared]
+    fitted = list(shared)
     experiments = []
     for e in parsed:
         columns = list(range(len(shared))) + list(range(len(fitted), len(fitted) + len(e.own)))
@@ -301,16 +299,20 @@ def _numbered(parsed: list[_Parsed],
 
 
 def _fit_table(raw: dict[str, Any], experiments: list[_Parsed], shared: list[tuple[str, Any]]
-               ) -> tuple[int, int | None, int, float, str, list[str]]:
-    """The [fit] table: the starts, the seed, the iterations, the Jacobian's relative step
-    and the intervals; every mistake of it (and of the shared parameters) reported at once."""
+               ) -> tuple[list[FitParameter], int, int | None, int, float, str, list[str]]:
+    """The [fit] table: the shared parameters (each checked against every experiment's
+    scenario), the starts, the seed, the iterations, the Jacobian's relative step and the
+    intervals; every mistake of it reported at once."""
     fit = table(raw, "fit", "spec", required=True)
     errors = Collector()
     errors.run(lambda: only(fit, "fit", {"parameters", "starts", "seed", "max_iterations",
                                          "relative_step", "intervals", "profile"}))
+    fitted: list[FitParameter] = []
     for name, entry in shared:
-        errors.run(lambda: [_parameter(name, entry, e.scenario, f"fit.parameters.{name}", name,
-                                       None) for e in experiments])
+        each = errors.run(lambda: [_parameter(name, entry, e.scenario, f"fit.parameters.{name}",
+                                              name, None) for e in experiments])
+        if each:
+            fitted.append(each[0])
     if not shared and not any(e.own for e in experiments):
         errors.run(lambda: refuse("fit.parameters", "names no parameter: there is nothing to fit"))
     starts = errors.run(lambda: whole(fit.get("starts", 1), "fit.starts", 1, MAX_STARTS))
@@ -336,7 +338,7 @@ def _fit_table(raw: dict[str, Any], experiments: list[_Parsed], shared: list[tup
     intervals, profiled = errors.run(lambda: _intervals(fit, names)) or ("wald", [])
     errors.raise_any()
     assert starts is not None and max_iterations is not None
-    return starts, seed, max_iterations, float(relative_step), intervals, profiled
+    return fitted, starts, seed, max_iterations, float(relative_step), intervals, profiled
 
 
 def _intervals(fit: dict[str, Any], names: list[str]) -> tuple[str, list[str]]:
