@@ -150,3 +150,21 @@ def test_the_command_line_prints_an_open_side_as_open(fmu_path, tmp_path):
     assert done.returncode == 0, done.stderr
     assert "profile [open, " in done.stdout, done.stdout
     assert "warning: d34's profile stays below the threshold" in done.stdout
+
+
+def test_a_side_where_runs_fail_has_no_end_instead_of_the_failed_value(fmu_path, tmp_path):
+    """Rod lengths past about 0.95 m do not assemble. With heavy noise the profile of L
+    walks into them: that side of the interval is unknown (null, with the reason), not the
+    first value that failed."""
+    scenario = {"stop": 1.0, "step": 0.01, "tolerance": 1e-8}
+    columns = ("omega1", "omega4")
+    rows = record(fmu_path, ["L"], [0.94], scenario, columns)
+    data = write(tmp_path / "m.csv", rows, 4.0, seed=1, columns=columns)
+    spec = spec_of(fmu_path, data, scenario, {"L": {"start": 0.9, "range": [0.8, 1.2]}}, 4.0,
+                   columns=columns)
+    summary = fit(spec, out=tmp_path / "out", serial=True, plots=False).summary
+    assert summary["parameters"]["L"]["profile_ci95"][1] is None
+    failed = [w for w in summary["warnings"] if "where no run finished" in w]
+    assert len(failed) == 1 and failed[0].startswith("L's profile stops at 0.97"), summary["warnings"]
+    stop = summary["profiles"]["L"]["values"][-1]
+    assert summary["profiles"]["L"]["cost"][-1] is None and stop > 0.95

@@ -133,6 +133,12 @@ def _walk(problem: Problem, best: Start, j: int, sign: int, limit: float,
         cost, held = _least_cost(problem, held, j, value)
         side.values.append(value)
         side.costs.append(cost)
+        if not math.isfinite(cost):
+            # No run finished there (a geometry that does not assemble, a failed step): the
+            # data say nothing of it, so the interval has no end on this side to report.
+            side.note = (f"{p.name}'s profile stops at {value:g}, where no run finished: "
+                         "its interval on that side is not known")
+            return side
         if cost < best.cost * (1 - LOWER_SLACK) - 1e-12:
             side.note = (f"{p.name} = {value:g} has a lower cost ({cost:.6g}) than the "
                          f"estimate ({best.cost:.6g}): the fit stopped short of its optimum")
@@ -166,6 +172,8 @@ def _refined(problem: Problem, side: Side, held: Rows, j: int, estimate: float,
         value_cost, held = _least_cost(problem, held, j, guess)
         side.values.append(guess)
         side.costs.append(value_cost)
+        if not math.isfinite(value_cost):
+            return _crossing(inside, outside, rise)
         if value_cost - cost >= rise:
             outside = (guess, value_cost - cost)
         else:
