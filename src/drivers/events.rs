@@ -68,6 +68,9 @@ enum Located {
     At(f64),
     /// The call's work ran out at this time before the change point was located.
     OutOfWork(f64),
+    /// The failure lay past the step's end (the integrator had stepped ahead of it), and
+    /// the step, landing on its end, passed: the plant stands there.
+    Reached,
 }
 
 /// One step of the plant to `target` under `handling`, within [`CALL_WORK`]: how it ended,
@@ -130,6 +133,8 @@ impl Stepper<'_> {
         loop {
             if let Some(failed) = error.take() {
                 match self.after_failure(target, failed) {
+                    // A step that reached its end keeps an event met on the way.
+                    Ok(Some(StepEnd::Complete)) => return Ok(met),
                     Ok(Some(end)) => return Ok(end),
                     Ok(None) => met = StepEnd::CompleteAfterEvent,
                     Err(refusal) => return self.refused(before, now, target, refusal),
@@ -215,6 +220,7 @@ impl Stepper<'_> {
                 )))
             }
             Located::OutOfWork(t) => return Err(Refusal::OutOfWork(t)),
+            Located::Reached => return Ok(Some(StepEnd::Complete)),
             Located::At(located) => located,
         };
         if !self.handling.event_mode {
@@ -325,7 +331,8 @@ impl Stepper<'_> {
         }
         let (p, mut d) = reached.unwrap_or_else(|| (plant.clone(), driver.clone()));
         let y = p.state();
-        if locate_node(p.params(), y[1], y[2]).is_err() {
+        let at_end = lo >= target;
+        if !at_end && locate_node(p.params(), y[1], y[2]).is_err() {
             return Located::NotAChangePoint;
         }
         // The statistics count every right-hand side the bisection evaluated, also on the
@@ -334,6 +341,10 @@ impl Stepper<'_> {
         d.allow_work(allowed.saturating_sub(spent));
         *plant = p;
         *driver = d;
-        Located::At(lo)
+        if at_end {
+            Located::Reached
+        } else {
+            Located::At(lo)
+        }
     }
 }
