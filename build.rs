@@ -3,7 +3,10 @@
 //! the macOS library its packed name.
 fn main() {
     let os = std::env::var("CARGO_CFG_TARGET_OS").unwrap_or_default();
-    if os == "linux" {
+    // Without the FMI interfaces (the WebAssembly build's dependency) there is nothing to
+    // export and no fmi-sys helper to hide.
+    let fmi = std::env::var_os("CARGO_FEATURE_FMI").is_some();
+    if os == "linux" && fmi {
         let map = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src/exports.map");
         println!(
             "cargo:rustc-cdylib-link-arg=-Wl,--version-script={}",

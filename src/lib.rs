@@ -18,11 +18,15 @@
 //! The integrators, which know nothing of the mechanism, are the crate `integrators`
 //! (`integrators/` at the repository's root), which the sweep's runner uses too.
 
+#[cfg(feature = "fmi")]
 mod abi;
 pub mod description;
 pub mod drivers;
+#[cfg(feature = "fmi")]
 pub mod fmi2;
+#[cfg(feature = "fmi")]
 pub mod fmi3;
+#[cfg(feature = "fmi")]
 pub mod instance;
 pub mod model;
 pub mod plant;

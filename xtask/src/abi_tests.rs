@@ -2,8 +2,10 @@
 //! crate's Rust tests built for Windows and run under Wine, and one C master
 //! (tests/platforms/master.c) built for linux64, win64 (MinGW, run under Wine) and aarch64
 //! Linux (zig cc, run under QEMU) that drives each binary through the same scenarios and
-//! records every output at every communication point. The runs must agree with linux64's
-//! bit for bit, or the test names the first value that differs and by how much.
+//! records every output at every communication point; the page's WebAssembly module
+//! (web/) runs the same scenarios under Node through web/node_master.mjs, which takes the
+//! C master's command line and writes its output. The runs must agree with linux64's bit
+//! for bit, or the test names the first value that differs and by how much.
 
 use std::collections::BTreeMap;
 use std::fs;
@@ -383,11 +385,11 @@ fn values(line: &str, description: &Description) -> Result<Vec<f64>> {
 fn compare_platforms(
     description: &Description,
     linux64: &Path,
-    win64: &Path,
-    aarch64: &Path,
+    (win64, aarch64, wasm32): (&Path, &Path, &Path),
     zig: &Zig,
 ) -> Result<Vec<String>> {
     let (native, windows, arm) = build_masters(zig)?;
+    let node_program = crate::web::ensure_node()?;
     let dir = work_dir();
     let mut report = Vec::new();
     let mut failures = Vec::new();
@@ -411,6 +413,8 @@ fn compare_platforms(
             qemu.args(["-L", AARCH64_SYSROOT]).arg(&arm);
             qemu
         };
+        let mut node = Command::new(&node_program);
+        node.arg(root().join("web/node_master.mjs"));
         // Each binary through FMI 2.0 and FMI 3.0, all against linux64's FMI 2.0 run.
         let runs = [
             ("win64 under Wine", wine()?, win64, (true, false)),
@@ -428,6 +432,8 @@ fn compare_platforms(
                 aarch64,
                 (false, true),
             ),
+            // The page's module: the plant and driver the FMU steps, without FMI.
+            ("wasm32 under Node", node, wasm32, (false, false)),
         ];
         for (platform, mut command, library, version) in runs {
             let file = out(&platform.replace([' ', ','], "-"));
@@ -470,6 +476,33 @@ fn compare_platforms(
     Ok(report)
 }
 
+/// The stepping loop's seconds of paper case 1 (the first scenario) run by `how` over
+/// `library`, the fastest of `repeats` runs, for the benchmarks; the recording in `dir`.
+pub fn paper_case_seconds(
+    how: impl Fn() -> Command,
+    library: &Path,
+    description: &Description,
+    dir: &Path,
+    repeats: usize,
+) -> Result<f64> {
+    let scenario = &SCENARIOS[0];
+    let output = dir.join("paper-case-1.txt");
+    let mut fastest = f64::INFINITY;
+    for _ in 0..repeats {
+        let mut command = how();
+        let (_, seconds) = run_master(
+            &mut command,
+            library,
+            &output,
+            scenario,
+            description,
+            (false, false),
+        )?;
+        fastest = fastest.min(seconds);
+    }
+    Ok(fastest)
+}
+
 /// The crate's Rust tests built for Windows and run under Wine as cargo's runner.
 fn rust_tests_under_wine(zig: &Zig) -> Result {
     let mut command = platforms::cross_cargo(Target::Win64, "test", zig)?;
@@ -501,7 +534,8 @@ pub fn test(
     let win64 = binaries.join(format!("win64/{}.dll", crate::MODEL_IDENTIFIER));
     let aarch64 = binaries.join(format!("aarch64-linux/{}.so", crate::MODEL_IDENTIFIER));
     rust_tests_under_wine(zig)?;
-    let comparisons = compare_platforms(&description, linux64, &win64, &aarch64, zig)?;
+    let wasm32 = crate::web::build_wasm()?;
+    let comparisons = compare_platforms(&description, linux64, (&win64, &aarch64, &wasm32), zig)?;
     let reports = root().join("target/test-reports");
     fs::create_dir_all(&reports).map_err(|e| e.to_string())?;
     let mut text = String::from(

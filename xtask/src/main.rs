@@ -21,6 +21,7 @@ mod setup;
 mod sweep;
 mod test;
 mod tidy;
+mod web;
 
 use cli::{Flag, Job};
 
@@ -66,6 +67,20 @@ const JOBS: &[Job] = &[
         about: "the win64, darwin64 and aarch64 builds and their tests alone (part of test)",
         flags: &[],
         run: test::job_platforms,
+    },
+    Job {
+        name: "web",
+        operands: &[],
+        about: "build the page that runs the mechanism in a browser (wasm32) into target/web",
+        flags: &[],
+        run: web::job,
+    },
+    Job {
+        name: "bench-web",
+        operands: &[],
+        about: "the page and its module against the native library: speed, frame rate, size, into target/bench-web",
+        flags: &[QUICK],
+        run: web::job_bench,
     },
     Job {
         name: "tidy",

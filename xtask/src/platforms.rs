@@ -33,8 +33,8 @@ pub const RUN_PACKAGES: &[(&str, &str)] = &[
 ];
 
 /// Debian's Rust, which builds the standard library for any target (`rust-web-src`).
-const DEBIAN_CARGO: &str = "/usr/bin/cargo";
-const DEBIAN_RUSTC: &str = "/usr/bin/rustc";
+pub const DEBIAN_CARGO: &str = "/usr/bin/cargo";
+pub const DEBIAN_RUSTC: &str = "/usr/bin/rustc";
 pub const LLVM_BIN: &str = "/usr/lib/llvm-14/bin";
 pub const MINGW_GCC: &str = "x86_64-w64-mingw32-gcc";
 

@@ -1,6 +1,7 @@
 //! `cargo xtask test`: every test, as CI runs it: the Rust tests, the fuzzer under
-//! valgrind, the cross builds and their tests on other ABIs, the benchmark harness's smoke
-//! run, the FMPy, libcosim and sweep tests, and memcheck of the FMPy suite.
+//! valgrind, the cross builds and their tests on other ABIs (the page's wasm32 module among
+//! them), the benchmark harness's smoke run, the FMPy, libcosim, sweep and browser tests,
+//! and memcheck of the FMPy suite.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -37,8 +38,16 @@ pub(crate) fn job(_: &Parsed) -> Result {
     let ball = crate::builders::build_bouncing_ball()?;
     let (ball_me, ball_me3) = crate::builders::build_bouncing_ball_me()?;
     ensure_chromium()?;
+    let page = crate::web::build_page()?;
     run(Command::new(&python)
-        .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
+        .args([
+            "-m",
+            "pytest",
+            "-q",
+            "-p",
+            "no:cacheprovider",
+            "--durations=25",
+        ])
         .arg(root().join("tests/python"))
         .env("CYCLIC_MECHANISM_FMU", &fmu)
         .env("CYCLIC_MECHANISM_FMU3", &fmu3)
@@ -47,6 +56,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .env("BOUNCING_BALL_FMU", &ball)
         .env("BOUNCING_BALL_ME_FMU", &ball_me)
         .env("BOUNCING_BALL_ME_FMU3", &ball_me3)
+        .env("MECHANISM_WEB_PAGE", &page)
         .current_dir(root()))?;
     // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
     // by the packed FMU, the test files, the installed packages and the selection and
