@@ -57,8 +57,19 @@ def _plot(div: str, data: list[dict[str, Any]], layout: dict[str, Any], height: 
     """A div and the script that draws it (the data as JSON, NaN as null)."""
     figure = json.dumps({"data": data, "layout": layout}, default=_json_default, allow_nan=False)
     return (f"<div id=\"{div}\" class=\"plot\" style=\"height:{height}px\"></div><script>"
-            f"(function(){{const f={figure};Plotly.newPlot('{div}',f.data,f.layout,"
+            f"(function(){{const f={figure};{_LABEL_TRACES}Plotly.newPlot('{div}',f.data,f.layout,"
             "{responsive:true});})();</script>")
+
+
+# A sweep's hover labels are written once (LABELS, by point number) and given to each trace
+# that names its points in customdata, rather than repeated in every plot's JSON.
+_LABEL_TRACES = ("if(typeof LABELS!=='undefined')for(const t of f.data){if(t.labelled){"
+                 "t.text=Array.from(t.customdata,p=>LABELS[p]);delete t.labelled;}}")
+
+
+def _labels_script(points: pd.DataFrame, labels: list[str]) -> str:
+    by_point = dict(zip((str(p) for p in points["point"]), labels))
+    return f"<script>const LABELS={json.dumps(by_point)};</script>"
 
 
 def _json_default(value: Any) -> Any:
@@ -93,9 +104,9 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
     intro = (f"{len(points)} points: " + ", ".join(f"{v} {html.escape(k)}" for k, v in counts.items())
              + ". Hover a point for its number, id and values; click one to see its time series"
              + (" (kept for the first points of the sweep)." if series is not None else "."))
-    sections = [_design_section(points, varied, labels, failed)]
+    sections = [_labels_script(points, labels), _design_section(points, varied, failed)]
     for k, metric in enumerate(metrics):
-        sections.append(_metric_section(k, metric, points, varied, labels, failed))
+        sections.append(_metric_section(k, metric, points, varied, failed))
     sections += [_sensitivity_section(m, s) for m, s in sensitivity.items() if "names" in s]
     sections.append(_failed_table(points, names))
     kept = _series_json(series, points) if series is not None else {}
@@ -109,16 +120,14 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
     return path
 
 
-def _design_section(points: pd.DataFrame, varied: list[str], labels: list[str],
-                    failed: pd.Series) -> str:
+def _design_section(points: pd.DataFrame, varied: list[str], failed: pd.Series) -> str:
     groups = [("ok", ~failed, OK, "circle"), ("failed", failed, FAILED, "x")]
     if len(varied) <= 2:
         one = len(varied) == 1
         data = [{"type": _scatter(int(mask.sum())), "mode": "markers", "name": name,
                  "x": points.loc[mask, varied[0]].to_numpy(),
                  "y": np.zeros(int(mask.sum())) if one else points.loc[mask, varied[1]].to_numpy(),
-                 "customdata": points.loc[mask, "point"].to_numpy(),
-                 "text": [labels[i] for i in np.flatnonzero(mask)],
+                 "customdata": points.loc[mask, "point"].to_numpy(), "labelled": True,
                  "hoverinfo": "text", "marker": {"color": color, "symbol": symbol, "size": 7}}
                 for name, mask, color, symbol in groups if mask.any()]
         layout = {"xaxis": {"title": {"text": varied[0]}}, "hovermode": "closest",
@@ -126,7 +135,8 @@ def _design_section(points: pd.DataFrame, varied: list[str], labels: list[str],
         return "<h2>The design</h2>" + _plot("design", data, layout, 220 if one else 420)
     dimensions = [{"label": n, "values": points[n].to_numpy()} for n in varied]
     data = [{"type": "splom", "name": name, "dimensions": [dict(d, values=d["values"][mask.to_numpy()]) for d in dimensions],
-             "text": [labels[i] for i in np.flatnonzero(mask)], "hoverinfo": "text", "diagonal": {"visible": False},
+             "customdata": points.loc[mask, "point"].to_numpy(), "labelled": True,
+             "hoverinfo": "text", "diagonal": {"visible": False},
              "showupperhalf": False,
              "marker": {"color": color, "symbol": symbol, "size": 5}}
             for name, mask, color, symbol in groups if mask.any()]
@@ -134,7 +144,7 @@ def _design_section(points: pd.DataFrame, varied: list[str], labels: list[str],
     return "<h2>The design</h2>" + _plot("design", data, {"height": size, "hovermode": "closest"}, size)
 
 
-def _metric_section(k: int, metric: str, points: pd.DataFrame, varied: list[str], labels: list[str],
+def _metric_section(k: int, metric: str, points: pd.DataFrame, varied: list[str],
                     failed: pd.Series) -> str:
     """The metric against each varied parameter; failed points drawn below the others."""
     values = points[metric].to_numpy(dtype=float)
@@ -151,8 +161,8 @@ def _metric_section(k: int, metric: str, points: pd.DataFrame, varied: list[str]
             data.append({"type": _scatter(int(mask.sum())), "mode": "markers",
                          "x": points.loc[mask, name].to_numpy(),
                          "y": y, "xaxis": f"x{axis}", "yaxis": f"y{axis}", "name": group,
-                         "customdata": points.loc[mask, "point"].to_numpy(),
-                         "text": [labels[i] for i in np.flatnonzero(mask)], "hoverinfo": "text",
+                         "customdata": points.loc[mask, "point"].to_numpy(), "labelled": True,
+                         "hoverinfo": "text",
                          "marker": {"color": color, "symbol": symbol, "size": 6}})
         layout[f"xaxis{axis}"] = {"title": {"text": name}}
         layout[f"yaxis{axis}"] = {"title": {"text": metric if j == 0 else ""}}

@@ -130,5 +130,9 @@ def test_a_sobol_sweeps_report_draws_its_indices_and_design_matrix(fmu_path, tmp
         bars = browser.evaluate("document.getElementById('sensitivity-peak_rod_force').data.map(t => t.name)")
         assert bars == ["S1", "ST"]
         assert browser.evaluate("document.getElementById('design').data[0].type") == "splom"
+        # Every point of the matrix is labelled with its number and values.
+        texts = browser.evaluate("document.getElementById('design').data[0].text")
+        assert len(texts) == len(results.points) and texts[0].startswith("point ")
+        assert "J1 = " in texts[0] and "k34 = " in texts[0]
         assert browser.evaluate("document.getElementById('series') === null")  # no series kept
         assert browser.errors == []
