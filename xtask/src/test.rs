@@ -6,13 +6,56 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::Instant;
 
 use crate::cli::Parsed;
 use crate::setup::*;
 use crate::{abi_tests, fmu, platforms, Result, MODEL_IDENTIFIER};
 
+/// Each stage's wall time, said as the run goes and again at its end: where a suite's time
+/// goes, in every log.
+struct Stages {
+    started: Instant,
+    last: Instant,
+    done: Vec<(&'static str, f64)>,
+}
+
+impl Stages {
+    fn new() -> Self {
+        let now = Instant::now();
+        Self {
+            started: now,
+            last: now,
+            done: Vec::new(),
+        }
+    }
+
+    fn done(&mut self, stage: &'static str) {
+        let now = Instant::now();
+        let seconds = (now - self.last).as_secs_f64();
+        println!("xtask test: {stage} took {seconds:.0} s");
+        self.done.push((stage, seconds));
+        self.last = now;
+    }
+
+    fn summary(&self) -> String {
+        let parts: Vec<String> = self
+            .done
+            .iter()
+            .map(|(stage, s)| format!("{stage} {s:.0} s"))
+            .collect();
+        format!(
+            "xtask test: all passed in {:.0} s ({})",
+            self.started.elapsed().as_secs_f64(),
+            parts.join(", ")
+        )
+    }
+}
+
 pub(crate) fn job(_: &Parsed) -> Result {
+    let mut stages = Stages::new();
     crate::tidy::check()?;
+    stages.done("tidy");
     ensure_libclang()?;
     let reports = root().join("target/test-reports");
     fs::create_dir_all(&reports).map_err(|e| e.to_string())?;
@@ -20,9 +63,12 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .args(["test", "--release"])
         .env("FUZZ_REPORT", reports.join("fuzz_api.json"))
         .env("FUZZ_REPORT_FMI3", reports.join("fuzz_api_fmi3.json")))?;
+    stages.done("cargo test");
     fuzz_under_valgrind()?;
+    stages.done("fuzzers under valgrind");
     // The archive with every platform: the FMPy tests check it as a master would.
     let (fmu, fmu3) = test_platforms()?;
+    stages.done("cross builds and other platforms");
     // The benchmark harness builds and drives the packed FMU (a smoke run, no timings
     // judged), so that `cargo xtask bench` keeps working from a fresh clone.
     let harness = crate::bench::build_bench_harness()?;
@@ -32,6 +78,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .arg(&fmu)
         .arg(&smoke)
         .args(["--quick", "--fmu-only"]))?;
+    stages.done("benchmark harness");
     let python = crate::builders::ensure_sweep_package()?;
     let motor = crate::builders::build_motor()?;
     let load = crate::builders::build_flywheel_load()?;
@@ -39,6 +86,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
     let (ball_me, ball_me3) = crate::builders::build_bouncing_ball_me()?;
     ensure_chromium()?;
     let page = crate::web::build_page()?;
+    stages.done("the package, examples and page");
     run(Command::new(&python)
         .args([
             "-m",
@@ -58,6 +106,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .env("BOUNCING_BALL_ME_FMU3", &ball_me3)
         .env("MECHANISM_WEB_PAGE", &page)
         .current_dir(root()))?;
+    stages.done("Python suite");
     // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
     // by the packed FMU, the test files, the installed packages and the selection and
     // options below (in this file) alone.
@@ -70,7 +119,10 @@ pub(crate) fn job(_: &Parsed) -> Result {
     inputs.extend(files_with_extension(&root().join("tests/python"), "py")?);
     unless_passed_before("valgrind memcheck of the FMPy suite", &inputs, || {
         fmpy_under_valgrind(&python, &fmu, &fmu3)
-    })
+    })?;
+    stages.done("memcheck of the FMPy suite");
+    println!("{}", stages.summary());
+    Ok(())
 }
 
 /// Build the FMU for every platform and run the other platforms' binaries on their ABIs
