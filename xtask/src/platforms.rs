@@ -13,13 +13,18 @@ use std::time::Instant;
 use crate::setup::{apt_install, clang_include_dir, output_of, python_path, root, run};
 use crate::{Result, MODEL_IDENTIFIER};
 
-/// The Debian packages of the cross builds, pinned: the Rust toolchain that builds the
-/// standard library from source, MinGW's linker and binutils, LLVM's Mach-O tools.
-pub const BUILD_PACKAGES: &[(&str, &str)] = &[
+/// The Debian Rust toolchain that builds the standard library for any target from source,
+/// pinned: what every cross build needs, the wasm32 one included.
+pub const RUST_PACKAGES: &[(&str, &str)] = &[
     ("rustc-web", "1.96.0+dfsg1-1~deb12u2"),
     ("cargo-web", "1.96.0+dfsg1-1~deb12u2"),
     ("rust-web-src", "1.96.0+dfsg1-1~deb12u2"),
     ("libstd-rust-web-dev", "1.96.0+dfsg1-1~deb12u2"),
+];
+
+/// The other Debian packages of the FMU's cross builds, pinned: MinGW's linker and
+/// binutils, LLVM's Mach-O tools.
+pub const BUILD_PACKAGES: &[(&str, &str)] = &[
     ("gcc-mingw-w64-x86-64", "12.2.0-14+25.2"),
     ("llvm-14", "1:14.0.6-12"),
 ];
@@ -535,6 +540,7 @@ impl Binaries {
 /// Mach-O) and aarch64 Linux, built (stripped by their linkers), checked, and copied to
 /// `dir`. Returns them with a line per binary for the report.
 pub fn build_all(zig: &Zig, dir: &Path) -> Result<(Binaries, Vec<String>)> {
+    ensure_packages(RUST_PACKAGES)?;
     ensure_packages(BUILD_PACKAGES)?;
     let built: Vec<Built> = Target::ALL
         .iter()

@@ -14,7 +14,7 @@ use crate::platforms::{self, DEBIAN_CARGO, DEBIAN_RUSTC, LLVM_BIN};
 use crate::setup::{apt_install, root, run};
 use crate::Result;
 
-/// The Debian packages of the wasm32 build beside the cross builds' Rust: LLVM's linker.
+/// The Debian package of the wasm32 build beside Debian's Rust: LLVM's linker.
 pub const WASM_PACKAGES: &[(&str, &str)] = &[("lld-14", "1:14.0.6-12")];
 
 const WASM_TARGET: &str = "wasm32-unknown-unknown";
@@ -101,7 +101,7 @@ pub(crate) fn build_page() -> Result<PathBuf> {
 
 /// The module `web/` built for wasm32, at its size: no panic unwinding (a panic traps).
 pub(crate) fn build_wasm() -> Result<PathBuf> {
-    platforms::ensure_packages(platforms::BUILD_PACKAGES)?;
+    platforms::ensure_packages(platforms::RUST_PACKAGES)?;
     platforms::ensure_packages(WASM_PACKAGES)?;
     let target_dir = platforms::cross_target_dir().join(WASM_TARGET);
     let cwd = platforms::cross_target_dir();
