@@ -506,6 +506,7 @@ pub fn paper_case_seconds(
 /// The crate's Rust tests built for Windows and run under Wine as cargo's runner.
 fn rust_tests_under_wine(zig: &Zig) -> Result {
     let mut command = platforms::cross_cargo(Target::Win64, "test", zig)?;
+    crate::setup::as_test_build(&mut command);
     command.args(["--package", "cyclic-mechanism", "--lib"]);
     for test in RUST_TESTS_ON_WINDOWS {
         command.args(["--test", test]);

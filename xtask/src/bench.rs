@@ -21,6 +21,16 @@ pub(crate) fn build_bench_harness() -> Result<PathBuf> {
     Ok(target.join("release/bench"))
 }
 
+/// The harness for the tests' smoke run, which judges no timing: built as a test build
+/// ([`as_test_build`]) in a folder of its own.
+pub(crate) fn build_bench_harness_for_tests() -> Result<PathBuf> {
+    let target = root().join("target/bench-smoke");
+    run(as_test_build(&mut cargo())
+        .args(["build", "--release", "--quiet", "--package", "bench"])
+        .env("CARGO_TARGET_DIR", &target))?;
+    Ok(target.join("release/bench"))
+}
+
 /// The compiled peers: bench/compiled/peers.c (the C right-hand side, GSL's rk8pd and
 /// CVODE) built against Debian's libgsl-dev and libsundials-dev into
 /// target/bench/libpeers.so, and numbalsoda's DOP853 and LSODA libraries (built from

@@ -59,7 +59,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
     ensure_libclang()?;
     let reports = root().join("target/test-reports");
     fs::create_dir_all(&reports).map_err(|e| e.to_string())?;
-    run(cargo()
+    run(as_test_build(&mut cargo())
         .args(["test", "--release"])
         .env("FUZZ_REPORT", reports.join("fuzz_api.json"))
         .env("FUZZ_REPORT_FMI3", reports.join("fuzz_api_fmi3.json")))?;
@@ -71,7 +71,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
     stages.done("cross builds and other platforms");
     // The benchmark harness builds and drives the packed FMU (a smoke run, no timings
     // judged), so that `cargo xtask bench` keeps working from a fresh clone.
-    let harness = crate::bench::build_bench_harness()?;
+    let harness = crate::bench::build_bench_harness_for_tests()?;
     let smoke = root().join("target/bench/smoke.json");
     fs::create_dir_all(root().join("target/bench")).map_err(|e| e.to_string())?;
     run(Command::new(&harness)
@@ -252,7 +252,7 @@ pub(crate) fn fuzz_under_valgrind() -> Result {
     }
     let runner = "valgrind --error-exitcode=9 --leak-check=full --errors-for-leak-kinds=definite \
                   --show-leak-kinds=definite --quiet";
-    run(cargo()
+    run(as_test_build(&mut cargo())
         .args(["test", "--release", "--quiet", "--test", "fuzz_api"])
         .args(["--test", "fuzz_api_fmi3"])
         // Each of its steps spends a whole call's work: minutes under valgrind.
