@@ -901,6 +901,18 @@ fn no_step_runs_away() {
     }
 }
 
+/// A change point's event, as a master handles it: event mode, the discrete states
+/// updated, back to step mode, each call answered OK.
+unsafe fn handle_event(c: fmi3Instance) {
+    let mut flags = [false; 5];
+    let mut next = 0.0;
+    let [a, b, d, e, f] = &mut flags;
+    assert_eq!(fmi3EnterEventMode(c), fmi3Status_fmi3OK);
+    let s = fmi3UpdateDiscreteStates(c, a, b, d, e, f, &mut next);
+    assert_eq!(s, fmi3Status_fmi3OK);
+    assert_eq!(fmi3EnterStepMode(c), fmi3Status_fmi3OK);
+}
+
 /// The parallelogram and the kite, whose change points the integrator can step over (on
 /// their parallelogram branch the constraint stays regular up to the node): with event
 /// mode and early return every change point is an early return, and a run goes on through
@@ -945,15 +957,7 @@ fn special_change_point_linkages_return_early_at_each_change_point() {
             t = last;
             if event {
                 events += 1;
-                let mut flags = [false; 5];
-                let mut next = 0.0;
-                let [a, b, d, e, f] = &mut flags;
-                unsafe {
-                    assert_eq!(fmi3EnterEventMode(c), fmi3Status_fmi3OK);
-                    let s = fmi3UpdateDiscreteStates(c, a, b, d, e, f, &mut next);
-                    assert_eq!(s, fmi3Status_fmi3OK);
-                    assert_eq!(fmi3EnterStepMode(c), fmi3Status_fmi3OK);
-                }
+                unsafe { handle_event(c) };
             }
         }
         eprintln!("{name}: {events} change points to t = 5");
@@ -1036,15 +1040,7 @@ fn a_change_point_past_the_step_end_does_not_refuse_the_step() {
                 t = if early { last } else { next };
                 if event {
                     events += 1;
-                    let mut flags = [false; 5];
-                    let mut at = 0.0;
-                    let [a, b, d, e, f] = &mut flags;
-                    unsafe {
-                        assert_eq!(fmi3EnterEventMode(c), fmi3Status_fmi3OK);
-                        let s = fmi3UpdateDiscreteStates(c, a, b, d, e, f, &mut at);
-                        assert_eq!(s, fmi3Status_fmi3OK);
-                        assert_eq!(fmi3EnterStepMode(c), fmi3Status_fmi3OK);
-                    }
+                    unsafe { handle_event(c) };
                 }
             }
         }
