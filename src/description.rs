@@ -9,8 +9,8 @@ use std::io;
 
 use crate::drivers::DEFAULT_TOLERANCE;
 use crate::variables::{
-    dependencies, value_reference, variables, Unknowns, VarType, Variable, SOLVER_TYPE,
-    STATE_REFERENCES, UNITS,
+    dependencies, value_reference, variables, Slot, Unknowns, VarType, Variable, SENSITIVITY_SLOTS,
+    SOLVER_TYPE, STATE_REFERENCES, UNITS,
 };
 
 pub const MODEL_IDENTIFIER: &str = "CyclicMechanism";
@@ -274,19 +274,33 @@ pub fn start_text(v: &Variable) -> Option<String> {
 }
 
 /// One row per variable: name, causality, unit, start, description (for the tables of the
-/// README and of the FMU's `documentation/index.html`).
+/// README and of the FMU's `documentation/index.html`); the sensitivity slots, alike but
+/// for their number, in two rows for all.
 pub fn variable_rows() -> Vec<[String; 5]> {
     variables()
-        .map(|(_, v)| {
+        .filter_map(|(_, v)| {
             let start = start_text(&v).unwrap_or_else(|| "calculated".to_string());
-            [
-                v.name,
-                v.causality().as_str(),
-                v.unit,
-                &start,
-                v.description,
-            ]
-            .map(str::to_string)
+            let row = |name: &str, description: &str| {
+                [name, v.causality().as_str(), v.unit, &start, description].map(str::to_string)
+            };
+            match v.slot {
+                Slot::SensitivityParameter(0) => Some(row(
+                    "sensitivity_<k>.parameter",
+                    &format!(
+                        "Slot k = 1…{SENSITIVITY_SLOTS}: the parameter whose sensitivities the \
+                         slot's locals carry, none (0) or an inertia, spring, damper, start \
+                         value or torque-law coefficient; Co-Simulation only \
+                         (docs/sensitivities.md)"
+                    ),
+                )),
+                Slot::Sensitivity { slot: 0, state: 0 } => Some(row(
+                    "sensitivity_<k>.phi1 … .omega4",
+                    "Derivatives of the eight states phi1…omega4 with respect to the parameter \
+                     of slot k, along the run since initialisation",
+                )),
+                Slot::SensitivityParameter(_) | Slot::Sensitivity { .. } => None,
+                _ => Some(row(v.name, v.description)),
+            }
         })
         .collect()
 }

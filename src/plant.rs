@@ -11,13 +11,14 @@
 
 use crate::model::chart::{handover_indicator, handover_indicator_at, preferred_chart};
 use crate::model::params::check_rule;
+use crate::model::sensitivity::{self, Sensitive};
 use crate::model::{
     self, Chart, Coordinates, Dual, Independent, Inputs, ModelError, Parameters, Projected, Scalar,
     State, STATE_SIZE,
 };
 use crate::variables::{
     build_table, variable, Branch, Input, Local, Output, Slot, Statistic, VarType, Variable,
-    SOLVER_ITEMS,
+    SENSITIVITY_SLOTS, SOLVER_ITEMS,
 };
 use integrators::snapshot::{FormatError, Reader, Writer};
 use integrators::{Choice, Method, Statistics};
@@ -139,6 +140,11 @@ pub struct Plant {
     /// The master changed the right-hand side or moved the state since a driver last took
     /// this mark ([`Plant::take_changed`]).
     changed: bool,
+    /// The `sensitivity_k.parameter` slots: the value each holds (0: none), and the
+    /// sensitivities ∂y/∂p by state and slot at the plant's point, which the co-simulation
+    /// driver computes (docs/sensitivities.md).
+    sensitivity_choice: [i32; SENSITIVITY_SLOTS],
+    sensitivities: [[f64; SENSITIVITY_SLOTS]; STATE_SIZE],
 }
 
 impl Default for Plant {
@@ -161,6 +167,8 @@ impl Plant {
             residual: 0.0,
             chart: Chart::Crank,
             changed: true,
+            sensitivity_choice: [0; SENSITIVITY_SLOTS],
+            sensitivities: [[0.0; SENSITIVITY_SLOTS]; STATE_SIZE],
         }
     }
 
@@ -298,11 +306,43 @@ impl Plant {
         self.changed = true;
     }
 
-    /// The consistent initial state at `start_time` (docs/model.md §3).
+    /// The consistent initial state at `start_time` (docs/model.md §3), with its
+    /// sensitivities to the chosen parameters.
     pub fn initialize(&mut self, start_time: f64) -> Result<(), ModelError> {
         let state = model::initial_state(&self.params)?;
+        let slots = self.sensitivity_slots();
+        let which: Vec<Sensitive> = slots.iter().map(|&(_, s)| s).collect();
+        let initial = sensitivity::initial_by_slot(&self.params, &which)
+            .map_err(|e| ModelError::new(format!("sensitivities at the start: {e}")))?;
         self.jump(start_time, state);
+        self.sensitivities = [[0.0; SENSITIVITY_SLOTS]; STATE_SIZE];
+        for (j, &(slot, _)) in slots.iter().enumerate() {
+            for (row, values) in self.sensitivities.iter_mut().zip(&initial) {
+                row[slot] = values[j];
+            }
+        }
         Ok(())
+    }
+
+    /// The sensitivity slots in use, in order, with their parameters.
+    pub fn sensitivity_slots(&self) -> Vec<(usize, Sensitive)> {
+        let mut slots = Vec::new();
+        for (slot, &value) in self.sensitivity_choice.iter().enumerate() {
+            if let Some(Some((_, which))) = sensitivity::chosen(value) {
+                slots.push((slot, which));
+            }
+        }
+        slots
+    }
+
+    /// The sensitivities by state and slot at the plant's point.
+    pub fn sensitivities(&self) -> &[[f64; SENSITIVITY_SLOTS]; STATE_SIZE] {
+        &self.sensitivities
+    }
+
+    /// A driver's sensitivities at the plant's new point.
+    pub fn set_sensitivities(&mut self, values: [[f64; SENSITIVITY_SLOTS]; STATE_SIZE]) {
+        self.sensitivities = values;
     }
 
     /// The current value of variable `vr`, the statistics as `activity` reports them.
@@ -489,7 +529,9 @@ impl Plant {
             Slot::Input(Input::LoadTorque) => Some(self.inputs.load_torque),
             Slot::Parameter(i) => Some(self.params.get(i).unwrap_or(f64::NAN)),
             Slot::Local(local) => Some(self.local(local)),
+            Slot::Sensitivity { slot, state } => Some(self.sensitivities[state][slot]),
             Slot::Statistic(_)
+            | Slot::SensitivityParameter(_)
             | Slot::SolverChoice
             | Slot::LinkageClass
             | Slot::LoopChart
@@ -516,7 +558,12 @@ impl Plant {
             Slot::LoopChart => Value::Integer(self.chart as i32),
             Slot::BuiltinLaws => Value::Boolean(self.params.builtin_laws),
             Slot::ChangePointBranch => Value::Integer(self.branch as i32),
-            Slot::Output(_) | Slot::Input(_) | Slot::Parameter(_) | Slot::Local(_) => {
+            Slot::SensitivityParameter(k) => Value::Integer(self.sensitivity_choice[k]),
+            Slot::Output(_)
+            | Slot::Input(_)
+            | Slot::Parameter(_)
+            | Slot::Local(_)
+            | Slot::Sensitivity { .. } => {
                 unreachable!("Real slots")
             }
         }
@@ -547,6 +594,7 @@ impl Plant {
             (Slot::ChangePointBranch, Value::Integer(v)) => {
                 self.branch = Branch::from_value(v).expect("checked")
             }
+            (Slot::SensitivityParameter(k), Value::Integer(v)) => self.sensitivity_choice[k] = v,
             _ => unreachable!("check_set admits only writable slots of the right type"),
         }
         // The right-hand side changed. (An input is left to the driver: whether a change
@@ -588,11 +636,13 @@ impl Plant {
                     AccessError::NotAllowed(format!("{} = {} {rule}", var.name, model::number(v)))
                 })?
             }
-            (Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws, _)
-                if !parameters_writable =>
-            {
-                return Err(fixed())
-            }
+            (
+                Slot::Parameter(_)
+                | Slot::SolverChoice
+                | Slot::BuiltinLaws
+                | Slot::SensitivityParameter(_),
+                _,
+            ) if !parameters_writable => return Err(fixed()),
             (Slot::Parameter(i), Value::Real(v)) => {
                 check_rule(&model::PARAMETERS[i], v).map_err(AccessError::Invalid)?
             }
@@ -604,6 +654,9 @@ impl Plant {
                 }
             }
             (Slot::BuiltinLaws, Value::Boolean(_)) => {}
+            (Slot::SensitivityParameter(k), Value::Integer(v)) => {
+                self.check_sensitivity_choice(var.name, k, v)?
+            }
             (Slot::ChangePointBranch, Value::Integer(v)) => {
                 if Branch::from_value(v).is_none() {
                     return Err(AccessError::NotAllowed(format!(
@@ -624,6 +677,30 @@ impl Plant {
             }
         }
         Ok(var.slot)
+    }
+
+    /// A slot's new value: one of the items, and a parameter no other slot follows.
+    fn check_sensitivity_choice(&self, name: &str, slot: usize, v: i32) -> Result<(), AccessError> {
+        let refuse = |rule: String| AccessError::NotAllowed(format!("{name} = {v}: {rule}"));
+        let chosen = sensitivity::chosen(v).ok_or_else(|| {
+            let index = usize::try_from(v - 1)
+                .ok()
+                .filter(|&i| i < model::PARAMETERS.len());
+            refuse(match index {
+                Some(index) => sensitivity::not_offered(index).to_string(),
+                None => "must be 0 (none) or a parameter of the SensitivityParameter items".into(),
+            })
+        })?;
+        let taken = self
+            .sensitivity_choice
+            .iter()
+            .enumerate()
+            .any(|(k, &w)| k != slot && w == v);
+        if chosen.is_some() && taken {
+            let parameter = model::PARAMETERS[(v - 1) as usize].name;
+            return Err(refuse(format!("another slot already follows {parameter}")));
+        }
+        Ok(())
     }
 
     /// The Model Exchange states' derivatives, `Local::Derivative(0..6)` in one call: the
@@ -794,6 +871,15 @@ impl Plant {
         w.f64(self.residual);
         w.u8(self.chart as u8);
         w.bool(self.changed);
+        // The values of the slots in use alone: an unused slot's are zero.
+        for (k, &value) in self.sensitivity_choice.iter().enumerate() {
+            w.u8(value as u8);
+            if value != 0 {
+                for row in &self.sensitivities {
+                    w.f64(row[k]);
+                }
+            }
+        }
     }
 
     /// The plant written by [`Plant::serialize_into`]; every value is checked again by the
@@ -825,6 +911,19 @@ impl Plant {
         let chart =
             Chart::from_code(code as i32).ok_or_else(|| invalid(format!("loop chart {code}")))?;
         let changed = r.bool()?;
+        let mut sensitivity_choice = [0; SENSITIVITY_SLOTS];
+        let mut sensitivities = [[0.0; SENSITIVITY_SLOTS]; STATE_SIZE];
+        for (k, choice) in sensitivity_choice.iter_mut().enumerate() {
+            *choice = i32::from(r.u8()?);
+            if sensitivity::chosen(*choice).is_none() {
+                return Err(invalid(format!("sensitivity slot {} = {choice}", k + 1)));
+            }
+            if *choice != 0 {
+                for row in sensitivities.iter_mut() {
+                    row[k] = r.f64()?;
+                }
+            }
+        }
         let plant = Self {
             params,
             inputs: Inputs {
@@ -839,6 +938,8 @@ impl Plant {
             residual,
             chart,
             changed,
+            sensitivity_choice,
+            sensitivities,
         };
         plant.check_restored().map_err(invalid)?;
         Ok(plant)

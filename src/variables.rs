@@ -5,7 +5,7 @@
 //! README's table are all derived from here, so they cannot drift apart.
 
 use crate::model::params::INPUT_RULE;
-use crate::model::{Parameters, PARAMETERS};
+use crate::model::{Parameters, PARAMETERS, STATE_SIZE};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Causality {
@@ -89,6 +89,14 @@ pub enum Slot {
     /// The branch taken at a change point, one of [`BRANCHES`] (a tunable Enumeration
     /// parameter).
     ChangePointBranch,
+    /// Which parameter sensitivity slot k (0-based) carries, one of
+    /// [`crate::model::sensitivity::ITEMS`] (a fixed Enumeration parameter).
+    SensitivityParameter(usize),
+    /// ∂y_state/∂(slot's parameter) at the communication point (a Real local).
+    Sensitivity {
+        slot: usize,
+        state: usize,
+    },
 }
 
 /// FMI base types used here.
@@ -136,6 +144,9 @@ pub const LINKAGE_TYPE: &str = "LinkageClass";
 /// The name of the change-point branches' type in the XML (items: [`BRANCHES`]).
 pub const BRANCH_TYPE: &str = "ChangePointBranch";
 pub use crate::model::change_point::{Branch, BRANCHES};
+/// The name of the sensitivity slots' type in the XML (items: [`SENSITIVITY_ITEMS`]).
+pub const SENSITIVITY_TYPE: &str = "SensitivityParameter";
+pub use crate::model::sensitivity::{ITEMS as SENSITIVITY_ITEMS, SLOTS as SENSITIVITY_SLOTS};
 
 /// One FMI variable.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -152,8 +163,8 @@ impl Variable {
             Slot::Input(_) => Causality::Input,
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => Causality::Output,
             Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => Causality::Parameter,
-            Slot::ChangePointBranch => Causality::Parameter,
-            Slot::Local(_) | Slot::LoopChart => Causality::Local,
+            Slot::ChangePointBranch | Slot::SensitivityParameter(_) => Causality::Parameter,
+            Slot::Local(_) | Slot::LoopChart | Slot::Sensitivity { .. } => Causality::Local,
         }
     }
 
@@ -162,7 +173,7 @@ impl Variable {
             Slot::Statistic(Statistic::ActiveSolver) => VarType::Enumeration,
             Slot::Statistic(_) | Slot::LoopChart => VarType::Integer,
             Slot::SolverChoice | Slot::LinkageClass => VarType::Enumeration,
-            Slot::ChangePointBranch => VarType::Enumeration,
+            Slot::ChangePointBranch | Slot::SensitivityParameter(_) => VarType::Enumeration,
             Slot::BuiltinLaws => VarType::Boolean,
             _ => VarType::Real,
         }
@@ -173,6 +184,7 @@ impl Variable {
     pub fn variability(&self) -> &'static str {
         match self.slot {
             Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => "fixed",
+            Slot::SensitivityParameter(_) => "fixed",
             Slot::ChangePointBranch => "tunable",
             Slot::Statistic(_) | Slot::LinkageClass | Slot::LoopChart => "discrete",
             _ => "continuous",
@@ -195,8 +207,13 @@ impl Variable {
             Slot::Input(_) => Some(INPUT_RULE.range()),
             Slot::SolverChoice => Some((SOLVER_ITEMS[0].1 as f64, SOLVER_ITEMS[2].1 as f64)),
             Slot::ChangePointBranch => Some((BRANCHES[0].1 as f64, BRANCHES[1].1 as f64)),
+            Slot::SensitivityParameter(_) => {
+                let last = SENSITIVITY_ITEMS[SENSITIVITY_ITEMS.len() - 1];
+                Some((SENSITIVITY_ITEMS[0].1 as f64, last.1 as f64))
+            }
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
             Slot::Local(_) | Slot::LoopChart | Slot::BuiltinLaws => None,
+            Slot::Sensitivity { .. } => None,
         }
     }
 
@@ -214,6 +231,7 @@ impl Variable {
             Slot::SolverChoice | Slot::Statistic(Statistic::ActiveSolver) => Some(SOLVER_TYPE),
             Slot::LinkageClass => Some(LINKAGE_TYPE),
             Slot::ChangePointBranch => Some(BRANCH_TYPE),
+            Slot::SensitivityParameter(_) => Some(SENSITIVITY_TYPE),
             _ => None,
         }
     }
@@ -224,7 +242,8 @@ impl Variable {
         match self.slot {
             Slot::Input(_) => Some(0.0),
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
-            Slot::Local(_) | Slot::LoopChart => None,
+            Slot::Local(_) | Slot::LoopChart | Slot::Sensitivity { .. } => None,
+            Slot::SensitivityParameter(_) => Some(0.0),
             Slot::Parameter(i) => Some(PARAMETERS[i].default),
             Slot::SolverChoice => Some(SOLVER_ITEMS[0].1 as f64),
             Slot::BuiltinLaws => Some(f64::from(u8::from(Parameters::default().builtin_laws))),
@@ -430,13 +449,53 @@ const LATER_VARIABLES: [Variable; 3] = [
     },
 ];
 
+macro_rules! sensitivity_slot {
+    ($k:literal) => {
+        sensitivity_slot!($k, $k - 1,
+            0 "phi1", 1 "phi2", 2 "phi3", 3 "phi4", 4 "omega1", 5 "omega2", 6 "omega3", 7 "omega4")
+    };
+    ($k:literal, $slot:expr, $($state:literal $name:literal),*) => {
+        [
+            Variable {
+                name: concat!("sensitivity_", $k, ".parameter"),
+                unit: "",
+                description: concat!(
+                    "The parameter whose sensitivities the sensitivity_", $k,
+                    ".* locals carry (none: the slot is unused); Co-Simulation only (docs/sensitivities.md)"
+                ),
+                slot: Slot::SensitivityParameter($slot),
+            },
+            $(Variable {
+                name: concat!("sensitivity_", $k, ".", $name),
+                unit: "",
+                description: concat!(
+                    "Derivative of ", $name, " with respect to the parameter sensitivity_", $k,
+                    ".parameter names, along the run since initialisation"
+                ),
+                slot: Slot::Sensitivity { slot: $slot, state: $state },
+            },)*
+        ]
+    };
+}
+
+/// The sensitivity slots (docs/sensitivities.md): per slot, the parameter it follows and
+/// the eight states' derivatives with respect to it.
+const SENSITIVITY_VARIABLES: [[Variable; 1 + STATE_SIZE]; SENSITIVITY_SLOTS] = [
+    sensitivity_slot!(1),
+    sensitivity_slot!(2),
+    sensitivity_slot!(3),
+    sensitivity_slot!(4),
+    sensitivity_slot!(5),
+];
+
 /// Number of variables (and one past the largest value reference).
 pub const COUNT: usize = INPUTS.len()
     + OUTPUTS.len()
     + PARAMETERS.len()
     + SOLVER_VARIABLES.len()
     + EXCHANGE_VARIABLES.len()
-    + LATER_VARIABLES.len();
+    + LATER_VARIABLES.len()
+    + SENSITIVITY_VARIABLES.len() * (1 + STATE_SIZE);
 
 /// The value references of the Model Exchange states x = (φ1, q, φ4, ω1, q̇, ω4).
 pub const STATE_REFERENCES: [u32; 6] = {
@@ -500,6 +559,11 @@ pub(crate) const fn build_table() -> [Variable; COUNT] {
     k = 0;
     while k < LATER_VARIABLES.len() {
         table[i] = LATER_VARIABLES[k];
+        (i, k) = (i + 1, k + 1);
+    }
+    k = 0;
+    while k < SENSITIVITY_VARIABLES.len() * (1 + STATE_SIZE) {
+        table[i] = SENSITIVITY_VARIABLES[k / (1 + STATE_SIZE)][k % (1 + STATE_SIZE)];
         (i, k) = (i + 1, k + 1);
     }
     table
@@ -640,7 +704,9 @@ fn running_dependencies(slot: Slot) -> Vec<(&'static str, Kind)> {
         // Not unknowns while running.
         Slot::Local(_) | Slot::LoopChart => vec![],
         Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
-        Slot::ChangePointBranch => vec![],
+        Slot::ChangePointBranch | Slot::SensitivityParameter(_) => vec![],
+        // Locals that are not unknowns: a run's history, not a function of the knowns.
+        Slot::Sensitivity { .. } => vec![],
     }
 }
 
@@ -714,7 +780,9 @@ fn initial_dependencies(slot: Slot) -> Vec<&'static str> {
         Slot::LoopChart => ASSEMBLY.to_vec(),
         // Not unknowns: knowns.
         Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
-        Slot::ChangePointBranch => vec![],
+        Slot::ChangePointBranch | Slot::SensitivityParameter(_) => vec![],
+        // Locals that are not unknowns: a run's history, not a function of the knowns.
+        Slot::Sensitivity { .. } => vec![],
     }
 }
 

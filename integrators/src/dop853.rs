@@ -179,6 +179,8 @@ impl<const N: usize> Dop853<N> {
         let (mut err5, mut err3) = (0.0, 0.0);
         for n in 0..N {
             y_new[n] = y[n] + h * increment[n];
+        }
+        for n in 0..system.controlled() {
             let scale = atol + rtol * y[n].abs().max(y_new[n].abs());
             err5 += (e5[n] / scale).powi(2);
             err3 += (e3[n] / scale).powi(2);
@@ -187,7 +189,7 @@ impl<const N: usize> Dop853<N> {
             return 0.0;
         }
         // Hairer's combination of the 5th- and 3rd-order estimates (dop853.f).
-        h.abs() * err5 / ((err5 + 0.01 * err3) * system.dimension() as f64).sqrt()
+        h.abs() * err5 / ((err5 + 0.01 * err3) * system.controlled() as f64).sqrt()
     }
 
     /// |hλ| along the last step: f at its end `y_end` (slot 12) against f at its last stage

@@ -38,6 +38,15 @@ pub trait OdeSystem<const N: usize> {
     fn dimension(&self) -> usize {
         N
     }
+
+    /// How many of the leading components DOP853's step-size control holds to the
+    /// tolerances: all of the problem's, unless the others are quantities carried along
+    /// that the steps should not depend on (a state's sensitivities, whose steps are then
+    /// the state's own, so that the sensitivities are those of the state's numerical
+    /// solution).
+    fn controlled(&self) -> usize {
+        self.dimension()
+    }
 }
 
 /// One integration method, as the co-simulation driver uses it: DOP853, Radau IIA and the

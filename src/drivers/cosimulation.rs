@@ -17,6 +17,7 @@ use crate::plant::{check_inputs, Activity, InputDerivatives, Plant};
 use integrators::snapshot::{same_bits, FormatError, Reader, Writer};
 use integrators::{Integrator, OdeSystem, SolverError, Statistics, Tolerances};
 
+use super::sensitivity::Tracker;
 use super::Experiment;
 
 /// The step-size control holds local errors to this fraction of the master's tolerance,
@@ -146,6 +147,8 @@ pub struct CoSimulation {
     /// A crossing under way: a step ended before the crossing did, and the plant stands
     /// on its path ([`Crossing::along`]).
     in_flight: Option<InFlight>,
+    /// The parameter sensitivities the plant's slots ask for, integrated alongside.
+    sensitivities: Option<Tracker>,
 }
 
 /// A crossing of a change point under way: made from `from` at `start`, with the inputs
@@ -214,6 +217,7 @@ impl CoSimulation {
             carried: None,
             crossing_pending: false,
             in_flight: None,
+            sensitivities: Tracker::start(plant, tolerances(experiment.tolerance)),
         }
     }
 
@@ -240,6 +244,9 @@ impl CoSimulation {
     /// steps ([`CoSimulation::go_on_crossing`]). Returns whether the crossing is complete.
     pub fn cross(&mut self, plant: &mut Plant, crossing: &Crossing, target: f64) -> bool {
         self.crossing_pending = false;
+        if let Some(tracker) = &mut self.sensitivities {
+            tracker.break_at_change_point(plant.time());
+        }
         self.in_flight = Some(InFlight {
             start: plant.time(),
             from: *plant.state(),
@@ -309,6 +316,11 @@ impl CoSimulation {
         let accuracy = projection_accuracy(experiment.tolerance);
         match model::project(plant.params(), &mut y, accuracy) {
             Ok(at) if all_finite(&y) => {
+                let Ok(()) =
+                    self.follow_sensitivities(plant, self.integrator_time, experiment, false)
+                else {
+                    return false;
+                };
                 plant.accept_point(self.integrator_time, y, &at);
                 self.restart = true;
                 self.carried = None;
@@ -389,8 +401,34 @@ impl CoSimulation {
         }
         let start = plant.time();
         let (y, at) = self.integrate_to(plant, t_end, experiment, short)?;
+        self.follow_sensitivities(plant, t_end, experiment, fresh)
+            .inspect_err(|_| self.restart = true)?;
         plant.accept_point(t_end, y, &at);
         plant.move_inputs_on(start);
+        Ok(())
+    }
+
+    /// The sensitivities, where the plant asks for them, taken from the plant's point to
+    /// `t_end` (with `fresh`, from the plant's state) and handed to the plant; the plant
+    /// itself has not moved yet.
+    fn follow_sensitivities(
+        &mut self,
+        plant: &mut Plant,
+        t_end: f64,
+        experiment: &Experiment,
+        fresh: bool,
+    ) -> Result<(), SolverError> {
+        let Some(tracker) = &mut self.sensitivities else {
+            return Ok(());
+        };
+        let work = self.solver.work_left();
+        let values = tracker.advance(
+            plant,
+            (plant.time(), t_end),
+            (experiment.limit(), fresh, self.integrator_inputs),
+            (projection_accuracy(experiment.tolerance), work),
+        )?;
+        plant.set_sensitivities(values);
         Ok(())
     }
 
@@ -501,6 +539,9 @@ impl CoSimulation {
             w.f64s(&c.state);
             w.f64s(&[c.arriving[0], c.arriving[1], c.leaving[0], c.leaving[1]]);
         }
+        if let Some(tracker) = &self.sensitivities {
+            tracker.serialize_into(w);
+        }
     }
 
     /// The driver written by [`CoSimulation::serialize_into`], checked against the plant
@@ -524,6 +565,8 @@ impl CoSimulation {
         } else {
             None
         };
+        // Present exactly where the restored plant's slots ask for sensitivities.
+        let sensitivities = Tracker::deserialize_from(r, plant)?;
         let carried = has_carried.then_some(CarriedStage {
             f,
             inputs: Inputs {
@@ -543,6 +586,7 @@ impl CoSimulation {
             carried,
             crossing_pending,
             in_flight,
+            sensitivities,
         };
         driver
             .check_restored(plant, experiment)

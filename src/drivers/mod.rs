@@ -12,6 +12,7 @@ pub mod cosimulation;
 pub mod events;
 pub mod isa;
 pub mod model_exchange;
+pub mod sensitivity;
 
 pub use cosimulation::CoSimulation;
 pub use model_exchange::Exchange;

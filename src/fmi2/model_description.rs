@@ -18,7 +18,7 @@ use crate::variables::{
     is_unknown, variables, Causality, Unknowns, Variable, LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE,
     STATE_REFERENCES,
 };
-use crate::variables::{BRANCHES, BRANCH_TYPE};
+use crate::variables::{BRANCHES, BRANCH_TYPE, SENSITIVITY_ITEMS, SENSITIVITY_TYPE};
 
 pub const FMI_VERSION: &str = "2.0";
 /// Model Exchange capability flags, as declared.
@@ -105,10 +105,11 @@ fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
 }
 
 fn write_types(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
-    let types: [(&str, &Items); 3] = [
+    let types: [(&str, &Items); 4] = [
         (SOLVER_TYPE, &SOLVER_ITEMS),
         (LINKAGE_TYPE, &LINKAGE_CLASSES),
         (BRANCH_TYPE, &BRANCHES),
+        (SENSITIVITY_TYPE, &SENSITIVITY_ITEMS),
     ];
     w.create_element("TypeDefinitions")
         .write_inner_content(|w| {

@@ -189,6 +189,7 @@ impl Instance {
                 &fmu_state.experiment,
             ))),
             Interface::ModelExchange => {
+                refuse_sensitivities(&fmu_state.plant)?;
                 Driver::ModelExchange(Some(Exchange::start(&mut fmu_state.plant).map_err(failed)?))
             }
         };
@@ -283,5 +284,18 @@ impl Instance {
     /// Free a state this instance issued.
     pub fn free_state(&mut self, pointer: *mut std::ffi::c_void) -> Outcome {
         self.issued_states.free(pointer)
+    }
+}
+
+/// Model Exchange has no sensitivities: the master integrates, and the FMU sees only the
+/// points it is given. A slot set anyway is refused rather than left at zero.
+fn refuse_sensitivities(plant: &crate::plant::Plant) -> Outcome {
+    match plant.sensitivity_slots().first() {
+        None => Ok(()),
+        Some(&(slot, _)) => Err(Failure::error(format!(
+            "sensitivity_{}.parameter is set: sensitivities come from the FMU's own \
+             integration, in Co-Simulation; in Model Exchange the master integrates",
+            slot + 1
+        ))),
     }
 }

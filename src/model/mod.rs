@@ -4,15 +4,18 @@
 
 pub mod change_point;
 pub mod chart;
+pub mod dual_vector;
 pub mod dynamics;
 pub mod kinematics;
 pub mod linkage;
 pub mod params;
 pub mod projection;
 pub mod scalar;
+pub mod sensitivity;
 pub mod trig;
 
 pub use chart::{Chart, Coordinates, Independent};
+pub use dual_vector::DualVector;
 pub use dynamics::{accelerations, energy, power, rod_force, shift_inputs, state_derivative};
 pub use kinematics::{length_residual, length_residual_from_closure};
 pub use linkage::{classify, LinkageClass, LINKAGE_CLASSES};

@@ -79,11 +79,13 @@ def test_initial_unknowns_depend_on_exactly_their_declared_knowns(unzipped, mode
             fmu.slave.setBoolean([known.valueReference], [False])
             changed = moved(base, read(fmu, unknowns))
             fmu.slave.setBoolean([known.valueReference], [True])
-        else:  # solver: auto (1) -> implicit (3); change_point_branch: straight (1) -> turn (2)
-            other = 2 if known.name == "change_point_branch" else 3
+        else:  # solver: auto (1) -> implicit (3); change_point_branch: straight (1) -> turn (2);
+            # a sensitivity slot: none (0) -> k12 (5)
+            start = int(known.start)
+            other = {"change_point_branch": 2, "solver": 3}.get(known.name, 5)
             fmu.slave.setInteger([known.valueReference], [other])
             changed = moved(base, read(fmu, unknowns))
-            fmu.slave.setInteger([known.valueReference], [1])
+            fmu.slave.setInteger([known.valueReference], [start])
         expected = {u for u, d in deps.items() if known.name in d}
         # Nothing moves that does not declare the known ...
         assert changed <= expected, (known.name, changed - expected)

@@ -20,6 +20,11 @@ INTEGER_OUTPUTS = {"n_steps", "n_rejected", "n_rhs", "active_solver"}
 ENUMERATION_OUTPUTS = {"active_solver"}
 
 
+SENSITIVITY_VARIABLES = {f"sensitivity_{k}.{v}" for k in range(1, 6)
+                         for v in ["parameter", "phi1", "phi2", "phi3", "phi4",
+                                   "omega1", "omega2", "omega3", "omega4"]}
+
+
 def by_name(model_description):
     return {v.name: v for v in model_description.modelVariables}
 
@@ -36,7 +41,18 @@ def test_interface_is_as_specified(model_description):
     assert set(variables) == (set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS
                               | {"solver", "linkage_class", "builtin_laws", "handover_indicator",
                                  "change_point_branch"}
-                              | set(EXCHANGE))
+                              | set(EXCHANGE) | SENSITIVITY_VARIABLES)
+    # The sensitivity slots (docs/sensitivities.md): a fixed Enumeration parameter each,
+    # whose items are none and the parameters with a sensitivity, and eight Real locals.
+    slot = variables["sensitivity_3.parameter"]
+    assert (slot.causality, slot.variability, slot.type, slot.start) == (
+        "parameter", "fixed", "Enumeration", "0")
+    items = {item.name: int(item.value) for item in slot.declaredType.items}
+    names = [v.name for v in model_description.modelVariables if v.causality == "parameter"]
+    assert items == {"none": 0} | {n: names.index(n) + 1 for n in PARAMETERS
+                                   if n not in ("l", "l2", "l3", "L", "phi3_guess")}
+    local = variables["sensitivity_5.omega4"]
+    assert (local.causality, local.variability, local.type) == ("local", "continuous", "Real")
     branch = variables["change_point_branch"]
     assert (branch.causality, branch.variability, branch.type, branch.start) == (
         "parameter", "tunable", "Enumeration", "1")
