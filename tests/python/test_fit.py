@@ -243,6 +243,7 @@ def _bad(tmp, fmu_path, truth_rows):
         "starts without a seed": ("fit.seed", lambda s: s["fit"].update(starts=3), None),
         "a fixed value the FMU refuses": ("scenario.parameters", lambda s: s["scenario"].update(parameters={"J1": -1.0}), None),
         "an unknown field": ("fit.method", lambda s: s["fit"].update(method="lm"), None),
+        "an unknown Jacobian": ("fit.jacobian", lambda s: s["fit"].update(jacobian="adjoint"), None),
     }
 
 

@@ -34,3 +34,13 @@ pub(crate) const FLAGS: &[Flag] = &[
 pub(crate) fn job_bench(parsed: &Parsed) -> Result {
     sweep::run_bench_script("bench/bench_fit.py", "target/bench-fit", parsed)
 }
+
+/// `cargo xtask bench-sensitivities`: the FMU's sensitivities in a fit, into
+/// target/bench-sensitivities.
+pub(crate) fn job_bench_sensitivities(parsed: &Parsed) -> Result {
+    sweep::run_bench_script(
+        "bench/bench_fit_sensitivities.py",
+        "target/bench-sensitivities",
+        parsed,
+    )
+}

@@ -146,6 +146,13 @@ const JOBS: &[Job] = &[
         run: fit::job_bench,
     },
     Job {
+        name: "bench-sensitivities",
+        operands: &[],
+        about: "the FMU's parameter sensitivities in a fit: a run's cost, a fit against differences, into target/bench-sensitivities",
+        flags: &[QUICK],
+        run: fit::job_bench_sensitivities,
+    },
+    Job {
         name: "bench-report",
         operands: &[],
         about: "the interactive reports in headless Chromium: size and time to open, into target/bench-report",

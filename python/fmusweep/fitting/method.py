@@ -1,9 +1,10 @@
 """Bounded nonlinear least squares on the weighted residuals: scipy's trust-region
-reflective method in the unit box of the parameters' ranges, with the Jacobian from
-forward differences. Each trial point goes to the pool together with its perturbed
-points, as one batch: on n workers a trial costs the time of one run whatever the number
-of parameters, and an accepted trial has its Jacobian ready (a rejected one wastes its
-perturbed runs, which on spare workers cost no time)."""
+reflective method in the unit box of the parameters' ranges, with the Jacobian from the
+FMU's own sensitivities where it offers them (one run gives the residuals and those
+columns) and from forward differences for the rest. Each trial point goes to the pool
+together with its perturbed points, as one batch: on n workers a trial costs the time of
+one run whatever the number of parameters, and an accepted trial has its Jacobian ready
+(a rejected one wastes its perturbed runs, which on spare workers cost no time)."""
 
 from __future__ import annotations
 
@@ -117,10 +118,30 @@ def solve(problem: Problem, start: Rows, index: int, free: list[int] | None = No
 
 def _evaluate_with_jacobian(problem: Problem, theta: Rows, start: int, notes: list[str],
                             free: list[int], role: str) -> tuple[Rows, Rows | None, str]:
-    """The residuals at theta and their Jacobian in the free parameters' units, from one
-    batch of theta and its perturbed points (and a second batch for a column whose
-    perturbed run failed, perturbed the other way). An experiment a perturbation does not
-    touch is not run again (``Problem.evaluate``)."""
+    """The residuals at theta and their Jacobian in the free parameters' units: the
+    columns the FMU's own sensitivities give from theta's run, the others by forward
+    differences (see ``_differences``)."""
+    sensitive = problem.with_sensitivities(free)
+    columns: dict[int, Rows] = {}
+    if sensitive:
+        trial, columns = problem.evaluate_with_sensitivities(theta, start, role)
+        if not trial.ok:
+            columns = {}  # the sensitivities failed (a change point, say): differences
+    rest = [j for j in free if j not in columns]
+    f, differenced, message = _differences(problem, theta, start, notes, rest, role)
+    if differenced is None:
+        return f, None, message
+    columns.update(zip(rest, differenced.T))
+    return f, np.column_stack([columns[j] for j in free]), ""
+
+
+def _differences(problem: Problem, theta: Rows, start: int, notes: list[str],
+                 free: list[int], role: str) -> tuple[Rows, Rows | None, str]:
+    """The residuals at theta and the Jacobian columns of `free` by forward differences,
+    from one batch of theta and its perturbed points (and a second batch for a column
+    whose perturbed run failed, perturbed the other way). An experiment a perturbation
+    does not touch is not run again, nor is theta where it ran before
+    (``Problem.evaluate``)."""
     spec = problem.spec
     steps = _steps(spec, theta)
     unit = np.eye(len(theta))
@@ -142,6 +163,8 @@ def _evaluate_with_jacobian(problem: Problem, theta: Rows, start: int, notes: li
                 columns[c] = np.zeros_like(f)
                 notes.append(f"{spec.names[j]}: the runs perturbed both ways from {theta[j]:g} "
                              f"failed ({e.message}); its Jacobian column was taken as zero")
+    if not free:
+        return f, np.zeros((len(f), 0)), ""
     return f, np.column_stack([c for c in columns if c is not None]), ""
 
 

@@ -21,6 +21,7 @@ from ..native import NativeRunner
 from ..records import PointResult, Points, Rows
 from ..store import ResultStore, coupling_columns
 from .data import Data
+from .sensitivities import read_offer, slot_parameter, slot_variable
 from .spec import SINGLE_EXPERIMENT
 
 if TYPE_CHECKING:
@@ -107,6 +108,76 @@ class Problem:
         self.next_point = _next_point(self.store)
         self.computed = 0
         self.reused = 0
+        # Per experiment, the fitted parameters (places in the vector) whose sensitivities
+        # the FMU computes in its run, and the slot value that selects each.
+        offer = (read_offer(study.target.archive.data)
+                 if spec.jacobian == "sensitivities" and spec.system is None else None)
+        self.sensitive: list[list[tuple[int, int]]] = []
+        for e in spec.experiments:
+            chosen = []
+            if offer is not None and all(offer.covers(c) for c in e.data.columns):
+                chosen = [(j, offer.items[v]) for j, v in zip(e.columns, e.variables)
+                          if v in offer.items][:offer.slots]
+            self.sensitive.append(chosen)
+        self.sensitivity_runs = 0
+
+    def with_sensitivities(self, free: list[int]) -> list[int]:
+        """The parameters of `free` whose Jacobian columns the FMU's sensitivities give:
+        every experiment that runs with one computes it."""
+        return [j for j in free
+                if any(j in e.columns for e in self.spec.experiments)
+                and all(j in [i for i, _ in mine]
+                        for e, mine in zip(self.spec.experiments, self.sensitive)
+                        if j in e.columns)]
+
+    def evaluate_with_sensitivities(self, theta: Rows, start: int, role: str
+                                    ) -> tuple[Trial, dict[int, Rows]]:
+        """`theta`'s evaluation, and for each parameter of ``with_sensitivities`` its
+        column of the weighted residuals' Jacobian, from one run per experiment that
+        computes sensitivities (a run another evaluation made is kept, not written twice).
+        A failed sensitivity run gives no column; the caller differences instead."""
+        spec = self.spec
+        order = [k for k, mine in enumerate(self.sensitive) if mine]
+        tasks: list[Task] = []
+        for k in order:
+            e, mine = spec.experiments[k], self.sensitive[k]
+            slots = [slot_parameter(s + 1) for s in range(len(mine))]
+            extra = [slot_variable(s + 1, c) for s in range(len(mine)) for c in e.data.columns]
+            row = np.concatenate([theta[e.columns], [float(v) for _, v in mine]])
+            tasks.append((e.plan(spec.system, extra), e.variables + slots, row[None, :]))
+        answers = self.pool.run_each(tasks) if tasks else []
+        sensitivities: dict[int, dict[int, Rows]] = {}
+        keys = self._keys(np.atleast_2d(theta))[0]
+        for k, results in zip(order, answers):
+            e, result = spec.experiments[k], results[0]
+            evaluation = _evaluation(e, result)
+            if not evaluation.ok:
+                return Trial([evaluation], [e.name]), {}
+            self.sensitivity_runs += 1
+            with self.lock:
+                fresh = keys[k] not in self.cache
+                if fresh:
+                    self.cache[keys[k]] = evaluation
+                    self.computed += 1
+                    point = self.next_point
+                    self.next_point += 1
+            if fresh:
+                self._write(e, np.array([point]), [keys[k]], np.atleast_2d(theta),
+                            [result], [evaluation], start, [role])
+            n_c = len(e.data.columns)
+            series = np.asarray(result["series"])[e.data.rows, 1 + n_c:]
+            sensitivities[k] = {j: series[:, s * n_c:(s + 1) * n_c] / e.data.sigma
+                                for s, (j, _) in enumerate(self.sensitive[k])}
+        trial = self.evaluate(np.atleast_2d(theta), start, [role])[0]
+        if not trial.ok:
+            return trial, {}
+        columns: dict[int, Rows] = {}
+        for j in self.with_sensitivities(list(range(len(theta)))):
+            parts = [sensitivities[k][j].ravel() if j in e.columns
+                     else np.zeros(e.data.values.size)
+                     for k, e in enumerate(spec.experiments)]
+            columns[j] = np.concatenate(parts)
+        return trial, columns
 
     def residuals(self, trial: Trial) -> Rows:
         """Weighted residuals (model − data) / sigma, experiment by experiment and row by
@@ -222,7 +293,8 @@ def _evaluation(experiment: Experiment, result: PointResult) -> Evaluation:
     if result["status"] != "ok" or series is None or len(series) <= rows[-1]:
         return Evaluation(result["status"] if result["status"] != "ok" else "error",
                           result["message"] or "the run ended before the last data time", None)
-    return Evaluation("ok", result["message"], np.array(series[rows, 1:]))
+    n_c = len(experiment.data.columns)
+    return Evaluation("ok", result["message"], np.array(series[rows, 1:1 + n_c]))
 
 
 def _long_form(runs: list[tuple[int, Rows]], data: Data, measured: list[str]) -> pa.Table:

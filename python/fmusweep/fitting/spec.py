@@ -17,6 +17,8 @@ the parameters to estimate::
     seed = 1                          # needed when starts > 1
     max_iterations = 100              # optional: trial points of each start, at most
     relative_step = 1e-4              # optional: of the Jacobian's perturbations
+    jacobian = "sensitivities"        # optional: "differences" (the default), or the FMU's
+                                      # sensitivities where it offers them
     intervals = "both"                # optional: "wald" (the default), "profile" or "both"
     profile = ["k34"]                 # optional: the parameters profiled (default: all)
 
@@ -69,6 +71,9 @@ DEFAULT_MAX_ITERATIONS = 100
 # How a fit's 95 % intervals are found: from the Jacobian at the optimum (Wald), from the
 # profile of the cost with the other parameters re-optimised, or both side by side.
 INTERVALS = ("wald", "profile", "both")
+# Where the Jacobian comes from: forward differences, or the FMU's own sensitivities
+# wherever it offers them (docs/sensitivities.md) and differences for the rest.
+JACOBIANS = ("differences", "sensitivities")
 # The name of the one experiment a [data] table makes.
 SINGLE_EXPERIMENT = "data"
 
@@ -100,10 +105,11 @@ class Experiment:
     columns: list[int]
     variables: list[str]
 
-    def plan(self, system: System | None) -> Plan:
-        """The runner's plan: the scenario, reading the measured variables at every
-        communication point that holds a data time (and at no other, where it can)."""
-        return self.scenario.plan([], SeriesPlan(variables=self.data.columns,
+    def plan(self, system: System | None, extra: list[str] | None = None) -> Plan:
+        """The runner's plan: the scenario, reading the measured variables (then `extra`
+        ones) at every communication point that holds a data time (and at no other, where
+        it can)."""
+        return self.scenario.plan([], SeriesPlan(variables=self.data.columns + (extra or []),
                                                  every=self.data.every), system)
 
 
@@ -123,6 +129,7 @@ class FitSpec:
     relative_step: float
     intervals: str = "wald"
     profiled: list[str] = field(default_factory=list)
+    jacobian: str = "differences"
 
     @property
     def scenario(self) -> Scenario:
@@ -177,10 +184,11 @@ class FitSpec:
         if ssp is not None and system is None:
             raise SpecError("system.engine", "a fit runs an SSP file natively only: not "
                                              "with engine = \"fmpy\"")
-        shared_fitted, starts, seed, max_iterations, relative_step, intervals, profiled = settings
+        shared_fitted, starts, seed, max_iterations, relative_step, intervals, profiled, \
+            jacobian = settings
         numbered, fitted = _numbered(experiments, shared_fitted)
         return FitSpec(raw, base, (base / fmu) if fmu else None, system, numbered, fitted,
-                       starts, seed, max_iterations, relative_step, intervals, profiled)
+                       starts, seed, max_iterations, relative_step, intervals, profiled, jacobian)
 
     def digest(self) -> str:
         """A hash of everything that decides the results: the spec and the data files'
@@ -299,14 +307,14 @@ def _numbered(parsed: list[_Parsed],
 
 
 def _fit_table(raw: dict[str, Any], experiments: list[_Parsed], shared: list[tuple[str, Any]]
-               ) -> tuple[list[FitParameter], int, int | None, int, float, str, list[str]]:
+               ) -> tuple[list[FitParameter], int, int | None, int, float, str, list[str], str]:
     """The [fit] table: the shared parameters (each checked against every experiment's
     scenario), the starts, the seed, the iterations, the Jacobian's relative step and the
     intervals; every mistake of it reported at once."""
     fit = table(raw, "fit", "spec", required=True)
     errors = Collector()
     errors.run(lambda: only(fit, "fit", {"parameters", "starts", "seed", "max_iterations",
-                                         "relative_step", "intervals", "profile"}))
+                                         "relative_step", "intervals", "profile", "jacobian"}))
     fitted: list[FitParameter] = []
     for name, entry in shared:
         each = errors.run(lambda: [_parameter(name, entry, e.scenario, f"fit.parameters.{name}",
@@ -336,9 +344,14 @@ def _fit_table(raw: dict[str, Any], experiments: list[_Parsed], shared: list[tup
     names = ([name for name, _ in shared]
              + [f"{e.name}.{p.variable}" for e in experiments for p in e.own])
     intervals, profiled = errors.run(lambda: _intervals(fit, names)) or ("wald", [])
+    jacobian = fit.get("jacobian", "differences")
+    if jacobian not in JACOBIANS:
+        errors.run(lambda: refuse("fit.jacobian", f"must be one of {', '.join(map(repr, JACOBIANS))}, "
+                                                  f"got {jacobian!r}"))
     errors.raise_any()
     assert starts is not None and max_iterations is not None
-    return fitted, starts, seed, max_iterations, float(relative_step), intervals, profiled
+    return (fitted, starts, seed, max_iterations, float(relative_step), intervals, profiled,
+            str(jacobian))
 
 
 def _intervals(fit: dict[str, Any], names: list[str]) -> tuple[str, list[str]]:
