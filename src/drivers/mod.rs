@@ -58,4 +58,50 @@ impl Experiment {
     pub fn limit(&self) -> f64 {
         self.stop.unwrap_or(f64::INFINITY)
     }
+
+    /// The end of a master's step of size `step` from its point `current`, the plant
+    /// standing at `now`: the step finite and positive, `current` the plant's time up to
+    /// the rounding of the sums that made each, the end not past the stop time (by more
+    /// than that rounding). Each caller words the refusal in its own interface's names.
+    #[inline(always)]
+    pub fn step_target(&self, now: f64, current: f64, step: f64) -> Result<f64, StepRefusal> {
+        // The larger of two numbers that are not NaN here: `f64::max` also handles NaN, in a
+        // longer sequence of instructions on every step.
+        let larger = |a: f64, b: f64| if a > b { a } else { b };
+        // Finiteness as a comparison with f64::MAX rather than `is_finite`: with the latter
+        // the compiler tested these checks on the bits, a longer sequence. NaN fails every
+        // comparison.
+        let step_is_valid = step > 0.0 && step <= f64::MAX;
+        let current_is_finite = current.abs() <= f64::MAX;
+        if !step_is_valid {
+            return Err(StepRefusal::Step);
+        }
+        // Relative to the times' size, never to the step's.
+        if !current_is_finite
+            || (current - now).abs() > TIME_MATCH * larger(now.abs(), current.abs())
+        {
+            return Err(StepRefusal::Point);
+        }
+        let target = current + step;
+        if let Some(stop) = self.stop {
+            if target > stop + TIME_MATCH * larger(stop.abs(), current.abs()) {
+                return Err(StepRefusal::PastStop { target, stop });
+            }
+        }
+        Ok(target)
+    }
+}
+
+/// Relative mismatch accepted between the master's communication point and the FMU's time.
+const TIME_MATCH: f64 = 1e-12;
+
+/// Why [`Experiment::step_target`] refuses a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StepRefusal {
+    /// The step size is not finite and positive.
+    Step,
+    /// The master's point is not the plant's time.
+    Point,
+    /// The step would end past the stop time.
+    PastStop { target: f64, stop: f64 },
 }

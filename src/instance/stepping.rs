@@ -6,13 +6,10 @@ use super::fmu_state::{Driver, FmuState};
 use super::{Category, Failure, Instance, Outcome, State, Status, StepEnd};
 use crate::drivers::cosimulation::CALL_WORK;
 use crate::drivers::events::{self, Happening};
-use crate::drivers::{isa, CoSimulation, Experiment};
+use crate::drivers::{isa, CoSimulation, Experiment, StepRefusal};
 use crate::plant::Plant;
 use integrators::text::number;
 use integrators::SolverError;
-
-/// Relative mismatch accepted between the master's communication point and the FMU's time.
-const TIME_MATCH: f64 = 1e-12;
 
 impl Instance {
     /// fmi3DoStep: as fmi2DoStep, but a change point is an event, and a step is bounded
@@ -132,40 +129,25 @@ impl Instance {
     /// experiment's stop time.
     #[inline(always)]
     fn step_target(&self, now: f64, current: f64, step: f64) -> Result<f64, Failure> {
-        // The larger of two numbers that are not NaN here: `f64::max` also handles NaN, in a
-        // longer sequence of instructions on every step.
-        let larger = |a: f64, b: f64| if a > b { a } else { b };
-        // Finiteness as a comparison with f64::MAX rather than `is_finite`: with the latter
-        // the compiler tested these checks on the bits, a longer sequence. NaN fails every
-        // comparison.
-        let step_is_valid = step > 0.0 && step <= f64::MAX;
-        let current_is_finite = current.abs() <= f64::MAX;
-        if !step_is_valid {
-            return Err(Failure::error(format!(
-                "communicationStepSize = {} must be finite and > 0",
-                number(step)
-            )));
-        }
-        // The master's point and the FMU's time agree up to the rounding of the sum that
-        // made each: relative to their size, never to the step's.
-        if !current_is_finite
-            || (current - now).abs() > TIME_MATCH * larger(now.abs(), current.abs())
-        {
-            return Err(Failure::error(format!(
-                "currentCommunicationPoint = {} does not match the FMU's time {}",
-                number(current),
-                number(now)
-            )));
-        }
-        let target = current + step;
-        if let Some(stop) = self.fmu_state.experiment.stop {
-            if target > stop + TIME_MATCH * larger(stop.abs(), current.abs()) {
-                return Err(Failure::error(format!(
-                    "a step to t = {target} would pass stopTime = {stop}"
-                )));
-            }
-        }
-        Ok(target)
+        let experiment = &self.fmu_state.experiment;
+        experiment
+            .step_target(now, current, step)
+            .map_err(|refusal| {
+                Failure::error(match refusal {
+                    StepRefusal::Step => format!(
+                        "communicationStepSize = {} must be finite and > 0",
+                        number(step)
+                    ),
+                    StepRefusal::Point => format!(
+                        "currentCommunicationPoint = {} does not match the FMU's time {}",
+                        number(current),
+                        number(now)
+                    ),
+                    StepRefusal::PastStop { target, stop } => {
+                        format!("a step to t = {target} would pass stopTime = {stop}")
+                    }
+                })
+            })
     }
 
     /// An FMI 2.0 step the driver could not complete: the instance is in StepFailed, its

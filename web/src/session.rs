@@ -5,15 +5,11 @@
 //! stop.
 
 use cyclic_mechanism::drivers::events::{self, EventHandling, Happening, StepEnd};
-use cyclic_mechanism::drivers::{CoSimulation, Experiment};
+use cyclic_mechanism::drivers::{CoSimulation, Experiment, StepRefusal};
 use cyclic_mechanism::model::linkage::LINKAGE_CLASSES;
 use cyclic_mechanism::model::{self, PARAMETERS};
 use cyclic_mechanism::plant::{Activity, Plant, Value};
 use cyclic_mechanism::variables::{self, Causality, Slot, VarType, Variable};
-
-/// Relative mismatch accepted between the caller's communication point and the run's time
-/// (the FMUs' own).
-const TIME_MATCH: f64 = 1e-12;
 
 /// How a completed step went.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -118,17 +114,18 @@ impl Session {
             return Err("the run has not started".into());
         };
         let now = self.plant.time();
-        if !(step > 0.0 && step.is_finite()) {
-            return Err(format!("step = {step}: must be finite and > 0"));
-        }
-        if !current.is_finite() || (current - now).abs() > TIME_MATCH * now.abs().max(current.abs())
-        {
-            return Err(format!("current = {current} is not the run's time {now}"));
-        }
-        let target = current + step;
-        if target > experiment.limit() {
-            return Err(format!("a step to {target} would pass the stop time"));
-        }
+        let target =
+            experiment
+                .step_target(now, current, step)
+                .map_err(|refusal| match refusal {
+                    StepRefusal::Step => format!("step = {step}: must be finite and > 0"),
+                    StepRefusal::Point => {
+                        format!("current = {current} is not the run's time {now}")
+                    }
+                    StepRefusal::PastStop { target, .. } => {
+                        format!("a step to {target} would pass the stop time")
+                    }
+                })?;
         let mut happenings = Vec::new();
         let handling = EventHandling {
             event_mode: true,
