@@ -243,8 +243,8 @@ pub struct Tracker {
     /// The slots in use, in order, and their parameters.
     slots: Vec<(usize, Sensitive)>,
     width: Width,
-    /// Why the run cannot go on (its start failed, or it crossed a change point, across
-    /// which the state is not differentiable): the next step says so.
+    /// Why the run cannot go on (it crossed a change point, across which the state is
+    /// not differentiable): the next step says so.
     broken: Option<String>,
 }
 
