@@ -100,8 +100,8 @@ fn moved(name: &str, delta: f64, h: f64) -> Vec<Vec<f64>> {
 
 /// ∂(states)/∂`name` by central differences of whole runs with steps δ and 2δ, combined
 /// (Richardson) so that their truncation error, O(δ²), cancels: a plain central difference
-/// at δ = 1e-4 of the value is itself off by up to 1.4e-6 of its scale for k34, which
-/// shrinks a hundredfold at a tenth of the step.
+/// is itself off by more than the sensitivities for some parameters (its error shrinks
+/// with δ², which shows it is the difference's, not the sensitivities').
 fn reference(name: &str, delta: f64, h: f64) -> Vec<Vec<f64>> {
     let central = |d: f64| -> Vec<Vec<f64>> {
         let (up, down) = (moved(name, d, h), moved(name, -d, h));

@@ -222,8 +222,8 @@ pub fn project<const P: usize>(p: &Parameters, y: &State, s: &mut Sensitivities<
 
 /// S(0) = ∂y(0)/∂p: zero for the dynamics' parameters (the initial state does not depend
 /// on them); for a start value, central differences of the initial state (docs/model.md
-/// §3), exact for the speeds and twists, in which it is linear, and to about 1e-9 for
-/// phi2_0, through the assembly.
+/// §3), exact for the speeds and twists, in which it is linear, and to the differences'
+/// truncation for phi2_0, through the assembly (tests/sensitivities.rs checks it).
 pub fn initial<const P: usize>(
     p: &Parameters,
     which: &[Sensitive; P],
