@@ -97,12 +97,19 @@ impl<const P: usize, const N: usize> Run<P, N> {
     }
 
     /// S at `t_end`, the run taken there (or past it, never past `limit`); with `fresh`,
-    /// from the plant's point and state, S kept.
-    fn advance(&mut self, plant: &Plant, step: &Step) -> Result<Sensitivities<P>, SolverError> {
+    /// from the plant's point: its state, and `now`, the sensitivities it holds there (the
+    /// run's own S belongs to the run's time, which may lie past that point).
+    fn advance(
+        &mut self,
+        plant: &Plant,
+        step: &Step,
+        now: &[[f64; SLOTS]; STATE_SIZE],
+    ) -> Result<Sensitivities<P>, SolverError> {
         if step.fresh || self.restart || self.time < plant.time() {
             self.restart = false;
             self.time = plant.time();
-            self.point[..STATE_SIZE].copy_from_slice(plant.state());
+            let s: Sensitivities<P> = now.map(|row| std::array::from_fn(|j| row[j]));
+            join(plant.state(), &s, &mut self.point);
             self.solver.invalidate();
         }
         let derivatives = plant.input_derivatives();
@@ -199,11 +206,16 @@ macro_rules! widths {
                 }
             }
 
-            fn advance(&mut self, plant: &Plant, step: &Step) -> Result<[[f64; SLOTS]; STATE_SIZE], SolverError> {
+            fn advance(
+                &mut self,
+                plant: &Plant,
+                step: &Step,
+                now: &[[f64; SLOTS]; STATE_SIZE],
+            ) -> Result<[[f64; SLOTS]; STATE_SIZE], SolverError> {
                 let mut out = [[0.0; SLOTS]; STATE_SIZE];
                 match self {
                     $(Self::$variant(run) => {
-                        let s = run.advance(plant, step)?;
+                        let s = run.advance(plant, step, now)?;
                         for (row, values) in out.iter_mut().zip(s) {
                             row[..$p].copy_from_slice(&values);
                         }
@@ -236,6 +248,13 @@ widths! {
     Five: 5, 48;
 }
 
+/// The plant's sensitivities at its point, the slots in use first, in order.
+fn by_width(slots: &[(usize, Sensitive)], plant: &Plant) -> [[f64; SLOTS]; STATE_SIZE] {
+    plant
+        .sensitivities()
+        .map(|row| std::array::from_fn(|j| slots.get(j).map_or(0.0, |&(k, _)| row[k])))
+}
+
 /// The sensitivities a co-simulation run carries, for the parameters the plant's
 /// `sensitivity_*.parameter` slots name.
 #[derive(Clone, Debug)]
@@ -257,9 +276,7 @@ impl Tracker {
             return None;
         }
         let which: Vec<Sensitive> = slots.iter().map(|&(_, s)| s).collect();
-        let by_slot = plant.sensitivities();
-        let initial =
-            by_slot.map(|row| std::array::from_fn(|j| slots.get(j).map_or(0.0, |&(k, _)| row[k])));
+        let initial = by_width(&slots, plant);
         Some(Self {
             width: Width::new(&which, &initial, tolerances),
             slots,
@@ -290,7 +307,8 @@ impl Tracker {
             projection_accuracy,
             work,
         };
-        let by_width = self.width.advance(plant, &step)?;
+        let now = by_width(&self.slots, plant);
+        let by_width = self.width.advance(plant, &step, &now)?;
         let mut by_slot = [[0.0; SLOTS]; STATE_SIZE];
         for (j, &(slot, _)) in self.slots.iter().enumerate() {
             for i in 0..STATE_SIZE {
