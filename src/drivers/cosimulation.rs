@@ -316,9 +316,8 @@ impl CoSimulation {
         let accuracy = projection_accuracy(experiment.tolerance);
         match model::project(plant.params(), &mut y, accuracy) {
             Ok(at) if all_finite(&y) => {
-                let Ok(()) =
-                    self.follow_sensitivities(plant, self.integrator_time, experiment, false)
-                else {
+                let reached = (self.integrator_time, &y);
+                let Ok(()) = self.follow_sensitivities(plant, reached, experiment, false) else {
                     return false;
                 };
                 plant.accept_point(self.integrator_time, y, &at);
@@ -401,7 +400,7 @@ impl CoSimulation {
         }
         let start = plant.time();
         let (y, at) = self.integrate_to(plant, t_end, experiment, short)?;
-        self.follow_sensitivities(plant, t_end, experiment, fresh)
+        self.follow_sensitivities(plant, (t_end, &y), experiment, fresh)
             .inspect_err(|_| self.restart = true)?;
         plant.accept_point(t_end, y, &at);
         plant.move_inputs_on(start);
@@ -410,11 +409,11 @@ impl CoSimulation {
 
     /// The sensitivities, where the plant asks for them, taken from the plant's point to
     /// `t_end` (with `fresh`, from the plant's state) and handed to the plant; the plant
-    /// itself has not moved yet.
+    /// itself has not moved yet, `y` being its projected state at `t_end`.
     fn follow_sensitivities(
         &mut self,
         plant: &mut Plant,
-        t_end: f64,
+        (t_end, y): (f64, &State),
         experiment: &Experiment,
         fresh: bool,
     ) -> Result<(), SolverError> {
@@ -424,7 +423,7 @@ impl CoSimulation {
         let work = self.solver.work_left();
         let values = tracker.advance(
             plant,
-            (plant.time(), t_end),
+            (plant.time(), t_end, y),
             (experiment.limit(), fresh, self.integrator_inputs),
             (projection_accuracy(experiment.tolerance), work),
         )?;

@@ -137,16 +137,17 @@ impl<const P: usize, const N: usize> Run<P, N> {
             t: step.t_end,
             reason: format!("sensitivities: {reason}"),
         };
-        let mut point = if self.time == step.t_end {
+        let point = if self.time == step.t_end {
             self.point
         } else {
             self.solver
                 .dense_output(&system, step.t_end)
                 .ok_or_else(|| refused("no dense output covers this time".into()))?
         };
-        let previous = point;
-        system.project(&previous, &mut point).map_err(refused)?;
-        let (_, s) = split::<P, N>(&point);
+        // The state there is the driver's, projected and checked: S alone is projected,
+        // onto the constraint's tangent space at that state.
+        let (_, mut s) = split::<P, N>(&point);
+        sensitivity::project(system.params, &step.y_end, &mut s);
         if s.iter().flatten().all(|v| v.is_finite()) {
             Ok(s)
         } else {
@@ -179,6 +180,8 @@ impl<const P: usize, const N: usize> Run<P, N> {
 /// What one communication step gives the run.
 struct Step {
     t_end: f64,
+    /// The driver's state at `t_end`, projected.
+    y_end: State,
     limit: f64,
     fresh: bool,
     inputs: Inputs,
@@ -284,12 +287,12 @@ impl Tracker {
         })
     }
 
-    /// S at the plant's new point `t_end` (the driver has just moved it there from
-    /// `start`), by slot.
+    /// S at the plant's new point `t_end`, by slot: the driver has just moved its state
+    /// there from `start`, to `y_end` (projected), and the plant takes both next.
     pub fn advance(
         &mut self,
         plant: &Plant,
-        (start, t_end): (f64, f64),
+        (start, t_end, y_end): (f64, f64, &State),
         (limit, fresh, inputs): (f64, bool, Inputs),
         (projection_accuracy, work): (f64, u64),
     ) -> Result<[[f64; SLOTS]; STATE_SIZE], SolverError> {
@@ -301,6 +304,7 @@ impl Tracker {
         }
         let step = Step {
             t_end,
+            y_end: *y_end,
             limit,
             fresh,
             inputs,
