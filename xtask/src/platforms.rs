@@ -488,6 +488,36 @@ pub fn build(target: Target, zig: &Zig) -> Result<Built> {
     })
 }
 
+/// Every target's library, [`Target::ALL`]'s order, two builds at a time. A cross build
+/// is mostly single-threaded work: with one codegen unit per crate the standard library's
+/// crates compile one after another, and the fat-LTO link of the library is one thread;
+/// two builds at once keep both of a small machine's cores busy. Each target has a target
+/// folder of its own, so the two cargos do not wait for each other's lock.
+fn build_in_two_lanes(zig: &Zig) -> Result<Vec<Built>> {
+    let lane = |parity: usize| -> Result<Vec<Built>> {
+        Target::ALL
+            .iter()
+            .skip(parity)
+            .step_by(2)
+            .map(|&target| build(target, zig))
+            .collect()
+    };
+    let (even, odd) = std::thread::scope(|scope| {
+        let odd = scope.spawn(|| lane(1));
+        let even = lane(0);
+        let odd = odd
+            .join()
+            .unwrap_or_else(|_| Err("a cross build's thread panicked".into()));
+        (even, odd)
+    });
+    let (mut even, mut odd) = (even?.into_iter(), odd?.into_iter());
+    let built: Vec<Built> = (0..Target::ALL.len())
+        .filter_map(|i| if i % 2 == 0 { even.next() } else { odd.next() })
+        .collect();
+    debug_assert!(built.iter().zip(Target::ALL).all(|(b, t)| b.target == t));
+    Ok(built)
+}
+
 /// The cross-built binaries, checked, under `dir`.
 pub struct Binaries {
     pub win64: PathBuf,
@@ -542,10 +572,7 @@ impl Binaries {
 pub fn build_all(zig: &Zig, dir: &Path) -> Result<(Binaries, Vec<String>)> {
     ensure_packages(RUST_PACKAGES)?;
     ensure_packages(BUILD_PACKAGES)?;
-    let built: Vec<Built> = Target::ALL
-        .iter()
-        .map(|&target| build(target, zig))
-        .collect::<Result<_>>()?;
+    let built = build_in_two_lanes(zig)?;
     let by = |target: Target| &built[Target::ALL.iter().position(|t| *t == target).unwrap()];
     let _ = fs::remove_dir_all(dir);
     let binaries = Binaries {
