@@ -87,7 +87,20 @@ pub(crate) fn job(_: &Parsed) -> Result {
     ensure_chromium()?;
     let page = crate::web::build_page()?;
     stages.done("the package, examples and page");
-    run(Command::new(&python)
+    // Memcheck of the FMPy suite runs beside the Python suite, at the lowest priority: it
+    // takes the core time the suite leaves idle (much of the suite is one process waiting
+    // on another), and the suite itself is scheduled as if alone. Its outcome is decided
+    // by the packed FMU, the test files, the installed packages and the selection and
+    // options in `fmpy_under_valgrind` (in this file) alone: a re-run skips it.
+    let mut inputs = vec![
+        fmu.clone(),
+        fmu3.clone(),
+        root().join("target/venv/requirements.installed"),
+        root().join("xtask/src/test.rs"),
+    ];
+    inputs.extend(files_with_extension(&root().join("tests/python"), "py")?);
+    let mut suite = Command::new(&python);
+    suite
         .args([
             "-m",
             "pytest",
@@ -105,22 +118,22 @@ pub(crate) fn job(_: &Parsed) -> Result {
         .env("BOUNCING_BALL_ME_FMU", &ball_me)
         .env("BOUNCING_BALL_ME_FMU3", &ball_me3)
         .env("MECHANISM_WEB_PAGE", &page)
-        .current_dir(root()))?;
-    stages.done("Python suite");
-    // Memcheck of the FMPy suite takes longer than the suite itself; its outcome is decided
-    // by the packed FMU, the test files, the installed packages and the selection and
-    // options below (in this file) alone.
-    let mut inputs = vec![
-        fmu.clone(),
-        fmu3.clone(),
-        root().join("target/venv/requirements.installed"),
-        root().join("xtask/src/test.rs"),
-    ];
-    inputs.extend(files_with_extension(&root().join("tests/python"), "py")?);
-    unless_passed_before("valgrind memcheck of the FMPy suite", &inputs, || {
-        fmpy_under_valgrind(&python, &fmu, &fmu3)
-    })?;
-    stages.done("memcheck of the FMPy suite");
+        .current_dir(root());
+    let (suite, memcheck) = std::thread::scope(|scope| {
+        let memcheck = scope.spawn(|| {
+            unless_passed_before("valgrind memcheck of the FMPy suite", &inputs, || {
+                fmpy_under_valgrind(&python, &fmu, &fmu3)
+            })
+        });
+        let suite = run(&mut suite);
+        let memcheck = memcheck
+            .join()
+            .unwrap_or_else(|_| Err("the memcheck's thread panicked".into()));
+        (suite, memcheck)
+    });
+    suite?;
+    stages.done("Python suite, with the memcheck of the FMPy suite beside it");
+    memcheck?;
     println!("{}", stages.summary());
     Ok(())
 }
@@ -151,13 +164,22 @@ pub(crate) fn test_platforms() -> Result<(PathBuf, PathBuf)> {
 /// valgrind memcheck. Python and numpy have valgrind reports of their own, so
 /// only errors with a frame in the FMU's library count, including definite leaks allocated
 /// there. A positive control first shows that an overrun inside the library is caught and
-/// attributed (tests/python/valgrind_probe.py).
+/// attributed (tests/python/valgrind_probe.py). At the lowest priority, as it runs beside
+/// the Python suite; its output goes to target/valgrind/fmpy_suite.log.
 pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path, fmu3: &Path) -> Result {
     let out = root().join("target/valgrind");
     fs::create_dir_all(&out).map_err(|e| e.to_string())?;
-    let memcheck = |xml: &Path| {
-        let mut command = Command::new("valgrind");
+    let log = out.join("fmpy_suite.log");
+    let log_file = fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
+    let memcheck = |xml: &Path| -> Result<Command> {
+        let to_log = || {
+            log_file
+                .try_clone()
+                .map_err(|e| format!("{}: {e}", log.display()))
+        };
+        let mut command = Command::new("nice");
         command
+            .args(["-n", "19", "valgrind"])
             .args([
                 "--leak-check=full",
                 "--show-leak-kinds=definite",
@@ -169,13 +191,17 @@ pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path, fmu3: &Path) -> Res
             .env("CYCLIC_MECHANISM_FMU", fmu)
             .env("CYCLIC_MECHANISM_FMU3", fmu3)
             .env("MEASUREMENTS", out.join("measurements.json"))
-            .current_dir(root());
-        command
+            .current_dir(root())
+            .stdout(to_log()?)
+            .stderr(to_log()?);
+        Ok(command)
     };
+    let logged =
+        |result: Result| result.map_err(|e| format!("{e}; its output in {}", log.display()));
     let probe = out.join("probe.xml");
-    run(memcheck(&probe)
+    logged(run(memcheck(&probe)?
         .arg(root().join("tests/python/valgrind_probe.py"))
-        .arg(fmu))?;
+        .arg(fmu)))?;
     if errors_in_fmu(&probe)?.is_empty() {
         return Err(
             "valgrind check: the deliberate overrun in valgrind_probe.py was not \
@@ -203,9 +229,10 @@ pub(crate) fn fmpy_under_valgrind(python: &Path, fmu: &Path, fmu3: &Path) -> Res
         "test_fmi3.py::test_change_point_returns_early_and_goes_on_on_the_chosen_branch",
         "test_fmi3.py::test_adjoint_is_the_transpose_of_the_directional_derivative",
     ];
-    run(memcheck(&suite)
+    logged(run(memcheck(&suite)?
         .args(["-m", "pytest", "-q", "-p", "no:cacheprovider"])
-        .args(files.map(|f| root().join("tests/python").join(f))))?;
+        .arg(format!("--basetemp={}", out.join("pytest").display()))
+        .args(files.map(|f| root().join("tests/python").join(f)))))?;
     let errors = errors_in_fmu(&suite)?;
     if !errors.is_empty() {
         return Err(format!(
