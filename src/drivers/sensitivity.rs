@@ -97,19 +97,18 @@ impl<const P: usize, const N: usize> Run<P, N> {
     }
 
     /// S at `t_end`, the run taken there (or past it, never past `limit`); with `fresh`,
-    /// from the plant's point: its state, and `now`, the sensitivities it holds there (the
-    /// run's own S belongs to the run's time, which may lie past that point).
+    /// from the plant's point: its state, and the sensitivities it holds there for
+    /// `slots` (the run's own S belongs to the run's time, which may lie past that point).
     fn advance(
         &mut self,
         plant: &Plant,
         step: &Step,
-        now: &[[f64; SLOTS]; STATE_SIZE],
+        slots: &[(usize, Sensitive)],
     ) -> Result<Sensitivities<P>, SolverError> {
         if step.fresh || self.restart || self.time < plant.time() {
             self.restart = false;
             self.time = plant.time();
-            let s: Sensitivities<P> = now.map(|row| std::array::from_fn(|j| row[j]));
-            join(plant.state(), &s, &mut self.point);
+            join(plant.state(), &of_plant::<P>(slots, plant), &mut self.point);
             self.solver.invalidate();
         }
         let derivatives = plant.input_derivatives();
@@ -198,33 +197,28 @@ macro_rules! widths {
         }
 
         impl Width {
-            fn new(which: &[Sensitive], s: &[[f64; SLOTS]; STATE_SIZE], tolerances: Tolerances) -> Self {
-                match which.len() {
+            /// From the plant's sensitivities for `slots` (1 to [`SLOTS`] of them).
+            fn new(slots: &[(usize, Sensitive)], plant: &Plant, tolerances: Tolerances) -> Self {
+                match slots.len() {
                     $($p => Self::$variant(Box::new(Run::new(
-                        std::array::from_fn(|j| which[j]),
-                        &s.map(|row| std::array::from_fn(|j| row[j])),
+                        std::array::from_fn(|j| slots[j].1),
+                        &of_plant(slots, plant),
                         tolerances,
                     ))),)*
                     n => unreachable!("{n} sensitivities: the slots hold 1 to {SLOTS}"),
                 }
             }
 
+            /// S at the step's end, by slot.
             fn advance(
                 &mut self,
                 plant: &Plant,
                 step: &Step,
-                now: &[[f64; SLOTS]; STATE_SIZE],
+                slots: &[(usize, Sensitive)],
             ) -> Result<[[f64; SLOTS]; STATE_SIZE], SolverError> {
-                let mut out = [[0.0; SLOTS]; STATE_SIZE];
                 match self {
-                    $(Self::$variant(run) => {
-                        let s = run.advance(plant, step, now)?;
-                        for (row, values) in out.iter_mut().zip(s) {
-                            row[..$p].copy_from_slice(&values);
-                        }
-                    })*
+                    $(Self::$variant(run) => Ok(by_slot(slots, &run.advance(plant, step, slots)?)),)*
                 }
-                Ok(out)
             }
 
             fn serialize_into(&self, w: &mut Writer) {
@@ -233,9 +227,9 @@ macro_rules! widths {
                 }
             }
 
-            fn deserialize_from(r: &mut Reader, which: &[Sensitive]) -> Result<Self, FormatError> {
-                Ok(match which.len() {
-                    $($p => Self::$variant(Box::new(Run::deserialize_from(r, std::array::from_fn(|j| which[j]))?)),)*
+            fn deserialize_from(r: &mut Reader, slots: &[(usize, Sensitive)]) -> Result<Self, FormatError> {
+                Ok(match slots.len() {
+                    $($p => Self::$variant(Box::new(Run::deserialize_from(r, std::array::from_fn(|j| slots[j].1))?)),)*
                     n => return Err(FormatError(format!("{n} sensitivities: the slots hold 1 to {SLOTS}"))),
                 })
             }
@@ -251,11 +245,25 @@ widths! {
     Five: 5, 48;
 }
 
-/// The plant's sensitivities at its point, the slots in use first, in order.
-fn by_width(slots: &[(usize, Sensitive)], plant: &Plant) -> [[f64; SLOTS]; STATE_SIZE] {
+/// The plant's sensitivities at its point for `slots` (P of them), column j for `slots[j]`.
+fn of_plant<const P: usize>(slots: &[(usize, Sensitive)], plant: &Plant) -> Sensitivities<P> {
     plant
         .sensitivities()
-        .map(|row| std::array::from_fn(|j| slots.get(j).map_or(0.0, |&(k, _)| row[k])))
+        .map(|row| std::array::from_fn(|j| row[slots[j].0]))
+}
+
+/// `s` as the plant holds it, by slot: column j in slot `slots[j]`.
+fn by_slot<const P: usize>(
+    slots: &[(usize, Sensitive)],
+    s: &Sensitivities<P>,
+) -> [[f64; SLOTS]; STATE_SIZE] {
+    let mut out = [[0.0; SLOTS]; STATE_SIZE];
+    for (row, values) in out.iter_mut().zip(s) {
+        for (&(slot, _), &value) in slots.iter().zip(values) {
+            row[slot] = value;
+        }
+    }
+    out
 }
 
 /// The sensitivities a co-simulation run carries, for the parameters the plant's
@@ -278,10 +286,8 @@ impl Tracker {
         if slots.is_empty() {
             return None;
         }
-        let which: Vec<Sensitive> = slots.iter().map(|&(_, s)| s).collect();
-        let initial = by_width(&slots, plant);
         Some(Self {
-            width: Width::new(&which, &initial, tolerances),
+            width: Width::new(&slots, plant, tolerances),
             slots,
             broken: None,
         })
@@ -311,15 +317,7 @@ impl Tracker {
             projection_accuracy,
             work,
         };
-        let now = by_width(&self.slots, plant);
-        let by_width = self.width.advance(plant, &step, &now)?;
-        let mut by_slot = [[0.0; SLOTS]; STATE_SIZE];
-        for (j, &(slot, _)) in self.slots.iter().enumerate() {
-            for i in 0..STATE_SIZE {
-                by_slot[i][slot] = by_width[i][j];
-            }
-        }
-        Ok(by_slot)
+        self.width.advance(plant, &step, &self.slots)
     }
 
     /// A change point was crossed at `t`: from there on the run has no sensitivities.
@@ -345,9 +343,8 @@ impl Tracker {
             return Ok(None);
         }
         let broken = r.bool()?;
-        let which: Vec<Sensitive> = slots.iter().map(|&(_, s)| s).collect();
         Ok(Some(Self {
-            width: Width::deserialize_from(r, &which)?,
+            width: Width::deserialize_from(r, &slots)?,
             slots,
             broken: broken.then(|| "sensitivities ended before this state was saved".into()),
         }))
