@@ -18,6 +18,7 @@ import numpy as np
 
 from bench_sweep import arguments, write_results
 from fmusweep import fit
+from fmusweep.fitting.sensitivities import read_offer, slot_parameter, slot_variable
 from fmusweep.fmu import Archive, local_runner
 from fmusweep.spec import Scenario
 
@@ -28,20 +29,24 @@ MEASURED = ["omega1", "omega2", "omega4"]
 SIGMA = 0.05
 SCENARIO = {"stop": 60.0, "step": 0.01, "tolerance": 1e-8}
 INTERVAL = 0.1
-# The slots' values of k12, k34, d12, d34, d34 again not allowed: J2 for a fifth.
-SLOTS = {"k12": 5, "k34": 6, "d12": 7, "d34": 8, "J2": 2}
+# The parameters the slots follow, in order: the four fitted, and J2 for a fifth (one
+# parameter may not take two slots).
+FOLLOWED = ["k12", "k34", "d12", "d34", "J2"]
 
 
 def run_cost(fmu, quick: bool) -> dict:
     """Wall time of one run by the fit's runner, plain and with 1, 2, 4 and 5 slots set:
     the fastest of many, and each against the plain run."""
-    runner = local_runner(Archive.read(fmu))
+    archive = Archive.read(fmu)
+    offer = read_offer(archive.data)
+    assert offer is not None, "the FMU offers no sensitivities"
+    runner = local_runner(archive)
     every = round(INTERVAL / SCENARIO["step"])
     rows = {}
     for n in (0, 1, 2, 4, 5):
-        names = list(SLOTS)[:n]
-        slots = [f"sensitivity_{k + 1}.parameter" for k in range(n)]
-        extra = [f"sensitivity_{k + 1}.{c}" for k in range(n) for c in MEASURED]
+        names = FOLLOWED[:n]
+        slots = [slot_parameter(k + 1) for k in range(n)]
+        extra = [slot_variable(k + 1, c) for k in range(n) for c in MEASURED]
         plan = Scenario.of({"scenario": SCENARIO}).plan([], {"variables": MEASURED + extra,
                                                              "every": every})
         runner.configure(plan)
@@ -49,7 +54,7 @@ def run_cost(fmu, quick: bool) -> dict:
         for _ in range(5 if quick else 20):
             t0 = time.perf_counter()
             [result] = runner.run(list(TRUTH) + slots,
-                                  [list(TRUTH.values()) + [float(SLOTS[p]) for p in names]])
+                                  [list(TRUTH.values()) + [float(offer.items[p]) for p in names]])
             best = min(best, time.perf_counter() - t0)
             assert result["status"] == "ok", result["message"]
         rows[n] = best

@@ -119,16 +119,15 @@ class Problem:
                 chosen = [(j, offer.items[v]) for j, v in zip(e.columns, e.variables)
                           if v in offer.items][:offer.slots]
             self.sensitive.append(chosen)
-        self.sensitivity_runs = 0
 
     def with_sensitivities(self, free: list[int]) -> list[int]:
         """The parameters of `free` whose Jacobian columns the FMU's sensitivities give:
         every experiment that runs with one computes it."""
+        running = [(e.columns, {i for i, _ in mine})
+                   for e, mine in zip(self.spec.experiments, self.sensitive)]
         return [j for j in free
-                if any(j in e.columns for e in self.spec.experiments)
-                and all(j in [i for i, _ in mine]
-                        for e, mine in zip(self.spec.experiments, self.sensitive)
-                        if j in e.columns)]
+                if any(j in columns for columns, _ in running)
+                and all(j in followed for columns, followed in running if j in columns)]
 
     def evaluate_with_sensitivities(self, theta: Rows, start: int, role: str
                                     ) -> tuple[Trial, dict[int, Rows]]:
@@ -153,7 +152,6 @@ class Problem:
             evaluation = _evaluation(e, result)
             if not evaluation.ok:
                 return Trial([evaluation], [e.name]), {}
-            self.sensitivity_runs += 1
             with self.lock:
                 fresh = keys[k] not in self.cache
                 if fresh:
