@@ -510,11 +510,9 @@ fn build_in_two_lanes(zig: &Zig) -> Result<Vec<Built>> {
             .unwrap_or_else(|_| Err("a cross build's thread panicked".into()));
         (even, odd)
     });
-    let (mut even, mut odd) = (even?.into_iter(), odd?.into_iter());
-    let built: Vec<Built> = (0..Target::ALL.len())
-        .filter_map(|i| if i % 2 == 0 { even.next() } else { odd.next() })
-        .collect();
-    debug_assert!(built.iter().zip(Target::ALL).all(|(b, t)| b.target == t));
+    let mut built = even?;
+    built.extend(odd?);
+    built.sort_by_key(|b| Target::ALL.iter().position(|t| *t == b.target));
     Ok(built)
 }
 
