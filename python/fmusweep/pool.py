@@ -49,6 +49,7 @@ class Pool:
         self.requested_workers = workers
         self.prefix = prefix
         self.workers = 1
+        self._addresses: list[str] = []
         self.startup_s = 0.0
         self.client: Any = None
         self._cluster: Any = None
@@ -89,6 +90,7 @@ class Pool:
             client.wait_for_workers(1, timeout=60)
         addresses = list(client.scheduler_info()["workers"])
         self.workers = len(addresses)
+        self._addresses = addresses
         # The target travels to every worker once; tasks carry only a reference to it.
         [self._target_future] = client.scatter([self.target], broadcast=True, hash=False)
         warm = [client.submit(self.prepare_function, self._target_future, self.plan,
@@ -128,18 +130,24 @@ class Pool:
         finished = as_completed()
         pending: dict[Any, tuple[Points, Plan]] = {}
 
-        def submit_next() -> None:
+        def submit_next(worker: str | None = None) -> None:
             chunk = next(waiting, None)
             if chunk is not None:
                 plan, names, rows = task_of(chunk)
                 future = self.client.submit(self.batch_function, self._target_future, plan,
-                                            names, rows, chunk, key=name(chunk), pure=False)
+                                            names, rows, chunk, key=name(chunk), pure=False,
+                                            workers=[worker] if worker else None,
+                                            allow_other_workers=worker is not None)
                 pending[future] = (chunk, plan)
                 finished.add(future)
 
         try:
-            for _ in range(IN_FLIGHT_PER_WORKER * max(self.workers, 1)):
-                submit_next()
+            # The first batches dealt to the workers in turn, so that every worker starts
+            # busy: left to itself, the scheduler may queue them all on one worker while
+            # its estimate of their length is still unknown. A worker that is lost hands
+            # its batch on (allow_other_workers); later batches go wherever one frees up.
+            for i in range(IN_FLIGHT_PER_WORKER * max(self.workers, 1)):
+                submit_next(self._addresses[i % len(self._addresses)] if self._addresses else None)
             for future in finished:
                 chunk, plan = pending.pop(future)
                 try:
