@@ -120,34 +120,113 @@ def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
                 "scenario.parameters")
 
 
+# A column with more distinct values than this is probed at its extremes and this many
+# values spread between them; fewer are each probed.
+PROBED_VALUES = 256
+
+
 def ask_the_fmu(plan: Plan, names: list[str], first: Rows, columns: Sequence[Rows],
                 runner: NativeRunner, field: str, fixed_field: str,
                 column_fields: Sequence[str] | None = None) -> None:
-    """Set the fixed values, then the first point, then each column's extremes from it, and
-    report what the FMU refuses (a column's refusal under ``column_fields[j]`` where given,
-    else `field`). Single-variable rules are caught here; a combination that cannot run (a
+    """Set the fixed values, then the first point, then each column's values from it, and
+    report every value the FMU refuses, at once: a fixed value's refusal under
+    ``fixed_field.NAME``, a column's under ``column_fields[j].NAME`` where given, else
+    ``field.NAME``. Single-variable rules are caught here; a combination that cannot run (a
     geometry that does not assemble) is a result of the sweep, not a mistake in it."""
-    runner.configure(plan)
-    fixed = runner.check([], [[]])[0]
-    if fixed["status"] != "ok":
-        raise SpecError(fixed_field, f"the FMU refuses the fixed values: {fixed['message']}")
+    errors = Collector()
+    plan = _without_refused_fixed(plan, runner, fixed_field, errors)
+    where = [(column_fields[j] if column_fields is not None else field) for j in range(len(names))]
     answer = runner.check(names, first)[0]
-    if answer["status"] != "ok":
-        raise SpecError(field, f"the FMU refuses the first point: {answer['message']}")
-    # From the first point, which passed, change one column to its extreme values: a
-    # refusal then belongs to that column.
-    probes, owners = [], []
+    if answer["status"] == "ok":
+        base = first[0]
+    else:
+        # The first point is refused: each column is probed from the FMU's own values, so
+        # that a refusal names its column; a refusal that no column makes alone is the
+        # combination's.
+        base = None
+    found = len(errors.errors)
     for j, (name, column) in enumerate(zip(names, columns)):
-        for value in np.unique([column.min(), column.max()]):
-            probe = first[0].copy()
-            probe[j] = value
-            probes.append(probe)
-            owners.append((j, name, float(value)))
-    for (j, name, value), answer in zip(owners, runner.check(names, np.array(probes))):
-        if answer["status"] != "ok":
-            where = column_fields[j] if column_fields is not None else field
-            raise SpecError(f"{where}.{name}",
-                            f"the FMU refuses {name} = {value:g}: {answer['message']}")
+        errors.run(lambda: _probe_column(runner, names, base, j, column, f"{where[j]}.{name}"))
+    if base is None and len(errors.errors) == found:
+        point = ", ".join(f"{n} = {v:g}" for n, v in zip(names, first[0]))
+        errors.run(lambda: _refuse_combination(field, point, answer["message"]))
+    errors.raise_any()
+
+
+def _without_refused_fixed(plan: Plan, runner: NativeRunner, fixed_field: str,
+                           errors: Collector) -> Plan:
+    """The plan configured in the runner; where the FMU refuses its fixed values, each
+    refused one is reported by name and left out, so that the design is still checked."""
+    runner.configure(plan)
+    if runner.check([], [[]])[0]["status"] == "ok":
+        return plan
+    fixed = plan["fixed"]
+    bare: Plan = {**plan, "fixed": {}}
+    runner.configure(bare)
+    kept = {}
+    for name, value in fixed.items():
+        answer = runner.check([name], [[value]])[0]
+        if answer["status"] == "ok":
+            kept[name] = value
+        else:
+            errors.run(lambda: _refuse_value(f"{fixed_field}.{name}", name, [value],
+                                             answer["message"]))
+    if len(kept) == len(fixed):
+        # Each alone passes: the fixed values are refused together.
+        errors.run(lambda: _refuse_combination(fixed_field, ", ".join(
+            f"{n} = {v:g}" for n, v in fixed.items()), runner_message(runner, plan)))
+    kept_plan: Plan = {**plan, "fixed": kept}
+    runner.configure(kept_plan)
+    return kept_plan
+
+
+def runner_message(runner: NativeRunner, plan: Plan) -> str:
+    runner.configure(plan)
+    return runner.check([], [[]])[0]["message"]
+
+
+def _probed(column: Rows) -> Rows:
+    values = np.unique(column)
+    if len(values) <= PROBED_VALUES:
+        return values
+    picks = np.linspace(0, len(values) - 1, PROBED_VALUES).round().astype(np.int64)
+    return values[np.unique(picks)]
+
+
+def _probe_column(runner: NativeRunner, names: list[str], base: Rows | None, j: int,
+                  column: Rows, where: str) -> None:
+    """Each probed value of column j set with the other columns at the base point (or
+    alone, at the FMU's own values, without one); every refused value in one error."""
+    values = _probed(column)
+    if base is None:
+        answers = runner.check([names[j]], values.reshape(-1, 1))
+    else:
+        probes = np.tile(base, (len(values), 1))
+        probes[:, j] = values
+        answers = runner.check(names, probes)
+    refused = [(float(v), a["message"]) for v, a in zip(values, answers) if a["status"] != "ok"]
+    if refused:
+        _refuse_value(where, names[j], [v for v, _ in refused], refused[0][1])
+
+
+def _refuse_value(where: str, name: str, values: list[float], message: str) -> None:
+    shown = ", ".join(f"{v:g}" for v in values[:8]) + (", …" if len(values) > 8 else "")
+    said = f"{name} = {shown}" if len(values) == 1 else f"{name} = {shown} ({len(values)} values)"
+    raise SpecError(where, f"the FMU refuses {said}: {_reason(message)}")
+
+
+def _refuse_combination(where: str, point: str, message: str) -> None:
+    raise SpecError(where, f"the FMU refuses {point} together (each value alone passes): "
+                           f"{_reason(message)}")
+
+
+def _reason(message: str) -> str:
+    """The FMU's own words, without the runner's wrapping of them."""
+    for lead in ("setting the point's values returned Error: error: ",
+                 "setting the point's values returned Error: "):
+        if message.startswith(lead):
+            return message[len(lead):]
+    return message
 
 
 def names_missing(raw: dict[str, Any], description: dict[str, Any]) -> list[SpecError]:

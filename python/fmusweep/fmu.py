@@ -70,12 +70,17 @@ def open_for_checks(fmu: str | os.PathLike[str] | None, spec_fmu: str | os.PathL
     if not path:
         raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), pass fmu=, "
                                "or set FMUSWEEP_FMU")
-    target = Archive.read(path)
+    # What named it: the spec or the caller (fmu = …, fmu=, --fmu), or the environment.
+    named_by = "fmu" if fmu or spec_fmu else "FMUSWEEP_FMU"
+    try:
+        target = Archive.read(path)
+    except (OSError, ValueError) as e:
+        raise SpecError(named_by, str(e)) from None
     version = fmi_version(target)
     if version is None:
-        raise SpecError("fmu", f"{path} has no readable modelDescription.xml: it is not an FMU")
+        raise SpecError(named_by, f"{path} has no readable modelDescription.xml: it is not an FMU")
     if version not in ("2.0", "3.0"):
-        raise SpecError("fmu", f"{path} is an FMI {version} FMU (its modelDescription.xml says "
+        raise SpecError(named_by, f"{path} is an FMI {version} FMU (its modelDescription.xml says "
                                f"fmiVersion=\"{version}\"); fmusweep runs FMI 2.0 and FMI 3.0 "
                                f"Co-Simulation FMUs")
     local = local_runner(target)

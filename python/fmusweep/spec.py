@@ -45,6 +45,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import math
 import os
 import pathlib
 import tomllib
@@ -52,6 +53,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from . import design as _design
+from .columns import SERIES_COLUMNS, SWEEP_COLUMNS, refuse_collisions
 from .errors import Collector, SpecError, refuse
 from .ssd import SspContents, read_ssp
 from .system import System
@@ -275,6 +277,9 @@ class Spec:
         scenario = errors.run(lambda: Scenario.of(raw))
         header = errors.run(lambda: _design_header(raw, scenario))
         outputs = errors.run(lambda: _outputs(raw, scenario))
+        if header is not None and outputs is not None:
+            refuse_collisions(_column_names(header[0], outputs), SWEEP_COLUMNS + SERIES_COLUMNS,
+                              errors)
         errors.raise_any()
         assert runs and scenario and header and outputs
         fmu, ssp, system = runs
@@ -357,7 +362,7 @@ def _outputs(raw: dict[str, Any], scenario: Scenario | None) -> tuple[list[Metri
     outputs = _table(raw, "outputs", "spec", required=True)
     _only(outputs, "outputs", {"metrics", "series"})
     errors = Collector()
-    metrics = [errors.run(lambda: _metric(name, m))
+    metrics = [errors.run(lambda: _metric(name, m, scenario))
                for name, m in _table(outputs, "metrics", "outputs").items()]
     series = _table(outputs, "series", "outputs")
     series_variables: list[str] = []
@@ -408,7 +413,17 @@ def _input(value: object, where: str) -> InputTable:
     return {"times": times, "values": values}
 
 
-def _metric(name: str, m: object) -> MetricSpec:
+def _column_names(design: dict[str, Any],
+                  outputs: tuple[list[MetricSpec], list[str], int]) -> list[tuple[str, str, str]]:
+    """The names the spec gives columns of the results, each with its field, in the order
+    they are claimed."""
+    metrics = outputs[0]
+    return ([(name, f"design.parameters.{name}", "the design parameter")
+             for name in design.get("parameters", {})]
+            + [(m.name, f"outputs.metrics.{m.name}", "the metric name") for m in metrics])
+
+
+def _metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec:
     where = f"outputs.metrics.{name}"
     if not isinstance(m, dict):
         raise SpecError(where, "must be a table with variable and kind")
@@ -421,4 +436,30 @@ def _metric(name: str, m: object) -> MetricSpec:
     end = _number(m["to"], f"{where}.to") if "to" in m else None
     if start is not None and end is not None and end < start:
         raise SpecError(f"{where}.to", f"must be ≥ from ({start}), got {end}")
+    if scenario is not None:
+        _window_holds_a_point(scenario, start, end, where)
     return MetricSpec(name, m["variable"], m["kind"], start, end)
+
+
+# A communication point this close to a window's end, in steps, belongs to the window (the
+# runner's own slack, runner/src/metrics.rs).
+WINDOW_SLACK = 1e-9
+
+
+def _window_holds_a_point(scenario: Scenario, start: float | None, end: float | None,
+                          where: str) -> None:
+    """A metric's window lies in the run and holds at least one communication point, which
+    the metric is computed from (else every row would say NaN with status ok)."""
+    for key, value in (("from", start), ("to", end)):
+        if value is not None and not scenario.start <= value <= scenario.stop:
+            raise SpecError(f"{where}.{key}", f"must lie in the run [scenario.start, "
+                                              f"scenario.stop] = [{scenario.start:g}, "
+                                              f"{scenario.stop:g}], got {value:g}")
+    low = scenario.start if start is None else start
+    high = scenario.stop if end is None else end
+    first = math.ceil((low - scenario.start) / scenario.step - WINDOW_SLACK)
+    last = math.floor((high - scenario.start) / scenario.step + WINDOW_SLACK)
+    if first > last:
+        raise SpecError(where, f"the window [{low:g}, {high:g}] holds no communication point "
+                               f"(every {scenario.step:g} s from {scenario.start:g}): widen it "
+                               "or shorten scenario.step")

@@ -8,6 +8,7 @@ anything itself."""
 from __future__ import annotations
 
 import hashlib
+import pathlib
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -93,7 +94,7 @@ class Target:
         ssp = getattr(spec, "ssp", None)
         system: System | None = spec.system
         if ssp is not None and system is None and fmu is None:
-            archive = Archive.read(ssp)
+            archive = _read_ssp(ssp)
             return Target(archive, {"ssp_name": archive.name, "ssp_sha256": archive.sha256},
                           describe_ssp(archive), None, run_ssp_batch, prepare_ssp_worker)
         archive, local, description = open_target(system, fmu, spec.fmu, spec.scenario.step)
@@ -102,7 +103,7 @@ class Target:
                 "system": {name: str(path) for name, path in system.components.items()},
                 "connections": [str(c) for c in system.connections]}
             if ssp is not None:
-                file = Archive.read(ssp)
+                file = _read_ssp(ssp)
                 identity.update(ssp_name=file.name, ssp_sha256=file.sha256)
         else:
             identity = {"fmu_name": archive.name, "fmu_guid": description["guid"]}
@@ -111,6 +112,13 @@ class Target:
     @property
     def sha256(self) -> str:
         return self.archive.sha256
+
+
+def _read_ssp(path: str | pathlib.Path) -> Archive:
+    try:
+        return Archive.read(path)
+    except (OSError, ValueError) as e:
+        raise SpecError("ssp", str(e)) from None
 
 
 class Study:

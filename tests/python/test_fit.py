@@ -241,7 +241,7 @@ def _bad(tmp, fmu_path, truth_rows):
         "a parameter also an input": ("fit.parameters.M_r", lambda s: (s["scenario"].update(inputs={"M_r": 1.0}),
                                                                        s["fit"]["parameters"].update(M_r={"start": 0.0, "range": [-1.0, 1.0]})), None),
         "starts without a seed": ("fit.seed", lambda s: s["fit"].update(starts=3), None),
-        "a fixed value the FMU refuses": ("scenario.parameters", lambda s: s["scenario"].update(parameters={"J1": -1.0}), None),
+        "a fixed value the FMU refuses": ("scenario.parameters.J1", lambda s: s["scenario"].update(parameters={"J1": -1.0}), None),
         "an unknown field": ("fit.method", lambda s: s["fit"].update(method="lm"), None),
         "an unknown Jacobian": ("fit.jacobian", lambda s: s["fit"].update(jacobian="adjoint"), None),
     }

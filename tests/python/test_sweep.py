@@ -83,7 +83,7 @@ SPEC_ERRORS = {
     "outputs.series.interval": lambda s: s["outputs"].update(series={"variables": ["phi1"], "interval": 0.015}),
     "scenario.step": lambda s: s["scenario"].update(step=0.03),
     "scenario.stpo": lambda s: s["scenario"].update(stpo=3),
-    "scenario.parameters": lambda s: s["scenario"]["parameters"].update(k12=-5.0),
+    "scenario.parameters.k12": lambda s: s["scenario"]["parameters"].update(k12=-5.0),
     "scenario.inputs.phi1": lambda s: s["scenario"].update(inputs={"phi1": 1.0}),
     "scenario.inputs.M_m.times": lambda s: s["scenario"].update(inputs={"M_m": {"times": [1, 0],
                                                                                 "values": [0, 1]}}),

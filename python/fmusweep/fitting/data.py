@@ -150,4 +150,12 @@ def _sigma(table: object, columns: list[str], where: str) -> tuple[Rows, list[bo
             raise SpecError(field, f"must be a finite number > 0, got {value!r}")
         j = columns.index(name)
         sigma[j], given[j] = float(value), True
+    missing = [c for c, g in zip(columns, given) if not g]
+    if missing:
+        # A column without σ would count in its own units beside columns weighed by theirs,
+        # and one variance scale estimated over both would mix the two.
+        raise SpecError(f"{where}.sigma", f"gives no standard deviation for "
+                                          f"{', '.join(missing)}: give one for every measured "
+                                          "column, or for none (then every column shares one "
+                                          "σ estimated from the residuals)")
     return sigma, given

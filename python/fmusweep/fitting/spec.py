@@ -57,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from ..columns import FIT_COLUMNS, refuse_collisions
 from ..errors import Collector, SpecError, refuse
 from ..fields import finite, low_high, only, table, whole
 from ..spec import Scenario, read_source, what_runs
@@ -242,6 +243,13 @@ def _experiments(raw: dict[str, Any], base: pathlib.Path, shared: list[tuple[str
                                              {e.name for e in parsed}))
         if one is not None:
             parsed.append(one)
+    weighed = [e.name for e in parsed if all(e.data.sigma_given)]
+    if weighed and len(weighed) < len(parsed):
+        unweighed = next(e.name for e in parsed if e.name not in weighed)
+        errors.run(lambda: refuse(f"experiment.{unweighed}.data.sigma",
+                                  f"is missing while experiment {weighed[0]} gives σ: give "
+                                  "every experiment's columns a σ, or none (then they share "
+                                  "one σ estimated from the residuals)"))
     return parsed
 
 
@@ -343,6 +351,10 @@ def _fit_table(raw: dict[str, Any], experiments: list[_Parsed], shared: list[tup
                                    f"must be a number in (0, 0.1), got {relative_step!r}"))
     names = ([name for name, _ in shared]
              + [f"{e.name}.{p.variable}" for e in experiments for p in e.own])
+    fields = ([f"fit.parameters.{name}" for name, _ in shared]
+              + [f"experiment.{e.name}.parameters.{p.variable}" for e in experiments for p in e.own])
+    refuse_collisions([(name, where, "the fitted parameter") for name, where in zip(names, fields)],
+                      FIT_COLUMNS, errors)
     intervals, profiled = errors.run(lambda: _intervals(fit, names)) or ("wald", [])
     jacobian = fit.get("jacobian", "differences")
     if jacobian not in JACOBIANS:
