@@ -5,13 +5,18 @@
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
-from typing import Callable, Sequence, TypeVar
+from typing import Any, Callable, Sequence, TypeVar
 
 from . import __version__
-from .sweep import run_sweep
+from .errors import EngineError, SpecError, SpecErrors
 from .native import RunnerError
-from .spec import SpecError
+from .sweep import run_sweep
+
+DESCRIPTION = ("Run a sweep of an FMU's parameters and print where its results are; "
+               "'fmusweep fit SPEC' fits parameters to measured data instead.")
 
 EXAMPLE = """example:
   python -m fmusweep sweep.toml --workers 4 --out results/k34
@@ -47,7 +52,28 @@ with fit.toml:
   d34 = { start = 0.1, range = [0.0, 5.0] }
 """
 
-ENGINE_ERRORS = (SpecError, RunnerError, FileExistsError, FileNotFoundError, ValueError)
+ENGINE_ERRORS = (SpecError, RunnerError, EngineError, FileExistsError, FileNotFoundError,
+                 ValueError)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (or the parent's end), ending a run as Ctrl-C does: what finished is kept."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+def _end_with_parent() -> None:
+    """SIGTERM when the process that started this one ends (``cargo xtask sweep`` killed),
+    so that no sweep goes on as an orphan; Linux only, asked for by FMUSWEEP_END_WITH_PARENT."""
+    if os.environ.get("FMUSWEEP_END_WITH_PARENT") != "1" or not sys.platform.startswith("linux"):
+        return
+    import ctypes
+    pr_set_pdeathsig = 1
+    ctypes.CDLL(None).prctl(pr_set_pdeathsig, signal.SIGTERM)
+    if os.getppid() == 1:  # the parent ended before the request took effect
+        raise Terminated()
 
 T = TypeVar("T")
 
@@ -57,34 +83,42 @@ def _engine_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, help="LocalCluster worker processes (default: every core)")
     parser.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
     parser.add_argument("--serial", action="store_true", help="no Dask: run in this process")
-    parser.add_argument("--no-plots", action="store_true", help="no plots and no report.html")
+    parser.add_argument("--no-plots", action="store_true",
+                        help="no plots and no report.html (sensitivity indices are still computed)")
 
 
 def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
     """run()'s result, or the exit code after a refusal (2) or an interrupt (130), each
     said on standard error."""
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
     try:
+        _end_with_parent()
         return run()
     except ENGINE_ERRORS as e:
-        print(f"{prog}: {e}", file=sys.stderr)
+        print(f"{prog}: {_as_option(e)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted; {kept}: run again with --resume", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:
+        ended = "terminated" if isinstance(e, Terminated) else "interrupted"
+        print(f"{prog}: {ended}; {kept}: run the same command again with --resume",
+              file=sys.stderr)
+        return 143 if isinstance(e, Terminated) else 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["fit"]:
         return fit_main(argv[1:])
-    parser = argparse.ArgumentParser(prog="fmusweep", description=__doc__.split("\n\n")[0],
+    parser = argparse.ArgumentParser(prog="fmusweep", description=DESCRIPTION,
                                      epilog=EXAMPLE, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"fmusweep {__version__}")
-    parser.add_argument("spec", help="the sweep specification (TOML); `python -m fmusweep fit "
-                                     "SPEC` runs a fit (see `fit --help`)")
+    parser.add_argument("spec", help="the sweep specification (TOML); 'python -m fmusweep fit "
+                                     "SPEC' runs a fit (see 'fit --help')")
     _engine_arguments(parser)
-    parser.add_argument("--out", help="output directory (default: sweep-<spec digest>)")
-    parser.add_argument("--resume", action="store_true", help="finish the sweep in --out, redoing only missing points")
+    parser.add_argument("--out", help="output directory (default: a new results/SPEC-DATE-TIME)")
+    parser.add_argument("--resume", action="store_true", help="finish the sweep in --out (default: "
+                        "the newest one of this spec in results/), redoing only missing points")
     parser.add_argument("--batch-size", type=int, help="points per task (default: about 0.5 s of work)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
@@ -97,8 +131,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     r = results.report
     assert r is not None  # a sweep just run reports itself
     counts = ", ".join(f"{n} {s}" for s, n in sorted(r.statuses.items())) or "nothing new"
-    print(f"fmusweep: {r.points} points ({r.resumed} already done; computed: {counts}) in "
-          f"{r.wall_s:.1f} s on {r.workers} worker(s), {r.engine}, batches of {r.batch_size}")
+    print(f"fmusweep: {_count(r.points, 'point')} ({r.resumed} already done; computed: "
+          f"{counts}) in {r.wall_s:.1f} s on {_count(r.workers, 'worker')}, {r.engine}, "
+          f"batches of {r.batch_size}")
+    if r.engine_choice != "as asked":
+        print(f"fmusweep: engine: {r.engine_choice}")
+    for note in results.notes:
+        print(f"fmusweep: no indices for {note}")
     print(f"fmusweep: results in {r.out}/points.parquet"
           + (f", series in {r.out}/series/" if results.meta["spec"].get("outputs", {}).get("series") else ""))
     for path in results.plots:
@@ -106,6 +145,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     if results.report_html is not None:
         print(f"fmusweep: report {results.report_html} (open it in a browser)")
     return 0
+
+
+def _beyond(p: dict[str, Any]) -> str:
+    """A word when an interval reaches past the parameter's range, which bounds the fit
+    but not the linearised (Wald) interval."""
+    low, high = p.get("range", (None, None))
+    bounds = [b for b in (p.get("wald_ci95") or p["ci95"]) if b is not None]
+    if low is None or high is None or not bounds:
+        return ""
+    if min(bounds) < low or max(bounds) > high:
+        return f"; the interval reaches past the range [{low:g}, {high:g}] the fit keeps to"
+    return ""
+
+
+# The engine's arguments, which the command line gives as options.
+OPTIONS = ("workers", "scheduler", "serial", "batch_size", "resume")
+
+
+def _as_option(e: Exception) -> str:
+    """A refusal of an engine argument names its option (--workers, not workers)."""
+    if isinstance(e, SpecError) and not isinstance(e, SpecErrors) and e.field in OPTIONS:
+        return f"--{e.field.replace('_', '-')}: {e.rule}"
+    return str(e)
+
+
+def _count(n: int, what: str) -> str:
+    return f"{n} {what}" if n == 1 else f"{n} {what}s"
 
 
 def _interval(bounds: list[float | None], profile: bool) -> str:
@@ -125,9 +191,10 @@ def fit_main(argv: Sequence[str]) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("spec", help="the fit specification (TOML)")
     _engine_arguments(parser)
-    parser.add_argument("--out", help="output directory (default: fit-<spec digest>)")
+    parser.add_argument("--out", help="output directory (default: a new results/SPEC-DATE-TIME)")
     parser.add_argument("--resume", action="store_true",
-                        help="continue the fit in --out: points it evaluated are read, not run")
+                        help="continue the fit in --out (default: the newest one of this spec "
+                             "in results/): points it evaluated are read, not run")
     args = parser.parse_args(argv)
     result = _guarded("fmusweep fit", "every evaluated point is saved", lambda: fit(
         args.spec, fmu=args.fmu, out=args.out, workers=args.workers, scheduler=args.scheduler,
@@ -135,16 +202,18 @@ def fit_main(argv: Sequence[str]) -> int:
     if isinstance(result, int):
         return result
     s = result.summary
-    print(f"fmusweep fit: {s['status']} after {s['iterations']} iterations, cost {s['cost']}, "
-          f"{s['evaluations']} runs ({s['resumed']} made before or reused) in {s['wall_s']:.1f} s on "
-          f"{s['workers']} worker(s), {s['engine']}")
+    cost = "none" if s["cost"] is None else f"{s['cost']:.6g}"
+    print(f"fmusweep fit: {s['status']} after {_count(s['iterations'] or 0, 'iteration')}, cost "
+          f"{cost}, {_count(s['computed'], 'run')} made ({s['resumed']} repeated points answered "
+          f"without a run) in {s['wall_s']:.1f} s on {_count(s['workers'], 'worker')}, "
+          f"{s['engine']}")
     if s["engine_choice"] != "as asked":
         print(f"fmusweep fit: engine: {s['engine_choice']}")
     for name, p in s["parameters"].items():
         wald, profile = p["wald_ci95"], p.get("profile_ci95")
         said = (_interval(p["ci95"], False) if profile is None
                 else f"Wald {_interval(wald, False)}, profile {_interval(profile, True)}")
-        print(f"  {name} = {p['estimate']:.6g}  (95 %: {said})")
+        print(f"  {name} = {p['estimate']:.6g}  (95 %: {said}){_beyond(p)}")
     for warning in s["warnings"]:
         print(f"fmusweep fit: warning: {warning}")
     print(f"fmusweep fit: results in {result.out}/fit.json, every run in {result.out}/points.parquet")

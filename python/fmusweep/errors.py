@@ -64,3 +64,24 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     """", did you mean 'x'?" for the known name closest to a misspelt one, else ""."""
     close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
     return f"; did you mean {close[0]!r}?" if close else ""
+
+
+class EngineError(RuntimeError):
+    """The engine that places the points (a Dask cluster) could not start or be reached;
+    the message says why and what to do."""
+
+
+def refuse_in_spawned_child(call: str) -> None:
+    """A script that starts a study without the ``__main__`` guard is run again by every
+    worker process that multiprocessing spawns (it imports the script as ``__mp_main__``):
+    there the call must not run a second study into the same folder."""
+    import sys
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_code.co_name == "<module>"
+                                     and frame.f_globals.get("__name__") == "__mp_main__"):
+        frame = frame.f_back  # type: ignore[assignment]
+    if frame is not None:
+        raise EngineError(
+            f"{call} was called again while a worker process imported the script that calls "
+            f"it: put the call under `if __name__ == \"__main__\":`, so that the workers "
+            "Dask starts do not run it")

@@ -9,6 +9,7 @@ import contextlib
 import itertools
 import logging
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -16,10 +17,11 @@ from typing import Any, ContextManager
 
 import numpy as np
 
+from .errors import EngineError, SpecError
 from .native import failed_result
 from .records import Batch, BatchFunction, Plan, PointResult, Points, PrepareFunction, Rows
 
-__all__ = ["Pool", "Task", "IN_FLIGHT_PER_WORKER", "without_message_log"]
+__all__ = ["Pool", "Task", "IN_FLIGHT_PER_WORKER", "without_message_log", "check_engine"]
 
 # What a chunk of points runs: its plan, the names it sets and its rows.
 Task = tuple[Plan, list[str], Rows]
@@ -58,6 +60,11 @@ class Pool:
         self._keys = itertools.count()
 
     @property
+    def named(self) -> bool:
+        """Whether the caller chose the engine (serial, a number of workers, a scheduler)."""
+        return self.serial or self.requested_workers is not None or self.scheduler is not None
+
+    @property
     def engine(self) -> str:
         return "serial" if self.serial else (self.scheduler or "LocalCluster")
 
@@ -77,13 +84,29 @@ class Pool:
         self.client = self._cluster = None
 
     def _connect(self) -> None:
+        try:
+            self._start()
+        except (KeyboardInterrupt, EngineError):
+            raise
+        except Exception as e:
+            self.__exit__()
+            if self.scheduler:
+                raise EngineError(f"cannot use the Dask scheduler at {self.scheduler}: "
+                                  f"{_reason(e)}") from None
+            raise EngineError(f"the LocalCluster of {self.requested_workers or os.cpu_count()} "
+                              f"worker(s) did not start: {_reason(e)} (a script that starts "
+                              "a study calls it under `if __name__ == \"__main__\":`)") from None
+
+    def _start(self) -> None:
         from distributed import Client, LocalCluster
         if self.scheduler:
             self.client = Client(self.scheduler, timeout="30s")
         else:
-            self._cluster = LocalCluster(
-                n_workers=self.requested_workers or os.cpu_count() or 1, threads_per_worker=1,
-                processes=True, dashboard_address=":0", silence_logs=logging.ERROR)
+            with _children_ignore_interrupts():
+                self._cluster = LocalCluster(
+                    n_workers=self.requested_workers or os.cpu_count() or 1,
+                    threads_per_worker=1, processes=True, dashboard_address=":0",
+                    silence_logs=logging.ERROR)
             self.client = Client(self._cluster)
         client = self.client
         if not client.scheduler_info()["workers"]:
@@ -214,6 +237,46 @@ class Pool:
         while (count := int(self.client.run_on_scheduler(held))) and time.monotonic() < deadline:
             time.sleep(0.02)
         return count
+
+
+@contextlib.contextmanager
+def _children_ignore_interrupts() -> Iterator[None]:
+    """Ctrl-C reaches every process of the terminal's group: the LocalCluster's worker
+    processes, started meanwhile, inherit an ignored SIGINT (Python then installs no
+    handler of its own), so that only this process hears it and closes them, without their
+    tracebacks. Outside the main thread signals cannot be changed, and nothing is."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _reason(e: BaseException) -> str:
+    said = str(e).strip().splitlines()
+    return f"{type(e).__name__}: {said[0]}" if said else type(e).__name__
+
+
+def check_engine(workers: object, scheduler: object, serial: bool) -> None:
+    """The engine's options, before anything runs: one engine at a time, and a number of
+    workers that is one (a LocalCluster's size, not the workers of another cluster)."""
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                or workers < 1):
+        raise SpecError("workers", f"must be a whole number ≥ 1, got {workers!r} (--serial "
+                                   "runs in this process without Dask)")
+    if scheduler is not None and (not isinstance(scheduler, str) or not scheduler.strip()):
+        raise SpecError("scheduler", f"must be a Dask scheduler's address, tcp://HOST:PORT, "
+                                     f"got {scheduler!r}")
+    if serial and (workers is not None or scheduler is not None):
+        other = "workers" if workers is not None else "scheduler"
+        raise SpecError("serial", f"runs in this process without Dask: give it or {other}, "
+                                  "not both")
+    if workers is not None and scheduler is not None:
+        raise SpecError("workers", "sizes the LocalCluster started here; with scheduler the "
+                                   "points run on that cluster's own workers: give one of the two")
 
 
 def without_message_log(serial: bool = False) -> ContextManager[object]:

@@ -274,15 +274,20 @@ def _bound(x: float | None) -> str:
 
 
 def _estimates_table(summary: dict[str, Any]) -> str:
+    """Estimates and intervals; a profile column only where a profile was asked for."""
+    parameters = summary.get("parameters", {})
+    profiled = any(p.get("profile_ci95") is not None for p in parameters.values())
     rows = []
-    for name, p in summary.get("parameters", {}).items():
+    for name, p in parameters.items():
         wald = p.get("wald_ci95", p["ci95"])
         profile = p.get("profile_ci95")
-        rows.append(f"<tr><td>{html.escape(name)}</td><td>{p['estimate']:.6g}</td>"
-                    f"<td>[{_bound(wald[0])}, {_bound(wald[1])}]</td>"
-                    f"<td>{'' if profile is None else f'[{_bound(profile[0])}, {_bound(profile[1])}]'}</td></tr>")
-    return ("<h2>Estimates</h2><table><tr><th>parameter</th><th>estimate</th><th>Wald 95 %</th>"
-            f"<th>profile 95 %</th></tr>{''.join(rows)}</table>")
+        cells = [html.escape(name), f"{p['estimate']:.6g}", f"[{_bound(wald[0])}, {_bound(wald[1])}]"]
+        if profiled:
+            cells.append("" if profile is None else f"[{_bound(profile[0])}, {_bound(profile[1])}]")
+        rows.append("<tr>" + "".join(f"<td>{c}</td>" for c in cells) + "</tr>")
+    heads = ["parameter", "estimate", "Wald 95 %"] + (["profile 95 %"] if profiled else [])
+    return ("<h2>Estimates</h2><table><tr>" + "".join(f"<th>{h}</th>" for h in heads)
+            + f"</tr>{''.join(rows)}</table>")
 
 
 def _experiment_section(name: str, data: Any, predictions: np.ndarray, several: bool) -> str:

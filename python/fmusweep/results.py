@@ -53,14 +53,24 @@ class Results:
     def ok(self) -> pd.DataFrame:
         return self.points[self.points["status"] == "ok"]
 
-    def analyse_and_plot(self, design: Design) -> None:
-        from .plots import plot_all
+    def analyse(self, design: Design) -> None:
+        """The sensitivity indices of a sobol or morris design, into sensitivity.json."""
         from .sensitivity import analyse
         from .store import atomic_write_text
         seed = self.meta.get("seed") or 0
         self.sensitivity = analyse(design, self.points, self.meta["metrics"], seed)
         if self.sensitivity:
             atomic_write_text(json.dumps(self.sensitivity, indent=2), self.out / "sensitivity.json")
+
+    @property
+    def notes(self) -> list[str]:
+        """What the analysis could not do, per metric (indices that failed points rule out)."""
+        return [f"{name}: {found['note']}" for name, found in self.sensitivity.items()
+                if "note" in found]
+
+    def plot(self, design: Design) -> None:
+        """The pictures in plots/ and the interactive report.html."""
+        from .plots import plot_all
         self.plots = plot_all(design, self.points, self.meta["metrics"], self.sensitivity,
                               self.out / "plots")
         from .report import first_series, sweep_report

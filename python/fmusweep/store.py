@@ -19,6 +19,7 @@ import os
 import pathlib
 import platform
 import secrets
+import shutil
 from importlib import metadata
 from typing import Any
 
@@ -100,6 +101,7 @@ class ResultStore:
                     f"{self.out} already holds a {self.kind}: pass resume=True (--resume) to "
                     "finish it, or choose another output directory")
             self._check_same_sweep(json.loads(meta_path.read_text()), meta)
+        self.made = not self.out.exists()
         self.out.mkdir(parents=True, exist_ok=True)
         self.points_dir.mkdir(exist_ok=True)
         self.series_dir.mkdir(exist_ok=True)
@@ -126,6 +128,11 @@ class ResultStore:
         for part in self.series_dir.glob("part-*.parquet"):
             if part.name not in done:
                 part.unlink()
+
+    def remove_if_empty(self) -> None:
+        """The folder removed when this store made it and no batch landed in it."""
+        if self.made and not any(self.points_dir.glob("part-*.parquet")):
+            shutil.rmtree(self.out, ignore_errors=True)
 
     def done_points(self) -> Points:
         parts = sorted(self.points_dir.glob("part-*.parquet"))

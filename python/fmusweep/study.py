@@ -8,6 +8,8 @@ anything itself."""
 from __future__ import annotations
 
 import hashlib
+import json
+import os
 import pathlib
 import time
 from collections.abc import Iterator
@@ -33,7 +35,7 @@ if TYPE_CHECKING:
     from .fitting.spec import FitSpec
     from .spec import Spec
 
-__all__ = ["Target", "Study", "point_ids", "load_spec"]
+__all__ = ["Target", "Study", "point_ids", "load_spec", "spec_name", "RESULTS"]
 
 S = TypeVar("S")
 
@@ -66,6 +68,40 @@ def _names_missing(source: object, fmu: str | None) -> list[SpecError]:
     except (SpecError, OSError, ValueError, RunnerError):
         return []
     return names_missing(raw, description)
+
+
+# Where a study writes when the caller names no folder: one folder a run, below this one
+# in the working directory (git ignores it in this repository).
+RESULTS = "results"
+
+
+def spec_name(source: object, kind: str) -> str:
+    """A study's name for its default folder: its TOML file's stem, else its kind."""
+    return pathlib.Path(source).stem if isinstance(source, (str, pathlib.Path)) else kind
+
+
+def output_folder(kind: str, name: str | None, digest: str) -> pathlib.Path:
+    """A new folder for a run: results/NAME-YYYYmmdd-HHMMSS (-2, -3… when taken)."""
+    base = pathlib.Path(RESULTS) / f"{name or kind}-{time.strftime('%Y%m%d-%H%M%S')}"
+    folder, n = base, 1
+    while folder.exists():
+        n += 1
+        folder = base.with_name(f"{base.name}-{n}")
+    return folder
+
+
+def resumable_folder(kind: str, name: str | None, digest: str) -> pathlib.Path:
+    """The newest run of the same spec below results/, for a resume that names no folder."""
+    runs = sorted(pathlib.Path(RESULTS).glob(f"{name or kind}-*/sweep.json"),
+                  key=lambda p: p.stat().st_mtime, reverse=True)
+    for meta in runs:
+        try:
+            if json.loads(meta.read_text()).get("spec_digest") == digest:
+                return meta.parent
+        except (OSError, ValueError):
+            continue
+    raise SpecError("resume", f"no earlier run of this {kind} below {RESULTS}/ to resume: "
+                              "name its folder with out (--out)")
 
 
 def point_ids(fmu_sha: str, spec_digest: str, names: list[str], rows: Rows) -> list[str]:
@@ -127,8 +163,9 @@ class Study:
     ``workers`` on a LocalCluster, an existing ``scheduler``, or ``serial`` here."""
 
     def __init__(self, kind: str, spec: Spec | FitSpec, target: Target, plan: Plan, *,
-                 out: str | None, resume: bool, record: dict[str, Any],
-                 workers: int | None, scheduler: str | None, serial: bool):
+                 out: str | os.PathLike[str] | None, resume: bool, record: dict[str, Any],
+                 workers: int | None, scheduler: str | None, serial: bool,
+                 name: str | None = None):
         self.kind = kind
         self.target = target
         self.plan = plan
@@ -136,7 +173,9 @@ class Study:
         meta = {"format": FORMAT, "kind": kind, "spec": spec.raw, "spec_digest": self.digest,
                 "seed": spec.seed, "fmu_sha256": target.sha256, **target.identity, **record,
                 "versions": versions(), "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
-        self.store = ResultStore(out or f"{kind}-{self.digest[:10]}", meta, resume)
+        folder = output_folder(kind, name, self.digest) if out is None and not resume else (
+            out if out is not None else resumable_folder(kind, name, self.digest))
+        self.store = ResultStore(folder, meta, resume)
         prefix = "fmusweep-" + ("fit-" if kind == "fit" else "")
         self.pool = Pool(target.archive, (target.run_batch, target.prepare), plan,
                          workers=workers, scheduler=scheduler, serial=serial,
@@ -151,6 +190,11 @@ class Study:
         at the end."""
         with without_message_log(self.pool.serial), self.pool:
             yield self.pool
+
+    def abandon(self) -> None:
+        """After a failure: the output folder removed if this study made it and no point
+        landed in it, so that no folder claims to hold a study that never ran a point."""
+        self.store.remove_if_empty()
 
     def finish(self) -> int:
         """Write the final table from the parts; the number of points it holds."""

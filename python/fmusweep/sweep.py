@@ -19,12 +19,13 @@ import pyarrow as pa
 
 from .check import check_against_fmu
 from .design import Design
-from .errors import SpecError
+from .errors import SpecError, refuse_in_spawned_child
+from .pool import check_engine
 from .records import Batch, PointResult, Points, Rows
 from .spec import Spec
 from .store import coupling_columns
 from .ssp import check_ssp
-from .study import Study, Target, load_spec
+from .study import Study, Target, load_spec, spec_name
 
 if TYPE_CHECKING:
     from .results import Results
@@ -37,6 +38,10 @@ BATCH_SECONDS = 0.5
 # last ones do not leave workers idle.
 BATCHES_PER_WORKER = 4
 CALIBRATION_POINTS = 4
+# Without an engine named, a sweep whose points left take less work than this (seconds,
+# from the calibration points) runs in this process: starting a LocalCluster and
+# preparing its workers costs about this much (bench-sweep's report gives the startup).
+SERIAL_BELOW_S = 2.0
 
 
 @dataclass
@@ -59,6 +64,8 @@ class SweepReport:
     # batch was saved (its own accounting; 0: nothing of them stays on the workers). None
     # when the sweep ran without Dask.
     held_results: int | None = None
+    # How the engine was chosen: "as asked", or the measurement that chose it.
+    engine_choice: str = "as asked"
 
 
 def _tables(spec: Spec, study: Study, names: list[str], rows: Rows,
@@ -194,13 +201,19 @@ def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | No
 
     spec: a TOML path, a dict, or a Spec. fmu: the FMU's path, over the spec's own
     (default: the spec's FMU, else its SSP system, else $FMUSWEEP_FMU).
-    out: the output directory (default ``sweep-<digest>`` here). workers: LocalCluster
-    size (default: every core). scheduler: the address of an existing Dask scheduler
-    (``tcp://host:8786``) instead of a LocalCluster. serial: no Dask, this process only.
+    out: the output directory (default: a new ``results/NAME-DATE-TIME`` here, NAME the
+    spec file's stem; with resume, the newest such folder of the same spec). workers: LocalCluster
+    size (default: every core, or serial when the points take less than SERIAL_BELOW_S).
+    scheduler: the address of an existing Dask scheduler (``tcp://host:8786``) instead of
+    a LocalCluster. serial: no Dask, this process only.
     resume: finish a sweep that ``out`` already holds, redoing only missing points.
     on_batch: called with (points saved so far, points in the sweep) after each batch.
     """
     started = time.perf_counter()
+    refuse_in_spawned_child("run_sweep")
+    check_engine(workers, scheduler, serial)
+    if batch_size is not None:
+        _batch_size(batch_size, 0.0, 1, 1)
     given = spec
     spec = load_spec(lambda: Spec.load(given), given, fmu)
     design = spec.points
@@ -208,21 +221,37 @@ def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | No
     record = {"design": {"kind": design.kind, "names": design.names, "points": len(design)},
               "metrics": [m.name for m in spec.metrics]}
     study = Study("sweep", spec, target, spec.plan(), out=out, resume=resume, record=record,
-                  workers=workers, scheduler=scheduler, serial=serial)
+                  workers=workers, scheduler=scheduler, serial=serial,
+                  name=spec_name(given, "sweep"))
+    try:
+        return _run(spec, study, target, started, batch_size=batch_size, progress=progress,
+                    plots=plots, on_batch=on_batch)
+    except BaseException:
+        study.abandon()
+        raise
+
+
+def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size: int | None,
+         progress: bool, plots: bool, on_batch: Callable[[int, int], None] | None) -> Results:
+    """The sweep's points through the study's pool, after the checks."""
+    design = spec.points
     done = study.store.done_points()
     todo = _remaining(len(design), done)
     keep = _Keeper(spec, study, design, len(design) - len(todo), progress, on_batch)
     names = design.names
-    size, batches, dispatch_s, held = 0, 0, 0.0, None
+    size, batches, dispatch_s, held, note = 0, 0, 0.0, None, "nothing left to run"
     try:
         if len(todo):
-            # Calibrate the batch size on the first points, here; they are kept.
+            # Calibrate the batch size and the engine on the first points, here; they are
+            # kept.
             first = todo[:CALIBRATION_POINTS]
             calibration = target.run_batch(target.archive, study.plan, names,
                                            design.rows_at(first), first)
             keep(calibration)
             per_point = float(np.median([r["wall_s"] or 0.0 for r in calibration["results"]]))
-            expected_workers = 1 if serial else (workers or os.cpu_count() or 1)
+            note = _choose_engine(study, per_point, len(todo) - len(first))
+            expected_workers = 1 if study.pool.serial else (
+                study.pool.requested_workers or os.cpu_count() or 1)
             size = _batch_size(batch_size, per_point, len(todo) - len(first), expected_workers)
             batches = math.ceil((len(todo) - len(first)) / size) + 1
             with study.running() as pool:
@@ -240,9 +269,24 @@ def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | No
         resumed=len(done), batch_size=size, batches=batches, workers=study.pool.workers,
         engine=study.pool.engine, wall_s=time.perf_counter() - started,
         point_seconds=keep.point_seconds, startup_s=study.pool.startup_s,
-        dispatch_s=dispatch_s, statuses=keep.statuses, held_results=held)
+        dispatch_s=dispatch_s, statuses=keep.statuses, held_results=held, engine_choice=note)
     from .results import Results
     results = Results(study.store.out, None, study.store.meta, report)
+    results.analyse(design)
     if plots:
-        results.analyse_and_plot(design)
+        results.plot(design)
     return results
+
+
+def _choose_engine(study: Study, per_point: float, remaining: int) -> str:
+    """Serial when the caller named no engine and the points left take less work here
+    than starting a LocalCluster costs; why, in words."""
+    pool = study.pool
+    if pool.named:
+        return "as asked"
+    work = per_point * remaining
+    if work < SERIAL_BELOW_S:
+        pool.serial = True
+        return (f"serial: the {remaining} points left take about {work:.2g} s here, less than "
+                f"starting a LocalCluster costs (name --workers or --scheduler to use one)")
+    return f"a LocalCluster: the {remaining} points left take about {work:.2g} s serially"

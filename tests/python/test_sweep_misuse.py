@@ -4,6 +4,13 @@ a column of the results, a σ for some measured columns only, metric windows wit
 communication point, values the FMU refuses anywhere in a design."""
 
 
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import time
+
 import numpy as np
 import pytest
 
@@ -128,3 +135,133 @@ def test_a_fitted_parameter_named_like_a_column_is_refused(fmu_path, tmp_path):
     refuse_collisions([("cost", "fit.parameters.cost", "the fitted parameter"),
                        ("k34", "fit.parameters.k34", "the fitted parameter")], FIT_COLUMNS, errors)
     assert [e.field for e in errors.errors] == ["fit.parameters.cost"]
+
+
+# --- the command line ----------------------------------------------------------------------
+LONG_GRID = """
+[scenario]
+stop = 60.0
+step = 0.01
+tolerance = 1e-8
+parameters = { Mm_a0 = 100.0, Mm_a1 = -20.0, Mm_a2 = -1.0, Mr_b0 = 20.0, Mr_b1 = -0.05 }
+[design]
+kind = "grid"
+parameters = { J3 = { linspace = [0.2, 0.6, 60] }, d12 = { linspace = [0.0, 0.5, 60] } }
+[outputs.metrics]
+peak = { variable = "rod_force", kind = "peak_abs" }
+"""
+
+
+def sweep_command(fmu_path, spec, *options, cwd=None, **popen):
+    from sweep_helpers import environment_for_workers
+    command = [sys.executable, "-m", "fmusweep", str(spec), "--fmu", str(fmu_path),
+               "--no-progress", *map(str, options)]
+    return subprocess.Popen(command, env=environment_for_workers(), cwd=cwd, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, **popen)
+
+
+@pytest.mark.parametrize("options, said", [
+    (["--workers", "-1"], "--workers: must be a whole number ≥ 1, got -1"),
+    (["--workers", "0"], "--workers: must be a whole number ≥ 1, got 0"),
+    (["--serial", "--workers", "2"], "--serial: runs in this process without Dask"),
+    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"], "--workers: sizes the LocalCluster"),
+    (["--batch-size", "0"], "--batch-size: must be a whole number ≥ 1, got 0"),
+])
+def test_a_bad_engine_option_is_refused_at_once_and_leaves_nothing(fmu_path, tmp_path, options, said):
+    spec = tmp_path / "long.toml"
+    spec.write_text(LONG_GRID)
+    started = time.monotonic()
+    done = sweep_command(fmu_path, spec, *options, cwd=tmp_path)
+    out, err = done.communicate(timeout=60)
+    assert done.returncode == 2 and time.monotonic() - started < 20, (out, err)
+    assert err.strip() == f"fmusweep: {err.strip().split(': ', 1)[1]}" and said in err, err
+    assert "Traceback" not in err and not (tmp_path / "results").exists()
+
+
+def _interrupted(fmu_path, tmp_path, send):
+    """A 3600-point sweep on 2 workers, interrupted by `send(process)` once batches landed;
+    its output and exit code."""
+    spec = tmp_path / "long.toml"
+    spec.write_text(LONG_GRID)
+    out = tmp_path / "out"
+    # As a terminal starts it: its own process group, SIGINT not ignored.
+    process = sweep_command(fmu_path, spec, "--workers", "2", "--batch-size", "50", "--out", out,
+                            start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(list((out / "points").glob("part-*"))) < 4:
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.01)
+    send(process)
+    said, err = process.communicate(timeout=60)
+    return process.returncode, err, out
+
+
+def test_ctrl_c_says_one_clean_line_and_the_sweep_resumes(fmu_path, tmp_path):
+    code, err, out = _interrupted(fmu_path, tmp_path, lambda p: os.killpg(p.pid, signal.SIGINT))
+    assert code == 130 and err.strip().splitlines() == [
+        "fmusweep: interrupted; every finished batch is saved: run the same command again "
+        "with --resume"], err
+    assert len(list((out / "points").glob("part-*"))) >= 4
+
+
+def test_sigterm_to_the_client_says_the_same_and_ends_its_workers(fmu_path, tmp_path):
+    code, err, out = _interrupted(fmu_path, tmp_path, lambda p: p.terminate())
+    assert code == 143 and err.strip().splitlines() == [
+        "fmusweep: terminated; every finished batch is saved: run the same command again "
+        "with --resume"], err
+    time.sleep(1.0)
+    left = subprocess.run(["pgrep", "-f", f"fmu-runner serve .*fmusweep"], capture_output=True,
+                          text=True).stdout.split()
+    mine = [pid for pid in left if str(out) in pathlib.Path(f"/proc/{pid}/cmdline").read_text()
+            ] if left else []
+    assert not mine
+
+
+def test_results_go_to_a_new_folder_below_results_and_the_same_line_runs_again(fmu_path, tmp_path):
+    spec = tmp_path / "short.toml"
+    spec.write_text(LONG_GRID.replace("stop = 60.0", "stop = 0.5").replace("60 ]", "3 ]"))
+    folders = []
+    for _ in range(2):
+        done = sweep_command(fmu_path, spec, "--no-plots", cwd=tmp_path)
+        said, err = done.communicate(timeout=120)
+        assert done.returncode == 0, err
+        line = next(l for l in said.splitlines() if "results in" in l)
+        folders.append(line.split("results in ")[1].split("/points.parquet")[0])
+    assert folders[0] != folders[1] and all(f.startswith("results/short-") for f in folders), folders
+    assert all((tmp_path / f / "points.parquet").exists() for f in folders)
+
+
+def test_a_script_without_the_main_guard_is_told_why_and_its_folder_stays_usable(fmu_path, tmp_path):
+    script = tmp_path / "unguarded.py"
+    script.write_text(f"""
+import fmusweep
+fmusweep.run_sweep({str(tmp_path / 'long.toml')!r}, fmu={str(fmu_path)!r},
+                   out={str(tmp_path / 'out')!r}, workers=2, progress=False, plots=False)
+""")
+    (tmp_path / "long.toml").write_text(LONG_GRID.replace("stop = 60.0", "stop = 0.5"))
+    from sweep_helpers import environment_for_workers
+    done = subprocess.run([sys.executable, str(script)], env=environment_for_workers(),
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode != 0
+    assert 'if __name__ == "__main__":' in done.stderr, done.stderr[-3000:]
+    assert "already holds a sweep" not in done.stderr
+    resumed = run_sweep(tmp_path / "long.toml", fmu=fmu_path, out=tmp_path / "out", resume=True,
+                        serial=True, progress=False, plots=False)
+    assert len(resumed.points) == 3600 and (resumed.points["status"] == "ok").all()
+
+
+def test_no_plots_keeps_the_sensitivity_indices_and_says_what_rules_them_out(fmu_path, tmp_path):
+    spec = {"scenario": {"stop": 0.5, "step": 0.05, "tolerance": 1e-6,
+                         "parameters": dict(PAPER_LAWS)},
+            "design": {"kind": "sobol", "seed": 3, "samples": 16,
+                       "parameters": {"J2": {"range": [0.2, 0.6]}, "L": {"range": [0.6, 1.3]}}},
+            "outputs": {"metrics": {"top": {"variable": "omega2", "kind": "max"},
+                                    "n": {"variable": "n_rhs", "kind": "final"}}}}
+    results = run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False,
+                        plots=False)
+    assert not results.plots and results.report_html is None
+    assert set(results.sensitivity) == {"top", "n"}
+    failed = (results.points["status"] != "ok").sum()
+    assert failed > 0 and all("have no value" in note for note in results.notes), results.notes
+    assert (tmp_path / "out" / "sensitivity.json").exists()

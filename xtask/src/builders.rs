@@ -126,9 +126,19 @@ fn compile_and_pack(
     standard: &Standard,
 ) -> Result<PathBuf> {
     let source = root().join(source);
-    let zig = crate::platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
     let dir = root().join("target/compiled-fmus");
     std::fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
+    let fmu = root().join(format!("target/fmu/{archive}.fmu"));
+    // The same sources and description pack the same archive: a later call reuses it.
+    let mut inputs: Vec<PathBuf> = files.iter().map(|f| source.join(f)).collect();
+    inputs.push(source.join("modelDescription.xml"));
+    inputs.extend(files_below(&root().join("examples/native"))?);
+    let key = fingerprint(&inputs)?;
+    let stamp = dir.join(format!("{archive}.fingerprint"));
+    if fmu.exists() && fs::read_to_string(&stamp).is_ok_and(|built| built == key) {
+        return Ok(fmu);
+    }
+    let zig = crate::platforms::Zig::find(&ensure_venv(Packages::Demo)?)?;
     let library = dir.join(format!("{archive}.so"));
     run(zig
         .cc("x86_64-linux-gnu.2.17")
@@ -142,7 +152,6 @@ fn compile_and_pack(
         .args(files.iter().map(|f| source.join(f)))
         .arg("-lm"))?;
     check_glibc(&library)?;
-    let fmu = root().join(format!("target/fmu/{archive}.fmu"));
     crate::fmu::pack(
         &fmu,
         &[
@@ -156,6 +165,7 @@ fn compile_and_pack(
             ),
         ],
     )?;
+    fs::write(&stamp, key).map_err(|e| format!("{}: {e}", stamp.display()))?;
     Ok(fmu)
 }
 
@@ -166,10 +176,13 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
     ensure_libclang()?;
     let python = ensure_venv(Packages::Tests)?;
     let out = root().join("target/wheels");
-    // The wheel is made of the package, the runner's crate and the lock file: with the same
-    // bytes of each, the wheel built from them last is the one.
+    // The wheel is made of the package, the runner's crate with every crate of this
+    // repository it depends on, and the lock file: with the same bytes of each, the wheel
+    // built from them last is the one.
     let mut inputs = files_below(&root().join("python"))?;
-    inputs.extend(files_below(&root().join("runner"))?);
+    for krate in local_crates(&root().join("runner"))? {
+        inputs.extend(files_below(&krate)?);
+    }
     inputs.push(root().join("Cargo.lock"));
     let key = fingerprint(&inputs)?;
     let stamp = root().join("target/wheels.fingerprint");
@@ -198,6 +211,38 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
         wheel_in(&out).ok_or_else(|| format!("maturin wrote no wheel to {}", out.display()))?;
     fs::write(&stamp, key).map_err(|e| format!("{}: {e}", stamp.display()))?;
     Ok(wheel)
+}
+
+/// `krate` and every crate of this repository it depends on, directly or not: the
+/// `path = "…"` dependencies of their manifests.
+pub(crate) fn local_crates(krate: &Path) -> Result<Vec<PathBuf>> {
+    let mut found = vec![krate.to_path_buf()];
+    let mut next = 0;
+    while next < found.len() {
+        let manifest = found[next].join("Cargo.toml");
+        let text =
+            fs::read_to_string(&manifest).map_err(|e| format!("{}: {e}", manifest.display()))?;
+        for line in text.lines().filter(|l| !l.trim_start().starts_with('#')) {
+            // A dependency's inline table, `name = { path = "…", … }` (a `[lib]` or
+            // `[[bin]]` table's `path` names a file, not a crate).
+            let Some(rest) = line
+                .split_once('{')
+                .and_then(|(_, table)| table.split("path = \"").nth(1))
+            else {
+                continue;
+            };
+            let relative = rest.split('"').next().unwrap_or_default();
+            let dependency = found[next]
+                .join(relative)
+                .canonicalize()
+                .map_err(|e| format!("{}: {relative}: {e}", manifest.display()))?;
+            if !found.contains(&dependency) {
+                found.push(dependency);
+            }
+        }
+        next += 1;
+    }
+    Ok(found)
 }
 
 /// The wheel in `dir`, if there is one.

@@ -15,12 +15,12 @@ pub(crate) const FLAGS: &[Flag] = &[
     Flag {
         name: "out",
         value: Some("DIR"),
-        help: "output directory (default: fit-<spec digest>)",
+        help: "output directory (default: a new results/SPEC-DATE-TIME)",
     },
     Flag {
         name: "resume",
         value: None,
-        help: "continue the fit in --out; the points it evaluated are read, not run",
+        help: "continue the fit in --out (default: the newest of this spec in results/); the points it evaluated are read, not run",
     },
     sweep::SERIAL,
     Flag {

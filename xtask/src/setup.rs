@@ -287,14 +287,6 @@ pub(crate) fn check_glibc(library: &Path) -> Result {
             GLIBC_BASELINE.1
         ));
     }
-    println!(
-        "xtask: {} needs glibc {}.{} at most (baseline {}.{})",
-        library.display(),
-        newest.0,
-        newest.1,
-        GLIBC_BASELINE.0,
-        GLIBC_BASELINE.1
-    );
     Ok(())
 }
 

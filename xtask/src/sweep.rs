@@ -31,7 +31,9 @@ pub(crate) fn run_fmusweep(subcommand: &[&str], parsed: &Parsed) -> Result {
             .args(subcommand)
             .args(&parsed.operands)
             .args(parsed.flag_args())
-            .env("FMUSWEEP_FMU", &fmu),
+            .env("FMUSWEEP_FMU", &fmu)
+            // Killing this command ends the sweep too, which says what it kept.
+            .env("FMUSWEEP_END_WITH_PARENT", "1"),
     )
 }
 
@@ -91,12 +93,12 @@ pub(crate) const FLAGS: &[Flag] = &[
     Flag {
         name: "out",
         value: Some("DIR"),
-        help: "output directory (default: sweep-<spec digest>)",
+        help: "output directory (default: a new results/SPEC-DATE-TIME)",
     },
     Flag {
         name: "resume",
         value: None,
-        help: "finish the sweep in --out, redoing only missing points",
+        help: "finish the sweep in --out (default: the newest of this spec in results/), redoing only missing points",
     },
     SERIAL,
     Flag {
@@ -112,6 +114,6 @@ pub(crate) const FLAGS: &[Flag] = &[
     Flag {
         name: "no-plots",
         value: None,
-        help: "no plots or sensitivity indices",
+        help: "no plots or report (the sensitivity indices are still computed)",
     },
 ];

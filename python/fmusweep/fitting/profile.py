@@ -56,6 +56,8 @@ class Side:
     costs: list[float] = field(default_factory=list)
     crossing: float | None = None
     note: str = ""
+    # The estimate sits on this side's bound (the Wald statistics warn of it already).
+    at_bound: bool = False
 
 
 @dataclass
@@ -123,6 +125,7 @@ def _walk(problem: Problem, best: Start, j: int, sign: int, limit: float,
     estimate = float(best.estimate[j])
     if abs(bound - estimate) <= 1e-9 * p.width:
         side.note = f"{p.name} ended at its range's {'upper' if sign > 0 else 'lower'} bound"
+        side.at_bound = True
         return side
     step = scale if scale is not None and 0 < scale < p.width else 0.05 * p.width
     rise = limit - best.cost

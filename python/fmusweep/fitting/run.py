@@ -11,8 +11,10 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import refuse_in_spawned_child
+from ..pool import check_engine
 from ..store import ResultStore, atomic_write_text
-from ..study import Study, Target, load_spec
+from ..study import Study, Target, load_spec, spec_name
 from .method import Start, solve_all, starting_points
 from .problem import Problem, check_fit_against_fmu
 from .profile import Profile, profile_all
@@ -59,12 +61,15 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
 
     spec: a TOML path, a dict, or a FitSpec. fmu: the FMU's path, over the spec's own
     (default: the spec's FMU or coupled [system], else $FMUSWEEP_FMU). out: the output
-    directory (default ``fit-<digest>`` here). workers, scheduler, serial: as for
+    directory (default: a new ``results/NAME-DATE-TIME`` here, NAME the spec file's stem;
+    with resume, the newest such folder of the same spec). workers, scheduler, serial: as for
     ``run_sweep``; given none, the fit runs here when one run takes less than
     SERIAL_BELOW_S, else on a LocalCluster of every core. resume: continue a fit that
     ``out`` holds; the points it evaluated are read, not run again.
     """
     started = time.perf_counter()
+    refuse_in_spawned_child("fit")
+    check_engine(workers, scheduler, serial)
     given = spec
     spec = load_spec(lambda: FitSpec.load(given), given, fmu)
     target = Target.open(spec, fmu)
@@ -76,7 +81,18 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
     record = {"data_sha256": [e.data.sha256 for e in spec.experiments], "metrics": ["cost"],
               "design": {"kind": "fit", "names": spec.names, "points": None}}
     study = Study("fit", spec, target, plan, out=out, resume=resume, record=record,
-                  workers=workers, scheduler=scheduler, serial=serial)
+                  workers=workers, scheduler=scheduler, serial=serial,
+                  name=spec_name(given, "fit"))
+    try:
+        return _run(spec, study, started, serial=serial, engine_note=engine_note, plots=plots)
+    except BaseException:
+        study.abandon()
+        raise
+
+
+def _run(spec: FitSpec, study: Study, started: float, *, serial: bool, engine_note: str,
+         plots: bool) -> FitResult:
+    """The fit from each start, its intervals and its outputs, after the checks."""
     with study.running() as pool:
         problem = Problem(spec, study)
         solving = time.perf_counter()
@@ -153,7 +169,8 @@ def _with_profiles(spec: FitSpec, summary: Summary, profiles: list[Profile]) -> 
         if spec.intervals == "profile":
             p["ci95"] = list(pr.interval)
         for side in (pr.low, pr.high):
-            if side.note:
+            # An estimate at its bound is warned of once, by the Wald statistics.
+            if side.note and not (side.at_bound and p["at_bound"]):
                 summary["warnings"].append(side.note)
     if profiles:
         summary["profiles"] = profile_summary(profiles)

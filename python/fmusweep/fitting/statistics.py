@@ -66,7 +66,8 @@ def uncertainty(spec: FitSpec, estimate: Rows, jacobian: Rows, residuals: Rows) 
             warnings.append(f"{name} ended at a bound of its range: its interval assumes a free "
                             "parameter and may not hold")
         parameters[name] = {"estimate": float(estimate[j]), "stderr": _number(stderr[j]),
-                            "ci95": [_number(low), _number(high)], "at_bound": at_bound}
+                            "ci95": [_number(low), _number(high)], "at_bound": at_bound,
+                            "range": [spec_p.low, spec_p.high]}
     for i in range(p):
         for j in range(i + 1, p):
             if np.isfinite(correlation[i, j]) and abs(correlation[i, j]) > CORRELATION_LIMIT:
