@@ -21,21 +21,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 
-from .errors import SpecError
+from .errors import Collector, SpecError
 from .fields import finite as _finite
-from .fields import low_high, whole
+from .fields import low_high, setting, whole
 from .records import Points, Rows
-
-if TYPE_CHECKING:
-    from .spec import Spec
 
 __all__ = ["Design", "generate"]
 
 MAX_POINTS = 100_000_000
+T = TypeVar("T")
 
 
 @dataclass
@@ -82,9 +81,8 @@ class Design:
         return self.stored[:, j]
 
 
-def generate(spec: Spec) -> Design:
-    d = spec.design
-    kind = spec.design_kind
+def generate(kind: str, d: dict[str, Any], seed: int | None) -> Design:
+    """The points of a `kind` design from its table `d` (``[design]``) and seed."""
     params = d["parameters"]
     allowed = {"grid": {"kind", "parameters"}, "list": {"kind", "parameters"},
                "lhs": {"kind", "parameters", "seed", "samples"},
@@ -96,22 +94,22 @@ def generate(spec: Spec) -> Design:
                         f"expected {', '.join(sorted(allowed))}")
     names = list(params)
     if kind == "grid":
-        axes = [_axis(name, params[name]) for name in names]
+        axes = _per_column(names, lambda name: _axis(name, params[name]))
         count = math.prod(len(a) for a in axes)
         _not_too_many(count)
         return Design(kind, names, axes=[np.asarray(a, dtype=float) for a in axes])
     if kind == "list":
-        columns = [_values(name, params[name]) for name in names]
+        columns = _per_column(names, lambda name: _values(name, params[name]))
         lengths = {len(c) for c in columns}
         if len(lengths) != 1:
             raise SpecError("design.parameters", f"a list design needs values of one length, got {sorted(lengths)}")
         return Design(kind, names, stored=np.array(columns, dtype=float).T.copy())
-    bounds = [_range(name, params[name], allow_log=(kind == "lhs")) for name in names]
+    bounds = _per_column(names, lambda name: _range(name, params[name], allow_log=(kind == "lhs")))
     if kind == "lhs":
         n = _count(d, "samples", "design.samples")
         _not_too_many(n)
         from scipy.stats import qmc
-        unit = qmc.LatinHypercube(d=len(names), seed=spec.seed).random(n)
+        unit = qmc.LatinHypercube(d=len(names), seed=seed).random(n)
         rows = np.empty_like(unit)
         for j, (low, high, log) in enumerate(bounds):
             if log:
@@ -130,7 +128,7 @@ def generate(spec: Spec) -> Design:
             raise SpecError("design.second_order", f"must be true or false, got {second!r}")
         _not_too_many(n * (2 * len(names) + 2 if second else len(names) + 2))
         from SALib.sample import sobol
-        rows = sobol.sample(problem, n, calc_second_order=second, seed=spec.seed)
+        rows = sobol.sample(problem, n, calc_second_order=second, seed=seed)
         return Design(kind, names, stored=np.asarray(rows, dtype=float), problem=problem,
                       second_order=second)
     r = _count(d, "trajectories", "design.trajectories")
@@ -139,9 +137,17 @@ def generate(spec: Spec) -> Design:
         raise SpecError("design.levels", f"must be an even whole number ≥ 2, got {levels!r}")
     _not_too_many(r * (len(names) + 1))
     from SALib.sample.morris import sample as morris_sample
-    rows = morris_sample(problem, r, num_levels=levels, seed=spec.seed)
+    rows = morris_sample(problem, r, num_levels=levels, seed=seed)
     return Design(kind, names, stored=np.asarray(rows, dtype=float), problem=problem,
                   levels=levels)
+
+
+def _per_column(names: list[str], read: Callable[[str], T]) -> list[T]:
+    """read(name) for each column, every column's mistake reported at once."""
+    errors = Collector()
+    found = [errors.run(lambda: read(name)) for name in names]
+    errors.raise_any()
+    return [f for f in found if f is not None]
 
 
 def _not_too_many(count: int) -> None:
@@ -159,28 +165,30 @@ def _values(name: str, entry: object) -> list[float]:
     where = f"design.parameters.{name}"
     if not isinstance(entry, dict) or set(entry) != {"values"}:
         raise SpecError(where, "a list design takes values = [...] for each parameter")
-    return _value_list(entry["values"], f"{where}.values")
+    return _value_list(entry["values"], f"{where}.values", name)
 
 
-def _value_list(values: object, where: str) -> list[float]:
+def _value_list(values: object, where: str, name: str) -> list[float]:
+    """Values of variable `name`: numbers, true/false for a Boolean, item names for an
+    Enumeration (``fields.setting``)."""
     if not isinstance(values, list):
-        raise SpecError(where, f"must be a list of numbers, got {values!r}")
+        raise SpecError(where, f"must be a list of values, got {values!r}")
     if not values:
         raise SpecError(where, "is empty")
-    return [_finite(v, where) for v in values]
+    return [setting(v, where, name) for v in values]
 
 
 def _axis(name: str, entry: object) -> list[float]:
     where = f"design.parameters.{name}"
     if isinstance(entry, list):
-        return _value_list(entry, where)
+        return _value_list(entry, where, name)
     if not isinstance(entry, dict) or len(entry) != 1 or next(iter(entry)) not in ("values", "linspace", "logspace"):
         raise SpecError(where, "give exactly one of values = [...], linspace = [start, stop, count], "
                                "logspace = [start, stop, count]")
     (how, arg), = entry.items()
     where = f"{where}.{how}"
     if how == "values":
-        return _value_list(arg, where)
+        return _value_list(arg, where, name)
     if not (isinstance(arg, list) and len(arg) == 3):
         raise SpecError(where, f"must be [start, stop, count], got {arg!r}")
     start, stop = _finite(arg[0], where), _finite(arg[1], where)

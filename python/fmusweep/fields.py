@@ -3,12 +3,52 @@ SpecError that names the field (``where``) and the rule."""
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
+from collections.abc import Iterator
 from typing import Any
 
-from .errors import SpecError
+from .errors import SpecError, did_you_mean
 
-__all__ = ["only", "table", "number", "finite", "whole", "low_high"]
+__all__ = ["only", "table", "number", "finite", "whole", "low_high", "setting", "typed_by",
+           "VariableTypes"]
+
+# The FMU's variables' types and Enumeration items by name, while a spec is read against
+# it: a setting may then be an item's name or true/false, checked against the variable.
+VariableTypes = dict[str, tuple[str, dict[str, int]]]
+_TYPES: contextvars.ContextVar[VariableTypes] = contextvars.ContextVar("types", default={})
+
+
+@contextlib.contextmanager
+def typed_by(types: VariableTypes) -> Iterator[None]:
+    """Settings read inside take item names and Booleans by the FMU's variables' types."""
+    token = _TYPES.set(types)
+    try:
+        yield
+    finally:
+        _TYPES.reset(token)
+
+
+def setting(value: object, where: str, name: str) -> float:
+    """A value that variable `name` takes: a number; true or false for a Boolean (1 or 0, as
+    the runner passes Booleans); an item's name for an Enumeration (its value)."""
+    known = _TYPES.get().get(name)
+    if isinstance(value, bool):
+        if known is not None and known[0] != "boolean":
+            raise SpecError(where, f"{name} is of type {known[0]}: true and false set a Boolean")
+        return float(value)
+    if isinstance(value, str):
+        if known is None or not known[1]:
+            kind = "an Enumeration of the FMU" if known is None else f"of type {known[0]}"
+            raise SpecError(where, f"{value!r} names an item, and {name} is not {kind} with "
+                                   "items: give a number")
+        items = known[1]
+        if value not in items:
+            raise SpecError(where, f"{name} has no item {value!r} (its items: "
+                                   f"{', '.join(items)}){did_you_mean(value, items)}")
+        return float(items[value])
+    return finite(value, where)
 
 
 def only(table_: dict[str, Any], where: str, allowed: set[str]) -> None:

@@ -50,7 +50,7 @@ import os
 import pathlib
 import tomllib
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable, TypeVar
 
 from . import design as _design
 from .columns import SERIES_COLUMNS, SWEEP_COLUMNS, refuse_collisions
@@ -59,8 +59,11 @@ from .ssd import SspContents, read_ssp
 from .system import System
 from .fields import number as _number
 from .fields import only as _only
+from .fields import setting
 from .fields import table as _table
 from .records import InputTable, MetricPlan, Plan, SeriesPlan
+
+T = TypeVar("T")
 
 __all__ = ["SpecError", "Spec", "Scenario", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS"]
 
@@ -112,47 +115,23 @@ class Scenario:
 
     @staticmethod
     def of(raw: dict[str, Any]) -> "Scenario":
+        """The [scenario] table, every mistake of its fields reported at once."""
         scenario = _table(raw, "scenario", "spec", required=True)
-        _only(scenario, "scenario", {"start", "stop", "step", "tolerance", "timeout", "parameters", "inputs",
-                                     "interface", "integrator"})
-        start = _number(scenario.get("start", 0.0), "scenario.start")
-        stop = _number(scenario.get("stop"), "scenario.stop")
-        step = _number(scenario.get("step"), "scenario.step")
-        if step <= 0:
-            raise SpecError("scenario.step", f"must be > 0, got {step}")
-        if stop <= start:
-            raise SpecError("scenario.stop", f"must be > scenario.start ({start}), got {stop}")
-        steps = (stop - start) / step
-        if abs(steps - round(steps)) > 1e-6:
-            raise SpecError("scenario.step", f"stop − start = {stop - start} is not a whole number of steps of {step}")
-        tolerance = scenario.get("tolerance")
-        if tolerance is not None:
-            tolerance = _number(tolerance, "scenario.tolerance")
-            if tolerance <= 0:
-                raise SpecError("scenario.tolerance", f"must be > 0, got {tolerance}")
-        timeout = scenario.get("timeout")
-        if timeout is not None:
-            timeout = _number(timeout, "scenario.timeout")
-            if timeout <= 0:
-                raise SpecError("scenario.timeout", f"must be > 0 seconds, got {timeout}")
-        parameters = {
-            name: _setting(value, f"scenario.parameters.{name}")
-            for name, value in _table(scenario, "parameters", "scenario").items()
-        }
-        inputs = {
-            name: _input(value, f"scenario.inputs.{name}")
-            for name, value in _table(scenario, "inputs", "scenario").items()
-        }
-        interface = scenario.get("interface")
-        if interface is not None and interface not in INTERFACES:
-            raise SpecError("scenario.interface", f"must be one of {', '.join(map(repr, INTERFACES))}, "
-                                                  f"got {interface!r}")
-        integrator = scenario.get("integrator")
-        if integrator is not None and integrator not in INTEGRATORS:
-            raise SpecError("scenario.integrator", f"must be one of {', '.join(map(repr, INTEGRATORS))}, "
-                                                   f"got {integrator!r}")
-        return Scenario(start, stop, step, tolerance, timeout, parameters, inputs, interface,
-                        integrator)
+        errors = Collector()
+        errors.run(lambda: _only(scenario, "scenario", {
+            "start", "stop", "step", "tolerance", "timeout", "parameters", "inputs",
+            "interface", "integrator"}))
+        times = errors.run(lambda: _times(scenario))
+        tolerance = errors.run(lambda: _positive(scenario, "tolerance"))
+        timeout = errors.run(lambda: _positive(scenario, "timeout", " seconds"))
+        parameters = _each(scenario, "parameters", errors,
+                           lambda name, value, where: _setting(value, where, name))
+        inputs = _each(scenario, "inputs", errors, lambda name, value, where: _input(value, where))
+        interface = errors.run(lambda: _one_of(scenario, "interface", INTERFACES))
+        integrator = errors.run(lambda: _one_of(scenario, "integrator", INTEGRATORS))
+        errors.raise_any()
+        assert times is not None
+        return Scenario(*times, tolerance, timeout, parameters, inputs, interface, integrator)
 
     def refuse_also_set(self, name: str, where: str, what: str) -> None:
         """`name` is varied at `where` (a design column, a fitted parameter): refused if
@@ -175,6 +154,54 @@ class Scenario:
                 "tolerance": tolerance, "fixed": self.parameters, "inputs": self.inputs,
                 "metrics": metrics, "series": series, "timeout_s": self.timeout,
                 "interface": self.interface, "integrator": self.integrator}
+
+
+def _times(scenario: dict[str, Any]) -> tuple[float, float, float]:
+    """start, stop and step: a whole number of steps from start to stop."""
+    start = _number(scenario.get("start", 0.0), "scenario.start")
+    stop = _number(scenario.get("stop"), "scenario.stop")
+    step = _number(scenario.get("step"), "scenario.step")
+    if step <= 0:
+        raise SpecError("scenario.step", f"must be > 0, got {step}")
+    if stop <= start:
+        raise SpecError("scenario.stop", f"must be > scenario.start ({start}), got {stop}")
+    steps = (stop - start) / step
+    if abs(steps - round(steps)) > 1e-6:
+        raise SpecError("scenario.step", f"stop − start = {stop - start} is not a whole number of steps of {step}")
+    return start, stop, step
+
+
+def _positive(scenario: dict[str, Any], key: str, unit: str = "") -> float | None:
+    """An optional number > 0."""
+    value = scenario.get(key)
+    if value is None:
+        return None
+    value = _number(value, f"scenario.{key}")
+    if value <= 0:
+        raise SpecError(f"scenario.{key}", f"must be > 0{unit}, got {value}")
+    return value
+
+
+def _one_of(scenario: dict[str, Any], key: str, allowed: tuple[str, ...]) -> str | None:
+    value = scenario.get(key)
+    if value is not None and value not in allowed:
+        raise SpecError(f"scenario.{key}", f"must be one of {', '.join(map(repr, allowed))}, "
+                                           f"got {value!r}")
+    return value
+
+
+def _each(scenario: dict[str, Any], key: str, errors: Collector,
+          read: Callable[[str, object, str], T]) -> dict[str, T]:
+    """The entries of table scenario.KEY, each read by `read(name, value, field)`; each
+    entry's mistake kept in `errors`."""
+    entries = errors.run(lambda: _table(scenario, key, "scenario")) or {}
+    found: dict[str, T] = {}
+    for name, value in entries.items():
+        where = f"scenario.{key}.{name}"
+        read_one = errors.run(lambda: read(name, value, where))
+        if read_one is not None:
+            found[name] = read_one
+    return found
 
 
 def what_runs(raw: dict[str, Any], base_dir: pathlib.Path) -> tuple[str | None, str | None, System | None]:
@@ -276,6 +303,9 @@ class Spec:
         runs = errors.run(lambda: what_runs(raw, base_dir))
         scenario = errors.run(lambda: Scenario.of(raw))
         header = errors.run(lambda: _design_header(raw, scenario))
+        # The design's own fields are checked where its points are generated.
+        points = errors.run(lambda: _design.generate(header[1], header[0], header[2])
+                            if header is not None else None)
         outputs = errors.run(lambda: _outputs(raw, scenario))
         if header is not None and outputs is not None:
             refuse_collisions(_column_names(header[0], outputs), SWEEP_COLUMNS + SERIES_COLUMNS,
@@ -293,8 +323,8 @@ class Spec:
                     design_kind=kind, design=design,
                     seed=seed, metrics=metrics, series_variables=series_variables,
                     series_every=every)
-        # The design's own fields are checked where its points are generated.
-        spec.points = _design.generate(spec)
+        assert points is not None
+        spec.points = points
         return spec
 
     # --- derived ---------------------------------------------------------------------
@@ -391,12 +421,11 @@ def _outputs(raw: dict[str, Any], scenario: Scenario | None) -> tuple[list[Metri
 
 
 # --- field checks -----------------------------------------------------------------------
-def _setting(value: object, where: str) -> float:
-    """A fixed parameter's value: a number, or true/false for a Boolean (1 or 0, as the
-    runner passes Booleans)."""
-    if isinstance(value, bool):
-        return float(value)
-    return _number(value, where)
+def _setting(value: object, where: str, name: str) -> float:
+    """A fixed parameter's value (``fields.setting``), which must be there."""
+    if value is None:
+        raise SpecError(where, "is missing")
+    return setting(value, where, name)
 
 
 def _input(value: object, where: str) -> InputTable:

@@ -21,6 +21,7 @@ import numpy as np
 
 from .check import names_missing
 from .errors import SpecError, SpecErrors
+from .fields import typed_by
 from .fmu import Archive, open_for_checks
 from .native import NativeRunner, RunnerError
 from .pool import Pool, without_message_log
@@ -41,13 +42,20 @@ S = TypeVar("S")
 
 
 def load_spec(load: Callable[[], S], source: object, fmu: str | None) -> S:
-    """load()'s spec; when its own fields have mistakes, those and, where the FMU can be
-    opened, every name it lacks, in one error, so that one run reports both kinds."""
+    """load()'s spec, read against the FMU's variables where it can be opened (so that a
+    setting may name an Enumeration's item or be true/false); when its own fields have
+    mistakes, those and every name the FMU lacks, in one error, so that one run reports
+    both kinds."""
+    description = _description(source, fmu)
+    types = {v["name"]: (v["type"], v.get("items", {}))
+             for v in (description or {}).get("variables", [])}
     try:
-        return load()
+        with typed_by(types):
+            return load()
     except SpecError as refused:
         known = refused.errors if isinstance(refused, SpecErrors) else [refused]
-        missing = _names_missing(source, fmu)
+        raw = _raw(source)
+        missing = names_missing(raw, description) if description and raw else []
         fields = {e.field for e in known}
         extra = [e for e in missing if e.field not in fields]
         if not extra:
@@ -55,19 +63,25 @@ def load_spec(load: Callable[[], S], source: object, fmu: str | None) -> S:
         raise SpecErrors(known + extra) from None
 
 
-def _names_missing(source: object, fmu: str | None) -> list[SpecError]:
-    """Every name the spec uses that its FMU lacks; none when the spec cannot be read or
-    its FMU opened (a [system] or an SSP file is not opened for this)."""
+def _raw(source: object) -> dict[str, Any] | None:
+    try:
+        return read_source(source, None, "a spec")[0]
+    except SpecError:
+        return None
+
+
+def _description(source: object, fmu: str | None) -> dict[str, Any] | None:
+    """The description of the spec's FMU; None when the spec cannot be read or its FMU
+    opened (a [system] or an SSP file is not opened for this)."""
     try:
         raw, base_dir = read_source(source, None, "a spec")
         named = raw.get("fmu")
         if fmu is None and (raw.get("system") is not None or raw.get("ssp") is not None):
-            return []
+            return None
         spec_fmu = base_dir / named if isinstance(named, str) else None
-        _, _, description = open_for_checks(fmu, spec_fmu)
+        return open_for_checks(fmu, spec_fmu)[2]
     except (SpecError, OSError, ValueError, RunnerError):
-        return []
-    return names_missing(raw, description)
+        return None
 
 
 # Where a study writes when the caller names no folder: one folder a run, below this one

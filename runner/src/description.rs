@@ -2,6 +2,7 @@
 //! instantiation token), the co-simulation model identifier and capabilities, and the
 //! scalar variables, read with quick-xml.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use quick_xml::events::{BytesStart, Event};
@@ -39,6 +40,64 @@ pub struct Variable {
     /// The element that declares the type, as the standard names it (`Real`, `Float64`,
     /// `Int64`, …; an array's with `[]`).
     pub fmi_type: String,
+    /// An Enumeration's items by name, from its declared type: what a spec may set it by.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub items: BTreeMap<String, i64>,
+}
+
+/// The Enumeration types of `<TypeDefinitions>` being read: FMI 2.0's
+/// `<SimpleType name><Enumeration><Item name value/>…`, FMI 3.0's
+/// `<EnumerationType name><Item name value/>…`.
+#[derive(Default)]
+struct EnumerationTypes {
+    open: Option<String>,
+    items: BTreeMap<String, BTreeMap<String, i64>>,
+}
+
+impl EnumerationTypes {
+    /// Reads the elements of a type definition; false for any other element.
+    fn read(&mut self, e: &BytesStart, empty: bool) -> Result<bool, String> {
+        match e.local_name().as_ref() {
+            b"SimpleType" | b"EnumerationType" if !empty => self.open = attribute(e, "name")?,
+            b"Item" => {
+                let (Some(open), Some(name), Some(value)) = (
+                    self.open.as_ref(),
+                    attribute(e, "name")?,
+                    attribute(e, "value")?,
+                ) else {
+                    return Ok(true);
+                };
+                let value = value
+                    .trim()
+                    .parse::<i64>()
+                    .map_err(|_| format!("the item {name} of type {open} has value {value:?}"))?;
+                self.items
+                    .entry(open.clone())
+                    .or_default()
+                    .insert(name, value);
+            }
+            _ => return Ok(false),
+        }
+        Ok(true)
+    }
+
+    fn close(&mut self, tag: &[u8]) {
+        if matches!(tag, b"SimpleType" | b"EnumerationType") {
+            self.open = None;
+        }
+    }
+
+    /// Each Enumeration variable's items, from its declared type.
+    fn give_items(&self, variables: &mut [Variable]) {
+        for v in variables
+            .iter_mut()
+            .filter(|v| v.base_type == BaseType::Enumeration)
+        {
+            if let Some(items) = v.declared_type.as_ref().and_then(|t| self.items.get(t)) {
+                v.items = items.clone();
+            }
+        }
+    }
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -126,11 +185,15 @@ impl Description {
         // The element that closes an open FMI 3.0 variable.
         let mut open_tag: Vec<u8> = Vec::new();
         let mut in_variables = false;
+        let mut enumerations = EnumerationTypes::default();
         loop {
             let event = reader.read_event().map_err(|e| e.to_string())?;
             match &event {
                 Event::Start(e) | Event::Empty(e) => {
                     let empty = matches!(event, Event::Empty(_));
+                    if !in_variables && enumerations.read(e, empty)? {
+                        continue;
+                    }
                     let tag = e.local_name();
                     let fmi3 = description.fmi_version.starts_with("3.");
                     match tag.as_ref() {
@@ -207,6 +270,7 @@ impl Description {
                     }
                 }
                 Event::End(e) => match e.local_name().as_ref() {
+                    tag @ (b"SimpleType" | b"EnumerationType") => enumerations.close(tag),
                     b"ModelVariables" => in_variables = false,
                     b"Derivatives" => in_derivatives = false,
                     b"ScalarVariable" => description.variables.extend(open.take()),
@@ -219,6 +283,7 @@ impl Description {
                 _ => {}
             }
         }
+        enumerations.give_items(&mut description.variables);
         match description.fmi_version.as_str() {
             "2.0" => {}
             v if v.starts_with("3.") => description.refuse_clocks()?,
@@ -305,6 +370,7 @@ fn variable(e: &BytesStart, base_type: BaseType, fmi_type: &str) -> Result<Varia
         declared_type: None,
         description: attribute(e, "description")?,
         fmi_type: fmi_type.into(),
+        items: BTreeMap::new(),
         name,
     })
 }
@@ -357,12 +423,16 @@ mod tests {
 <fmiModelDescription fmiVersion="2.0" modelName="M" guid="{g}">
   <CoSimulation modelIdentifier="Mid" canHandleVariableCommunicationStepSize="true"
     canInterpolateInputs="true" maxOutputDerivativeOrder="2"/>
+  <TypeDefinitions><SimpleType name="Way"><Enumeration><Item name="up" value="1"/>
+    <Item name="down" value="-3"/></Enumeration></SimpleType></TypeDefinitions>
   <ModelVariables>
     <ScalarVariable name="x" valueReference="3" causality="parameter" variability="fixed">
       <Real start="1.5" min="0"/>
     </ScalarVariable>
     <ScalarVariable name="n" valueReference="7" causality="output"><Integer/></ScalarVariable>
     <ScalarVariable name="a&amp;b" valueReference="8"><Boolean start="true"/></ScalarVariable>
+    <ScalarVariable name="w" valueReference="9" causality="parameter" variability="fixed">
+      <Enumeration declaredType="Way" start="1"/></ScalarVariable>
   </ModelVariables>
 </fmiModelDescription>"#;
 
@@ -385,6 +455,8 @@ mod tests {
         assert_eq!(d.variable("n").unwrap().causality, "output");
         assert_eq!(d.variable("a&b").unwrap().base_type, BaseType::Boolean);
         assert_eq!(d.variable("a&b").unwrap().causality, "local");
+        let w = d.variable("w").unwrap();
+        assert_eq!((w.base_type, w.items.get("down")), (BaseType::Enumeration, Some(&-3)));
         assert!(d.variable("y").unwrap_err().contains("\"y\""));
     }
 
@@ -400,14 +472,17 @@ mod tests {
 <fmiModelDescription fmiVersion="3.0" modelName="M" instantiationToken="{t}">
   <CoSimulation modelIdentifier="Mid" canHandleVariableCommunicationStepSize="true"
     canGetAndSetFMUState="true" hasEventMode="true" maxOutputDerivativeOrder="1"/>
-  <TypeDefinitions><Float64Type name="Angle" unit="rad"/></TypeDefinitions>
+  <TypeDefinitions><Float64Type name="Angle" unit="rad"/>
+    <EnumerationType name="Way"><Item name="up" value="1"/><Item name="down" value="2"/>
+    </EnumerationType></TypeDefinitions>
   <LogCategories><Category name="logStatusError"/><Category name="logEvents"/></LogCategories>
   <ModelVariables>
     <Float64 name="time" valueReference="0" causality="independent"/>
     <Float64 name="x" valueReference="3" causality="parameter" variability="tunable"
       start="1.5" min="0" declaredType="Angle"/>
     <Int32 name="n" valueReference="7" causality="output"/>
-    <Enumeration name="e" valueReference="8" causality="parameter" start="2">
+    <Enumeration name="e" valueReference="8" causality="parameter" start="2"
+      declaredType="Way">
       <Alias name="e_alias"/>
     </Enumeration>
     <Boolean name="b" valueReference="9" causality="input" start="true"/>
@@ -441,6 +516,9 @@ mod tests {
         );
         assert_eq!(d.variable("e").unwrap().base_type, BaseType::Enumeration);
         assert_eq!(d.variable("e_alias").unwrap().value_reference, 8);
+        let items: Vec<_> = d.variable("e_alias").unwrap().items.clone().into_iter().collect();
+        assert_eq!(items, [("down".to_string(), 2), ("up".to_string(), 1)]);
+        assert!(d.variable("n").unwrap().items.is_empty());
         assert_eq!(d.variable("b").unwrap().base_type, BaseType::Boolean);
         let f = d.variable("f").unwrap();
         assert_eq!(

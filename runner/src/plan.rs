@@ -358,6 +358,7 @@ mod tests {
             declared_type: None,
             description: None,
             fmi_type: String::new(),
+            items: Default::default(),
         };
         let (i, r1, b, r2) = (
             v(BaseType::Integer),

@@ -275,7 +275,7 @@ def test_sobol_indices_recover_ishigami():
             name: {"range": [-np.pi, np.pi]} for name in ("x1", "x2", "x3")}},
         "outputs": {"metrics": {"f": {"variable": "f", "kind": "final"}}},
     }, ".")
-    design = fmusweep.generate(spec)
+    design = spec.points
     x1, x2, x3 = design.rows.T
     f = np.sin(x1) + 7 * np.sin(x2) ** 2 + 0.1 * x3 ** 4 * np.sin(x1)
     s = fmusweep.sobol_indices(design.problem, f, seed=3)
@@ -307,8 +307,8 @@ def test_latin_hypercube_is_seeded_and_within_its_ranges():
            "design": {"kind": "lhs", "seed": 11, "samples": 50, "parameters": {
                "a": {"range": [1.0, 2.0]}, "b": {"range": [1e-3, 1e3], "log": True}}},
            "outputs": {"metrics": {"m": {"variable": "v", "kind": "max"}}}}
-    one = fmusweep.generate(fmusweep.Spec.from_dict(raw, "."))
-    two = fmusweep.generate(fmusweep.Spec.from_dict(copy.deepcopy(raw), "."))
+    one = fmusweep.Spec.from_dict(raw, ".").points
+    two = fmusweep.Spec.from_dict(copy.deepcopy(raw), ".").points
     np.testing.assert_array_equal(one.rows, two.rows)
     a, b = one.rows.T
     assert a.min() >= 1 and a.max() <= 2 and b.min() >= 1e-3 and b.max() <= 1e3

@@ -265,3 +265,36 @@ def test_no_plots_keeps_the_sensitivity_indices_and_says_what_rules_them_out(fmu
     failed = (results.points["status"] != "ok").sum()
     assert failed > 0 and all("have no value" in note for note in results.notes), results.notes
     assert (tmp_path / "out" / "sensitivity.json").exists()
+
+
+def test_enumerations_by_item_name_and_booleans_by_true_or_false(fmu_path, tmp_path):
+    """solver by its items' names and builtin_laws by true/false in a design, a fixed
+    change_point_branch by name, give the rows the numbers give."""
+    def spec(solver, laws, fixed_solver):
+        return {"scenario": {"stop": 0.3, "step": 0.05, "tolerance": 1e-6,
+                             "parameters": dict(PAPER_LAWS, change_point_branch=fixed_solver)},
+                "design": {"kind": "grid", "parameters": {"solver": {"values": solver},
+                                                          "builtin_laws": {"values": laws}}},
+                "outputs": {"metrics": {"w": {"variable": "omega1", "kind": "final"},
+                                        "used": {"variable": "active_solver", "kind": "final"}}}}
+    named = run_sweep(spec(["dop853", "implicit"], [True, False], "turn"), fmu=fmu_path,
+                      out=tmp_path / "named", serial=True, progress=False, plots=False).points
+    numbered = run_sweep(spec([2, 3], [1, 0], 2), fmu=fmu_path, out=tmp_path / "numbered",
+                         serial=True, progress=False, plots=False).points
+    assert (named["status"] == "ok").all(), named
+    columns = ["solver", "builtin_laws", "w", "used"]
+    assert named[columns].equals(numbered[columns])
+    assert sorted(set(named["used"])) == [2.0, 3.0] and sorted(set(named["builtin_laws"])) == [0.0, 1.0]
+
+
+def test_an_unknown_item_or_a_boolean_for_a_number_is_refused_by_field(fmu_path, tmp_path):
+    spec = small_grid()
+    spec["scenario"]["parameters"]["solver"] = "dop835"
+    spec["design"]["parameters"]["k34"] = {"values": [True, False]}
+    spec["design"]["parameters"]["J2"] = {"values": ["heavy"]}
+    said = refused_fields(spec, fmu_path, tmp_path)
+    assert set(said) == {"scenario.parameters.solver", "design.parameters.k34.values",
+                         "design.parameters.J2.values"}, said
+    assert "did you mean 'dop853'" in said["scenario.parameters.solver"]
+    assert "true and false set a Boolean" in said["design.parameters.k34.values"]
+    assert "give a number" in said["design.parameters.J2.values"]

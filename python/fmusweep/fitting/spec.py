@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from ..columns import FIT_COLUMNS, refuse_collisions
-from ..errors import Collector, SpecError, refuse
+from ..errors import Collector, SpecError, SpecErrors, refuse
 from ..fields import finite, low_high, only, table, whole
 from ..spec import Scenario, read_source, what_runs
 from ..system import System
@@ -283,10 +283,17 @@ def _scenario_of(raw: dict[str, Any], own: dict[str, Any], where: str) -> Scenar
     try:
         return Scenario.of({"scenario": merged})
     except SpecError as refused:
-        parts = refused.field.split(".")
-        if parts[0] == "scenario" and (len(parts) == 1 or parts[1] in own):
-            raise SpecError(f"{where}.{refused.field}", refused.rule) from None
-        raise
+        each = refused.errors if isinstance(refused, SpecErrors) else [refused]
+        named = [_as_experiments(e, own, where) for e in each]
+        raise (named[0] if len(named) == 1 else SpecErrors(named)) from None
+
+
+def _as_experiments(refused: SpecError, own: dict[str, Any], where: str) -> SpecError:
+    """A scenario's mistake in a field the experiment sets, named as the experiment's."""
+    parts = refused.field.split(".")
+    if parts[0] == "scenario" and (len(parts) == 1 or parts[1] in own):
+        return SpecError(f"{where}.{refused.field}", refused.rule)
+    return refused
 
 
 def _own_parameter(variable: str, entry: object, scenario: Scenario, where: str,
