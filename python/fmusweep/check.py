@@ -114,10 +114,28 @@ def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
         errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
     columns = [design.column_values(j) for j in range(len(design.names))]
     errors.run(lambda: variables.check_columns(design.names, columns, "design.parameters"))
-    errors.raise_any()
     first = design.rows_at(np.zeros(1, dtype=np.int64))
-    ask_the_fmu(spec.plan(), design.names, first, columns, runner, "design.parameters",
-                "scenario.parameters")
+    plan, good = values_to_ask(spec.plan(), design.names, "design.parameters", errors)
+    if plan is not None:
+        errors.run(lambda: ask_the_fmu(plan, [design.names[j] for j in good], first[:, good],
+                                       [columns[j] for j in good], runner, "design.parameters",
+                                       "scenario.parameters"))
+    errors.raise_any()
+
+
+def values_to_ask(plan: Plan, names: list[str], field: str,
+                  errors: Collector) -> tuple[Plan | None, list[int]]:
+    """What the FMU can still be asked after the names' mistakes in `errors`, so that one run
+    reports both kinds: the plan without its reads and without the settings whose names
+    were refused, and the columns whose names passed. No plan when the interface itself
+    was refused."""
+    refused = {e.field for e in errors.errors}
+    if {"scenario.interface", "scenario.integrator"} & refused:
+        return None, []
+    fixed = {n: v for n, v in plan["fixed"].items() if f"scenario.parameters.{n}" not in refused}
+    inputs = {n: t for n, t in plan["inputs"].items() if f"scenario.inputs.{n}" not in refused}
+    asked: Plan = {**plan, "fixed": fixed, "inputs": inputs, "metrics": [], "series": None}
+    return asked, [j for j, n in enumerate(names) if f"{field}.{n}" not in refused]
 
 
 # A column with more distinct values than this is probed at its extremes and this many

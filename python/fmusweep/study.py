@@ -53,14 +53,20 @@ def load_spec(load: Callable[[], S], source: object, fmu: str | None) -> S:
         with typed_by(types):
             return load()
     except SpecError as refused:
-        known = refused.errors if isinstance(refused, SpecErrors) else [refused]
         raw = _raw(source)
-        missing = names_missing(raw, description) if description and raw else []
-        fields = {e.field for e in known}
-        extra = [e for e in missing if e.field not in fields]
-        if not extra:
+        if not description or not raw:
             raise
-        raise SpecErrors(known + extra) from None
+        raise _with_names_missing(refused, raw, description) from None
+
+
+def _with_names_missing(refused: SpecError, raw: dict[str, Any],
+                        description: dict[str, Any]) -> SpecError:
+    """The refusal, with every name of the spec that `description` lacks (under a field
+    the refusal does not name already)."""
+    known = refused.errors if isinstance(refused, SpecErrors) else [refused]
+    fields = {e.field for e in known}
+    extra = [e for e in names_missing(raw, description) if e.field not in fields]
+    return SpecErrors(known + extra) if extra else refused
 
 
 def _raw(source: object) -> dict[str, Any] | None:
@@ -147,7 +153,12 @@ class Target:
             archive = _read_ssp(ssp)
             return Target(archive, {"ssp_name": archive.name, "ssp_sha256": archive.sha256},
                           describe_ssp(archive), None, run_ssp_batch, prepare_ssp_worker)
-        archive, local, description = open_target(system, fmu, spec.fmu, spec.scenario.step)
+        try:
+            archive, local, description = open_target(system, fmu, spec.fmu, spec.scenario.step)
+        except SpecError as refused:
+            if system is None or fmu is not None:
+                raise
+            raise _with_names_missing(refused, spec.raw, system.described()) from None
         if system is not None and fmu is None:
             identity: dict[str, Any] = {
                 "system": {name: str(path) for name, path in system.components.items()},

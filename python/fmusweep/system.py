@@ -54,7 +54,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from .errors import SpecError
+from .errors import Collector, SpecError, refuse
 from .fields import finite
 from .fmu import Archive, local_runner, open_for_checks
 from .native import NativeRunner, RunnerError
@@ -99,28 +99,35 @@ class System:
         if not isinstance(table, dict):
             raise SpecError("system", "must be a table with components and connections")
         fields = {"components", "connections", *OPTIONS}
+        errors = Collector()
         unknown = sorted(set(table) - fields)
-        if unknown:
-            raise SpecError(f"system.{unknown[0]}", "unknown field; expected " + ", ".join(sorted(fields)))
-        engine, derivatives, tolerance = _options(table, ENGINES)
+        for key in unknown:
+            errors.run(lambda: refuse(f"system.{key}", "unknown field; expected "
+                                      + ", ".join(sorted(fields))))
+        options = errors.run(lambda: _options(table, ENGINES))
         components = table.get("components")
         if not isinstance(components, dict) or not components:
-            raise SpecError("system.components", "must name at least one component: name = \"file.fmu\"")
+            errors.run(lambda: refuse("system.components", "must name at least one component: "
+                                                           "name = \"file.fmu\""))
+            components = {}
         paths = {}
         for name, path in components.items():
-            where = f"system.components.{name}"
-            if not NAME.match(name):
-                raise SpecError(where, "a component's name is lowercase letters, digits and _, "
-                                       "starting with a letter (it prefixes its variables' names)")
-            if not isinstance(path, str):
-                raise SpecError(where, "must be the path of an FMU (a string)")
-            paths[name] = base_dir / path
+            errors.run(lambda: _component(name, path))
+            paths[name] = base_dir / path if isinstance(path, str) else base_dir
         connections = table.get("connections", [])
         if not isinstance(connections, list):
-            raise SpecError("system.connections", "must be a list of [\"component.output\", "
-                                                  "\"component.input\"] pairs")
-        parsed = [_connection(i, c, paths) for i, c in enumerate(connections)]
-        return System(paths, parsed, engine, derivatives, tolerance)
+            errors.run(lambda: refuse("system.connections", "must be a list of "
+                                      "[\"component.output\", \"component.input\"] pairs"))
+            connections = []
+        parsed = [errors.run(lambda: _connection(i, c, paths)) for i, c in enumerate(connections)]
+        parsed_connections = [c for c in parsed if c is not None]
+        if errors.errors and len(parsed_connections) == len(connections) and paths:
+            # The options' mistakes and the connections' own, in the same run.
+            errors.run(lambda: System(paths, parsed_connections).check())
+        errors.raise_any()
+        assert options is not None
+        engine, derivatives, tolerance = options
+        return System(paths, parsed_connections, engine, derivatives, tolerance)
 
     @staticmethod
     def from_ssp(path: pathlib.Path, contents: SspContents, table: object) -> System:
@@ -163,27 +170,50 @@ class System:
                                     "component's saved state, and this FMU cannot save its "
                                     "state (canGetAndSetFMUstate is false)")
         fed: dict[tuple[str, str], int] = {}
+        errors = Collector()
         for i, c in enumerate(self.connections):
-            where = f"{self.origin}.connections[{i}]"
-            source = _variable(descriptions[c.source], c.source, c.output, where)
-            target = _variable(descriptions[c.target], c.target, c.input, where)
-            if source.causality != "output":
-                raise SpecError(where, f"{c.source}.{c.output} has causality {source.causality}; "
-                                       "a connection starts at an output")
-            if target.causality != "input":
-                raise SpecError(where, f"{c.target}.{c.input} has causality {target.causality}; "
-                                       "a connection ends at an input")
-            if _value_kind(source.type) != _value_kind(target.type):
-                raise SpecError(where, f"{c}: a {source.type} output cannot feed a {target.type} input")
-            if (c.target, c.input) in fed:
-                raise SpecError(where, f"{c.target}.{c.input} is fed twice (also by connection "
-                                       f"{fed[(c.target, c.input)]})")
-            fed[(c.target, c.input)] = i
+            errors.run(lambda: self._check_connection(i, c, descriptions, fed))
+        errors.raise_any()
         loop = _algebraic_loop(self.connections, descriptions)
         if loop:
             raise SpecError(f"{self.origin}.connections", "an algebraic loop (each output depends "
                             "directly on the input before it): " + " → ".join(loop))
         return descriptions
+
+    def _check_connection(self, i: int, c: Connection, descriptions: dict[str, Any],
+                          fed: dict[tuple[str, str], int]) -> None:
+        where = f"{self.origin}.connections[{i}]"
+        errors = Collector()
+        source = errors.run(lambda: _variable(descriptions[c.source], c.source, c.output, where))
+        target = errors.run(lambda: _variable(descriptions[c.target], c.target, c.input, where))
+        errors.raise_any()
+        assert source is not None and target is not None
+        if source.causality != "output":
+            raise SpecError(where, f"{c.source}.{c.output} has causality {source.causality}; "
+                                   "a connection starts at an output")
+        if target.causality != "input":
+            raise SpecError(where, f"{c.target}.{c.input} has causality {target.causality}; "
+                                   "a connection ends at an input")
+        if _value_kind(source.type) != _value_kind(target.type):
+            raise SpecError(where, f"{c}: a {source.type} output cannot feed a {target.type} input")
+        if (c.target, c.input) in fed:
+            raise SpecError(where, f"{c.target}.{c.input} is fed twice (also by connection "
+                                   f"{fed[(c.target, c.input)]})")
+        fed[(c.target, c.input)] = i
+
+    def described(self) -> dict[str, Any]:
+        """The system's variables as the runner names them (``component.variable``), from
+        the components that can be read: for naming a spec's mistakes before it runs."""
+        variables = []
+        for name, path in self.components.items():
+            try:
+                description = _description(f"{self.origin}.components.{name}", path)
+            except SpecError:
+                continue
+            variables += [{"name": f"{name}.{v.name}", "causality": v.causality,
+                           "variability": v.variability, "type": _runner_type(v.type)}
+                          for v in description.modelVariables]
+        return {"variables": variables}
 
     def digest(self) -> str:
         """A hash of the components' contents, the connections and the engine: what decides
@@ -259,18 +289,34 @@ class System:
         return Archive(data, "system.fmu")
 
 
+def _component(name: str, path: object) -> None:
+    where = f"system.components.{name}"
+    if not NAME.match(name):
+        raise SpecError(where, "a component's name is lowercase letters, digits and _, "
+                               "starting with a letter (it prefixes its variables' names)")
+    if not isinstance(path, str):
+        raise SpecError(where, "must be the path of an FMU (a string)")
+
+
 def _options(table: dict[str, Any], engines: tuple[str, ...]) -> tuple[str, int, float | None]:
-    """The engine, the input derivatives and the coupling tolerance a table chooses."""
+    """The engine, the input derivatives and the coupling tolerance a table chooses, every
+    mistake of them at once."""
+    errors = Collector()
     engine = table.get("engine", "native")
     if engine not in engines:
-        raise SpecError("system.engine", f"must be one of {', '.join(engines)}, got {engine!r}")
+        errors.run(lambda: refuse("system.engine", f"must be one of {', '.join(engines)}, "
+                                                   f"got {engine!r}"))
+        engine = "native"
     derivatives = table.get("input_derivatives", 2 if engine == "native" else 0)
     if isinstance(derivatives, bool) or derivatives not in (0, 1, 2):
-        raise SpecError("system.input_derivatives", f"must be 0, 1 or 2, got {derivatives!r}")
-    if engine == "container" and derivatives != 0:
-        raise SpecError("system.input_derivatives", "the container holds inputs over a step: "
-                                                    "only 0 with engine = \"container\"")
-    return engine, derivatives, _coupling_tolerance(table.get("coupling_tolerance"), engine)
+        errors.run(lambda: refuse("system.input_derivatives",
+                                  f"must be 0, 1 or 2, got {derivatives!r}"))
+    elif engine == "container" and derivatives != 0:
+        errors.run(lambda: refuse("system.input_derivatives", "the container holds inputs over "
+                                  "a step: only 0 with engine = \"container\""))
+    tolerance = errors.run(lambda: _coupling_tolerance(table.get("coupling_tolerance"), engine))
+    errors.raise_any()
+    return engine, derivatives, tolerance
 
 
 def _refuse_python_written(where: str, description: Any) -> None:
@@ -381,6 +427,13 @@ _FMI2_KIND = {"Float64": "Real", "Int32": "Integer"}
 def _value_kind(fmi_type: str) -> str:
     """The kind of value a variable of this type passes, in FMI 2.0's words."""
     return _FMI2_KIND.get(fmi_type, fmi_type)
+
+
+def _runner_type(fmi_type: str) -> str:
+    """A variable's type in the runner's words (its description's ``type``)."""
+    return {"Real": "real", "Float64": "real", "Integer": "integer", "Int32": "integer",
+            "Boolean": "boolean", "Enumeration": "enumeration",
+            "String": "string"}.get(fmi_type, "unsupported")
 
 
 def _variable(description: Any, component: str, name: str, where: str) -> Any:

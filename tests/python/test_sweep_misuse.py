@@ -298,3 +298,43 @@ def test_an_unknown_item_or_a_boolean_for_a_number_is_refused_by_field(fmu_path,
     assert "did you mean 'dop853'" in said["scenario.parameters.solver"]
     assert "true and false set a Boolean" in said["design.parameters.k34.values"]
     assert "give a number" in said["design.parameters.J2.values"]
+
+
+def test_names_and_values_the_fmu_refuses_come_in_the_same_run(fmu_path, tmp_path):
+    spec = small_grid(w={"variable": "omega22", "kind": "max"})
+    spec["scenario"]["parameters"]["J4"] = -0.5
+    spec["design"]["parameters"] = {"d43": {"values": [1.0]}, "d34": {"values": [-2.0, 0.3]}}
+    said = refused_fields(spec, fmu_path, tmp_path)
+    assert set(said) == {"outputs.metrics.w.variable", "design.parameters.d43",
+                         "scenario.parameters.J4", "design.parameters.d34"}, said
+
+
+def test_a_fit_specs_scenario_data_and_parameters_mistakes_come_in_one_run(fmu_path, tmp_path):
+    spec = {"scenario": {"stop": 0.5, "step": 0.05, "tolerance": -1.0},
+            "data": {"file": str(tmp_path / "absent.csv")},
+            "fit": {"max_iterations": 0,
+                    "parameters": {"k34": {"start": 900.0, "range": [10.0, 400.0]},
+                                   "k43": {"start": 1.0, "range": [0.0, 2.0]}}}}
+    said = refused_fields(spec, fmu_path, tmp_path, run=fit)
+    assert set(said) == {"scenario.tolerance", "data.file", "fit.max_iterations",
+                         "fit.parameters.k34.start", "fit.parameters.k43"}, said
+
+
+def test_a_system_specs_options_connections_and_names_come_in_one_run(fmu_path, motor_path, tmp_path):
+    spec = {"system": {"components": {"motor": str(motor_path), "mechanism": str(fmu_path)},
+                       "connections": [["motor.torq", "mechanism.M_m"],
+                                       ["mechanism.omega1", "motor.omega"]],
+                       "coupling_tolerance": 3.0, "input_derivatives": 5},
+            "scenario": {"stop": 0.5, "step": 0.05},
+            "design": {"kind": "list", "parameters": {"mechanism.k34": {"values": [100.0]}}},
+            "outputs": {"metrics": {"w": {"variable": "mechanism.omega9", "kind": "max"}}}}
+    with pytest.raises(SpecError) as refused:
+        run_sweep(spec, out=tmp_path / "out", serial=True, progress=False)
+    said = {e.field for e in refused.value.errors}
+    assert said == {"system.coupling_tolerance", "system.input_derivatives",
+                    "system.connections[0]"}, str(refused.value)
+    spec["system"].update(coupling_tolerance=1e-4, input_derivatives=0)
+    with pytest.raises(SpecError) as refused:
+        run_sweep(spec, out=tmp_path / "out", serial=True, progress=False)
+    said = {e.field for e in refused.value.errors}
+    assert said == {"system.connections[0]", "outputs.metrics.w.variable"}, str(refused.value)

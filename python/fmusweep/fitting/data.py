@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import SpecError
+from ..errors import Collector, SpecError
 from ..fields import only
 from ..records import Points, Rows
 
@@ -48,24 +48,40 @@ class Data:
         return self.steps // self.every
 
     @staticmethod
+    def check(table: dict[str, Any], base_dir: pathlib.Path, where: str = "data") -> None:
+        """The data table's file and σ alone, for a scenario with mistakes of its own."""
+        path, content = _read(table, base_dir, where)
+        columns, _, _ = _parse(content, path, where)
+        _sigma(table.get("sigma"), columns, where)
+
+    @staticmethod
     def of(table: dict[str, Any], base_dir: pathlib.Path, scenario: Scenario,
            where: str = "data") -> Data:
-        """The data table at `where` (``data``, or an experiment's ``experiment.NAME.data``)."""
-        only(table, where, {"file", "sigma"})
-        name = table.get("file")
-        if not isinstance(name, str):
-            raise SpecError(f"{where}.file", "must name a CSV file (a path relative to the spec)")
-        path = base_dir / name
-        try:
-            content = path.read_bytes()
-        except OSError as e:
-            raise SpecError(f"{where}.file", f"cannot read {path}: {e.strerror}") from None
+        """The data table at `where` (``data``, or an experiment's ``experiment.NAME.data``),
+        the mistakes of its σ and of its times raised together."""
+        path, content = _read(table, base_dir, where)
         columns, times, values = _parse(content, path, where)
-        steps = _grid_steps(times, scenario, path, where)
+        errors = Collector()
+        steps = errors.run(lambda: _grid_steps(times, scenario, path, where))
+        sigma_given = errors.run(lambda: _sigma(table.get("sigma"), columns, where))
+        errors.raise_any()
+        assert sigma_given is not None and steps is not None
+        sigma, given = sigma_given
         every = math.gcd(scenario.steps, *steps.tolist())
-        sigma, given = _sigma(table.get("sigma"), columns, where)
         return Data(path, hashlib.sha256(content).hexdigest(), times, columns, values, sigma,
                     given, steps, every)
+
+
+def _read(table: dict[str, Any], base_dir: pathlib.Path, where: str) -> tuple[pathlib.Path, bytes]:
+    only(table, where, {"file", "sigma"})
+    name = table.get("file")
+    if not isinstance(name, str):
+        raise SpecError(f"{where}.file", "must name a CSV file (a path relative to the spec)")
+    path = base_dir / name
+    try:
+        return path, path.read_bytes()
+    except OSError as e:
+        raise SpecError(f"{where}.file", f"cannot read {path}: {e.strerror}") from None
 
 
 def _parse(content: bytes, path: pathlib.Path, where: str) -> tuple[list[str], Rows, Rows]:

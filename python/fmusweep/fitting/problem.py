@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 
-from ..check import VALUE_TYPES, Variables, ask_the_fmu
+from ..check import VALUE_TYPES, Variables, ask_the_fmu, values_to_ask
 from ..errors import Collector
 from ..native import NativeRunner
 from ..records import PointResult, Points, Rows
@@ -79,14 +79,25 @@ def check_fit_against_fmu(spec: FitSpec, description: dict[str, Any],
         column = np.array([p.start, p.low, p.high])
         errors.run(lambda: variables.check_columns([p.variable], [column],
                                                    _parameters_field(p.experiment)))
-    errors.raise_any()
     for e in spec.experiments:
-        fitted = [spec.fitted[j] for j in e.columns]
-        rows = np.array([[p.start for p in fitted], [p.low for p in fitted],
-                         [p.high for p in fitted]])
-        ask_the_fmu(e.plan(spec.system), e.variables, rows[:1], list(rows.T), runner,
-                    "fit.parameters", "scenario.parameters",
-                    [_parameters_field(p.experiment) for p in fitted])
+        errors.run(lambda: _ask_about(spec, e, runner, errors))
+    errors.raise_any()
+
+
+def _ask_about(spec: FitSpec, e: Experiment, runner: NativeRunner, errors: Collector) -> None:
+    """The values of experiment `e` the FMU refuses, but for those whose names `errors`
+    holds refused already."""
+    fitted = [spec.fitted[j] for j in e.columns]
+    fields = [_parameters_field(p.experiment) for p in fitted]
+    plan, _ = values_to_ask(e.plan(spec.system), [], "", errors)
+    if plan is None:
+        return
+    refused = {err.field for err in errors.errors}
+    good = [k for k, p in enumerate(fitted) if f"{fields[k]}.{p.variable}" not in refused]
+    rows = np.array([[fitted[k].start for k in good], [fitted[k].low for k in good],
+                     [fitted[k].high for k in good]])
+    ask_the_fmu(plan, [e.variables[k] for k in good], rows[:1], list(rows.T), runner,
+                "fit.parameters", "scenario.parameters", [fields[k] for k in good])
 
 
 def _parameters_field(experiment: str | None) -> str:

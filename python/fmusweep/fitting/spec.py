@@ -229,9 +229,16 @@ def _experiments(raw: dict[str, Any], base: pathlib.Path, shared: list[tuple[str
     collected in `errors`, each by field)."""
     listed = raw.get("experiment")
     if listed is None:
-        scenario = Scenario.of(raw)
-        data = Data.of(table(raw, "data", "spec", required=True), base, scenario)
-        return [_Parsed(SINGLE_EXPERIMENT, scenario, data, [])]
+        scenario = errors.run(lambda: Scenario.of(raw))
+        data_table = errors.run(lambda: table(raw, "data", "spec", required=True))
+        if data_table is None:
+            return []
+        if scenario is None:
+            # The data file is read even when the scenario has mistakes.
+            errors.run(lambda: Data.check(data_table, base))
+            return []
+        data = errors.run(lambda: Data.of(data_table, base, scenario))
+        return [_Parsed(SINGLE_EXPERIMENT, scenario, data, [])] if data is not None else []
     if "data" in raw:
         raise SpecError("data", "give either one [data] table or [[experiment]] tables, not both")
     if not isinstance(listed, list) or not listed or not all(isinstance(e, dict) for e in listed):
@@ -331,9 +338,10 @@ def _fit_table(raw: dict[str, Any], experiments: list[_Parsed], shared: list[tup
     errors.run(lambda: only(fit, "fit", {"parameters", "starts", "seed", "max_iterations",
                                          "relative_step", "intervals", "profile", "jacobian"}))
     fitted: list[FitParameter] = []
+    scenarios: list[Scenario | None] = [e.scenario for e in experiments] or [None]
     for name, entry in shared:
-        each = errors.run(lambda: [_parameter(name, entry, e.scenario, f"fit.parameters.{name}",
-                                              name, None) for e in experiments])
+        each = errors.run(lambda: [_parameter(name, entry, scenario, f"fit.parameters.{name}",
+                                              name, None) for scenario in scenarios])
         if each:
             fitted.append(each[0])
     if not shared and not any(e.own for e in experiments):
@@ -392,11 +400,13 @@ def _intervals(fit: dict[str, Any], names: list[str]) -> tuple[str, list[str]]:
     return intervals, list(dict.fromkeys(profile))
 
 
-def _parameter(variable: str, entry: object, scenario: Scenario, where: str, name: str,
+def _parameter(variable: str, entry: object, scenario: Scenario | None, where: str, name: str,
                experiment: str | None) -> FitParameter:
+    """A fitted parameter's entry (checked against `scenario` where there is one)."""
     if not isinstance(entry, dict) or set(entry) != {"start", "range"}:
         raise SpecError(where, "give start = x and range = [low, high]")
-    scenario.refuse_also_set(variable, where, "fit")
+    if scenario is not None:
+        scenario.refuse_also_set(variable, where, "fit")
     low, high = low_high(entry["range"], f"{where}.range")
     start = finite(entry["start"], f"{where}.start")
     if not low <= start <= high:
