@@ -8,6 +8,7 @@ import argparse
 import os
 import signal
 import sys
+import warnings
 from typing import Any, Callable, Sequence, TypeVar
 
 from . import __version__
@@ -91,6 +92,9 @@ def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
     """run()'s result, or the exit code after a refusal (2) or an interrupt (130), each
     said on standard error."""
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    shown = warnings.showwarning
+    warnings.showwarning = lambda message, category, *_: print(
+        f"{prog}: warning: {message}", file=sys.stderr)
     try:
         _end_with_parent()
         return run()
@@ -104,6 +108,7 @@ def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
         return 143 if isinstance(e, Terminated) else 130
     finally:
         signal.signal(signal.SIGTERM, previous)
+        warnings.showwarning = shown
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -66,6 +66,11 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     return f"; did you mean {close[0]!r}?" if close else ""
 
 
+class SpecWarning(UserWarning):
+    """A specification that runs, but not quite as written may suggest (the message names
+    the field)."""
+
+
 class EngineError(RuntimeError):
     """The engine that places the points (a Dask cluster) could not start or be reached;
     the message says why and what to do."""

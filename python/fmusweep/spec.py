@@ -43,6 +43,7 @@ the FMU (variable names, causalities, the FMU's own rules on values) are in
 from __future__ import annotations
 
 import copy
+import csv
 import hashlib
 import json
 import math
@@ -114,8 +115,9 @@ class Scenario:
         return round((self.stop - self.start) / self.step)
 
     @staticmethod
-    def of(raw: dict[str, Any]) -> "Scenario":
-        """The [scenario] table, every mistake of its fields reported at once."""
+    def of(raw: dict[str, Any], base_dir: pathlib.Path = pathlib.Path(".")) -> "Scenario":
+        """The [scenario] table (its input files relative to `base_dir`), every mistake of
+        its fields reported at once."""
         scenario = _table(raw, "scenario", "spec", required=True)
         errors = Collector()
         errors.run(lambda: _only(scenario, "scenario", {
@@ -126,12 +128,31 @@ class Scenario:
         timeout = errors.run(lambda: _positive(scenario, "timeout", " seconds"))
         parameters = _each(scenario, "parameters", errors,
                            lambda name, value, where: _setting(value, where, name))
-        inputs = _each(scenario, "inputs", errors, lambda name, value, where: _input(value, where))
+        inputs = _each(scenario, "inputs", errors,
+                       lambda name, value, where: _input(value, where, name, base_dir))
         interface = errors.run(lambda: _one_of(scenario, "interface", INTERFACES))
         integrator = errors.run(lambda: _one_of(scenario, "integrator", INTEGRATORS))
         errors.raise_any()
         assert times is not None
         return Scenario(*times, tolerance, timeout, parameters, inputs, interface, integrator)
+
+    def off_grid_breakpoints(self, system: System | None) -> list[str]:
+        """A warning for each input table with breakpoints between communication points,
+        which the runner does not see: it sets an input at each step's start and holds it
+        over the step (a [system] with a coupling tolerance ends its steps on them)."""
+        if system is not None and system.coupling_tolerance is not None:
+            return []
+        said = []
+        for name, table in self.inputs.items():
+            off = [t for t in table["times"] if self.start < t < self.stop
+                   and abs((t - self.start) / self.step - round((t - self.start) / self.step))
+                   > WINDOW_SLACK * 1e3]
+            if off:
+                shown = ", ".join(f"{t:g}" for t in off[:3]) + (", …" if len(off) > 3 else "")
+                said.append(f"scenario.inputs.{name}: {len(off)} breakpoint(s) at t = {shown} lie "
+                            f"between communication points (every {self.step:g} s): the FMU is "
+                            "given the table's value at each step's start, held over the step")
+        return said
 
     def refuse_also_set(self, name: str, where: str, what: str) -> None:
         """`name` is varied at `where` (a design column, a fitted parameter): refused if
@@ -301,7 +322,7 @@ class Spec:
         errors.run(lambda: _only(raw, "spec", {"fmu", "ssp", "system", "scenario", "design",
                                                "outputs"}))
         runs = errors.run(lambda: what_runs(raw, base_dir))
-        scenario = errors.run(lambda: Scenario.of(raw))
+        scenario = errors.run(lambda: Scenario.of(raw, base_dir))
         header = errors.run(lambda: _design_header(raw, scenario))
         # The design's own fields are checked where its points are generated.
         points = errors.run(lambda: _design.generate(header[1], header[0], header[2])
@@ -341,6 +362,8 @@ class Spec:
         canonical = {k: v for k, v in self.raw.items() if k not in ("fmu", "ssp")}
         if self.system is not None:  # the components' contents count, not where they lie
             canonical["system"] = self.system.digest()
+        # An input file's contents count (its tables as read), not where it lies.
+        canonical["inputs"] = self.scenario.inputs
         text = json.dumps(canonical, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(text.encode()).hexdigest()
 
@@ -428,10 +451,15 @@ def _setting(value: object, where: str, name: str) -> float:
     return setting(value, where, name)
 
 
-def _input(value: object, where: str) -> InputTable:
+def _input(value: object, where: str, name: str, base_dir: pathlib.Path) -> InputTable:
+    """A constant, a table of times and values, or a CSV file's time column and a column
+    of it (named like the input unless ``column`` says)."""
     if not isinstance(value, dict):
         return {"times": [0.0], "values": [_number(value, where)]}
-    _only(value, where, {"times", "values"})
+    if "file" in value:
+        _only(value, where, {"file", "column"})
+        return _input_file(value, where, name, base_dir)
+    _only(value, where, {"times", "values", "file", "column"})
     times, values = value.get("times"), value.get("values")
     if not (isinstance(times, list) and isinstance(values, list) and times and len(times) == len(values)):
         raise SpecError(where, "a table needs times and values: lists of equal, non-zero length")
@@ -439,6 +467,40 @@ def _input(value: object, where: str) -> InputTable:
     values = [_number(v, f"{where}.values") for v in values]
     if any(b <= a for a, b in zip(times, times[1:])):
         raise SpecError(f"{where}.times", "must be strictly increasing")
+    return {"times": times, "values": values}
+
+
+def _input_file(value: dict[str, Any], where: str, name: str,
+                base_dir: pathlib.Path) -> InputTable:
+    file, column = value.get("file"), value.get("column", name)
+    if not isinstance(file, str):
+        raise SpecError(f"{where}.file", "must name a CSV file (a path relative to the spec)")
+    if not isinstance(column, str):
+        raise SpecError(f"{where}.column", f"must name a column of {file}, got {column!r}")
+    path = base_dir / file
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as e:
+        raise SpecError(f"{where}.file", f"cannot read {path}: {e}") from None
+    rows = [row for row in csv.reader(text.splitlines()) if any(cell.strip() for cell in row)]
+    header = [cell.strip() for cell in rows[0]] if rows else []
+    for needed in ("time", column):
+        if needed not in header:
+            raise SpecError(f"{where}.file", f"{path} has no {needed} column (its header: "
+                                             f"{', '.join(header)})")
+    t, v = header.index("time"), header.index(column)
+    times, values = [], []
+    for line, row in enumerate(rows[1:], start=2):
+        try:
+            times.append(_number(float(row[t]), f"{where}.file"))
+            values.append(_number(float(row[v]), f"{where}.file"))
+        except (ValueError, IndexError, SpecError):
+            raise SpecError(f"{where}.file", f"{path} line {line}: time and {column} must be "
+                                             "finite numbers") from None
+    if not times:
+        raise SpecError(f"{where}.file", f"{path} has a header and no data")
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise SpecError(f"{where}.file", f"{path}: the times must be strictly increasing")
     return {"times": times, "values": values}
 
 

@@ -10,6 +10,7 @@ import os
 import pathlib
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -19,7 +20,7 @@ import pyarrow as pa
 
 from .check import check_against_fmu
 from .design import Design
-from .errors import SpecError, refuse_in_spawned_child
+from .errors import SpecError, SpecWarning, refuse_in_spawned_child
 from .pool import check_engine
 from .records import Batch, PointResult, Points, Rows
 from .spec import Spec
@@ -216,6 +217,8 @@ def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | No
         _batch_size(batch_size, 0.0, 1, 1)
     given = spec
     spec = load_spec(lambda: Spec.load(given), given, fmu)
+    for said in spec.scenario.off_grid_breakpoints(spec.system):
+        warnings.warn(said, SpecWarning, stacklevel=2)
     design = spec.points
     target = open_sweep(spec, design, fmu)
     record = {"design": {"kind": design.kind, "names": design.names, "points": len(design)},

@@ -338,3 +338,41 @@ def test_a_system_specs_options_connections_and_names_come_in_one_run(fmu_path, 
         run_sweep(spec, out=tmp_path / "out", serial=True, progress=False)
     said = {e.field for e in refused.value.errors}
     assert said == {"system.connections[0]", "outputs.metrics.w.variable"}, str(refused.value)
+
+
+def test_an_input_table_from_a_csv_file_gives_the_inline_tables_rows(fmu_path, tmp_path):
+    (tmp_path / "load.csv").write_text("time,brake,other\n0,0,9\n0.1,2.5,9\n0.3,-1,9\n")
+    inline = small_grid()
+    inline["scenario"]["inputs"] = {"M_r": {"times": [0.0, 0.1, 0.3], "values": [0.0, 2.5, -1.0]}}
+    from_file = small_grid()
+    from_file["scenario"]["inputs"] = {"M_r": {"file": "load.csv", "column": "brake"}}
+    a = run_sweep(inline, fmu=fmu_path, out=tmp_path / "a", serial=True, progress=False,
+                  plots=False).points
+    b = run_sweep(fmusweep_spec(from_file, tmp_path), fmu=fmu_path, out=tmp_path / "b",
+                  serial=True, progress=False, plots=False).points
+    assert (a["status"] == "ok").all() and a[["top"]].equals(b[["top"]])
+    (tmp_path / "load.csv").write_text("time,brake\n0,0\n0.1,2.5\n0.3,-1\n0.2,1\n")
+    with pytest.raises(SpecError) as refused:
+        fmusweep_spec(from_file, tmp_path)
+    assert refused.value.field == "scenario.inputs.M_r.file", refused.value
+
+
+def fmusweep_spec(raw, directory):
+    """The spec read with its paths relative to `directory`."""
+    from fmusweep import Spec
+    return Spec.from_dict(raw, directory)
+
+
+def test_breakpoints_between_communication_points_are_warned_of(fmu_path, tmp_path):
+    spec = small_grid()
+    spec["scenario"]["inputs"] = {"M_r": {"times": [0.0, 0.12, 0.2], "values": [0.0, 1.0, 0.0]}}
+    with pytest.warns(UserWarning, match=r"scenario.inputs.M_r: 1 breakpoint\(s\) at t = 0.12 lie "
+                                         r"between communication points"):
+        run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False,
+                  plots=False)
+    spec["scenario"]["inputs"]["M_r"]["times"] = [0.0, 0.1, 0.2]
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        run_sweep(spec, fmu=fmu_path, out=tmp_path / "on_grid", serial=True, progress=False,
+                  plots=False)

@@ -7,11 +7,12 @@ from __future__ import annotations
 import json
 import pathlib
 import time
+import warnings
 from typing import Any
 
 import numpy as np
 
-from ..errors import refuse_in_spawned_child
+from ..errors import SpecWarning, refuse_in_spawned_child
 from ..pool import check_engine
 from ..store import ResultStore, atomic_write_text
 from ..study import Study, Target, load_spec, spec_name
@@ -72,6 +73,9 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
     check_engine(workers, scheduler, serial)
     given = spec
     spec = load_spec(lambda: FitSpec.load(given), given, fmu)
+    for said in dict.fromkeys(w for e in spec.experiments
+                              for w in e.scenario.off_grid_breakpoints(spec.system)):
+        warnings.warn(said, SpecWarning, stacklevel=2)
     target = Target.open(spec, fmu)
     assert target.local is not None  # a fit names no SSP file
     check_fit_against_fmu(spec, target.description, target.local)

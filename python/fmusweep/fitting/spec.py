@@ -203,6 +203,7 @@ class FitSpec:
                 for e in canonical["experiment"]]
         if self.system is not None:  # the components' contents count, not where they lie
             canonical["system"] = self.system.digest()
+        canonical["inputs"] = [e.scenario.inputs for e in self.experiments]
         text = json.dumps(canonical, sort_keys=True, separators=(",", ":"))
         data = "".join(e.data.sha256 for e in self.experiments)
         return hashlib.sha256(text.encode() + data.encode()).hexdigest()
@@ -229,7 +230,7 @@ def _experiments(raw: dict[str, Any], base: pathlib.Path, shared: list[tuple[str
     collected in `errors`, each by field)."""
     listed = raw.get("experiment")
     if listed is None:
-        scenario = errors.run(lambda: Scenario.of(raw))
+        scenario = errors.run(lambda: Scenario.of(raw, base))
         data_table = errors.run(lambda: table(raw, "data", "spec", required=True))
         if data_table is None:
             return []
@@ -270,7 +271,7 @@ def _experiment(raw: dict[str, Any], entry: dict[str, Any], k: int, base: pathli
     where = f"experiment.{name}"
     only(entry, where, {"name", "data", "scenario", "parameters"})
     own = table(entry, "scenario", where)
-    scenario = _scenario_of(raw, own, where)
+    scenario = _scenario_of(raw, own, where, base)
     data = Data.of(table(entry, "data", where, required=True), base, scenario, f"{where}.data")
     errors = Collector()
     fitted = [errors.run(lambda: _own_parameter(variable, value, scenario, where, shared))
@@ -279,7 +280,8 @@ def _experiment(raw: dict[str, Any], entry: dict[str, Any], k: int, base: pathli
     return _Parsed(name, scenario, data, [p for p in fitted if p is not None])
 
 
-def _scenario_of(raw: dict[str, Any], own: dict[str, Any], where: str) -> Scenario:
+def _scenario_of(raw: dict[str, Any], own: dict[str, Any], where: str,
+                 base_dir: pathlib.Path) -> Scenario:
     """The shared [scenario] with an experiment's changes; a mistake in a field the
     experiment sets is named as the experiment's."""
     base = table(raw, "scenario", "spec")
@@ -288,7 +290,7 @@ def _scenario_of(raw: dict[str, Any], own: dict[str, Any], where: str) -> Scenar
         if isinstance(base.get(key), dict) and isinstance(own.get(key), dict):
             merged[key] = {**base[key], **own[key]}
     try:
-        return Scenario.of({"scenario": merged})
+        return Scenario.of({"scenario": merged}, base_dir)
     except SpecError as refused:
         each = refused.errors if isinstance(refused, SpecErrors) else [refused]
         named = [_as_experiments(e, own, where) for e in each]
