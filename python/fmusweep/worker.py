@@ -14,13 +14,16 @@ __all__ = ["prepare_worker", "run_batch", "worker_name", "trace"]
 
 
 def worker_name() -> str:
+    """Where a batch ran, as the ``worker`` column says it: ``worker-NAME`` on a Dask
+    worker (a LocalCluster's are numbered from 0), ``client`` in the process that runs the
+    study (serially, or the first points that measure a batch's size)."""
     # Only a process that Dask started has a worker; importing distributed costs 0.3 s.
     if "distributed" in sys.modules:
         try:
-            return str(sys.modules["distributed"].get_worker().name)
+            return f"worker-{sys.modules['distributed'].get_worker().name}"
         except ValueError:
             pass
-    return f"local-{os.getpid()}"
+    return "client"
 
 
 def _configured_runner(fmu: Archive, plan: Plan) -> NativeRunner:

@@ -374,6 +374,10 @@ impl Exchange {
     }
 
     pub fn call_name<'a>(&self, fmi2_name: &'a str) -> std::borrow::Cow<'a, str> {
+        // A step of Model Exchange is the runner's own integration, not a call of the FMU.
+        if fmi2_name == "fmi2DoStep" {
+            return std::borrow::Cow::Borrowed("the runner's integration of the FMU's states");
+        }
         self.fmu.call_name(fmi2_name)
     }
 

@@ -48,7 +48,7 @@ def test_a_real_scheduler_and_workers_give_the_serial_results(fmu_path, tmp_path
                         batch_size=2, progress=False, plots=False)
     assert results.report.workers == 2
     assert same_results(results.points, serial_grid.points, METRICS)
-    assert {"w0", "w1"} <= set(results.points["worker"])
+    assert {"worker-w0", "worker-w1"} <= set(results.points["worker"])
 
 
 def test_every_kind_of_fmu_on_a_real_scheduler_gives_the_serial_results(
@@ -70,7 +70,7 @@ def test_every_kind_of_fmu_on_a_real_scheduler_gives_the_serial_results(
         remote = run_sweep(spec, fmu=fmu, out=tmp_path / name, scheduler=dask_cluster,
                            batch_size=2, progress=False, plots=False)
         assert same_results(remote.points, serial.points, metrics + ["events"]), name
-        assert {"w0", "w1"} <= set(remote.points["worker"]), name
+        assert {"worker-w0", "worker-w1"} <= set(remote.points["worker"]), name
         assert (serial.points["status"] == "ok").sum() >= 6, name
 
 
@@ -199,7 +199,7 @@ def test_a_worker_killed_mid_sweep_costs_nothing(fmu_path, tmp_path, workers_wit
     points = results.points
     assert len(points) == 2500 and points["point"].is_unique
     assert (points["status"] == "ok").all()
-    assert set(points["worker"]) - {"w0", "w1"} == {f"local-{os.getpid()}"}
+    assert set(points["worker"]) - {"worker-w0", "worker-w1"} == {"client"}
 
 
 def _started(trace):
