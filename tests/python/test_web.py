@@ -140,3 +140,44 @@ def test_the_page_is_self_contained(page):
     for name in ("page.js", "mechanism.js", "style.css"):
         text = (page.parent / name).read_text()
         assert "fetch(" not in text and "http://" not in text and "https://" not in text
+
+
+def test_every_parameter_input_and_the_branch_has_a_control_from_the_module(browser):
+    offered = browser.evaluate("""window.mechanismPage.mech.variables
+        .filter((v) => ['parameter', 'input'].includes(v.causality) && v.group).map((v) => v.name)""")
+    for name in ("Mm_a2", "Mr_b1", "change_point_branch", "twist12_0", "M_r", "k34", "L"):
+        assert name in offered, name
+    # Every variable the module gives a group has its control, and no other has one.
+    ids = browser.evaluate("[...document.querySelectorAll('#controls input, #controls select')]"
+                           ".map((e) => e.id)")
+    controlled = {i.split("-", 1)[1] for i in ids}
+    assert controlled == set(offered)
+    legends = browser.evaluate("[...document.querySelectorAll('#controls legend')]"
+                               ".map((e) => e.textContent)")
+    assert "Built-in laws" in legends and "Change points" in legends
+    # The quadratic motor coefficient acts at once, as a law's coefficient does.
+    going = browser.evaluate(SNAPSHOT)["t"]
+    browser.evaluate(f"{TYPE}('Mm_a2', -2.5)")
+    assert browser.evaluate("window.mechanismPage.mech.get('Mm_a2')") == -2.5
+    assert browser.evaluate(SNAPSHOT)["t"] >= going
+    # The branch is chosen by its items' names.
+    options = browser.evaluate("[...document.getElementById('choice-change_point_branch').options]"
+                               ".map((o) => [o.value, o.text, o.selected])")
+    assert len(options) >= 2 and all(text and not text.isdigit() for _, text, _ in options)
+    other = next(value for value, _, selected in options if not selected)
+    browser.evaluate(f"""(() => {{ const s = document.getElementById('choice-change_point_branch');
+        s.value = '{other}'; s.dispatchEvent(new Event('change')); }})()""")
+    assert browser.evaluate("window.mechanismPage.mech.get('change_point_branch')") == int(other)
+    assert browser.evaluate(SNAPSHOT)["ok"]
+
+
+def test_a_laptop_window_shows_every_control_without_scrolling_sideways(page, tmp_path):
+    with Browser(width=1280, height=800) as b:
+        b.open(page)
+        b.wait_for("window.mechanismPage !== undefined && window.mechanismPage.snapshot().t > 0.1")
+        assert b.evaluate("document.documentElement.scrollWidth") <= 1280
+        right = b.evaluate("Math.max(...[...document.querySelectorAll('#controls input, "
+                           "#controls select')].map((e) => e.getBoundingClientRect().right))")
+        assert right <= 1280
+        b.screenshot(tmp_path / "laptop.png")
+        assert b.errors == [], b.errors

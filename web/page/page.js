@@ -1,7 +1,8 @@
 "use strict";
 // The live page: the mechanism's module (mechanism.js, the crate web/ built for wasm32)
 // steps in real time; each frame draws the linkage and the curves. The variables, their
-// units, ranges and which of them act on a running mechanism come from the module itself.
+// units, ranges, which of them act on a running mechanism and the controls the page
+// offers (their groups and slider spans) come from the module itself.
 
 // Communication step of the page (s): every curve sample and every drawn state is a point
 // of this grid, k·H, as a master's.
@@ -13,17 +14,6 @@ const WINDOW = 10;
 // 60 Hz frame the stepping may take before the run falls behind real time.
 const MAX_FRAME = 0.1;
 const STEP_BUDGET_MS = 12;
-
-// The sliders: variable, and the span a slider covers (within the FMU's own limits; the
-// number field beside it takes any value the FMU admits).
-const GROUPS = [
-  ["Geometry (m)", [["l", 0.1, 1.5], ["l2", 0.01, 0.6], ["l3", 0.1, 1.5], ["L", 0.1, 2.0]]],
-  ["Springs and dampers", [["k12", 0, 500], ["k34", 0, 500], ["d12", 0, 20], ["d34", 0, 20], ["c4", 0, 20]]],
-  ["Inertias (kg·m²)", [["J1", 0.05, 2], ["J2", 0.02, 1], ["J3", 0.02, 1], ["J4", 0.05, 2]]],
-  ["Input torques (N·m)", [["M_m", -200, 200], ["M_r", -100, 100]]],
-  ["Built-in laws", [["Mm_a0", 0, 200], ["Mm_a1", -50, 0], ["Mr_b0", 0, 60]]],
-  ["Start", [["phi2_0", -3.14, 3.14], ["omega2_0", -20, 20], ["omega4_0", -20, 20]]],
-];
 
 const RECORDED = ["phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4",
   "energy", "constraint_residual", "rod_force"];
@@ -179,6 +169,19 @@ function format(x) {
   return a >= 1e4 || a < 1e-3 ? x.toExponential(2) : x.toPrecision(4);
 }
 
+function label(text, target) {
+  const element = document.createElement("label");
+  element.htmlFor = target;
+  element.textContent = text;
+  return element;
+}
+
+function input(attributes) {
+  const element = document.createElement("input");
+  for (const [name, value] of Object.entries(attributes)) element.setAttribute(name, value);
+  return element;
+}
+
 const TWO_PI = 2 * Math.PI;
 const wrap = (a) => ((a % TWO_PI) + TWO_PI) % TWO_PI;
 
@@ -213,28 +216,49 @@ class Page {
     requestAnimationFrame((now) => this.frame(now));
   }
 
+  // A control for each variable the module offers one (its group, and for a number the
+  // span of its slider): a slider and a number field, or a choice among an Enumeration's
+  // items.
   buildControls() {
     const panel = document.getElementById("controls");
-    for (const [title, entries] of GROUPS) {
-      const set = document.createElement("fieldset");
-      set.innerHTML = `<legend>${title}</legend>`;
-      for (const [name, low, high] of entries) {
-        const v = this.mech.byName.get(name);
-        const row = document.createElement("div");
-        row.className = "control";
-        row.title = `${v.description}${v.live ? "" : " (starts the run over)"}`;
-        const [min, max] = [Math.max(low, v.min ?? low), Math.min(high, v.max ?? high)];
-        const start = v.start ?? 0;
-        row.innerHTML = `<label for="slider-${name}">${name}</label>` +
-          `<input type="range" id="slider-${name}" min="${min}" max="${max}" step="${(max - min) / 500}" value="${start}">` +
-          `<input type="number" id="value-${name}" step="any" value="${start}" aria-label="${name} (${v.unit})">`;
-        const [slider, field] = row.querySelectorAll("input");
-        slider.addEventListener("input", () => { field.value = slider.value; this.change(name, Number(slider.value)); });
-        field.addEventListener("change", () => { slider.value = field.value; this.change(name, Number(field.value)); });
-        set.appendChild(row);
+    const groups = new Map();
+    for (const v of this.mech.variables.filter((v) => v.group)) {
+      if (!groups.has(v.group)) {
+        const set = document.createElement("fieldset");
+        set.innerHTML = `<legend>${v.group}</legend>`;
+        panel.appendChild(set);
+        groups.set(v.group, set);
       }
-      panel.appendChild(set);
+      const row = document.createElement("div");
+      row.className = "control";
+      row.title = `${v.description}${v.live ? "" : " (starts the run over)"}`;
+      row.appendChild(label(v.name, v.items ? `choice-${v.name}` : `slider-${v.name}`));
+      if (v.items) row.appendChild(this.choice(v)); else row.append(...this.slider(v));
+      groups.get(v.group).appendChild(row);
     }
+  }
+
+  slider(v) {
+    const [low, high] = v.span;
+    const [min, max] = [Math.max(low, v.min ?? low), Math.min(high, v.max ?? high)];
+    const start = v.start ?? 0;
+    const slider = input({ type: "range", id: `slider-${v.name}`, min, max, step: (max - min) / 500, value: start });
+    const field = input({ type: "number", id: `value-${v.name}`, step: "any", value: start });
+    field.setAttribute("aria-label", `${v.name} (${v.unit})`);
+    slider.addEventListener("input", () => { field.value = slider.value; this.change(v.name, Number(slider.value)); });
+    field.addEventListener("change", () => { slider.value = field.value; this.change(v.name, Number(field.value)); });
+    return [slider, field];
+  }
+
+  choice(v) {
+    const select = document.createElement("select");
+    select.id = `choice-${v.name}`;
+    for (const [value, name] of Object.entries(v.items)) {
+      const option = new Option(name, value, false, Number(value) === v.start);
+      select.appendChild(option);
+    }
+    select.addEventListener("change", () => this.change(v.name, Number(select.value)));
+    return select;
   }
 
   // A user's change: at once where the module takes it on a running mechanism, otherwise

@@ -7,6 +7,7 @@
 use cyclic_mechanism::drivers::events::{self, EventHandling, Happening, StepEnd};
 use cyclic_mechanism::drivers::{CoSimulation, Experiment, StepRefusal};
 use cyclic_mechanism::model::linkage::LINKAGE_CLASSES;
+use cyclic_mechanism::model::params::Rule;
 use cyclic_mechanism::model::{self, PARAMETERS};
 use cyclic_mechanism::plant::{Activity, Plant, Value};
 use cyclic_mechanism::variables::{self, Causality, Slot, VarType, Variable};
@@ -188,9 +189,83 @@ impl Session {
     }
 }
 
+/// Where the page offers a variable: the group its control stands in and, for a number,
+/// the span its slider covers (the number field beside it takes anything the FMU admits).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Control {
+    pub group: &'static str,
+    pub span: Option<(f64, f64)>,
+}
+
+/// The groups of controls (the page shows them in the order their first variable comes).
+pub const GROUPS: [&str; 7] = [
+    "Geometry (m)",
+    "Springs and dampers",
+    "Inertias (kg·m²)",
+    "Input torques (N·m)",
+    "Built-in laws",
+    "Start",
+    "Change points",
+];
+
+/// The control of a variable a user may set, if the page offers one: every parameter of
+/// the mechanism, the inputs and the branch at a change point. The method, the
+/// sensitivity slots and the built-in laws' switch (a check box of its own) have none.
+pub fn control(v: &Variable) -> Option<Control> {
+    let parameter = |i: usize| {
+        let p = &PARAMETERS[i];
+        let group = if p.name.starts_with("Mm_") || p.name.starts_with("Mr_") {
+            GROUPS[4]
+        } else if p.name.ends_with("_0") || p.name.ends_with("_guess") {
+            GROUPS[5]
+        } else if p.unit == "m" {
+            GROUPS[0]
+        } else if p.unit == "kg.m2" {
+            GROUPS[2]
+        } else {
+            GROUPS[1]
+        };
+        Control {
+            group,
+            span: Some(slider_span(p.unit, p.rule)),
+        }
+    };
+    match v.slot {
+        Slot::Parameter(i) => Some(parameter(i)),
+        Slot::Input(_) => Some(Control {
+            group: GROUPS[3],
+            span: Some(slider_span(v.unit, model::params::INPUT_RULE)),
+        }),
+        Slot::ChangePointBranch => Some(Control {
+            group: GROUPS[6],
+            span: None,
+        }),
+        _ => None,
+    }
+}
+
+/// A slider's span: the size of the unit's quantities in a mechanism of this one's scale,
+/// on the side of zero the rule admits (the number field reaches the rest of the range).
+fn slider_span(unit: &str, rule: Rule) -> (f64, f64) {
+    let size = match unit {
+        "m" | "kg.m2" => 2.0,
+        "N.m/rad" => 500.0,
+        "N.m" => 200.0,
+        "N.m.s/rad" | "rad/s" => 20.0,
+        "N.m.s2/rad2" => 5.0,
+        "rad" => std::f64::consts::PI,
+        _ => 1.0,
+    };
+    match rule {
+        Rule::Finite(_) => (-size, size),
+        Rule::NonNegative(_) => (0.0, size),
+        Rule::Positive(..) => (size / 100.0, size),
+    }
+}
+
 /// The variables as a JSON array: name, value reference, causality, type, unit,
-/// description, range and start where they have them, and whether a running session
-/// takes a change ([`is_live`]).
+/// description, range and start where they have them, whether a running session takes a
+/// change ([`is_live`]), and the page's control ([`control`]: its group and slider span).
 pub fn variables_json() -> String {
     let items: Vec<String> = variables::variables()
         .map(|(vr, v)| {
@@ -212,6 +287,16 @@ pub fn variables_json() -> String {
             }
             if let Some(start) = v.start() {
                 fields.push(format!("\"start\":{}", json_number(start)));
+            }
+            if let Some(control) = control(&v) {
+                fields.push(format!("\"group\":{}", quoted(control.group)));
+                if let Some((low, high)) = control.span {
+                    fields.push(format!(
+                        "\"span\":[{},{}]",
+                        json_number(low),
+                        json_number(high)
+                    ));
+                }
             }
             if let Some(items) = enumeration_items(&v) {
                 let named: Vec<String> = items
@@ -374,6 +459,39 @@ mod tests {
         assert!(!json.contains("inf") && !json.contains("NaN"));
         assert!(
             json.contains("\"items\":{\"1\":\"auto\",\"2\":\"dop853\""),
+            "{json}"
+        );
+    }
+
+    #[test]
+    fn every_parameter_input_and_the_branch_has_a_control_holding_its_start() {
+        let mut offered = Vec::new();
+        for (_, v) in variables::variables() {
+            let settable = matches!(
+                v.slot,
+                Slot::Parameter(_) | Slot::Input(_) | Slot::ChangePointBranch
+            );
+            let Some(c) = control(&v) else {
+                assert!(!settable, "{} has no control", v.name);
+                continue;
+            };
+            assert!(settable, "{} is not the user's to set", v.name);
+            assert!(GROUPS.contains(&c.group));
+            if let Some((low, high)) = c.span {
+                let start = v.start().unwrap_or(0.0);
+                let (min, max) = v.range().unwrap();
+                assert!(low < high && low <= start && start <= high, "{}", v.name);
+                assert!(min <= low && high <= max, "{}", v.name);
+            }
+            offered.push(v.name);
+        }
+        for name in ["Mm_a2", "Mr_b1", "change_point_branch", "twist12_0", "M_r"] {
+            assert!(offered.contains(&name), "{name}");
+        }
+        let json = variables_json();
+        assert!(json.contains("\"name\":\"Mm_a2\""));
+        assert!(
+            json.contains("\"group\":\"Built-in laws\",\"span\":[-5,5]"),
             "{json}"
         );
     }
