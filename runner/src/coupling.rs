@@ -15,8 +15,13 @@
 use serde::Serialize;
 
 /// The smallest communication step, as a fraction of the output grid's step: below it a
-/// step whose estimate still exceeds the tolerance ends the point.
-pub const MIN_STEP_FRACTION: f64 = 1e-6;
+/// step whose estimate still exceeds the tolerance ends the point. Small, because held
+/// inputs (an estimate of order 1) need steps in proportion to the tolerance: a motor
+/// whose torque rises at thousands of N·m/s from zero needs steps of 10⁻⁹ s at a
+/// tolerance of 10⁻⁵ until the torque has grown; what ends a point is an estimate that
+/// does not fall with the step (an output that jumps), and that takes a few more
+/// rejections to tell here than with a larger floor.
+pub const MIN_STEP_FRACTION: f64 = 1e-9;
 
 /// What a point reports of its coupling.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]

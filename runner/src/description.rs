@@ -456,7 +456,10 @@ mod tests {
         assert_eq!(d.variable("a&b").unwrap().base_type, BaseType::Boolean);
         assert_eq!(d.variable("a&b").unwrap().causality, "local");
         let w = d.variable("w").unwrap();
-        assert_eq!((w.base_type, w.items.get("down")), (BaseType::Enumeration, Some(&-3)));
+        assert_eq!(
+            (w.base_type, w.items.get("down")),
+            (BaseType::Enumeration, Some(&-3))
+        );
         assert!(d.variable("y").unwrap_err().contains("\"y\""));
     }
 
@@ -516,7 +519,13 @@ mod tests {
         );
         assert_eq!(d.variable("e").unwrap().base_type, BaseType::Enumeration);
         assert_eq!(d.variable("e_alias").unwrap().value_reference, 8);
-        let items: Vec<_> = d.variable("e_alias").unwrap().items.clone().into_iter().collect();
+        let items: Vec<_> = d
+            .variable("e_alias")
+            .unwrap()
+            .items
+            .clone()
+            .into_iter()
+            .collect();
         assert_eq!(items, [("down".to_string(), 2), ("up".to_string(), 1)]);
         assert!(d.variable("n").unwrap().items.is_empty());
         assert_eq!(d.variable("b").unwrap().base_type, BaseType::Boolean);

@@ -92,6 +92,8 @@ pub struct SystemLibrary {
     /// By the system's value reference (the index).
     routes: Vec<Route>,
     links: Vec<Link>,
+    /// Each link as "source → target", for messages.
+    link_names: Vec<String>,
     coupling_tolerance: Option<f64>,
 }
 
@@ -138,6 +140,7 @@ impl SystemLibrary {
         let names: Vec<&str> = file.components.iter().map(|c| c.name.as_str()).collect();
         let find = |end: &str| find_variable(end, &names, &descriptions);
         let mut links = Vec::new();
+        let mut link_names = Vec::new();
         let mut fed = Vec::new();
         for c in &file.connections {
             let (from, output) = find(&c.from)?;
@@ -152,6 +155,7 @@ impl SystemLibrary {
                 link.derivatives = 0;
             }
             links.push(link);
+            link_names.push(format!("{} → {}", c.from, c.to));
             fed.push((to, input.value_reference));
         }
         let mut variables = Vec::new();
@@ -199,6 +203,7 @@ impl SystemLibrary {
             components,
             routes,
             links,
+            link_names,
             coupling_tolerance: file.coupling_tolerance,
         };
         Ok((description, Rc::new(system)))
@@ -629,8 +634,8 @@ impl SystemInstance {
                 s if !s.proceeds() => return s,
                 s => s.max(self.pass_all(next)),
             };
-            let estimate = match stepped {
-                Status::Discard => f64::INFINITY,
+            let (estimate, worst_link) = match stepped {
+                Status::Discard => (f64::INFINITY, None),
                 s if !s.proceeds() => return s,
                 _ => self.largest_drift(next, h),
             };
@@ -648,7 +653,7 @@ impl SystemInstance {
                         return restored;
                     }
                 }
-                Verdict::GiveUp => return self.give_up(t, estimate),
+                Verdict::GiveUp => return self.give_up(t, h, estimate, worst_link),
             }
         }
         worst
@@ -663,13 +668,17 @@ impl SystemInstance {
     }
 
     /// The largest drift of a Real connection over a step of `h`: what its target is given
-    /// now (`now`) against the polynomial it was given at the step's start, in its scale.
-    fn largest_drift(&self, now: &[[f64; 3]], h: f64) -> f64 {
-        let mut largest = 0.0_f64;
+    /// now (`now`) against the polynomial it was given at the step's start, in its scale;
+    /// and the connection that drifted most.
+    fn largest_drift(&self, now: &[[f64; 3]], h: f64) -> (f64, Option<usize>) {
+        let mut largest = (0.0_f64, None);
         for (k, link) in self.system.links.iter().enumerate() {
             if link.from.group == 0 {
                 let d = drift(&self.given[k], link.derivatives, h, now[k][0]);
-                largest = largest.max(d / self.scales[k].max(now[k][0].abs()));
+                let relative = d / self.scales[k].max(now[k][0].abs());
+                if largest.1.is_none() || relative > largest.0 {
+                    largest = (relative, Some(k));
+                }
             }
         }
         largest
@@ -682,11 +691,39 @@ impl SystemInstance {
         }
     }
 
-    fn give_up(&self, t: f64, estimate: f64) -> Status {
-        let tolerance = self.controller().tolerance();
+    /// The point cannot meet the tolerance: say where, over what step, on which connection,
+    /// and what the order of its estimate asks for.
+    fn give_up(&self, t: f64, h: f64, estimate: f64, link: Option<usize>) -> Status {
+        let controller = self.controller();
+        let tolerance = controller.tolerance();
+        let Some(k) = link.filter(|_| estimate.is_finite()) else {
+            log::error!(
+                "the coupling error cannot be held to the tolerance {tolerance:e}: at t = {t} \
+                 a component discards even the smallest communication step ({h:.3e} s)"
+            );
+            return Status::Error;
+        };
+        let derivatives = self.system.links[k].derivatives;
+        let held = match derivatives {
+            0 => "its input is held over a step (no input derivatives passed), so its \
+                  error falls only in proportion to the step"
+                .to_string(),
+            d => format!(
+                "its input moves along {d} derivative(s), so its error falls as the step to \
+                 the power {}",
+                d + 1
+            ),
+        };
+        let needed = h * (tolerance / estimate).powf(1.0 / (1.0 + derivatives as f64));
         log::error!(
-            "the coupling error cannot be held to the tolerance {tolerance:e}: at t = {t} the \
-             smallest communication step still gives an estimate of {estimate:e}"
+            "the coupling error cannot be held to the tolerance {tolerance:e}: at t = {t}, \
+             over the smallest communication step ({h:.3e} s), the connection {} drifts \
+             {estimate:.3e} of its scale max(1, its largest |value|); {held}, and a step of \
+             about {needed:.1e} s would be needed. Raise coupling_tolerance, pass \
+             input_derivatives (to a component that interpolates its inputs), or make the \
+             output grid's step shorter (the smallest step is {:e} of it)",
+            self.system.link_names[k],
+            crate::coupling::MIN_STEP_FRACTION
         );
         Status::Error
     }

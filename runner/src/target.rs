@@ -63,6 +63,10 @@ impl Running {
         match self {
             Running::Fmu(instance) => instance.call_name(fmi2_name),
             Running::Exchange(unit) => unit.call_name(fmi2_name),
+            // Its step is the system's own, over every component.
+            Running::System(_) if fmi2_name == "fmi2DoStep" => {
+                std::borrow::Cow::Borrowed("the coupled system's step")
+            }
             Running::System(_) => std::borrow::Cow::Borrowed(fmi2_name),
         }
     }

@@ -324,6 +324,59 @@ def test_a_coupling_tolerance_holds_the_error_and_reports_the_steps(
     assert 0 < row["coupling_min_step"] < 0.01
 
 
+def _held_point(fmu_path, motor_path, out, tolerance, derivatives, stop=0.3, fmu_tolerance=None):
+    """The motor system over its current's transient under a coupling tolerance: the worst
+    scaled error against the monolithic reference at the 10 ms grid's points, and the row."""
+    import reference
+    names = [f"mechanism.{n}" for n in ("phi1", "phi2", "phi3", "phi4", "omega1", "omega2",
+                                        "omega3", "omega4")] + ["motor.current"]
+    spec = system_spec(fmu_path, motor_path, stop=stop, design={"mechanism.d34": {"values": [1.0]}},
+                       engine=("native", derivatives))
+    spec["system"]["coupling_tolerance"] = tolerance
+    spec["scenario"].update(step=0.01, tolerance=fmu_tolerance or tolerance / 10)
+    spec["outputs"]["series"] = {"variables": names}
+    results = run_sweep(spec, out=out, serial=True, progress=False, plots=False)
+    row = results.points.iloc[0]
+    if row["status"] != "ok":
+        return None, row
+    series = results.series()
+    columns = [series[series["variable"] == v].sort_values("time") for v in names]
+    mine = np.column_stack([c["value"].to_numpy() for c in columns])
+    exact = reference.solve_with_motor(reference.Params(**MECHANISM, d34=1.0), reference.Motor(),
+                                       columns[0]["time"].to_numpy(), rtol=1e-11)
+    return float((np.abs(mine - exact) / np.maximum(1.0, np.abs(exact).max(axis=0))).max()), row
+
+
+@pytest.mark.parametrize("derivatives, per_decade", [(0, (7, 14)), (1, (2.2, 4.5))])
+def test_held_inputs_meet_a_coupling_tolerance_at_the_cost_of_their_order(
+        fmu_path, motor_path, tmp_path, derivatives, per_decade):
+    """The motor's torque rises from zero at k·V/L = 4800 N·m/s: held over a step its drift
+    is 4800 N·m/s × the step, so a tolerance of 1e-5 asks for steps of 2e-9 s at the start.
+    Held inputs (order 1) meet every tolerance down to 1e-5, within 3 × the tolerance of
+    the reference, at ten times the steps per decade; one derivative (order 2) at √10."""
+    steps = []
+    for tolerance in (1e-3, 1e-4, 1e-5):
+        error, row = _held_point(fmu_path, motor_path, tmp_path / f"{tolerance}", tolerance,
+                                 derivatives)
+        assert error is not None, row["message"]
+        assert error <= 3 * tolerance, (tolerance, error)
+        assert row["coupling_error"] <= tolerance
+        steps.append(row["coupling_steps"])
+    ratios = np.array(steps[1:]) / np.array(steps[:-1])
+    assert ((per_decade[0] < ratios) & (ratios < per_decade[1])).all(), steps
+
+
+def test_a_tolerance_out_of_reach_names_the_connection_and_what_would_reach_it(
+        fmu_path, motor_path, tmp_path):
+    error, row = _held_point(fmu_path, motor_path, tmp_path / "out", 1e-13, 0, stop=0.05,
+                             fmu_tolerance=1e-10)
+    assert error is None and row["status"] == "error"
+    message = row["message"]
+    for part in ("tolerance 1e-13", "at t = 0", "motor.torque → mechanism.M_m", "held",
+                 "coupling_tolerance", "input_derivatives", "output grid's step"):
+        assert part in message, message
+
+
 def test_without_a_coupling_tolerance_the_rows_are_as_before(fmu_path, motor_path, tmp_path):
     """No tolerance: no coupling columns, and the steps are the grid's."""
     spec = system_spec(fmu_path, motor_path, stop=0.5)
