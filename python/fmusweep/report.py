@@ -42,29 +42,53 @@ def _scatter(n: int) -> str:
     return "scattergl" if n > WEBGL_ABOVE else "scatter"
 
 
-def _page(title: str, intro: str, sections: list[str], script: str = "") -> str:
+def _page(title: str, intro: str, sections: list[str], script: str = "",
+          eager: bool = False) -> str:
+    """The page; its plots are drawn as they come near the window (``LAZY``), so that the
+    first screen is drawn first, or all at once with `eager` (the report benchmark's
+    comparison)."""
     from plotly.offline import get_plotlyjs
     return (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
             "<style>body{font-family:sans-serif;margin:1.5em;max-width:1400px}"
             "table{border-collapse:collapse;font-size:0.9em}td,th{border:1px solid #ccc;padding:2px 6px}"
             ".plot{width:100%;height:420px}.note{color:#555}</style>"
-            f"<script>{get_plotlyjs()}</script></head><body>"
+            f"<script>{get_plotlyjs()}</script><script>const EAGER={'true' if eager else 'false'};"
+            f"{_LAZY_SCRIPT}</script></head><body>"
             f"<h1>{html.escape(title)}</h1><p>{intro}</p>{''.join(sections)}"
             f"<script>{script}</script></body></html>\n")
 
 
+# A plot is drawn when it comes within a screen of the window, once; ON_DRAWN (the click
+# handler, where a report has one) is then given it.
+_LAZY_SCRIPT = """
+function LAZY(id, draw){
+  const gd = document.getElementById(id);
+  const go = function(){ if(gd.dataset.drawn){return;} gd.dataset.drawn = '1'; draw();
+    if(window.ON_DRAWN){ window.ON_DRAWN(gd); } };
+  if(EAGER || !('IntersectionObserver' in window)){ go(); return; }
+  const seen = new IntersectionObserver(function(entries){
+    if(entries.some(function(e){ return e.isIntersecting; })){ seen.disconnect(); go(); }
+  }, {rootMargin: '100% 0px'});
+  seen.observe(gd);
+}
+"""
+
+
 def _plot(div: str, data: list[dict[str, Any]], layout: dict[str, Any], height: int = 420) -> str:
-    """A div and the script that draws it (the data as JSON, NaN as null)."""
+    """A div and the script that draws it when it comes into view (the data as JSON, NaN
+    as null)."""
     figure = json.dumps({"data": data, "layout": layout}, default=_json_default, allow_nan=False)
     return (f"<div id=\"{div}\" class=\"plot\" style=\"height:{height}px\"></div><script>"
-            f"(function(){{const f={figure};{_LABEL_TRACES}Plotly.newPlot('{div}',f.data,f.layout,"
-            "{responsive:true});})();</script>")
+            f"LAZY('{div}',function(){{const f={figure};{_LABEL_TRACES}Plotly.newPlot('{div}',"
+            "f.data,f.layout,{responsive:true});});</script>")
 
 
 # A sweep's hover labels are written once (LABELS, by point number) and given to each trace
-# that names its points in customdata, rather than repeated in every plot's JSON.
+# that names its points in customdata (a heatmap's row by row), rather than repeated in
+# every plot's JSON.
 _LABEL_TRACES = ("if(typeof LABELS!=='undefined')for(const t of f.data){if(t.labelled){"
-                 "t.text=Array.from(t.customdata,p=>LABELS[p]);delete t.labelled;}}")
+                 "t.text=Array.from(t.customdata,p=>Array.isArray(p)?p.map(q=>LABELS[q]):LABELS[p]);"
+                 "delete t.labelled;}}")
 
 
 def _labels_script(points: pd.DataFrame, labels: list[str]) -> str:
@@ -94,33 +118,114 @@ def _hover(points: pd.DataFrame, names: list[str]) -> list[str]:
 
 
 def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metrics: list[str],
-                 sensitivity: dict[str, Any], series: pd.DataFrame | None) -> pathlib.Path:
-    """Write ``out/report.html`` for a sweep's points (parameters `names`) and return it."""
+                 sensitivity: dict[str, Any], series: pd.DataFrame | None,
+                 eager: bool = False) -> pathlib.Path:
+    """Write ``out/report.html`` for a sweep's points (parameters `names`) and return it;
+    `eager` draws every plot on opening instead of as it comes into view."""
     points = points.sort_values("point").reset_index(drop=True)
     varied = [n for n in names if points[n].nunique() > 1] or names[:1]
     labels = _hover(points, names)
     failed = points["status"] != "ok"
     counts = points["status"].value_counts().to_dict()
-    intro = (f"{len(points)} points: " + ", ".join(f"{v} {html.escape(k)}" for k, v in counts.items())
-             + ". Hover a point for its number, id and values; click one to see its time series"
-             + (" (kept for the first points of the sweep)." if series is not None else "."))
-    sections = [_labels_script(points, labels), _design_section(points, varied, failed)]
+    kept = _series_json(series, points) if series is not None else {}
+    intro = (f"{_count(len(points), 'point')}: "
+             + ", ".join(f"{v} {html.escape(k)}" for k, v in counts.items())
+             + ". Hover a point for its number, id and values"
+             + ("; click one to see its time series (kept for the first points of the sweep)."
+                if kept else "."))
+    grid = _grid_of(points, varied)
+    sections = [_labels_script(points, labels), _design_section(points, varied, failed, grid)]
     for k, metric in enumerate(metrics):
+        if grid is not None:
+            sections.append(_heatmap_section(k, metric, points, varied, grid))
         sections.append(_metric_section(k, metric, points, varied, failed))
     sections += [_sensitivity_section(m, s) for m, s in sensitivity.items() if "names" in s]
     sections.append(_failed_table(points, names))
-    kept = _series_json(series, points) if series is not None else {}
     if kept:
         sections.append("<h2>Time series of the chosen point</h2><p id=\"series-note\" class=\"note\">"
                         "Click a point above.</p><div id=\"series\" class=\"plot\"></div>")
     script = (f"const SERIES={json.dumps(kept, default=_json_default, allow_nan=False)};"
               + _CLICK_SCRIPT) if kept else ""
     path = out / "report.html"
-    path.write_text(_page(f"Sweep {out.name}", intro, sections, script))
+    path.write_text(_page(f"Sweep {out.name}", intro, sections, script, eager))
     return path
 
 
-def _design_section(points: pd.DataFrame, varied: list[str], failed: pd.Series) -> str:
+def _count(n: int, what: str) -> str:
+    return f"{n} {what}" if n == 1 else f"{n} {what}s"
+
+
+# Where a two-parameter grid's points lie: its axes' values and each point's cell.
+Grid = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _grid_of(points: pd.DataFrame, varied: list[str]) -> Grid | None:
+    """x values, y values and each point's column and row, when the points fill a grid of
+    the two varied parameters, one point a cell; else None."""
+    if len(varied) != 2:
+        return None
+    xs, ix = np.unique(points[varied[0]].to_numpy(), return_inverse=True)
+    ys, iy = np.unique(points[varied[1]].to_numpy(), return_inverse=True)
+    if len(xs) * len(ys) != len(points) or len(np.unique(iy * len(xs) + ix)) != len(points):
+        return None
+    return xs, ys, ix, iy
+
+
+def _cells(grid: Grid, values: np.ndarray) -> list[list[Any]]:
+    """`values` of the points laid out by cell, a row per y value (missing: None)."""
+    xs, ys, ix, iy = grid
+    z = np.full((len(ys), len(xs)), np.nan)
+    z[iy, ix] = values
+    return [[None if not math.isfinite(v) else v for v in row] for row in z.tolist()]
+
+
+# A metric spanning this many decades or more is coloured (or drawn) on a log scale.
+LOG_ABOVE_RATIO = 1e3
+
+
+def _log_scale(values: np.ndarray) -> bool:
+    finite = values[np.isfinite(values)]
+    return bool(len(finite) and finite.min() > 0 and finite.max() >= LOG_ABOVE_RATIO * finite.min())
+
+
+def _heatmap_section(k: int, metric: str, points: pd.DataFrame, varied: list[str],
+                     grid: Grid) -> str:
+    """A two-parameter grid's metric as a heatmap: failed points are grey cells, and a
+    metric spanning three decades or more is coloured by its logarithm."""
+    values = points[metric].to_numpy(dtype=float)
+    log = _log_scale(values)
+    shown = np.log10(np.where(values > 0, values, np.nan)) if log else values
+    trace: dict[str, Any] = {
+        "type": "heatmap", "x": grid[0], "y": grid[1], "z": _cells(grid, shown),
+        "customdata": _cells(grid, points["point"].to_numpy(dtype=float)), "labelled": True,
+        "hoverinfo": "text", "hoverongaps": True, "colorscale": "Viridis",
+        "colorbar": {"title": {"text": metric}}}
+    if log:
+        decades = np.arange(math.floor(np.nanmin(shown)), math.ceil(np.nanmax(shown)) + 1)
+        trace["colorbar"].update(tickvals=decades.tolist(), ticktext=[f"1e{d:d}" for d in decades])
+    layout = {"title": {"text": metric + (" (log colour scale)" if log else "")},
+              "xaxis": {"title": {"text": varied[0]}}, "yaxis": {"title": {"text": varied[1]}},
+              "plot_bgcolor": FAILED_CELL}
+    return (f"<h2>{html.escape(metric)} over the grid</h2><p class=\"note\">Grey cells: "
+            "failed points (hover one for why).</p>" + _plot(f"heatmap-{k}", [trace], layout))
+
+
+FAILED_CELL = "#c8c8c8"
+
+
+def _design_section(points: pd.DataFrame, varied: list[str], failed: pd.Series,
+                    grid: Grid | None) -> str:
+    if grid is not None:
+        trace = {"type": "heatmap", "x": grid[0], "y": grid[1],
+                 "z": _cells(grid, failed.to_numpy(dtype=float)), "zmin": 0, "zmax": 1,
+                 "colorscale": [[0, "#c6dbef"], [1, FAILED]], "showscale": False,
+                 "customdata": _cells(grid, points["point"].to_numpy(dtype=float)),
+                 "labelled": True, "hoverinfo": "text"}
+        grid_layout = {"xaxis": {"title": {"text": varied[0]}},
+                       "yaxis": {"title": {"text": varied[1]}}}
+        return ("<h2>The design</h2><p class=\"note\">A grid of "
+                f"{len(grid[0])} × {len(grid[1])} points; red cells failed.</p>"
+                + _plot("design", [trace], grid_layout, 420))
     groups = [("ok", ~failed, OK, "circle"), ("failed", failed, FAILED, "x")]
     if len(varied) <= 2:
         one = len(varied) == 1
@@ -149,7 +254,9 @@ def _metric_section(k: int, metric: str, points: pd.DataFrame, varied: list[str]
     """The metric against each varied parameter; failed points drawn below the others."""
     values = points[metric].to_numpy(dtype=float)
     finite = values[np.isfinite(values)]
-    floor = float(finite.min() - 0.05 * (np.ptp(finite) or 1.0)) if len(finite) else 0.0
+    log = _log_scale(values)
+    floor = (float(finite.min() / 3) if log else
+             float(finite.min() - 0.05 * (np.ptp(finite) or 1.0)) if len(finite) else 0.0)
     data, layout = [], {"hovermode": "closest", "title": {"text": metric}, "showlegend": False,
                         "grid": {"rows": 1, "columns": len(varied), "pattern": "independent"}}
     for j, name in enumerate(varied):
@@ -165,7 +272,8 @@ def _metric_section(k: int, metric: str, points: pd.DataFrame, varied: list[str]
                          "hoverinfo": "text",
                          "marker": {"color": color, "symbol": symbol, "size": 6}})
         layout[f"xaxis{axis}"] = {"title": {"text": name}}
-        layout[f"yaxis{axis}"] = {"title": {"text": metric if j == 0 else ""}}
+        layout[f"yaxis{axis}"] = {"title": {"text": metric if j == 0 else ""},
+                                  **({"type": "log"} if log else {})}
     return (f"<h2>{html.escape(metric)}</h2><p class=\"note\">Failed points (✕, red) are drawn "
             "below the others: they have no value.</p>" + _plot(f"metric-{k}", data, layout))
 
@@ -226,10 +334,14 @@ def _series_json(series: pd.DataFrame, points: pd.DataFrame) -> dict[str, Any]:
 # Clicking a point of any plot with its point number in customdata draws that point's
 # series, or says that the report does not hold it.
 _CLICK_SCRIPT = """
-document.querySelectorAll('.plot').forEach(function(gd){
-  if(!gd.on){return;}
+window.ON_DRAWN = function(gd){
+  if(!gd.on || gd.id === 'series'){return;}
   gd.on('plotly_click', function(ev){
-    const p = ev.points[0]; if(p.customdata === undefined){return;}
+    const p = ev.points[0];
+    if(p.customdata === undefined && Array.isArray(p.pointNumber) && p.data.customdata){
+      p.customdata = p.data.customdata[p.pointNumber[0]][p.pointNumber[1]];  // a heatmap's cell
+    }
+    if(p.customdata === undefined || p.customdata === null){return;}
     const kept = SERIES[String(p.customdata)];
     const note = document.getElementById('series-note');
     if(!kept){ note.textContent = 'point ' + p.customdata + ': its series is not in this report (see series/).'; return; }
@@ -237,7 +349,8 @@ document.querySelectorAll('.plot').forEach(function(gd){
     const traces = Object.keys(kept).map(function(v){ return {x: kept[v][0], y: kept[v][1], name: v, mode: 'lines'}; });
     Plotly.react('series', traces, {title: {text: 'point ' + p.customdata}, xaxis: {title: {text: 'time (s)'}}});
   });
-});
+};
+document.querySelectorAll('.plot').forEach(function(gd){ if(gd.dataset.drawn){ window.ON_DRAWN(gd); } });
 """
 
 

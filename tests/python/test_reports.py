@@ -136,3 +136,81 @@ def test_a_sobol_sweeps_report_draws_its_indices_and_design_matrix(fmu_path, tmp
         assert "J1 = " in texts[0] and "k34 = " in texts[0]
         assert browser.evaluate("document.getElementById('series') === null")  # no series kept
         assert browser.errors == []
+
+
+HEATMAP_CELL = """(function(div, row, column){
+  const gd = document.getElementById(div); gd.scrollIntoView({block: 'center'});
+  const t = gd._fullData[0];
+  const xa = gd._fullLayout.xaxis, ya = gd._fullLayout.yaxis;
+  const r = gd.getBoundingClientRect();
+  return [r.left + xa._offset + xa.l2p(t.x[column]), r.top + ya._offset + ya.l2p(t.y[row]),
+          t.customdata[row][column], t.z[row][column]];
+})"""
+
+
+def test_a_two_parameter_grid_draws_heatmaps_with_its_failed_cells(sweep):
+    points = sweep.points.sort_values("point")
+    with Browser() as browser:
+        browser.open(sweep.report_html)
+        browser.wait_for("document.getElementById('heatmap-0').data !== undefined")
+        assert browser.evaluate("document.getElementById('design').data[0].type") == "heatmap"
+        assert browser.evaluate("document.getElementById('heatmap-0').data[0].type") == "heatmap"
+        # L = 1.0 (the last row) does not assemble: its cells have no value.
+        x, y, point, z = browser.evaluate(f"{HEATMAP_CELL}('heatmap-0', 3, 2)")
+        row = points[points["point"] == point].iloc[0]
+        assert row["L"] == 1.0 and row["status"] == "error" and z is None
+        browser.mouse_move(x, y)
+        said = browser.wait_for(HOVER_TEXT)
+        assert f"point {point} " in said and "error" in said, said
+        x, y, point, z = browser.evaluate(f"{HEATMAP_CELL}('heatmap-0', 1, 4)")
+        assert z == pytest.approx(points[points["point"] == point]["peak_rod_force"].iloc[0])
+        browser.mouse_move(x, y)  # a click takes the point under the hover
+        browser.wait_for(f"{HOVER_TEXT}.includes('point {point} ')")
+        browser.click(x, y)
+        browser.wait_for("document.getElementById('series').data && "
+                         "document.getElementById('series').data.length == 2")
+        assert browser.evaluate("document.getElementById('series-note').textContent") == f"point {point}"
+        assert browser.errors == []
+
+
+def _synthetic_report(directory, metrics):
+    """A report of a 30 × 20 grid whose metrics are written here (no FMU run)."""
+    import pandas as pd
+    from fmusweep.report import sweep_report
+    k, L = np.meshgrid(np.linspace(1.0, 2.0, 30), np.linspace(0.1, 0.2, 20), indexing="ij")
+    n = k.size
+    points = pd.DataFrame({"point": np.arange(n), "point_id": [f"id{i}" for i in range(n)],
+                           "k": k.ravel(), "L": L.ravel(), "status": ["ok"] * n,
+                           "message": [""] * n})
+    for name, values in metrics.items():
+        points[name] = values(points)
+    directory.mkdir(parents=True, exist_ok=True)
+    return sweep_report(directory, ["k", "L"], points, list(metrics), {}, None)
+
+
+def test_a_metric_spanning_decades_is_coloured_on_a_log_scale_and_says_so(tmp_path):
+    page = _synthetic_report(tmp_path / "wide", {
+        "wide": lambda p: 10.0 ** (6 * (p["k"] - 1.0)), "narrow": lambda p: p["k"] + p["L"]})
+    with Browser() as browser:
+        browser.open(page)
+        browser.wait_for("document.getElementById('heatmap-1').data !== undefined")
+        titles = browser.evaluate("[0, 1].map(k => document.getElementById('heatmap-' + k).layout.title.text)")
+        assert titles == ["wide (log colour scale)", "narrow"], titles
+        ticks = browser.evaluate("document.getElementById('heatmap-0').data[0].colorbar.ticktext")
+        assert ticks[0] == "1e0" and ticks[-1] == "1e6", ticks
+        assert browser.evaluate("document.getElementById('metric-0').layout.yaxis.type") == "log"
+        text = browser.evaluate("document.body.innerText")
+        assert "click one" not in text  # no series kept: no click is promised
+        assert browser.errors == []
+
+
+def test_plots_below_the_first_screens_are_drawn_when_scrolled_to(tmp_path):
+    page = _synthetic_report(tmp_path / "long", {f"m{i}": (lambda p, i=i: p["k"] * i + p["L"])
+                                                 for i in range(8)})
+    with Browser() as browser:
+        browser.open(page)
+        browser.wait_for("document.getElementById('design').dataset.drawn === '1'")
+        assert browser.evaluate("document.getElementById('metric-7').dataset.drawn") is None
+        browser.evaluate("document.getElementById('metric-7').scrollIntoView()")
+        browser.wait_for("document.getElementById('metric-7').querySelector('.main-svg') !== null")
+        assert browser.errors == []
