@@ -58,8 +58,9 @@ const CATEGORIES: [&str; 6] = [
     "logSolver",
 ];
 
-/// What the logger saw, and which categories the master has enabled, by FMI 3.0's rules:
-/// all as `loggingOn` at instantiation, then as fmi3SetDebugLogging sets them.
+/// What the logger saw, and which categories the master has enabled: the statuses' from
+/// the start and the debug ones as `loggingOn` says, then as fmi3SetDebugLogging sets
+/// them.
 struct Log {
     enabled: [bool; 6],
     messages: u64,
@@ -74,7 +75,7 @@ impl Log {
     /// the instance's environment, stays put.
     fn boxed(on: bool) -> Box<RefCell<Log>> {
         Box::new(RefCell::new(Log {
-            enabled: [on; 6],
+            enabled: [true, true, true, true, on, on],
             messages: 0,
             last_problem: String::new(),
             broken: Vec::new(),
@@ -130,6 +131,8 @@ struct Fuzz {
     round_trips: u64,
     early_returns: u64,
     discarded: u64,
+    /// The logger's count of messages at the last call checked.
+    said: u64,
 }
 
 impl Fuzz {
@@ -137,7 +140,29 @@ impl Fuzz {
         self.calls += 1;
         assert!(documented(status), "{what} returned status {status}");
         self.judge_log(what);
+        self.judge_said(status, what);
         status
+    }
+
+    /// A Discard or worse, its status's category enabled, comes with a message.
+    fn judge_said(&mut self, status: fmi3Status, what: &str) {
+        let (messages, enabled) = {
+            let log = self.log.borrow();
+            // The categories of Discard, Error and Fatal: 1, 2 and 3.
+            let category = if status == fmi3Status_fmi3Discard {
+                1
+            } else if status == fmi3Status_fmi3Error {
+                2
+            } else {
+                3
+            };
+            (log.messages, log.enabled[category])
+        };
+        if status >= fmi3Status_fmi3Discard && enabled && messages == self.said {
+            let rule = "every Discard or Error said with its reason";
+            self.violated(rule, format!("{what} returned {status} without a message"));
+        }
+        self.said = messages;
     }
 
     /// The messages logged since the last judgement, against the logging rules.
@@ -712,6 +737,7 @@ fn random_fmi3_call_sequences_never_crash_and_return_only_documented_statuses() 
             round_trips: 0,
             early_returns: 0,
             discarded: 0,
+            said: 0,
         };
         let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             // Mostly a proper start, so that the later calls reach the running states.

@@ -53,8 +53,10 @@ unsafe fn new_instance(
         unsafe { CStr::from_ptr(instance_name) }.to_owned()
     };
     let fail = |message: String| {
-        // FMI 3.0: "If loggingOn = fmi3False, then any logging is disabled".
-        if let Some(logger) = logger.filter(|_| logging_on) {
+        // Said whatever `loggingOn`: "If a null pointer is returned, then instantiation
+        // failed. In that case, logMessage is called with detailed information about the
+        // reason."
+        if let Some(logger) = logger {
             let message = format!("{function}: {message}");
             logger.send(&name, Status::Error, "logStatusError", &message);
         }
@@ -78,7 +80,7 @@ unsafe fn new_instance(
         return fail(format!(
             "instantiationToken {} does not match this binary's {expected}: modelDescription.xml \
              and binary are from different builds",
-            given.as_deref().unwrap_or("NULL")
+            given.as_deref().map_or("NULL".into(), shown_token)
         ));
     }
     Some(Instance::new(
@@ -88,6 +90,15 @@ unsafe fn new_instance(
         logger,
         logging_on,
     ))
+}
+
+/// A token as a message shows it: quoted, and cut short when it is longer than any token.
+fn shown_token(token: &str) -> String {
+    const SHOWN: usize = 80;
+    match token.char_indices().nth(SHOWN) {
+        None => format!("{token:?}"),
+        Some((cut, _)) => format!("{:?}… ({} bytes)", &token[..cut], token.len()),
+    }
 }
 
 fn into_handle(instance: Option<Instance>) -> fmi3Instance {

@@ -15,8 +15,8 @@ impl Instance {
     /// Which categories are logged, from the settings: FMI 2.0 reports errors, discards,
     /// warnings and fatal errors always (its logger decides what to show when logging is
     /// off), the debug categories (calls, solver) only while debug logging is on for them.
-    /// FMI 3.0 only the categories enabled now, none while logging is off ("If loggingOn
-    /// = fmi3False, then any logging is disabled"). Nothing is reported (or formatted)
+    /// FMI 3.0 the categories enabled now (the statuses' from the start, the debug ones as
+    /// `loggingOn` and `fmi3SetDebugLogging` say). Nothing is reported (or formatted)
     /// without a logger callback.
     pub(super) fn logging_changed(&mut self) {
         let version = self.version();

@@ -59,6 +59,18 @@ fn check_state_count(name: &str, n: usize) -> Outcome {
 }
 
 impl Instance {
+    /// The categories enabled at instantiation. FMI 2.0: all (debug logging decides the
+    /// debug ones). FMI 3.0: the statuses' categories always, as the standard's own
+    /// Reference-FMUs do, so that a master that has not asked for silence hears every
+    /// refusal with its reason; the debug categories (calls, solver) as `loggingOn` says.
+    /// `fmi3SetDebugLogging` switches any of them off by name, or all at once.
+    fn enabled_at_first(version: Version, debug_logging: bool) -> [bool; LOG_CATEGORIES.len()] {
+        std::array::from_fn(|i| {
+            let debug = i == Category::Calls as usize || i == Category::Solver as usize;
+            version == Version::Fmi2 || debug_logging || !debug
+        })
+    }
+
     pub fn new(
         interface: Interface,
         version: Version,
@@ -71,8 +83,7 @@ impl Instance {
             logger,
             events: EventHandling::default(),
             debug_logging,
-            // FMI 3.0's categories are each on or off, all as `loggingOn` says at first.
-            enabled: [version == Version::Fmi2 || debug_logging; LOG_CATEGORIES.len()],
+            enabled: Self::enabled_at_first(version, debug_logging),
             logged: [false; LOG_CATEGORIES.len()],
             fmu_state: FmuState::new(interface, version),
             issued_states: StateHandles::default(),

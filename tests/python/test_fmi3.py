@@ -346,3 +346,13 @@ def test_adjoint_is_the_transpose_of_the_directional_derivative(unzipped3, model
             assert row[i] == column[j], (known, unknown)
     model.terminate()
     model.freeInstance()
+
+
+def test_fmpy_hears_why_a_value_is_refused_without_debug_logging(fmu3_path, capsys):
+    """FMPy instantiates with loggingOn = debug_logging (false by default): the refusal's
+    reason reaches its console all the same, and the debug categories stay quiet."""
+    with pytest.raises(Exception):
+        fmpy.simulate_fmu(fmu3_path, start_values={"L": -0.7}, stop_time=0.1)
+    out = capsys.readouterr().out
+    assert "[ERROR]" in out and "L = -0.7" in out and "must be > 0" in out, out
+    assert "[OK]" not in out, out
