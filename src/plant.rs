@@ -123,7 +123,12 @@ impl Activity {
 #[derive(Clone, Debug)]
 pub struct Plant {
     params: Parameters,
+    /// The inputs the plant integrates with at its time: as the master set them, moved on
+    /// along their derivatives at each step's end.
     inputs: Inputs,
+    /// The inputs as the master last set them, which their getters return: a master that
+    /// logs or checks its inputs reads back what it set.
+    inputs_set: Inputs,
     input_derivatives: InputDerivatives,
     /// The `solver` parameter: which integrator the co-simulation driver runs.
     solver_kind: SolverKind,
@@ -159,6 +164,7 @@ impl Plant {
         Self {
             params: Parameters::default(),
             inputs: Inputs::default(),
+            inputs_set: Inputs::default(),
             input_derivatives: InputDerivatives::default(),
             solver_kind: SolverKind::Auto,
             branch: Branch::Straight,
@@ -525,8 +531,8 @@ impl Plant {
     fn real_of(&self, slot: Slot) -> Option<f64> {
         match slot {
             Slot::Output(output) => Some(self.output(output)),
-            Slot::Input(Input::MotorTorque) => Some(self.inputs.motor_torque),
-            Slot::Input(Input::LoadTorque) => Some(self.inputs.load_torque),
+            Slot::Input(Input::MotorTorque) => Some(self.inputs_set.motor_torque),
+            Slot::Input(Input::LoadTorque) => Some(self.inputs_set.load_torque),
             Slot::Parameter(i) => Some(self.params.get(i).unwrap_or(f64::NAN)),
             Slot::Local(local) => Some(self.local(local)),
             Slot::Sensitivity { slot, state } => Some(self.sensitivities[state][slot]),
@@ -578,7 +584,23 @@ impl Plant {
         parameters_writable: bool,
     ) -> Result<(), AccessError> {
         let slot = self.check_set(vr, value, parameters_writable)?;
-        if self.get(vr, &Activity::idle())? == value {
+        // An input is compared with what the plant integrates with, which may have moved on
+        // from what was set.
+        let now = match slot {
+            Slot::Input(Input::MotorTorque) => Value::Real(self.inputs.motor_torque),
+            Slot::Input(Input::LoadTorque) => Value::Real(self.inputs.load_torque),
+            _ => self.get(vr, &Activity::idle())?,
+        };
+        if let Slot::Input(input) = slot {
+            let Value::Real(v) = value else {
+                unreachable!("checked: an input is Real")
+            };
+            match input {
+                Input::MotorTorque => self.inputs_set.motor_torque = v,
+                Input::LoadTorque => self.inputs_set.load_torque = v,
+            }
+        }
+        if now == value {
             return Ok(());
         }
         match (slot, value) {
@@ -861,6 +883,7 @@ impl Plant {
             w.f64(self.params.get(i).unwrap_or(f64::NAN));
         }
         w.f64s(&[self.inputs.motor_torque, self.inputs.load_torque]);
+        w.f64s(&[self.inputs_set.motor_torque, self.inputs_set.load_torque]);
         w.f64s(&self.input_derivatives.motor_torque);
         w.f64s(&self.input_derivatives.load_torque);
         w.bool(self.params.builtin_laws);
@@ -893,6 +916,7 @@ impl Plant {
                 .map_err(|e| invalid(e.to_string()))?;
         }
         let [motor_torque, load_torque] = r.f64s()?;
+        let [motor_torque_set, load_torque_set] = r.f64s()?;
         let input_derivatives = InputDerivatives {
             motor_torque: r.f64s()?,
             load_torque: r.f64s()?,
@@ -930,6 +954,10 @@ impl Plant {
                 motor_torque,
                 load_torque,
             },
+            inputs_set: Inputs {
+                motor_torque: motor_torque_set,
+                load_torque: load_torque_set,
+            },
             input_derivatives,
             solver_kind,
             branch,
@@ -949,6 +977,7 @@ impl Plant {
     /// checksum protects only against accidents).
     fn check_restored(&self) -> Result<(), String> {
         check_inputs(&self.inputs, "")?;
+        check_inputs(&self.inputs_set, "")?;
         let derivatives = self
             .input_derivatives
             .motor_torque

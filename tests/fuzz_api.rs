@@ -47,6 +47,15 @@ struct Fuzz {
     longest: (Duration, String),
     /// Oracles broken: how often, and the first instance.
     violations: BTreeMap<&'static str, (u64, String)>,
+    /// The value last set to each input (M_m, M_r) by an accepted fmi2SetReal, where the
+    /// fuzzer knows it: what a getter of the input must return, steps and input
+    /// derivatives notwithstanding.
+    inputs_set: [Option<f64>; 2],
+}
+
+/// The inputs' value references, in the order of [`Fuzz::inputs_set`].
+fn input_vrs() -> [u32; 2] {
+    ["M_m", "M_r"].map(|n| cyclic_mechanism::variables::value_reference(n).expect("an input"))
 }
 
 /// The serialized state's header; the interface's byte follows it, then the version's,
@@ -95,6 +104,32 @@ impl Fuzz {
         let mut n = [0];
         let s = unsafe { fmi2GetInteger(self.c, vr.as_ptr(), 1, n.as_mut_ptr()) };
         (s == fmi2Status_fmi2OK).then_some(i64::from(n[0]))
+    }
+
+    /// An fmi2SetReal of `values` to `vrs` returned `status`: accepted, its inputs' values
+    /// are known; refused, they are not (the fuzzer does not model which part applied).
+    fn note_inputs_set(&mut self, vrs: &[u32], values: &[f64], status: fmi2Status) {
+        let accepted = status == fmi2Status_fmi2OK || status == fmi2Status_fmi2Warning;
+        for (vr, value) in vrs.iter().zip(values) {
+            if let Some(k) = input_vrs().iter().position(|i| i == vr) {
+                self.inputs_set[k] = accepted.then_some(*value);
+            }
+        }
+    }
+
+    /// Each input read returns the value last set to it, where that is known.
+    fn judge_inputs_read(&mut self, vrs: &[u32], values: &[f64]) {
+        for (vr, value) in vrs.iter().zip(values) {
+            let Some(k) = input_vrs().iter().position(|i| i == vr) else {
+                continue;
+            };
+            if let Some(set) = self.inputs_set[k] {
+                if set.to_bits() != value.to_bits() {
+                    let detail = format!("input {vr} set to {set}, read {value}");
+                    self.violated("an input reads back the value last set", detail);
+                }
+            }
+        }
     }
 
     fn arrays(&mut self) -> (Vec<u32>, usize) {
@@ -184,13 +219,15 @@ impl Fuzz {
                             values.iter().all(|v| v.is_finite()),
                             "non-finite output {values:?}"
                         );
+                        self.judge_inputs_read(&vrs, &values);
                     }
                 }
                 8..=9 => {
                     let (vrs, n) = self.arrays();
                     let values: Vec<f64> = (0..n).map(|_| self.rng.real()).collect();
                     let s = fmi2SetReal(c, vrs.as_ptr(), n, values.as_ptr());
-                    self.check(s, "fmi2SetReal");
+                    let s = self.check(s, "fmi2SetReal");
+                    self.note_inputs_set(&vrs, &values, s);
                 }
                 10 => {
                     let (vrs, n) = self.arrays();
@@ -222,6 +259,7 @@ impl Fuzz {
                 12 => {
                     let state = self.pick_state();
                     let s = fmi2SetFMUstate(c, state);
+                    self.inputs_set = [None; 2];
                     if self.check(s, "fmi2SetFMUstate") == fmi2Status_fmi2OK {
                         let mut t = 0.0;
                         fmi2GetRealStatus(c, fmi2StatusKind_fmi2LastSuccessfulTime, &mut t);
@@ -284,6 +322,7 @@ impl Fuzz {
                 18 => {
                     if self.rng.chance(30) {
                         self.check(fmi2Reset(c), "fmi2Reset");
+                        self.inputs_set = [None; 2];
                         self.time = 0.0;
                     }
                 }
@@ -607,6 +646,7 @@ fn random_call_sequences_never_crash_and_return_only_documented_statuses() {
             round_trips: BTreeMap::new(),
             long_steps: long_steps(),
             longest: (Duration::ZERO, String::new()),
+            inputs_set: [None; 2],
             violations: BTreeMap::new(),
         };
         let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {

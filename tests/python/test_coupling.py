@@ -89,6 +89,31 @@ def test_after_a_step_the_outputs_see_the_inputs_moved_along_their_derivatives(r
     assert fmu.get("omega4") == pytest.approx(moved, rel=1e-9, abs=1e-12)
 
 
+def test_an_input_reads_back_what_was_set_while_it_moves_along_its_derivatives(running):
+    """The FMU integrates with the input moved on along its derivatives, and its getter
+    returns the value the master set, after steps, a refused set and a saved state."""
+    fmu = running
+    fmu.set("M_r", 3.0)
+    fmu.set("M_m", -1.5)
+    fmu.slave.setRealInputDerivatives([fmu.vr["M_r"], fmu.vr["M_m"]], [1, 2], [500.0, -40.0])
+    held = fmu.slave.getFMUstate()
+    for k in range(3):
+        fmu.slave.doStep(0.5 + k * 0.01, 0.01)
+        assert fmu.get("M_r", "M_m") == [3.0, -1.5]
+    moved = fmu.get("omega4")
+    # The same steps with the input held end elsewhere: it did move.
+    fmu.slave.setFMUstate(held)
+    assert fmu.get("M_r", "M_m") == [3.0, -1.5]
+    fmu.slave.setRealInputDerivatives([fmu.vr["M_r"], fmu.vr["M_m"]], [1, 2], [0.0, 0.0])
+    for k in range(3):
+        fmu.slave.doStep(0.5 + k * 0.01, 0.01)
+    assert fmu.get("omega4") != moved
+    fmu.slave.freeFMUstate(held)
+    # A refused set leaves the value read back as it was.
+    fmu.expect(ERROR, fmu.slave.setReal, [fmu.vr["M_r"]], [float("nan")])
+    assert fmu.get("M_r") == 3.0
+
+
 def test_bad_derivative_requests_are_errors(running):
     fmu = running
     assert "order = 3" in fmu.expect(ERROR, fmu.slave.getRealOutputDerivatives, [fmu.vr["phi1"]], [3])
