@@ -676,8 +676,8 @@ impl Plant {
                 }
             }
             (Slot::BuiltinLaws, Value::Boolean(_)) => {}
-            (Slot::SensitivityParameter(k), Value::Integer(v)) => {
-                self.check_sensitivity_choice(var.name, k, v)?
+            (Slot::SensitivityParameter(_), Value::Integer(v)) => {
+                self.check_sensitivity_choice(var.name, v)?
             }
             (Slot::ChangePointBranch, Value::Integer(v)) => {
                 if Branch::from_value(v).is_none() {
@@ -701,10 +701,12 @@ impl Plant {
         Ok(var.slot)
     }
 
-    /// A slot's new value: one of the items, and a parameter no other slot follows.
-    fn check_sensitivity_choice(&self, name: &str, slot: usize, v: i32) -> Result<(), AccessError> {
+    /// A slot's new value: one of the items. Two slots may follow the same parameter (each
+    /// computes its own column, the same numbers): a set is judged on its own value,
+    /// whatever the other slots hold or the order a master sets them in.
+    fn check_sensitivity_choice(&self, name: &str, v: i32) -> Result<(), AccessError> {
         let refuse = |rule: String| AccessError::NotAllowed(format!("{name} = {v}: {rule}"));
-        let chosen = sensitivity::chosen(v).ok_or_else(|| {
+        sensitivity::chosen(v).ok_or_else(|| {
             let index = usize::try_from(v - 1)
                 .ok()
                 .filter(|&i| i < model::PARAMETERS.len());
@@ -713,15 +715,6 @@ impl Plant {
                 None => "must be 0 (none) or a parameter of the SensitivityParameter items".into(),
             })
         })?;
-        let taken = self
-            .sensitivity_choice
-            .iter()
-            .enumerate()
-            .any(|(k, &w)| k != slot && w == v);
-        if chosen.is_some() && taken {
-            let parameter = model::PARAMETERS[(v - 1) as usize].name;
-            return Err(refuse(format!("another slot already follows {parameter}")));
-        }
         Ok(())
     }
 

@@ -128,10 +128,14 @@ impl Instance {
     /// Validate every (value reference, value) first, then apply: a rejected batch changes
     /// nothing.
     pub fn set_values(&mut self, values: impl Iterator<Item = (u32, Value)> + Clone) -> Outcome {
+        let exchange = self.fmu_state.interface() == Interface::ModelExchange;
         let fmu_state = &mut self.fmu_state;
         let writable = fmu_state.state.parameters_writable();
         for (vr, value) in values.clone() {
             fmu_state.plant.check_set(vr, value, writable)?;
+            if exchange {
+                refuse_sensitivity_slot(vr, value)?;
+            }
         }
         for (vr, value) in values {
             fmu_state.plant.set(vr, value, writable)?;
@@ -178,5 +182,22 @@ impl Instance {
             }
         }
         Ok(())
+    }
+}
+
+/// Model Exchange has no sensitivities (the master integrates, and the FMU sees only the
+/// points it is given): a slot's parameter other than 0 is refused at its set, rather
+/// than left at zero or failing later calls.
+fn refuse_sensitivity_slot(vr: u32, value: Value) -> Outcome {
+    let slot = variable(vr).map(|v| (v.slot, v.name));
+    match (slot, value) {
+        (Some((Slot::SensitivityParameter(_), name)), Value::Integer(v)) if v != 0 => {
+            Err(Failure::error(format!(
+                "{name} = {v}: sensitivities come from the FMU's own integration, in \
+                 Co-Simulation; in Model Exchange the master integrates, and every slot \
+                 stays 0"
+            )))
+        }
+        _ => Ok(()),
     }
 }
