@@ -78,6 +78,15 @@ pub(crate) fn build_fmu(all_platforms: bool) -> Result<Packed> {
             assets.join("index.html"),
         ),
     ];
+    // The default experiment's result, as the layered standard fmi-ls-ref places it.
+    for name in ["fmi-ls-manifest.xml", "CyclicMechanism_out.csv"] {
+        for list in [&mut files, &mut files3] {
+            list.push((
+                format!("extra/org.fmi-standard.fmi-ls-ref/{name}"),
+                assets.join("reference").join(name),
+            ));
+        }
+    }
     let mut report = vec![format!(
         "linux64 {}: {} bytes",
         library.display(),

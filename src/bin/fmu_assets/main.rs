@@ -1,11 +1,14 @@
 //! Writes the FMU's generated files: `fmu-assets <dir>` writes
 //! `<dir>/modelDescription.xml`, `<dir>/fmi3/modelDescription.xml` (FMI 3.0's) and
-//! `<dir>/variables.md` (the table as the README shows it), all from the variable table, and `<dir>/index.html`, the documentation inside the
+//! `<dir>/variables.md` (the table as the README shows it), all from the variable table,
+//! `<dir>/reference/` (the default experiment's result and its fmi-ls-ref manifest), and
+//! `<dir>/index.html`, the documentation inside the
 //! FMU, from the repository's own documents: docs/fmu.md, the README's section on using
 //! the FMU, docs/model.md and the variable table. Copies are committed under
 //! `modelDescription/`, and `tests/generated_files.rs` fails when one is out of date.
 
 mod markdown;
+mod reference;
 
 use cyclic_mechanism::description::{variable_rows, variables_markdown};
 use cyclic_mechanism::fmi2::model_description::xml;
@@ -42,6 +45,14 @@ fn main() {
     );
     write("variables.md", variables_markdown());
     write("index.html", documentation());
+    write(
+        &format!("reference/{}", reference::RESULT),
+        reference::result().unwrap_or_else(|e| {
+            eprintln!("fmu-assets: the default experiment failed: {e}");
+            std::process::exit(1);
+        }),
+    );
+    write("reference/fmi-ls-manifest.xml", reference::manifest());
 }
 
 /// The FMU's documentation page.
