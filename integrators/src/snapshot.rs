@@ -9,13 +9,29 @@ pub const FORMAT_VERSION: u32 = 17;
 const HEADER: usize = 8 + 4 + 8 + 8;
 
 /// Appends fields to a payload.
-#[derive(Default)]
 pub struct Writer {
     bytes: Vec<u8>,
+    /// A hash of the kinds of the fields written, in order: the payload's layout without
+    /// its values, which a test pins to [`FORMAT_VERSION`].
+    layout: u64,
+}
+
+impl Default for Writer {
+    fn default() -> Self {
+        Self {
+            bytes: Vec::new(),
+            layout: FNV_OFFSET,
+        }
+    }
 }
 
 impl Writer {
+    fn field(&mut self, kind: u8) {
+        self.layout = (self.layout ^ u64::from(kind)).wrapping_mul(FNV_PRIME);
+    }
+
     pub fn f64(&mut self, value: f64) {
+        self.field(b'f');
         self.bytes.extend_from_slice(&value.to_le_bytes());
     }
 
@@ -24,11 +40,18 @@ impl Writer {
     }
 
     pub fn u64(&mut self, value: u64) {
+        self.field(b'u');
         self.bytes.extend_from_slice(&value.to_le_bytes());
     }
 
     pub fn u8(&mut self, value: u8) {
+        self.field(b'b');
         self.bytes.push(value);
+    }
+
+    /// The layout of what was written so far: the kinds of its fields, in order.
+    pub fn layout(&self) -> u64 {
+        self.layout
     }
 
     pub fn bool(&mut self, value: bool) {
@@ -163,10 +186,14 @@ pub fn same_bits(a: &[f64], b: &[f64]) -> bool {
 }
 
 pub fn fnv1a_64(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf29ce484222325, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x100000001b3)
-    })
+    bytes
+        .iter()
+        .fold(FNV_OFFSET, |h, &b| (h ^ b as u64).wrapping_mul(FNV_PRIME))
 }
+
+/// FNV-1a's 64-bit offset basis and prime.
+const FNV_OFFSET: u64 = 0xcbf29ce484222325;
+const FNV_PRIME: u64 = 0x100000001b3;
 
 #[cfg(test)]
 mod tests {

@@ -95,6 +95,16 @@ impl FmuState {
 
     /// The versioned, position-independent byte form (see [`crate::snapshot`]).
     pub fn serialize(&self) -> Vec<u8> {
+        self.write().finish(interface_hash())
+    }
+
+    /// The layout of this state's serialized payload: the kinds of its fields, in order,
+    /// without their values (see [`Writer::layout`]).
+    pub fn layout(&self) -> u64 {
+        self.write().layout()
+    }
+
+    fn write(&self) -> Writer {
         let mut w = Writer::default();
         w.u8(self.interface() as u8);
         w.u8(self.version as u8);
@@ -110,7 +120,7 @@ impl FmuState {
             Driver::ModelExchange(Some(exchange)) => exchange.serialize_into(&mut w),
             _ => {}
         }
-        w.finish(interface_hash())
+        w
     }
 
     pub fn deserialize(bytes: &[u8]) -> Result<Self, Failure> {
