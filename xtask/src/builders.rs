@@ -176,15 +176,7 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
     ensure_libclang()?;
     let python = ensure_venv(Packages::Tests)?;
     let out = root().join("target/wheels");
-    // The wheel is made of the package, the runner's crate with every crate of this
-    // repository it depends on, and the lock file: with the same bytes of each, the wheel
-    // built from them last is the one.
-    let mut inputs = files_below(&root().join("python"))?;
-    for krate in local_crates(&root().join("runner"))? {
-        inputs.extend(files_below(&krate)?);
-    }
-    inputs.push(root().join("Cargo.lock"));
-    let key = fingerprint(&inputs)?;
+    let key = fingerprint(&wheel_inputs(&root())?)?;
     let stamp = root().join("target/wheels.fingerprint");
     if fs::read_to_string(&stamp).is_ok_and(|built| built == key) {
         if let Some(wheel) = wheel_in(&out) {
@@ -211,6 +203,18 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
         wheel_in(&out).ok_or_else(|| format!("maturin wrote no wheel to {}", out.display()))?;
     fs::write(&stamp, key).map_err(|e| format!("{}: {e}", stamp.display()))?;
     Ok(wheel)
+}
+
+/// What the wheel is made of, in the repository at `root`: the package, the runner's crate
+/// with every crate of the repository it depends on, and the lock file. With the same
+/// bytes of each, the wheel built from them last is the one.
+pub(crate) fn wheel_inputs(root: &Path) -> Result<Vec<PathBuf>> {
+    let mut inputs = files_below(&root.join("python"))?;
+    for krate in local_crates(&root.join("runner"))? {
+        inputs.extend(files_below(&krate)?);
+    }
+    inputs.push(root.join("Cargo.lock"));
+    Ok(inputs)
 }
 
 /// `krate` and every crate of this repository it depends on, directly or not: the
@@ -293,4 +297,46 @@ pub(crate) fn fmi_headers(version: &str) -> Result<PathBuf> {
         .ok_or_else(|| {
             format!("fmi-sys 0.6.0's FMI {version}.0 headers not found in cargo's registry")
         })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Copy what the wheel may be made of into `scratch`: the package and the crates.
+    fn copy_tree(from: &Path, to: &Path) {
+        for file in files_below(from).expect("a readable tree") {
+            let target = to.join(file.strip_prefix(from).expect("below"));
+            fs::create_dir_all(target.parent().expect("a folder")).expect("writable");
+            fs::copy(&file, &target).expect("copied");
+        }
+    }
+
+    #[test]
+    fn a_change_to_any_crate_the_runner_is_built_from_rebuilds_the_wheel() {
+        let scratch = std::env::temp_dir().join(format!("wheel-inputs-{}", std::process::id()));
+        for folder in ["python", "runner", "integrators"] {
+            copy_tree(&root().join(folder), &scratch.join(folder));
+        }
+        fs::copy(root().join("Cargo.lock"), scratch.join("Cargo.lock")).expect("copied");
+        fs::create_dir_all(scratch.join("docs")).expect("writable");
+        let key = || fingerprint(&wheel_inputs(&scratch).expect("inputs")).expect("read");
+        let before = key();
+        // A document is not part of the wheel.
+        fs::write(scratch.join("docs/notes.md"), "a note").expect("writable");
+        assert_eq!(key(), before);
+        // A source of the integrators, which the runner depends on, is.
+        let source = files_below(&scratch.join("integrators/src")).expect("sources")[0].clone();
+        let mut text = fs::read(&source).expect("readable");
+        text.extend_from_slice(b"\n// changed\n");
+        fs::write(&source, text).expect("writable");
+        let after = key();
+        fs::remove_dir_all(&scratch).expect("removed");
+        assert_ne!(
+            after,
+            before,
+            "{} changed and the wheel would be kept",
+            source.display()
+        );
+    }
 }
