@@ -9,8 +9,8 @@ use std::io;
 
 use crate::drivers::DEFAULT_TOLERANCE;
 use crate::variables::{
-    dependencies, value_reference, variables, Slot, Unknowns, VarType, Variable, SENSITIVITY_SLOTS,
-    SOLVER_TYPE, STATE_REFERENCES, UNITS,
+    dependencies, value_reference, variables, Slot, Twin, Unknowns, VarType, Variable,
+    SENSITIVITY_SLOTS, SOLVER_TYPE, STATE_REFERENCES, UNITS,
 };
 
 pub const MODEL_IDENTIFIER: &str = "CyclicMechanism";
@@ -298,7 +298,14 @@ pub fn variable_rows() -> Vec<[String; 5]> {
                     "Derivatives of the eight states phi1…omega4 with respect to the parameter \
                      of slot k, along the run since initialisation",
                 )),
+                Slot::Twin(Twin::SensitivityParameter(0)) => Some(row(
+                    "sensitivity_<k>.parameter_code",
+                    "sensitivity_<k>.parameter as an Integer, for masters that cannot set \
+                     Enumerations: 0 (the default) leaves the choice to the slot's \
+                     Enumeration; an item's value decides instead of it",
+                )),
                 Slot::SensitivityParameter(_) | Slot::Sensitivity { .. } => None,
+                Slot::Twin(Twin::SensitivityParameter(_)) => None,
                 _ => Some(row(v.name, v.description)),
             }
         })

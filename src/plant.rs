@@ -17,7 +17,7 @@ use crate::model::{
     State, STATE_SIZE,
 };
 use crate::variables::{
-    build_table, variable, Branch, Input, Local, Output, Slot, Statistic, VarType, Variable,
+    build_table, variable, Branch, Input, Local, Output, Slot, Statistic, Twin, VarType, Variable,
     SENSITIVITY_SLOTS, SOLVER_ITEMS,
 };
 use integrators::snapshot::{FormatError, Reader, Writer};
@@ -150,6 +150,17 @@ pub struct Plant {
     /// driver computes (docs/sensitivities.md).
     sensitivity_choice: [i32; SENSITIVITY_SLOTS],
     sensitivities: [[f64; SENSITIVITY_SLOTS]; STATE_SIZE],
+    /// The Integer twins of `solver`, `change_point_branch` and the slots' parameters
+    /// ([`Twin`]): 0 leaves the choice to the Enumeration, an item's value decides.
+    codes: Codes,
+}
+
+/// The values of the Integer twins, 0 where the Enumeration decides.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Codes {
+    solver: i32,
+    branch: i32,
+    sensitivity: [i32; SENSITIVITY_SLOTS],
 }
 
 impl Default for Plant {
@@ -174,6 +185,7 @@ impl Plant {
             chart: Chart::Crank,
             changed: true,
             sensitivity_choice: [0; SENSITIVITY_SLOTS],
+            codes: Codes::default(),
             sensitivities: [[0.0; SENSITIVITY_SLOTS]; STATE_SIZE],
         }
     }
@@ -202,12 +214,24 @@ impl Plant {
         &self.input_derivatives
     }
 
+    /// The branch taken at a change point: the twin's where it holds one, else the
+    /// Enumeration's.
     pub fn branch(&self) -> Branch {
-        self.branch
+        Branch::from_value(self.codes.branch).unwrap_or(self.branch)
     }
 
+    /// The method chosen: the twin's where it holds one, else the Enumeration's.
     pub fn solver_kind(&self) -> SolverKind {
-        self.solver_kind
+        solver_kind(self.codes.solver).unwrap_or(self.solver_kind)
+    }
+
+    /// Slot k's parameter (an item's value, 0 for none): the twin's where it holds one,
+    /// else the Enumeration's.
+    fn slot_choice(&self, k: usize) -> i32 {
+        match self.codes.sensitivity[k] {
+            0 => self.sensitivity_choice[k],
+            code => code,
+        }
     }
 
     /// Whether the master changed the right-hand side or moved the state since the last
@@ -333,8 +357,8 @@ impl Plant {
     /// The sensitivity slots in use, in order, with their parameters.
     pub fn sensitivity_slots(&self) -> Vec<(usize, Sensitive)> {
         let mut slots = Vec::new();
-        for (slot, &value) in self.sensitivity_choice.iter().enumerate() {
-            if let Some(Some((_, which))) = sensitivity::chosen(value) {
+        for slot in 0..SENSITIVITY_SLOTS {
+            if let Some(Some((_, which))) = sensitivity::chosen(self.slot_choice(slot)) {
                 slots.push((slot, which));
             }
         }
@@ -542,7 +566,8 @@ impl Plant {
             | Slot::LinkageClass
             | Slot::LoopChart
             | Slot::BuiltinLaws
-            | Slot::ChangePointBranch => None,
+            | Slot::ChangePointBranch
+            | Slot::Twin(_) => None,
         }
     }
 
@@ -565,6 +590,9 @@ impl Plant {
             Slot::BuiltinLaws => Value::Boolean(self.params.builtin_laws),
             Slot::ChangePointBranch => Value::Integer(self.branch as i32),
             Slot::SensitivityParameter(k) => Value::Integer(self.sensitivity_choice[k]),
+            Slot::Twin(Twin::Solver) => Value::Integer(self.codes.solver),
+            Slot::Twin(Twin::ChangePointBranch) => Value::Integer(self.codes.branch),
+            Slot::Twin(Twin::SensitivityParameter(k)) => Value::Integer(self.codes.sensitivity[k]),
             Slot::Output(_)
             | Slot::Input(_)
             | Slot::Parameter(_)
@@ -617,12 +645,20 @@ impl Plant {
                 self.branch = Branch::from_value(v).expect("checked")
             }
             (Slot::SensitivityParameter(k), Value::Integer(v)) => self.sensitivity_choice[k] = v,
+            (Slot::Twin(Twin::Solver), Value::Integer(v)) => self.codes.solver = v,
+            (Slot::Twin(Twin::ChangePointBranch), Value::Integer(v)) => self.codes.branch = v,
+            (Slot::Twin(Twin::SensitivityParameter(k)), Value::Integer(v)) => {
+                self.codes.sensitivity[k] = v
+            }
             _ => unreachable!("check_set admits only writable slots of the right type"),
         }
         // The right-hand side changed. (An input is left to the driver: whether a change
         // matters depends on how far its integrator has gone; the branch matters only at a
         // change point.)
-        if !matches!(slot, Slot::Input(_) | Slot::ChangePointBranch) {
+        if !matches!(
+            slot,
+            Slot::Input(_) | Slot::ChangePointBranch | Slot::Twin(Twin::ChangePointBranch)
+        ) {
             self.changed = true;
         }
         Ok(())
@@ -662,9 +698,30 @@ impl Plant {
                 Slot::Parameter(_)
                 | Slot::SolverChoice
                 | Slot::BuiltinLaws
-                | Slot::SensitivityParameter(_),
+                | Slot::SensitivityParameter(_)
+                | Slot::Twin(Twin::Solver | Twin::SensitivityParameter(_)),
                 _,
             ) if !parameters_writable => return Err(fixed()),
+            (Slot::Twin(_), Value::Integer(0)) => {}
+            (Slot::Twin(Twin::Solver), Value::Integer(v)) => {
+                if solver_kind(v).is_none() {
+                    return Err(AccessError::NotAllowed(format!(
+                        "{} = {v}: must be 0 (as solver says), 1 (auto), 2 (dop853) or 3 (implicit)",
+                        var.name
+                    )));
+                }
+            }
+            (Slot::Twin(Twin::ChangePointBranch), Value::Integer(v)) => {
+                if Branch::from_value(v).is_none() {
+                    return Err(AccessError::NotAllowed(format!(
+                        "{} = {v}: must be 0 (as change_point_branch says), 1 (straight) or 2 (turn)",
+                        var.name
+                    )));
+                }
+            }
+            (Slot::Twin(Twin::SensitivityParameter(_)), Value::Integer(v)) => {
+                self.check_sensitivity_choice(var.name, v)?
+            }
             (Slot::Parameter(i), Value::Real(v)) => {
                 check_rule(&model::PARAMETERS[i], v).map_err(AccessError::Invalid)?
             }
@@ -882,15 +939,18 @@ impl Plant {
         w.bool(self.params.builtin_laws);
         w.u8(self.solver_kind as u8);
         w.u8(self.branch as u8);
+        w.u8(self.codes.solver as u8);
+        w.u8(self.codes.branch as u8);
         w.f64(self.time);
         w.f64s(&self.state);
         w.f64(self.residual);
         w.u8(self.chart as u8);
         w.bool(self.changed);
         // The values of the slots in use alone: an unused slot's are zero.
-        for (k, &value) in self.sensitivity_choice.iter().enumerate() {
-            w.u8(value as u8);
-            if value != 0 {
+        for k in 0..SENSITIVITY_SLOTS {
+            w.u8(self.sensitivity_choice[k] as u8);
+            w.u8(self.codes.sensitivity[k] as u8);
+            if self.slot_choice(k) != 0 {
                 for row in &self.sensitivities {
                     w.f64(row[k]);
                 }
@@ -921,6 +981,18 @@ impl Plant {
         let code = r.u8()?;
         let branch = Branch::from_value(code as i32)
             .ok_or_else(|| invalid(format!("change_point_branch = {code}")))?;
+        let mut codes = Codes {
+            solver: i32::from(r.u8()?),
+            branch: i32::from(r.u8()?),
+            sensitivity: [0; SENSITIVITY_SLOTS],
+        };
+        if codes.solver != 0 && self::solver_kind(codes.solver).is_none() {
+            return Err(invalid(format!("solver_code = {}", codes.solver)));
+        }
+        if codes.branch != 0 && Branch::from_value(codes.branch).is_none() {
+            let branch = codes.branch;
+            return Err(invalid(format!("change_point_branch_code = {branch}")));
+        }
         let time = r.f64()?;
         let state = r.f64s()?;
         let residual = r.f64()?;
@@ -930,12 +1002,14 @@ impl Plant {
         let changed = r.bool()?;
         let mut sensitivity_choice = [0; SENSITIVITY_SLOTS];
         let mut sensitivities = [[0.0; SENSITIVITY_SLOTS]; STATE_SIZE];
-        for (k, choice) in sensitivity_choice.iter_mut().enumerate() {
-            *choice = i32::from(r.u8()?);
-            if sensitivity::chosen(*choice).is_none() {
-                return Err(invalid(format!("sensitivity slot {} = {choice}", k + 1)));
+        for k in 0..SENSITIVITY_SLOTS {
+            for value in [&mut sensitivity_choice[k], &mut codes.sensitivity[k]] {
+                *value = i32::from(r.u8()?);
+                if sensitivity::chosen(*value).is_none() {
+                    return Err(invalid(format!("sensitivity slot {} = {value}", k + 1)));
+                }
             }
-            if *choice != 0 {
+            if codes.sensitivity[k] != 0 || sensitivity_choice[k] != 0 {
                 for row in sensitivities.iter_mut() {
                     row[k] = r.f64()?;
                 }
@@ -961,6 +1035,7 @@ impl Plant {
             changed,
             sensitivity_choice,
             sensitivities,
+            codes,
         };
         plant.check_restored().map_err(invalid)?;
         Ok(plant)

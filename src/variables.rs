@@ -69,6 +69,18 @@ pub enum Local {
     HandoverIndicator,
 }
 
+/// An Enumeration parameter whose Integer twin a master that cannot set Enumerations
+/// (libcosim, Ecos) sets instead. A twin holds 0 by default: the Enumeration decides. Any
+/// other value is one of the Enumeration's items and decides instead, whatever the order
+/// in which the two were set; a master that sets every start value sets the twin's 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Twin {
+    Solver,
+    ChangePointBranch,
+    /// Of sensitivity slot k (0-based).
+    SensitivityParameter(usize),
+}
+
 /// Where a variable's value lives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Slot {
@@ -97,6 +109,8 @@ pub enum Slot {
         slot: usize,
         state: usize,
     },
+    /// The Integer twin of an Enumeration parameter.
+    Twin(Twin),
 }
 
 /// FMI base types used here.
@@ -164,6 +178,7 @@ impl Variable {
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => Causality::Output,
             Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => Causality::Parameter,
             Slot::ChangePointBranch | Slot::SensitivityParameter(_) => Causality::Parameter,
+            Slot::Twin(_) => Causality::Parameter,
             Slot::Local(_) | Slot::LoopChart | Slot::Sensitivity { .. } => Causality::Local,
         }
     }
@@ -171,7 +186,7 @@ impl Variable {
     pub fn var_type(&self) -> VarType {
         match self.slot {
             Slot::Statistic(Statistic::ActiveSolver) => VarType::Enumeration,
-            Slot::Statistic(_) | Slot::LoopChart => VarType::Integer,
+            Slot::Statistic(_) | Slot::LoopChart | Slot::Twin(_) => VarType::Integer,
             Slot::SolverChoice | Slot::LinkageClass => VarType::Enumeration,
             Slot::ChangePointBranch | Slot::SensitivityParameter(_) => VarType::Enumeration,
             Slot::BuiltinLaws => VarType::Boolean,
@@ -185,7 +200,8 @@ impl Variable {
         match self.slot {
             Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => "fixed",
             Slot::SensitivityParameter(_) => "fixed",
-            Slot::ChangePointBranch => "tunable",
+            Slot::Twin(Twin::Solver | Twin::SensitivityParameter(_)) => "fixed",
+            Slot::ChangePointBranch | Slot::Twin(Twin::ChangePointBranch) => "tunable",
             Slot::Statistic(_) | Slot::LinkageClass | Slot::LoopChart => "discrete",
             _ => "continuous",
         }
@@ -210,6 +226,12 @@ impl Variable {
             Slot::SensitivityParameter(_) => {
                 let last = SENSITIVITY_ITEMS[SENSITIVITY_ITEMS.len() - 1];
                 Some((SENSITIVITY_ITEMS[0].1 as f64, last.1 as f64))
+            }
+            Slot::Twin(Twin::Solver) => Some((0.0, SOLVER_ITEMS[2].1 as f64)),
+            Slot::Twin(Twin::ChangePointBranch) => Some((0.0, BRANCHES[1].1 as f64)),
+            Slot::Twin(Twin::SensitivityParameter(_)) => {
+                let last = SENSITIVITY_ITEMS[SENSITIVITY_ITEMS.len() - 1];
+                Some((0.0, last.1 as f64))
             }
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
             Slot::Local(_) | Slot::LoopChart | Slot::BuiltinLaws => None,
@@ -243,7 +265,7 @@ impl Variable {
             Slot::Input(_) => Some(0.0),
             Slot::Output(_) | Slot::Statistic(_) | Slot::LinkageClass => None,
             Slot::Local(_) | Slot::LoopChart | Slot::Sensitivity { .. } => None,
-            Slot::SensitivityParameter(_) => Some(0.0),
+            Slot::SensitivityParameter(_) | Slot::Twin(_) => Some(0.0),
             Slot::Parameter(i) => Some(PARAMETERS[i].default),
             Slot::SolverChoice => Some(SOLVER_ITEMS[0].1 as f64),
             Slot::BuiltinLaws => Some(f64::from(u8::from(Parameters::default().builtin_laws))),
@@ -478,6 +500,24 @@ macro_rules! sensitivity_slot {
     };
 }
 
+macro_rules! twin_of_slot {
+    ($k:literal) => {
+        Variable {
+            name: concat!("sensitivity_", $k, ".parameter_code"),
+            unit: "",
+            description: concat!(
+                "sensitivity_",
+                $k,
+                ".parameter as an Integer, for masters that cannot set ",
+                "Enumerations: 0 (the default) leaves the choice to sensitivity_",
+                $k,
+                ".parameter; an item's value decides instead of it"
+            ),
+            slot: Slot::Twin(Twin::SensitivityParameter($k - 1)),
+        }
+    };
+}
+
 /// The sensitivity slots (docs/sensitivities.md): per slot, the parameter it follows and
 /// the eight states' derivatives with respect to it.
 const SENSITIVITY_VARIABLES: [[Variable; 1 + STATE_SIZE]; SENSITIVITY_SLOTS] = [
@@ -488,6 +528,28 @@ const SENSITIVITY_VARIABLES: [[Variable; 1 + STATE_SIZE]; SENSITIVITY_SLOTS] = [
     sensitivity_slot!(5),
 ];
 
+/// The Integer twins of the Enumeration parameters (see [`Twin`]), after every earlier
+/// variable so that their value references keep their numbers.
+const TWIN_VARIABLES: [Variable; 2 + SENSITIVITY_SLOTS] = [
+    Variable {
+        name: "solver_code",
+        unit: "",
+        description: "solver as an Integer, for masters that cannot set Enumerations: 0 (the default) leaves the choice to solver; auto (1), dop853 (2) or implicit (3) decides instead of it",
+        slot: Slot::Twin(Twin::Solver),
+    },
+    Variable {
+        name: "change_point_branch_code",
+        unit: "",
+        description: "change_point_branch as an Integer, for masters that cannot set Enumerations: 0 (the default) leaves the choice to change_point_branch; straight (1) or turn (2) decides instead of it",
+        slot: Slot::Twin(Twin::ChangePointBranch),
+    },
+    twin_of_slot!(1),
+    twin_of_slot!(2),
+    twin_of_slot!(3),
+    twin_of_slot!(4),
+    twin_of_slot!(5),
+];
+
 /// Number of variables (and one past the largest value reference).
 pub const COUNT: usize = INPUTS.len()
     + OUTPUTS.len()
@@ -495,7 +557,8 @@ pub const COUNT: usize = INPUTS.len()
     + SOLVER_VARIABLES.len()
     + EXCHANGE_VARIABLES.len()
     + LATER_VARIABLES.len()
-    + SENSITIVITY_VARIABLES.len() * (1 + STATE_SIZE);
+    + SENSITIVITY_VARIABLES.len() * (1 + STATE_SIZE)
+    + TWIN_VARIABLES.len();
 
 /// The value references of the Model Exchange states x = (φ1, q, φ4, ω1, q̇, ω4).
 pub const STATE_REFERENCES: [u32; 6] = {
@@ -564,6 +627,11 @@ pub(crate) const fn build_table() -> [Variable; COUNT] {
     k = 0;
     while k < SENSITIVITY_VARIABLES.len() * (1 + STATE_SIZE) {
         table[i] = SENSITIVITY_VARIABLES[k / (1 + STATE_SIZE)][k % (1 + STATE_SIZE)];
+        (i, k) = (i + 1, k + 1);
+    }
+    k = 0;
+    while k < TWIN_VARIABLES.len() {
+        table[i] = TWIN_VARIABLES[k];
         (i, k) = (i + 1, k + 1);
     }
     table
@@ -704,7 +772,7 @@ fn running_dependencies(slot: Slot) -> Vec<(&'static str, Kind)> {
         // Not unknowns while running.
         Slot::Local(_) | Slot::LoopChart => vec![],
         Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
-        Slot::ChangePointBranch | Slot::SensitivityParameter(_) => vec![],
+        Slot::ChangePointBranch | Slot::SensitivityParameter(_) | Slot::Twin(_) => vec![],
         // Locals that are not unknowns: a run's history, not a function of the knowns.
         Slot::Sensitivity { .. } => vec![],
     }
@@ -773,14 +841,14 @@ fn initial_dependencies(slot: Slot) -> Vec<&'static str> {
             &["omega1_0", "omega2_0", "omega4_0", "twist34_0"],
         ]
         .concat(),
-        Slot::Statistic(Statistic::ActiveSolver) => vec!["solver"],
+        Slot::Statistic(Statistic::ActiveSolver) => vec!["solver", "solver_code"],
         // The step counters: zero until the first step.
         Slot::Statistic(_) => vec![],
         Slot::LinkageClass => vec!["l", "l2", "l3", "L"],
         Slot::LoopChart => ASSEMBLY.to_vec(),
         // Not unknowns: knowns.
         Slot::Input(_) | Slot::Parameter(_) | Slot::SolverChoice | Slot::BuiltinLaws => vec![],
-        Slot::ChangePointBranch | Slot::SensitivityParameter(_) => vec![],
+        Slot::ChangePointBranch | Slot::SensitivityParameter(_) | Slot::Twin(_) => vec![],
         // Locals that are not unknowns: a run's history, not a function of the knowns.
         Slot::Sensitivity { .. } => vec![],
     }

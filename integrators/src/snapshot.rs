@@ -5,7 +5,7 @@
 
 const MAGIC: &[u8; 8] = b"CYCMSTAT";
 /// Bump when the layout of the payload changes.
-pub const FORMAT_VERSION: u32 = 17;
+pub const FORMAT_VERSION: u32 = 18;
 const HEADER: usize = 8 + 4 + 8 + 8;
 
 /// Appends fields to a payload.

@@ -5,7 +5,7 @@ use super::fmu_state::Driver;
 use super::{Failure, Instance, Interface, Outcome, State};
 use crate::drivers::model_exchange::CONTINUOUS_STATES;
 use crate::plant::{AccessError, Value};
-use crate::variables::{variable, Input, Slot, VarType, STATE_REFERENCES};
+use crate::variables::{variable, Input, Slot, Twin, VarType, STATE_REFERENCES};
 
 impl Instance {
     /// GetDirectionalDerivative: the knowns are the inputs, and in Model Exchange the
@@ -191,13 +191,14 @@ impl Instance {
 fn refuse_sensitivity_slot(vr: u32, value: Value) -> Outcome {
     let slot = variable(vr).map(|v| (v.slot, v.name));
     match (slot, value) {
-        (Some((Slot::SensitivityParameter(_), name)), Value::Integer(v)) if v != 0 => {
-            Err(Failure::error(format!(
-                "{name} = {v}: sensitivities come from the FMU's own integration, in \
+        (
+            Some((Slot::SensitivityParameter(_) | Slot::Twin(Twin::SensitivityParameter(_)), name)),
+            Value::Integer(v),
+        ) if v != 0 => Err(Failure::error(format!(
+            "{name} = {v}: sensitivities come from the FMU's own integration, in \
                  Co-Simulation; in Model Exchange the master integrates, and every slot \
                  stays 0"
-            )))
-        }
+        ))),
         _ => Ok(()),
     }
 }

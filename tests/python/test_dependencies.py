@@ -82,7 +82,9 @@ def test_initial_unknowns_depend_on_exactly_their_declared_knowns(unzipped, mode
         else:  # solver: auto (1) -> implicit (3); change_point_branch: straight (1) -> turn (2);
             # a sensitivity slot: none (0) -> k12 (5)
             start = int(known.start)
-            other = {"change_point_branch": 2, "solver": 3}.get(known.name, 5)
+            # The Integer twins likewise: 0 (the Enumeration decides) -> an item.
+            other = {"change_point_branch": 2, "solver": 3, "solver_code": 3,
+                     "change_point_branch_code": 2}.get(known.name, 5)
             fmu.slave.setInteger([known.valueReference], [other])
             changed = moved(base, read(fmu, unknowns))
             fmu.slave.setInteger([known.valueReference], [start])

@@ -46,3 +46,29 @@ def test_libcosim_and_fmpy_agree(fmu_path, unzipped, report):
     assert np.max(np.abs(cosim - fmpy_run)) < 1e-6
     assert np.max(np.abs(cosim - exact)) < 1e-6
     assert 4.0 < cosim[4] < 4.3  # the motor did spin up
+
+
+def test_libcosim_chooses_the_implicit_method_through_the_integer_twin(fmu_path, unzipped):
+    """libcosim lists no Enumeration variable, so its users set `solver_code`, the Integer
+    twin of `solver`: 3 runs the implicit method, as `solver = 3` does in FMPy."""
+    log_output_level(CosimLogLevel.WARNING)
+    execution = CosimExecution.from_step_size(step_size=STEP_NS)
+    index = execution.add_local_slave(local_slave=CosimLocalSlave(fmu_path=str(fmu_path),
+                                                                  instance_name="mechanism"))
+    refs = {v.name.decode() if isinstance(v.name, bytes) else v.name: v.reference
+            for v in execution.slave_variables(index)}
+    assert "solver" not in refs and "solver_code" in refs
+    execution.integer_initial_value(slave_index=index, variable_reference=refs["solver_code"],
+                                    value=3)
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    assert execution.simulate_until(target_time=1_000_000_000)
+    cosim = np.array(observer.last_real_values(slave_index=index,
+                                               variable_references=[refs[n] for n in STATES]))
+    steps = observer.last_integer_values(slave_index=index, variable_references=[refs["n_steps"]])[0]
+    implicit = simulate(unzipped, {"solver": 3}, 1.0, 0.01, tolerance=1e-8,
+                        outputs=STATES + ["n_steps"])
+    explicit = simulate(unzipped, {}, 1.0, 0.01, tolerance=1e-8, outputs=["n_steps"])
+    assert steps == implicit["n_steps"][-1] != explicit["n_steps"][-1]
+    scaled = np.abs(cosim - states(implicit)[-1]) / np.maximum(1.0, np.abs(cosim))
+    assert scaled.max() < 1e-9, scaled

@@ -29,6 +29,9 @@ def by_name(model_description):
     return {v.name: v for v in model_description.modelVariables}
 
 
+TWINS = {"solver_code", "change_point_branch_code"} | {f"sensitivity_{k}.parameter_code"
+                                                        for k in range(1, 6)}
+
 # The Model Exchange variables (docs/model.md §6): unit, and whose derivative each is.
 EXCHANGE = {"loop_angle": ("rad", None), "loop_speed": ("rad/s", None), "loop_chart": (None, None),
             "der(phi1)": ("rad/s", "phi1"), "der(loop_angle)": ("rad/s", "loop_angle"),
@@ -41,7 +44,15 @@ def test_interface_is_as_specified(model_description):
     assert set(variables) == (set(INPUTS) | set(OUTPUTS) | set(PARAMETERS) | INTEGER_OUTPUTS
                               | {"solver", "linkage_class", "builtin_laws", "handover_indicator",
                                  "change_point_branch"}
-                              | set(EXCHANGE) | SENSITIVITY_VARIABLES)
+                              | set(EXCHANGE) | SENSITIVITY_VARIABLES | TWINS)
+    # The Integer twins of the Enumeration parameters, for masters that cannot set those:
+    # 0 by default (the Enumeration decides), up to the Enumeration's last item.
+    for twin in TWINS:
+        enumeration = variables[twin.removesuffix("_code")]
+        v = variables[twin]
+        assert (v.causality, v.variability, v.type, v.start, v.min) == (
+            "parameter", enumeration.variability, "Integer", "0", "0")
+        assert int(v.max) == max(int(i.value) for i in enumeration.declaredType.items)
     # The sensitivity slots (docs/sensitivities.md): a fixed Enumeration parameter each,
     # whose items are none and the parameters with a sensitivity, and eight Real locals.
     slot = variables["sensitivity_3.parameter"]

@@ -10,7 +10,7 @@ use cyclic_mechanism::model::linkage::LINKAGE_CLASSES;
 use cyclic_mechanism::model::params::Rule;
 use cyclic_mechanism::model::{self, PARAMETERS};
 use cyclic_mechanism::plant::{Activity, Plant, Value};
-use cyclic_mechanism::variables::{self, Causality, Slot, VarType, Variable};
+use cyclic_mechanism::variables::{self, Causality, Slot, Twin, VarType, Variable};
 
 /// How a completed step went.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -45,6 +45,7 @@ pub fn is_live(variable: &Variable) -> bool {
             !geometry && !start
         }
         Slot::BuiltinLaws | Slot::ChangePointBranch | Slot::Input(_) => true,
+        Slot::Twin(Twin::ChangePointBranch) => true,
         _ => false,
     }
 }
