@@ -21,6 +21,7 @@ use common::{long_steps, Rng, RUNAWAY};
 use cyclic_mechanism::drivers::cosimulation::CALL_WORK;
 use cyclic_mechanism::fmi3::model_description::{instantiation_token, reference};
 use cyclic_mechanism::fmi3::*;
+use cyclic_mechanism::instance::{Instance, Interface, State};
 use cyclic_mechanism::variables::{count, value_reference};
 use fmi_sys::fmi3::*;
 
@@ -142,6 +143,34 @@ impl Fuzz {
         self.judge_log(what);
         self.judge_said(status, what);
         status
+    }
+
+    /// Two sensitivity slots set at once to offered parameters (k12 or k34, the same one
+    /// at times): legal in Co-Simulation before initialisation ends, whatever the slots
+    /// held, so accepted; refused at the set in Model Exchange.
+    unsafe fn set_two_slots(&mut self) {
+        let slots = [
+            vr3("sensitivity_1.parameter"),
+            vr3("sensitivity_2.parameter"),
+        ];
+        let values = [5 + self.rng.below(2) as i64, 5 + self.rng.below(2) as i64];
+        // SAFETY: the handle is the instance this fuzzer made and has not freed.
+        let (interface, state) = unsafe {
+            let instance = &*(self.c as *const Instance);
+            (instance.interface(), instance.state())
+        };
+        let status = unsafe { fmi3SetInt64(self.c, slots.as_ptr(), 2, values.as_ptr(), 2) };
+        self.check(status, "SetInt64 of two slots");
+        let before_end = matches!(state, State::Instantiated | State::InitializationMode);
+        let detail = format!("{values:?} in {state:?} returned {status}");
+        if interface == Interface::CoSimulation && before_end && status != fmi3Status_fmi3OK {
+            self.violated(
+                "a slot's legal set is accepted whatever the others hold",
+                detail,
+            );
+        } else if interface == Interface::ModelExchange && status == fmi3Status_fmi3OK {
+            self.violated("Model Exchange refuses a slot at its set", detail);
+        }
     }
 
     /// A Discard or worse, its status's category enabled, comes with a message.
@@ -287,6 +316,7 @@ impl Fuzz {
                         fmi3SetInt64(c, branch.as_ptr(), 1, value.as_ptr(), 1),
                         "SetInt64",
                     );
+                    self.set_two_slots();
                     let vrs = self.references();
                     let values = vec![self.rng.chance(50); vrs.len()];
                     let s = fmi3SetBoolean(c, vrs.as_ptr(), vrs.len(), values.as_ptr(), vrs.len());
@@ -707,6 +737,52 @@ unsafe fn instantiate(
     c
 }
 
+/// An instantiation the FMU cannot make (a wrong token, a blank or missing name): NULL,
+/// with a message whatever `loggingOn`. The oracle broken, if one is.
+unsafe fn refused_instantiation(
+    rng: &mut Rng,
+    logging_on: bool,
+    log: &RefCell<Log>,
+) -> Option<(&'static str, String)> {
+    let good = instantiation_token();
+    let tokens = [
+        String::new(),
+        format!(" {good}"),
+        format!("{good}\t"),
+        good[1..].to_string(),
+        "{".repeat(3000),
+    ];
+    let token = CString::new(tokens[rng.below(tokens.len() as u64) as usize].clone()).ok()?;
+    let good = CString::new(good).ok()?;
+    let names = [c"".as_ptr(), c"  ".as_ptr(), null()];
+    let (name, token) = if rng.chance(50) {
+        (names[rng.below(3) as usize], good.as_ptr())
+    } else {
+        (c"bad".as_ptr(), token.as_ptr())
+    };
+    let before = log.borrow().messages;
+    let environment = log as *const RefCell<Log> as *mut c_void;
+    let c = unsafe {
+        fmi3InstantiateModelExchange(
+            name,
+            token,
+            null(),
+            false,
+            logging_on,
+            environment,
+            Some(log_message),
+        )
+    };
+    if !c.is_null() {
+        unsafe { fmi3FreeInstance(c) };
+        return Some(("an impossible instantiation returns NULL", String::new()));
+    }
+    (log.borrow().messages == before).then(|| {
+        let rule = "a NULL instantiation says why";
+        (rule, format!("loggingOn = {logging_on}"))
+    })
+}
+
 #[test]
 fn random_fmi3_call_sequences_never_crash_and_return_only_documented_statuses() {
     let sequences = std::env::var("FUZZ_SEQUENCES")
@@ -721,6 +797,13 @@ fn random_fmi3_call_sequences_never_crash_and_return_only_documented_statuses() 
     for sequence in 0..sequences {
         let logging_on = rng.chance(50);
         let log = Log::boxed(logging_on);
+        if rng.chance(10) {
+            // SAFETY: the arguments are valid C strings or NULL.
+            if let Some(broken) = unsafe { refused_instantiation(&mut rng, logging_on, &log) } {
+                let entry = violations.entry(broken.0).or_insert((0, broken.1));
+                entry.0 += 1;
+            }
+        }
         let kind = sequence % 4;
         let c = unsafe { instantiate(kind, rng.chance(50), logging_on, &log) };
         let mut fuzz = Fuzz {
