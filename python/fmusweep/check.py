@@ -278,3 +278,52 @@ def names_missing(raw: dict[str, Any], description: dict[str, Any]) -> list[Spec
         if isinstance(name, str):
             errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
     return errors.errors
+
+
+def values_out_of_range(raw: dict[str, Any], description: dict[str, Any]) -> list[SpecError]:
+    """The numbers a spec's tables set that lie outside the FMU's declared min and max,
+    read from the tables as written: for a spec whose own fields have mistakes, so that one
+    run reports these too (the FMU itself is asked about every value once the spec's own
+    fields are right)."""
+    bounds = {v["name"]: (_bound(v.get("min"), -np.inf), _bound(v.get("max"), np.inf))
+              for v in description.get("variables", []) if v.get("type") in ("real", "integer")}
+    errors: list[SpecError] = []
+
+    def check(field: str, name: str, values: object) -> None:
+        numbers = [v for v in (values if isinstance(values, list) else [values])
+                   if isinstance(v, (int, float)) and not isinstance(v, bool)]
+        low, high = bounds.get(name, (-np.inf, np.inf))
+        outside = [v for v in numbers if not low <= v <= high]
+        if outside:
+            shown = ", ".join(f"{v:g}" for v in outside)
+            errors.append(SpecError(field, f"{name} = {shown}: outside the FMU's range "
+                                           f"[{low:g}, {high:g}]"))
+
+    def table(*path: str) -> dict[str, Any]:
+        found: object = raw
+        for key in path:
+            found = found.get(key) if isinstance(found, dict) else None
+        return found if isinstance(found, dict) else {}
+
+    for name, value in table("scenario", "parameters").items():
+        check(f"scenario.parameters.{name}", name, value)
+    for name, entry in table("fit", "parameters").items():
+        for key in ("start", "range"):
+            if isinstance(entry, dict) and key in entry:
+                check(f"fit.parameters.{name}.{key}", name, entry[key])
+    for name, entry in table("design", "parameters").items():
+        if isinstance(entry, dict):
+            values = entry.get("values", entry.get("range"))
+            linspace = entry.get("linspace")
+            if isinstance(linspace, list):
+                values = linspace[:2]
+            check(f"design.parameters.{name}", name, values)
+    return errors
+
+
+def _bound(text: object, default: float) -> float:
+    try:
+        return float(text) if isinstance(text, str) else default
+    except ValueError:
+        return default
+

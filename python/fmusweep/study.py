@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Callable, TypeVar
 
 import numpy as np
 
-from .check import names_missing
+from .check import names_missing, values_out_of_range
 from .errors import SpecError, SpecErrors
 from .fields import typed_by
 from .fmu import Archive, open_for_checks
@@ -61,11 +61,16 @@ def load_spec(load: Callable[[], S], source: object, fmu: str | None) -> S:
 
 def _with_names_missing(refused: SpecError, raw: dict[str, Any],
                         description: dict[str, Any]) -> SpecError:
-    """The refusal, with every name of the spec that `description` lacks (under a field
-    the refusal does not name already)."""
+    """The refusal, with every name of the spec that `description` lacks and every number
+    outside the FMU's declared range (under a field the refusal does not name already)."""
     known = refused.errors if isinstance(refused, SpecErrors) else [refused]
     fields = {e.field for e in known}
-    extra = [e for e in names_missing(raw, description) if e.field not in fields]
+    found = names_missing(raw, description)
+    named = {e.field for e in found}
+    # A name the FMU lacks says enough of its values.
+    found += [e for e in values_out_of_range(raw, description)
+              if not any(e.field.startswith(n) for n in named)]
+    extra = [e for e in found if e.field not in fields]
     return SpecErrors(known + extra) if extra else refused
 
 

@@ -376,3 +376,24 @@ def test_breakpoints_between_communication_points_are_warned_of(fmu_path, tmp_pa
         warnings.simplefilter("error")
         run_sweep(spec, fmu=fmu_path, out=tmp_path / "on_grid", serial=True, progress=False,
                   plots=False)
+
+
+def test_values_out_of_the_fmus_range_come_with_the_specs_own_mistakes(fmu_path, tmp_path):
+    """Own fields wrong and values the FMU declares out of range, in a fit and in a sweep:
+    one run names them all."""
+    spec = {"scenario": {"stop": 0.5, "step": 0.05, "parameters": {"J4": -0.5}},
+            "data": {"file": str(tmp_path / "absent.csv")},
+            "fit": {"max_iterations": 0,
+                    "parameters": {"k34": {"start": -5.0, "range": [-10.0, 400.0]}}}}
+    said = refused_fields(spec, fmu_path, tmp_path, run=fit)
+    assert set(said) == {"data.file", "fit.max_iterations", "scenario.parameters.J4",
+                         "fit.parameters.k34.start", "fit.parameters.k34.range"}, said
+    assert "outside the FMU's range" in said["scenario.parameters.J4"]
+    sweep = small_grid()
+    sweep["scenario"]["tolerance"] = -1.0
+    sweep["scenario"]["parameters"]["d12"] = -1.0
+    sweep["design"]["parameters"] = {"J2": {"values": [0.3, -0.1]}, "k34": {"values": [1.0]}}
+    said = refused_fields(sweep, fmu_path, tmp_path)
+    assert set(said) == {"scenario.tolerance", "scenario.parameters.d12",
+                         "design.parameters.J2"}, said
+    assert "J2 = -0.1" in said["design.parameters.J2"]
