@@ -13,7 +13,7 @@ fn vr(name: &str) -> u32 {
     value_reference(name).unwrap_or_else(|| panic!("no variable {name}"))
 }
 
-/// An FMI 3.0 Co-Simulation run of 3 s in steps of 0.01 s, with event mode and without
+/// An FMI 3.0 Co-Simulation run of 6 s in steps of 0.01 s, with event mode and without
 /// early return (a change point is crossed within the step, onto the branch chosen), with
 /// `settings` set in that order before initialisation; the values of `read` at its end.
 fn run(settings: &[(&str, Value)], read: &[&str]) -> Vec<f64> {
@@ -30,7 +30,7 @@ fn run(settings: &[(&str, Value)], read: &[&str]) -> Vec<f64> {
     }
     fmu.enter_initialization_mode().expect("initialisation");
     fmu.exit_initialization_mode().expect("initialised");
-    for k in 0..300 {
+    for k in 0..600 {
         fmu.step_with_events(f64::from(k) * 0.01, 0.01)
             .expect("a step");
     }

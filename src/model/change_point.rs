@@ -375,12 +375,11 @@ fn tangents(p: &Parameters, node: (f64, f64)) -> Result<([f64; 2], [f64; 2]), Mo
         ));
     }
     let root = discriminant.sqrt();
-    // a·u² + 2b·u·w + c·w² = 0, solved for the ratio in the better conditioned way.
-    let pair = if a.abs() >= c.abs() {
-        ([(-b + root) / a, 1.0], [(-b - root) / a, 1.0])
-    } else {
-        ([1.0, (-b + root) / c], [1.0, (-b - root) / c])
-    };
+    // a·u² + 2b·u·w + c·w² = 0: with q = −b − sign(b)·√(b² − ac), never 0 here, the two
+    // directions are (q, a) and (c, q), each without a cancellation or a division, also
+    // where a or c (or both, the axes themselves: a rhombus folding onto its frame) vanish.
+    let q = -b - b.signum() * root;
+    let pair = ([q, a], [c, q]);
     let unit = |d: [f64; 2]| {
         let n = d[0].hypot(d[1]);
         [d[0] / n, d[1] / n]
@@ -431,6 +430,29 @@ mod tests {
             assert!((a + 2.0 * b * m + c * m * m).abs() < 1e-12, "{m}");
         }
         assert!(locate_node(&Parameters::default(), 0.3, 1.4).is_err());
+    }
+
+    #[test]
+    fn a_rhombus_folding_onto_its_frame_has_the_axes_for_tangents() {
+        // All four lengths equal: at φ2 = 0, φ3 = π the rod lies on the frame, and the
+        // branches are the crank turning alone (φ3 = π) and the rocker alone (φ2 = 0):
+        // the closure's Hessian has no diagonal there.
+        let p = Parameters {
+            l: 0.5,
+            l2: 0.5,
+            l3: 0.5,
+            L: 0.5,
+            ..geometry()
+        };
+        let node = locate_node(&p, 1e-4, std::f64::consts::PI - 1e-4).unwrap();
+        let (d1, d2) = tangents(&p, node).unwrap();
+        let axis = |d: [f64; 2]| d[0].abs().max(d[1].abs());
+        assert!(d1.iter().chain(&d2).all(|x| x.is_finite()), "{d1:?} {d2:?}");
+        assert!(
+            axis(d1) > 1.0 - 1e-12 && axis(d2) > 1.0 - 1e-12,
+            "{d1:?} {d2:?}"
+        );
+        assert!((d1[0] * d2[0] + d1[1] * d2[1]).abs() < 1e-12);
     }
 
     #[test]
