@@ -13,10 +13,10 @@ fn vr(name: &str) -> u32 {
     value_reference(name).unwrap_or_else(|| panic!("no variable {name}"))
 }
 
-/// An FMI 3.0 Co-Simulation run of 6 s in steps of 0.01 s, with event mode and without
-/// early return (a change point is crossed within the step, onto the branch chosen), with
-/// `settings` set in that order before initialisation; the values of `read` at its end.
-fn run(settings: &[(&str, Value)], read: &[&str]) -> Vec<f64> {
+/// An initialised FMI 3.0 Co-Simulation instance, with event mode and without early
+/// return (a change point is crossed within the step, onto the branch chosen), `settings`
+/// set in that order before initialisation.
+fn initialised(settings: &[(&str, Value)]) -> Instance {
     let name = CString::new("twins").expect("no NUL");
     let mut fmu = Instance::new(Interface::CoSimulation, Version::Fmi3, name, None, false);
     fmu.handle_events(EventHandling {
@@ -30,6 +30,12 @@ fn run(settings: &[(&str, Value)], read: &[&str]) -> Vec<f64> {
     }
     fmu.enter_initialization_mode().expect("initialisation");
     fmu.exit_initialization_mode().expect("initialised");
+    fmu
+}
+
+/// A run of 6 s in steps of 0.01 s; the values of `read` at its end.
+fn run(settings: &[(&str, Value)], read: &[&str]) -> Vec<f64> {
+    let mut fmu = initialised(settings);
     for k in 0..600 {
         fmu.step_with_events(f64::from(k) * 0.01, 0.01)
             .expect("a step");
@@ -40,17 +46,10 @@ fn run(settings: &[(&str, Value)], read: &[&str]) -> Vec<f64> {
     values
 }
 
+/// The method integrating after a step of 0.1 s.
 fn active_solver(settings: &[(&str, Value)]) -> i32 {
-    let name = CString::new("twins").expect("no NUL");
-    let mut fmu = Instance::new(Interface::CoSimulation, Version::Fmi2, name, None, false);
-    fmu.setup_experiment(None, 0.0, None).expect("a start");
-    for &(name, value) in settings {
-        fmu.set_values([(vr(name), value)].into_iter())
-            .expect("a set");
-    }
-    fmu.enter_initialization_mode().expect("initialisation");
-    fmu.exit_initialization_mode().expect("initialised");
-    fmu.do_step(0.0, 0.1).expect("a step");
+    let mut fmu = initialised(settings);
+    fmu.step_with_events(0.0, 0.1).expect("a step");
     let mut active = [0];
     fmu.get_integer(&[vr("active_solver")], &mut active)
         .expect("read");

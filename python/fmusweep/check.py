@@ -255,10 +255,7 @@ def names_missing(raw: dict[str, Any], description: dict[str, Any]) -> list[Spec
     errors = Collector()
 
     def entries(*path: str) -> dict[str, Any]:
-        found: object = raw
-        for key in path:
-            found = found.get(key) if isinstance(found, dict) else None
-        return found if isinstance(found, dict) else {}
+        return _table(raw, *path)
 
     for table, causalities, types in (("parameters", SETTABLE, VALUE_TYPES),
                                       ("inputs", ("input",), ("real",))):
@@ -300,10 +297,7 @@ def values_out_of_range(raw: dict[str, Any], description: dict[str, Any]) -> lis
                                            f"[{low:g}, {high:g}]"))
 
     def table(*path: str) -> dict[str, Any]:
-        found: object = raw
-        for key in path:
-            found = found.get(key) if isinstance(found, dict) else None
-        return found if isinstance(found, dict) else {}
+        return _table(raw, *path)
 
     for name, value in table("scenario", "parameters").items():
         check(f"scenario.parameters.{name}", name, value)
@@ -319,6 +313,14 @@ def values_out_of_range(raw: dict[str, Any], description: dict[str, Any]) -> lis
                 values = linspace[:2]
             check(f"design.parameters.{name}", name, values)
     return errors
+
+
+def _table(raw: dict[str, Any], *path: str) -> dict[str, Any]:
+    """The table at `path` in a spec as written; empty where there is none."""
+    found: object = raw
+    for key in path:
+        found = found.get(key) if isinstance(found, dict) else None
+    return found if isinstance(found, dict) else {}
 
 
 def _bound(text: object, default: float) -> float:
