@@ -244,8 +244,8 @@ def main(harness_json, fmu, out, quick):
     at_every_point = point_comparisons(rows, fmu_rows)
     floor = distance_from_floor(fmu_rows, harness.get("c_ns_per_rhs"))
 
-    machine = dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
-                   cpus=__import__("os").cpu_count(), python=platform.python_version())
+    from bench_sweep import built_from, host
+    machine = dict(host=host(), built_from=built_from(), python=platform.python_version())
     summary = dict(machine=machine, ns_per_rhs=harness["ns_per_rhs"], c_ns_per_rhs=harness.get("c_ns_per_rhs"),
                    proportionality=proportionality,
                    promise=promise, at_every_point=at_every_point, floor=floor,
@@ -382,7 +382,7 @@ def floor_lines(floor):
 
 
 def markdown(s):
-    lines = [f"Machine: {s['machine']['processor']}, {s['machine']['cpus']} cores, {s['machine']['platform']}; "
+    lines = [f"Machine: {s['machine']['host']}; {s['machine']['built_from']}; "
              f"one run of `cargo xtask bench`.", "",
              f"Right-hand side with its 2×2 solve: **{s['ns_per_rhs']:.1f} ns per evaluation**"
              + (f" (the bare C right-hand side of the compiled peers: {s['c_ns_per_rhs']:.1f} ns)."

@@ -334,7 +334,25 @@ def client_memory(fmu, per_axis):
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+def built_from():
+    """The commit the measured build comes from, marked when the working tree's sources
+    differ from it, so that a report says which code it measured."""
+    root = pathlib.Path(__file__).resolve().parent.parent
+    def git(*args):
+        done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True)
+        return done.stdout.strip() if done.returncode == 0 else ""
+    commit = git("rev-parse", "--short", "HEAD") or "unknown"
+    changed = git("status", "--porcelain", "--", "src", "integrators", "runner", "python",
+                  "bench", "examples", "Cargo.lock")
+    return f"commit {commit}" + (" with uncommitted changes" if changed else "")
+
+
 def machine():
+    """The machine and the build a report measured."""
+    return f"{host()}; {built_from()}"
+
+
+def host():
     cpu = "unknown"
     for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
         if line.startswith("model name"):

@@ -50,11 +50,11 @@ fn beyond_rounding(new: &Inputs, old: &Inputs) -> bool {
 }
 
 /// The work one master's call may make the integrators do, in right-hand sides: the bound
-/// that keeps any call, whatever its arguments, under about a second on the machines this
-/// project is tested on (Radau IIA's right-hand sides, with its Jacobians and
-/// factorisations, are the costliest; `no_step_runs_away` in the fuzzers times such calls).
-/// Counted, not timed, so that a call ends at the same point on every machine and under
-/// every load.
+/// that lets no call, whatever its arguments, run away; a call past it returns Discard.
+/// Radau IIA's right-hand sides, with its Jacobians and factorisations, are the costliest;
+/// the fuzzers time the longest call they make (`no_step_runs_away`, and the longest call
+/// in their reports under `target/test-reports/`). Counted, not timed, so that a call ends
+/// at the same point on every machine and under every load.
 pub const CALL_WORK: u64 = 2_000_000;
 
 /// What crossing a change point costs, counted against [`CALL_WORK`] as this many right-hand

@@ -3,7 +3,10 @@
 //! whatever else the machine runs). The C master of the platform tests runs paper case 1
 //! for 10 s at H = 1 ms reading ten Real outputs at every point; only the instructions
 //! inside fmi2DoStep and fmi2GetReal (and what they call) are counted, and divided by the
-//! number of points. The report goes to `docs/bench/instructions.md`.
+//! number of points. Each build is counted with no sensitivity slot set, and with two and
+//! with five slots carrying parameter sensitivities, so that what the slots cost, and that
+//! a run without them pays nothing, is measured. The report goes to
+//! `docs/bench/instructions.md`.
 
 use std::fs;
 use std::path::Path;
@@ -27,6 +30,38 @@ const OUTPUTS: [&str; 10] = [
 const STEP: f64 = 1e-3;
 const STOP: f64 = 10.0;
 const TOLERANCE: f64 = 1e-8;
+/// The slot sets counted: none, the worked fit's two parameters, and all five slots.
+const SLOT_SETS: [&[&str]; 3] = [&[], &["k34", "d34"], &["J1", "k12", "k34", "d12", "d34"]];
+
+/// The master's settings that put `parameters` into sensitivity slots 1, 2, …: each slot's
+/// Enumeration set to the item's value, read from the description.
+fn slot_settings(xml: &Path, parameters: &[&str]) -> Result<Vec<String>> {
+    let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
+    let items = text
+        .split("<SimpleType name=\"SensitivityParameter\">")
+        .nth(1)
+        .and_then(|rest| rest.split("</SimpleType>").next())
+        .ok_or_else(|| format!("{}: no SensitivityParameter type", xml.display()))?;
+    let description = crate::abi_tests::read_description(xml)?;
+    parameters
+        .iter()
+        .enumerate()
+        .map(|(i, name)| {
+            let value = items
+                .split(&format!("<Item name=\"{name}\" value=\""))
+                .nth(1)
+                .and_then(|rest| rest.split('"').next())
+                .ok_or_else(|| format!("{}: no sensitivity item {name}", xml.display()))?;
+            let slot = format!("sensitivity_{}.parameter", i + 1);
+            let vr = description
+                .variables
+                .get(&slot)
+                .map(|v| v.vr)
+                .ok_or_else(|| format!("no variable {slot} in {}", xml.display()))?;
+            Ok(format!("E:{vr}={value}"))
+        })
+        .collect()
+}
 
 /// The description's GUID and the value references of [`OUTPUTS`].
 fn references(xml: &Path) -> Result<(String, Vec<u32>)> {
@@ -45,7 +80,13 @@ fn references(xml: &Path) -> Result<(String, Vec<u32>)> {
 }
 
 /// Instructions counted inside the stepping and reading functions.
-fn count(master: &Path, library: &Path, guid: &str, refs: &[u32], dir: &Path) -> Result<u64> {
+fn count(
+    master: &Path,
+    library: &Path,
+    guid: &str,
+    (settings, refs): (&[String], &[u32]),
+    dir: &Path,
+) -> Result<u64> {
     let out = dir.join("callgrind.out");
     let mut command = Command::new("valgrind");
     command
@@ -60,6 +101,7 @@ fn count(master: &Path, library: &Path, guid: &str, refs: &[u32], dir: &Path) ->
         .arg(format!("{STEP}"))
         .arg(format!("{STOP}"))
         .arg(dir.join("points.txt"))
+        .args(settings)
         .arg("--")
         .args(refs.iter().map(|vr| format!("R:{vr}")));
     output_of(&mut command)?;
@@ -79,16 +121,25 @@ pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
     fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
     let (guid, refs) = references(&root().join("target/fmu/assets/modelDescription.xml"))?;
     let master = crate::abi_tests::build_native_master(&dir)?;
-    let total = count(&master, &packed.linux64, &guid, &refs, &dir)?;
+    let xml = root().join("target/fmu/assets/modelDescription.xml");
     let points = (STOP / STEP).round() as u64;
     let commit = build_label();
     let path = root().join("docs/bench/instructions.md");
-    let row = format!(
-        "| {} | {total} | {:.1} |",
-        commit.trim(),
-        total as f64 / points as f64
-    );
-    let report = with_row(&fs::read_to_string(&path).unwrap_or_default(), &row);
+    let mut report = fs::read_to_string(&path).unwrap_or_default();
+    for parameters in SLOT_SETS {
+        let settings = slot_settings(&xml, parameters)?;
+        let total = count(&master, &packed.linux64, &guid, (&settings, &refs), &dir)?;
+        let slots = match parameters {
+            [] => "none".to_string(),
+            names => names.join(", "),
+        };
+        let row = format!(
+            "| {} | {slots} | {total} | {:.1} |",
+            commit.trim(),
+            total as f64 / points as f64
+        );
+        report = with_row(&report, &row);
+    }
     fs::write(&path, &report).map_err(|e| format!("{}: {e}", path.display()))?;
     print!("{report}");
     Ok(())
@@ -118,21 +169,37 @@ fn build_label() -> String {
     format!("{}{modified}", commit.trim())
 }
 
-/// The report with `row` as its last row: the rows of other builds kept in their order, an
-/// earlier row of the same build replaced.
+/// The report with `row` as its last row: the rows of other builds and slot sets kept in
+/// their order, an earlier row of the same build and slots replaced. A row of the older
+/// three-column form (before slots were counted) is read as one without slots.
 fn with_row(previous: &str, row: &str) -> String {
-    let build = |line: &str| line.split('|').nth(1).map(str::trim).map(str::to_string);
-    let mut rows: Vec<&str> = data_rows(previous)
-        .filter(|l| build(l) != build(row))
+    let widened = |line: &str| {
+        let cells: Vec<&str> = line.split('|').map(str::trim).collect();
+        match cells.len() {
+            5 => format!("| {} | none | {} | {} |", cells[1], cells[2], cells[3]),
+            _ => line.to_string(),
+        }
+    };
+    let key = |line: &str| {
+        line.split('|')
+            .take(3)
+            .map(str::trim)
+            .collect::<Vec<_>>()
+            .join("|")
+    };
+    let mut rows: Vec<String> = data_rows(previous)
+        .map(widened)
+        .filter(|l| key(l) != key(row))
         .collect();
-    rows.push(row);
+    rows.push(row.to_string());
     format!(
         "# Instructions per communication point\n\n\
          Written by `cargo xtask instructions` (valgrind's callgrind; a count, the same on every \
          run of the same build), one row per build measured, the latest last. Paper case 1, \
          tolerance {TOLERANCE:e}, H = {STEP} s for {STOP} s ({} points), ten Real outputs read \
-         at each ({}); counted inside fmi2DoStep and fmi2GetReal only.\n\n\
-         | build | instructions | per point |\n| --- | --- | --- |\n{}\n",
+         at each ({}); counted inside fmi2DoStep and fmi2GetReal only. Slots: the parameters \
+         whose sensitivities the run carries (none before the slots existed).\n\n\
+         | build | slots | instructions | per point |\n| --- | --- | --- | --- |\n{}\n",
         (STOP / STEP).round(),
         OUTPUTS.join(", "),
         rows.join("\n")
@@ -152,10 +219,30 @@ mod tests {
 
     #[test]
     fn a_new_build_adds_a_row_and_the_same_build_replaces_its_own() {
-        let first = with_row("", "| abc | 100 | 0.0 |");
-        let second = with_row(&first, "| def | 200 | 0.0 |");
-        let again = with_row(&second, "| abc | 150 | 0.0 |");
+        let first = with_row("", "| abc | none | 100 | 0.0 |");
+        let second = with_row(&first, "| def | none | 200 | 0.0 |");
+        let slots = with_row(&second, "| def | k34 | 300 | 0.0 |");
+        let again = with_row(&slots, "| abc | none | 150 | 0.0 |");
         let rows: Vec<&str> = data_rows(&again).collect();
-        assert_eq!(rows, ["| def | 200 | 0.0 |", "| abc | 150 | 0.0 |"]);
+        assert_eq!(
+            rows,
+            [
+                "| def | none | 200 | 0.0 |",
+                "| def | k34 | 300 | 0.0 |",
+                "| abc | none | 150 | 0.0 |"
+            ]
+        );
+    }
+
+    #[test]
+    fn a_row_of_the_older_form_is_read_as_one_without_slots() {
+        let old =
+            "| build | instructions | per point |\n| --- | --- | --- |\n| xyz | 100 | 0.0 |\n";
+        let report = with_row(old, "| abc | none | 150 | 0.0 |");
+        let rows: Vec<&str> = data_rows(&report).collect();
+        assert_eq!(
+            rows,
+            ["| xyz | none | 100 | 0.0 |", "| abc | none | 150 | 0.0 |"]
+        );
     }
 }
