@@ -7,6 +7,7 @@
 //! crate: building that needs libclang, which this program installs first.
 
 mod abi_tests;
+mod accuracy;
 mod bench;
 mod builders;
 mod cli;
@@ -158,6 +159,13 @@ const JOBS: &[Job] = &[
         about: "the interactive reports in headless Chromium: size and time to open, into target/bench-report",
         flags: &[QUICK],
         run: sweep::job_bench_report,
+    },
+    Job {
+        name: "accuracy",
+        operands: &[],
+        about: "the accuracy figures the tests measure, with the commit and machine, into docs/bench/accuracy.md",
+        flags: &[],
+        run: accuracy::job,
     },
     Job {
         name: "instructions",
