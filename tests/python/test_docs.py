@@ -40,31 +40,136 @@ def test_every_relative_link_resolves():
     assert (ROOT / "docs/model.md").exists()
 
 
-NUMBER = re.compile(r"\d+(?:[.,\u2009\u202f ]\d+)*(?:e[-+]?\d+)?")
+NUMBER = re.compile(r"[-−+]?\d+(?:[,\u2009\u202f ]\d{3})*(?:\.\d+)?(?:e[-+]?\d+)?")
 
 
-def numbers(text):
-    """The numbers of `text`, digit groups joined (1 234.5 is 1234.5)."""
-    return {re.sub(r"[,\u2009\u202f ]", "", n) for n in NUMBER.findall(text)}
+def values(text):
+    """The numbers of `text` as printed (digit groups joined: 1 234.5 is 1234.5)."""
+    return [re.sub(r"[,\u2009\u202f ]", "", n).replace("−", "-") for n in NUMBER.findall(text)]
 
 
-def test_quoted_figures_match_their_reports():
+def printed_unit(number):
+    """Half of one unit in the last printed digit of `number`: how far a figure rounded to
+    that many digits may lie from the report's."""
+    mantissa, _, exponent = number.lower().partition("e")
+    decimals = len(mantissa.split(".", 1)[1]) if "." in mantissa else 0
+    return 0.5 * 10.0 ** (int(exponent or 0) - decimals)
+
+
+def agrees(quoted, printed):
+    """A quoted figure agrees with the report's when it is the report's, rounded to the
+    quote's printed precision (never more digits than the report prints)."""
+    if printed_unit(quoted) < printed_unit(printed):
+        return quoted == printed
+    return abs(float(quoted) - float(printed)) <= printed_unit(quoted) * (1 + 1e-9)
+
+
+QUOTE = re.compile(r"\[([^\]]*\d[^\]]*)\]\(([^)\s#]+)(?:#[^)\s]*)?(?:\s+\"([^\"]*)\")?\)")
+REPORTS = (ROOT / "docs/bench").resolve()
+
+
+def documents():
+    """README.md and docs/*.md: what a user reads (the reports themselves are written)."""
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def report_rows(report, label):
+    """The lines of `report` its quote's label names: a label is fragments joined by " · ",
+    each a whole cell of a table row or, in prose, a part of the line."""
+    fragments = [f.strip() for f in label.split(" · ")]
+    def names(line):
+        if line.startswith("|"):
+            cells = [c.strip() for c in line.strip().strip("|").split("|")]
+            return all(f in cells for f in fragments)
+        return all(f in line for f in fragments)
+    return [line for line in report.read_text().splitlines() if names(line)]
+
+
+def quotes():
+    """Every quote of a report: (document, line, figures' text, report, label)."""
+    for doc in documents():
+        for i, line in enumerate(doc.read_text().splitlines(), 1):
+            for text, target, label in QUOTE.findall(line):
+                report = (doc.parent / target).resolve()
+                if report.parent == REPORTS and report.suffix == ".md":
+                    yield doc.relative_to(ROOT), i, text, report, label
+
+
+def test_quoted_figures_match_their_report_rows():
     """A document quotes a measured figure as a link to the report a command wrote, the
-    figure as the link's text: every number in that text must be in the report."""
-    quote = re.compile(r"\[([^\]]*\d[^\]]*)\]\(([^)#\s]+)\)")
-    reports = (ROOT / "docs/bench").resolve()
+    figure as the link's text and, as its title, the label of the row it comes from: the
+    label names exactly one row, and every number of the quote is that row's, to the
+    quote's printed precision."""
     checked, wrong = 0, []
-    for doc in (p for p in tracked() if p.suffix == ".md"):
-        for text, target in quote.findall(doc.read_text()):
-            report = (doc.parent / target).resolve()
-            if report.parent != reports:
-                continue
-            checked += 1
-            missing = numbers(text) - numbers(report.read_text())
-            if missing:
-                wrong.append(f"{doc.relative_to(ROOT)}: [{text}] not in {target}: {sorted(missing)}")
-    assert checked > 0, "no figure is quoted from a report"
+    for doc, i, text, report, label in quotes():
+        checked += 1
+        where = f"{doc}:{i}: [{text}]({report.name})"
+        if not label:
+            wrong.append(f"{where}: no label (the link's title) names the report's row")
+            continue
+        rows = report_rows(report, label)
+        if len(rows) != 1:
+            wrong.append(f"{where}: \"{label}\" names {len(rows)} rows of {report.name}, not one")
+            continue
+        row = values(rows[0])
+        missing = [v for v in values(text) if not any(agrees(v, r) for r in row)]
+        if missing:
+            wrong.append(f"{where}: {missing} not in the row \"{rows[0].strip()}\"")
+    assert checked > 20, f"only {checked} figures are quoted from reports"
     assert not wrong, "\n".join(wrong)
+
+
+MEASURED = re.compile(
+    r"(?<![\w.])(?:\d\.\d+e[-+]?\d+"
+    r"|\d+(?:[,\u2009\u202f ]\d{3})*(?:\.\d+)?\s?(?:%|×|ns\b|µs\b|ms\b|s\b|MiB\b|MB\b|KiB\b|kB\b"
+    r"|bytes\b|instructions\b|points/s\b|evaluations\b))")
+
+# Numbers with the look of a measurement that are not one, with the reason.
+NOT_MEASURED = {
+    "95 %": "the intervals' confidence level",
+}
+
+
+def significant(number):
+    digits = re.sub(r"e.*", "", number.lower())
+    return len(re.sub(r"\D", "", digits).strip("0"))
+
+
+def test_no_measured_figure_is_stated_without_its_report():
+    """A number with the look of a measurement (two or more significant digits with a unit
+    of time, size, share or ratio, or a mantissa with decimals) in README.md or docs/*.md
+    must be a quote of a report row (above) or be named in NOT_MEASURED with why; settings
+    and targets are round (1e-8, 10 s, 50 %) and pass. Code blocks and inline code are
+    commands and code, not statements of a measurement."""
+    unlinked = []
+    for doc in documents():
+        fenced = False
+        for i, line in enumerate(doc.read_text().splitlines(), 1):
+            if line.lstrip().startswith("```"):
+                fenced = not fenced
+                continue
+            if fenced:
+                continue
+            prose = QUOTE.sub(lambda m: " " if (doc.parent / m.group(2)).resolve().parent == REPORTS else m.group(0), line)
+            prose = re.sub(r"`[^`]*`|\]\([^)]*\)", " ", prose)
+            for phrase in NOT_MEASURED:
+                prose = prose.replace(phrase, " ")
+            for match in MEASURED.finditer(prose):
+                if significant(match.group(0)) >= 2:
+                    unlinked.append(f"{doc.relative_to(ROOT)}:{i}: {match.group(0)}")
+    assert not unlinked, (f"{len(unlinked)} measured-looking figures quote no report row:\n"
+                          + "\n".join(unlinked))
+
+
+def test_the_figure_checks_catch_a_wrong_figure():
+    """The checks above can fail: a figure off in its last printed digit, a label naming
+    two rows, and an unlinked measurement are each caught."""
+    assert agrees("5.1e-10", "5.08e-10") and agrees("47", "47.3") and agrees("82.5", "82.5")
+    assert not agrees("5.2e-10", "5.08e-10") and not agrees("48", "47.3")
+    assert not agrees("5.08e-10", "5.1e-10")  # more digits than the report prints
+    assert values("2 159 545 calls, 1,096 and −1.5e-3") == ["2159545", "1096", "-1.5e-3"]
+    assert [m.group(0) for m in MEASURED.finditer("took 27.3 ns, 47×, 1e-8 and 10 s; 5.1e-10")] == [
+        "27.3 ns", "47×", "10 s", "5.1e-10"]
 
 
 def test_the_readme_fmpy_example_prints_what_it_says(fmu_path):
