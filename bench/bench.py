@@ -398,10 +398,10 @@ def markdown(s):
                      f"{fmt_ratio(c['crate_ratio'], c['crate_method'])} |")
     lines += ["", "By communication step (ratios at equal or better error; the targets were ≥ 300× scipy and ≥ 3× "
               "the Rust crates):", "",
-              "| H (s) | vs fastest scipy | vs fastest Rust crate | ≥ 300× scipy | ≥ 3× the crates |",
+              "| H | vs fastest scipy | vs fastest Rust crate | ≥ 300× scipy | ≥ 3× the crates |",
               "| --- | --- | --- | --- | --- |"]
     for row in by_step(s["comparisons"]):
-        lines.append("| {H:g} | {scipy} | {crate} | {scipy_met} | {crate_met} |".format(**row))
+        lines.append("| H = {H:g} s | {scipy} | {crate} | {scipy_met} | {crate_met} |".format(**row))
     if s["promise"]["table"]:
         lines += ["", "The tolerance at every communication point: the FMU's worst error over all points and states, "
                   "in units of tol and of each state's scale max(1, max |y|) (promise: ≤ 10 for tol 1e-3…1e-10; "
