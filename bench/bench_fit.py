@@ -217,6 +217,7 @@ def report(r) -> str:
         lines.append(f"| {label} | {1000 * sweep['run_s']:.1f} | {starts} | {engine} | "
                      f"{row['evaluations']} | {row['wall_s']:.2f} | {row['solving_rate']:,.0f} | "
                      f"{sweep['after_startup']:,.0f} | {row['solving_rate'] / sweep['after_startup']:.2f} |")
+    lines += _summary_lines(r["speed"])
     lines += ["", f"A round trip through Dask (a no-op task on a 1-worker LocalCluster, submitted "
               f"and its result awaited): {1000 * r['round_trip_s']:.1f} ms.", "",
               "Speed-up of a fit from 1 to 2 workers (wall time):", ""]
@@ -244,6 +245,33 @@ def report(r) -> str:
               f"the errors' spread in standard errors: {c['z_std']:.2f}.", ""]
     lines += _two_experiments_report(r["two_experiments"]) + _profile_report(r["profile_coverage"])
     return "\n".join(lines)
+
+
+def _summary_lines(speed: dict) -> list[str]:
+    """The table's ranges the documents quote: the serial fit against the sweep for costly
+    and for cheap runs, and a fit's wall time for cheap runs serially and on 2 workers."""
+    def rows(engine, costly):
+        for key, row in speed.items():
+            label, starts, kind = key.split(" | ")
+            if starts == "sweep" or kind != engine:
+                continue
+            sweep = speed[f"{label} | sweep | {engine}"]
+            if (sweep["run_s"] >= 0.01) == costly:
+                yield row, sweep
+
+    def span(values, digits):
+        values = list(values)
+        return f"{min(values):.{digits}f}–{max(values):.{digits}f}" if values else "—"
+
+    return ["",
+            "Serially, fit / sweep for runs of 10 ms or more: "
+            f"{span((r['solving_rate'] / s['after_startup'] for r, s in rows('serial', True)), 2)}; "
+            "for runs under 10 ms: "
+            f"{span((r['solving_rate'] / s['after_startup'] for r, s in rows('serial', False)), 2)}.",
+            "",
+            "A fit's wall time for runs under 10 ms: serially "
+            f"{span((r['wall_s'] for r, _ in rows('serial', False)), 2)} s, on 2 workers "
+            f"{span((r['wall_s'] for r, _ in rows('2 workers', False)), 2)} s."]
 
 
 def _two_experiments_report(t: dict) -> list[str]:
