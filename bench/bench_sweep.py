@@ -430,7 +430,8 @@ def report(r) -> str:
         at = m["rss_kib"]
         for name, growth in m["growth"].items():
             a, b, c = (at[k][name] / 1024 for k in ("0.1", "0.5", "1.0"))
-            lines.append(f"| {name} | {a:.0f} | {b:.0f} | {c:.0f} | {growth:+.1%} |")
+            what = "series" if m["series"] else "metrics"
+            lines.append(f"| {name}, {what} | {a:.0f} | {b:.0f} | {c:.0f} | {growth:+.1%} |")
     if r.get("client_memory"):
         lines += ["", "The client's memory against the sweep's size (metrics only; 1 s runs, 2 "
                   "workers; a process of its own; the LocalCluster's scheduler runs in it, its "
