@@ -19,7 +19,7 @@ def shown(value):
     if isinstance(value, bool) or isinstance(value, int):
         return str(value)
     if isinstance(value, float):
-        return f"{value:.3g}"
+        return f"{value:#.3g}"
     if isinstance(value, list):
         return " / ".join(shown(v) for v in value)
     return str(value)

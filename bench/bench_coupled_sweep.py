@@ -302,7 +302,7 @@ def steps_versus(curve, run) -> str:
     return f"{steps:.0f} ({steps / run['accepted']:.2f}×)" if steps else "–"
 
 
-def tolerance_report(title, s) -> list[str]:
+def tolerance_report(title, name, s) -> list[str]:
     fixed = s["fixed"]
     lines = [f"## A coupling tolerance: {title}", "",
              f"The native engine with 2 input derivatives and `coupling_tolerance`, on an output "
@@ -321,19 +321,19 @@ def tolerance_report(title, s) -> list[str]:
              "fixed steps, FMUs at the same tolerance: points/s | speed-up |",
              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
     for run in s["tolerances"]:
-        lines.append(f"| {run['tolerance']:g} | {run['error']:.2e} | {run['error'] / run['tolerance']:.2f} "
+        lines.append(f"| {name}, {run['tolerance']:g} | {run['error']:.2e} | {run['error'] / run['tolerance']:.2f} "
                      f"| {run['rate']:.0f} | {run['accepted']}, {run['rejected']} "
                      f"({run['rejected'] / (run['accepted'] + run['rejected']):.1%}) | "
                      f"{run['min_step']:.2e} s | {steps_versus(fixed, run)} | {versus(fixed, run)} | "
                      f"{versus(run['fixed_same_tolerance'], run)} |")
-    lines += ["", f"Fixed steps, native engine, 2 input derivatives, FMUs at {FMU_TOLERANCE:g}: " + ", ".join(
+    lines += ["", f"Fixed steps, {name}, native engine, 2 input derivatives, FMUs at {FMU_TOLERANCE:g}: " + ", ".join(
         f"{h * 1000:g} ms: {e:.2e} at {rate:.0f} points/s" for h, e, rate in fixed) + "."]
     if s.get("held"):
-        lines += ["", "Fixed steps holding inputs (0 input derivatives): " + ", ".join(
+        lines += ["", f"Fixed steps holding inputs, {name} (0 input derivatives): " + ", ".join(
             f"{h * 1000:g} ms: {e:.2e}" for h, e in s["held"]) + "."]
     w = s["windows"]
     worst = w["worst"]
-    lines += ["", f"Where the error is made: at fixed {w['step'] * 1000:g} ms steps, the worst "
+    lines += ["", f"Where the error is made, {name}: at fixed {w['step'] * 1000:g} ms steps, the worst "
                   f"scaled error in each {w['window']:g} s of the 2 s lies between {min(worst):.2e} "
                   f"and {max(worst):.2e} (the largest {max(worst) / min(worst):.1f}× the smallest): "
                   + ", ".join(f"{e:.1e}" for e in worst) + ".", ""]
@@ -400,7 +400,7 @@ def report(r) -> str:
     lines += ["", "![points/s against coupling error](coupled_sweep_curves.png)", ""]
     for system in (MOTOR, FLYWHEEL):
         if system.name in r.get("systems", {}):
-            lines += tolerance_report(system.title, r["systems"][system.name])
+            lines += tolerance_report(system.title, system.name, r["systems"][system.name])
     if r.get("fmu_tolerances"):
         lines += fmu_tolerance_report(r["fmu_tolerances"])
     return "\n".join(lines)
