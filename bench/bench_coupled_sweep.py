@@ -396,7 +396,7 @@ def report(r) -> str:
               "| engine | " + " | ".join(f"error {t:g}" for t in r["targets"]) + " |",
               "| --- | " + " | ".join("---" for _ in r["targets"]) + " |"]
     for n in names:
-        lines.append(f"| {n} | " + " | ".join(rate_at_error(curves[n], t) for t in r["targets"]) + " |")
+        lines.append(f"| {n}, at equal error | " + " | ".join(rate_at_error(curves[n], t) for t in r["targets"]) + " |")
     lines += ["", "![points/s against coupling error](coupled_sweep_curves.png)", ""]
     for system in (MOTOR, FLYWHEEL):
         if system.name in r.get("systems", {}):
