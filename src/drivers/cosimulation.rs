@@ -256,6 +256,14 @@ impl CoSimulation {
         self.go_on_crossing(plant, target)
     }
 
+    /// Why the run's sensitivities ended (a change point crossed with slots set), where
+    /// they did: no step goes on without them.
+    pub fn sensitivities_ended(&self) -> Option<&str> {
+        self.sensitivities
+            .as_ref()
+            .and_then(|tracker| tracker.ended())
+    }
+
     /// Whether a crossing is under way: the plant stands on its path.
     pub fn crossing_in_flight(&self) -> bool {
         self.in_flight.is_some()

@@ -210,6 +210,14 @@ impl Stepper<'_> {
         if let SolverError::WorkLimit { t } = error {
             return Err(Refusal::OutOfWork(t));
         }
+        // A run whose sensitivities ended fails on them, wherever it stands: not a change
+        // point to locate (it may stand just past the one it crossed).
+        if let Some(reason) = self.driver.sensitivities_ended() {
+            return Err(Refusal::Refused(format!(
+                "the step to t = {} cannot go on: {reason}",
+                number(target)
+            )));
+        }
         let start = self.plant.time();
         let located = match self.locate_change_point(target, &error) {
             Located::NotAChangePoint => {

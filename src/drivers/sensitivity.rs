@@ -320,6 +320,11 @@ impl Tracker {
         self.width.advance(plant, &step, &self.slots)
     }
 
+    /// Why the run has no sensitivities any more, where it has none.
+    pub fn ended(&self) -> Option<&str> {
+        self.broken.as_deref()
+    }
+
     /// A change point was crossed at `t`: from there on the run has no sensitivities.
     pub fn break_at_change_point(&mut self, t: f64) {
         self.broken.get_or_insert_with(|| {

@@ -9,7 +9,7 @@ import fmpy
 import numpy as np
 import pytest
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi3 import FMU3Model, FMU3Slave
+from fmpy.fmi3 import FMU3Model, FMU3Slave, fmi3Discard
 from fmpy.validation import validate_fmu
 
 import reference
@@ -100,7 +100,7 @@ def test_model_exchange_with_cvode_matches_the_reference(fmu3_path, case, refere
 class Slave:
     """A low-level FMI 3.0 Co-Simulation instance with its log."""
 
-    def __init__(self, unzipped3, md, event_mode, early_return, **values):
+    def __init__(self, unzipped3, md, event_mode, early_return, enumerations=None, **values):
         self.messages = []
         self.vr = {v.name: v.valueReference for v in md.modelVariables}
         self.fmu = FMU3Slave(guid=md.instantiationToken, unzipDirectory=unzipped3,
@@ -114,6 +114,8 @@ class Slave:
         reals = {k: v for k, v in values.items() if not isinstance(v, bool)}
         self.fmu.setBoolean([self.vr[k] for k in booleans], list(booleans.values()))
         self.fmu.setFloat64([self.vr[k] for k in reals], list(reals.values()))
+        enumerations = enumerations or {}
+        self.fmu.setInt64([self.vr[k] for k in enumerations], list(enumerations.values()))
         self.fmu.enterInitializationMode(tolerance=1e-10, startTime=0.0, stopTime=10.0)
         self.fmu.exitInitializationMode()
         if event_mode:
@@ -177,6 +179,36 @@ def test_change_point_returns_early_and_goes_on_on_the_chosen_branch(unzipped3,
     report["fmi3_change_point_events_straight"] = len(events)
     straight.free()
     turned.free()
+
+
+def test_sensitivities_end_at_a_change_point_with_the_reason(unzipped3, model_description3):
+    """The branch a change-point linkage takes is a choice, not a differentiable function of
+    the parameters: the step that would carry a slot's sensitivities across the change point
+    fails, naming it, and leaves the FMU as it was (a Discard); up to it the run and its
+    sensitivities go on."""
+    items = next(t for t in model_description3.typeDefinitions if t.name == "SensitivityParameter").items
+    k34 = next(int(i.value) for i in items if i.name == "k34")
+    slave = Slave(unzipped3, model_description3, True, True,
+                  enumerations={"sensitivity_1.parameter": k34}, **CHANGE_POINT)
+    t = 0.0
+    while True:
+        event, _, early, last = slave.fmu.doStep(t, 1e-3)
+        if early:
+            break
+        t += 1e-3
+    assert event and last > 0
+    before = slave.get(*STATES, "sensitivity_1.phi3")
+    assert np.all(np.isfinite(before)) and before[-1] != 0.0
+    slave.fmu.enterEventMode()
+    slave.fmu.updateDiscreteStates()
+    slave.fmu.enterStepMode()
+    with pytest.raises(FMICallException) as refused:
+        slave.fmu.doStep(last, 1e-3)
+    assert refused.value.status == fmi3Discard
+    reason = [m for m in slave.messages if "sensitivities end at the change point" in m]
+    assert reason and "not a differentiable function of the parameters" in reason[-1], slave.messages[-3:]
+    assert slave.get(*STATES, "sensitivity_1.phi3") == before
+    slave.free()
 
 
 def test_the_branch_taken_is_the_tangent_chosen(unzipped3, model_description3):
