@@ -55,8 +55,12 @@ class Results:
 
     def analyse(self, design: Design) -> None:
         """The sensitivity indices of a sobol or morris design, into sensitivity.json."""
-        from .sensitivity import analyse
+        from .sensitivity import analyse, has_indices
         from .store import atomic_write_text
+        if not has_indices(design):
+            # Nothing to read: a grid of 10⁶ points is not loaded for no index.
+            self.sensitivity = {}
+            return
         seed = self.meta.get("seed") or 0
         self.sensitivity = analyse(design, self.points, self.meta["metrics"], seed)
         if self.sensitivity:

@@ -38,11 +38,16 @@ def morris_effects(problem: dict[str, Any], rows: npt.ArrayLike, values: npt.Arr
             **{k: np.asarray(result[k], dtype=float).tolist() for k in keys}}
 
 
+def has_indices(design: Design) -> bool:
+    """Whether the design is one whose points give sensitivity indices."""
+    return design.kind in ("sobol", "morris")
+
+
 def analyse(design: Design, points: pd.DataFrame, metric_names: list[str],
             seed: int) -> dict[str, Any]:
     """Indices for every metric of a sobol or morris design; a metric with failed points
     gets a note instead (the estimators need every point of the design)."""
-    if design.kind not in ("sobol", "morris"):
+    if not has_indices(design):
         return {}
     found: dict[str, Any] = {}
     for name in metric_names:

@@ -34,6 +34,16 @@ def test_a_grid_runs_and_a_point_that_cannot_assemble_is_a_row(fmu_path, tmp_pat
     assert again.points.drop(columns=["wall_s", "worker"]).equals(p.drop(columns=["wall_s", "worker"]))
 
 
+def test_a_grid_without_plots_leaves_its_points_on_disk(fmu_path, tmp_path):
+    """The client holds no point of a sweep it need not read: a grid has no indices to
+    compute, so without plots its points stay in points.parquet until asked for (what
+    keeps the client's memory flat over 10⁶ points)."""
+    results = run_sweep(grid_spec(), fmu=fmu_path, out=tmp_path / "out", serial=True,
+                        progress=False, plots=False)
+    assert results._points is None and results.sensitivity == {}
+    assert len(results.points) == 12
+
+
 def test_a_boolean_parameter_is_fixed_by_true_or_false_and_swept_by_0_or_1(fmu_path, tmp_path):
     """builtin_laws off leaves the mechanism without torque: at rest it stays at rest."""
     metrics = {"omega1": {"variable": "omega1", "kind": "final"},
