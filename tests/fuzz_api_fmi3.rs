@@ -10,6 +10,7 @@
 //! memcheck by `cargo xtask test` (without the steps that spend a whole call's work).
 
 use std::cell::RefCell;
+use std::f64::consts::PI;
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::ptr::{null, null_mut};
 use std::time::{Duration, Instant};
@@ -1045,14 +1046,18 @@ fn special_change_point_linkages_return_early_at_each_change_point() {
     ] {
         let log = Log::boxed(true);
         let c = unsafe { started(true, true, &parameters, &log) };
-        let (mut t, mut events) = (0.0, 0);
+        // Steps of 10 ms, so that the crank's angle is seen often enough to count, apart
+        // from the FMU's events, each passage of the crank through the frame's line (φ2 a
+        // multiple of π), where crank, rod and rocker of these linkages fall collinear.
+        let (mut t, mut events, mut passages) = (0.0, 0, 0);
+        let mut half_turns = unsafe { (states(c)[1] / PI).floor() };
         while t < 5.0 && events < 100 {
             let (mut event, mut stop, mut early, mut last) = (false, false, false, f64::NAN);
             let status = unsafe {
                 fmi3DoStep(
                     c,
                     t,
-                    5.0 - t,
+                    (5.0 - t).min(0.01),
                     true,
                     &mut event,
                     &mut stop,
@@ -1068,10 +1073,17 @@ fn special_change_point_linkages_return_early_at_each_change_point() {
                 events += 1;
                 unsafe { handle_event(c) };
             }
+            let now = unsafe { (states(c)[1] / PI).floor() };
+            passages += (now - half_turns).abs() as usize;
+            half_turns = now;
         }
-        eprintln!("{name}: {events} change points to t = 5");
+        eprintln!("{name}: {events} change points, {passages} passages to t = 5");
         assert_eq!(t, 5.0, "{name}");
         assert!(events > 0, "{name}: no change point met");
+        assert_eq!(
+            events, passages,
+            "{name}: a change point without its event, or one twice"
+        );
         unsafe { fmi3FreeInstance(c) };
     }
 }

@@ -83,8 +83,9 @@ def test_intervals_cover_the_truth_about_95_percent_of_the_time(fmu_path, truth_
             assert abs(z[-1]) < 4.5, (seed, name, p)
     coverage = inside / 40
     report["fit_coverage_95"] = coverage
-    assert 34 / 40 <= coverage <= 1.0
-    # The errors scale with the intervals: their spread is near 1 standard error.
+    assert inside >= 34, f"{inside} of 40 intervals hold the truth"
+    # Nor are the intervals too wide (which would hold the truth every time): the errors
+    # scale with the intervals, their spread near 1 standard error.
     assert 0.6 < float(np.std(z)) < 1.5
 
 

@@ -308,7 +308,9 @@ def test_solver_statistics_and_choice(fmu):
     for k in range(100):
         fmu.slave.doStep(k * 1e-2, 1e-2)
     n_steps, n_rejected, n_rhs = fmu.slave.getInteger([steps, rejected, rhs])
-    assert n_steps > 10 and n_rejected >= 0
+    # Paper case 1 rejects a few steps in its first second (the motor's run-up): they are
+    # counted, and stay rare under the stabilised step-size control.
+    assert n_steps > 10 and 0 < n_rejected < n_steps / 10, (n_steps, n_rejected)
     assert n_rhs >= 12 * n_steps  # twelve stages a step, plus the first and dense stages
     assert "fixed parameter" in fmu.expect(ERROR, fmu.slave.setInteger, [solver], [1])
 

@@ -25,6 +25,14 @@ def paper_runs(unzipped):
     return runs
 
 
+# What this build measured (docs/bench/accuracy.md quotes the runs of `cargo xtask
+# accuracy`): each figure below is held to HELD_MARGIN times it, so that a regression shows
+# long before the promises (1e-6, 1e-12 m, 1e-8) are broken, and a document quoting the
+# report cannot fall far from what the tests see.
+HELD_MARGIN = 4
+MEASURED = {"case1": 5.13e-10, "case2": 1.24e-9, "residual_m": 6.22e-16, "free_run_drift": 1.93e-10}
+
+
 @pytest.mark.parametrize("case", ["case1", "case2"])
 def test_paper_case_matches_independent_reference(paper_runs, case, report):
     fmu, expected = paper_runs[case]
@@ -32,7 +40,7 @@ def test_paper_case_matches_independent_reference(paper_runs, case, report):
     error = np.abs(states(fmu) - expected)
     report[f"{case}_max_error_rad_or_rad_per_s"] = float(error.max())
     report[f"{case}_final_error"] = float(error[-1].max())
-    assert error.max() < 1e-6, f"{case}: max deviation {error.max():.3e}"
+    assert error.max() < HELD_MARGIN * MEASURED[case], f"{case}: max deviation {error.max():.3e}"
     # The run is not trivial: the motor spins up to about 4.1 rad/s (docs/model.md §4).
     assert 4.0 < fmu["omega1"][-1] < 4.3
 
@@ -48,7 +56,7 @@ def test_constraint_residual_at_every_communication_point(paper_runs, case, repo
     fmu, _ = paper_runs[case]
     worst = float(np.max(np.abs(fmu["constraint_residual"])))
     report[f"{case}_max_constraint_residual_m"] = worst
-    assert worst < 1e-12
+    assert worst < HELD_MARGIN * MEASURED["residual_m"]
 
 
 def test_rod_force_against_reference_multiplier(paper_runs):
@@ -78,10 +86,10 @@ def test_free_undamped_run_conserves_energy(unzipped, report):
     assert abs(energy[0] - e0) < 1e-12 * e0
     drift = float(np.max(np.abs(energy - e0)) / e0)
     report["free_run_100s_relative_energy_drift"] = drift
-    assert drift < 1e-8
+    assert drift < HELD_MARGIN * MEASURED["free_run_drift"]
     residual = float(np.max(np.abs(result["constraint_residual"])))
     report["free_run_100s_max_constraint_residual_m"] = residual
-    assert residual < 1e-12
+    assert residual < HELD_MARGIN * MEASURED["residual_m"]
     # Energy moves between the springs and the bodies: the run is not at rest.
     assert np.ptp(result["omega1"]) > 1.0
 

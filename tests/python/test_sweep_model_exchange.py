@@ -59,15 +59,24 @@ def reference(fmu_path, tmp_path_factory):
     return _states(fmu_path, tmp_path_factory.mktemp("ref") / "out", 1e-12, "co_simulation")[1]
 
 
-@pytest.mark.parametrize("tolerance,integrator", [(1e-6, None), (1e-8, None), (1e-8, "radau5")])
-def test_this_fmus_model_exchange_keeps_the_tolerance_at_every_point(fmu_path, tmp_path, reference,
-                                                                      tolerance, integrator):
+# The worst scaled error at every point of this grid that the runner's integration of this
+# FMU's Model Exchange measured: DOP853 about four and two times the tolerance, Radau IIA far
+# inside it.
+MEASURED = {(1e-6, None): 4.08e-6, (1e-8, None): 2.00e-8, (1e-8, "radau5"): 1.75e-10}
+
+
+@pytest.mark.parametrize("tolerance,integrator", list(MEASURED))
+def test_this_fmus_model_exchange_holds_its_measured_error_at_every_point(fmu_path, tmp_path, reference,
+                                                                         tolerance, integrator):
+    """Within the promise (10 × tol at every point, as the Co-Simulation keeps it) and, so
+    that a regression shows long before that, within half as much again as measured."""
     points, mine = _states(fmu_path, tmp_path / "me", tolerance, "model_exchange", integrator)
     assert (points["status"] == "ok").sum() == 8 and (points["status"] == "error").sum() == 4
     assert len(mine) == len(reference) > 8 * 8 * 500
     assert (mine[["point", "variable", "time"]] == reference[["point", "variable", "time"]]).all().all()
     scaled = (mine["value"] - reference["value"]).abs() / (1 + reference["value"].abs())
     assert scaled.max() <= 10 * tolerance, scaled.max()
+    assert scaled.max() <= 1.5 * MEASURED[tolerance, integrator], scaled.max()
     assert scaled.max() > 0  # a different integration, not a copy of the co-simulation
 
 

@@ -57,12 +57,21 @@ def time_moves_on(b, beyond, timeout=10):
     return b.wait_for(f"{SNAPSHOT}.t > {beyond} && {SNAPSHOT}", timeout)
 
 
+# The page's clock and its simulated time, read together.
+CLOCK = f"(function(){{ const s = {SNAPSHOT}; s.wall = performance.now() / 1000; return s; }})()"
+
+
 def test_the_linkage_moves_in_real_time(browser):
     first = canvas_pixels(browser)
-    before = browser.evaluate(SNAPSHOT)
-    time.sleep(0.5)
+    before = browser.evaluate(CLOCK)
+    time.sleep(1.0)
     second = canvas_pixels(browser)
-    after = browser.evaluate(SNAPSHOT)
+    after = browser.evaluate(CLOCK)
+    # Simulated time follows the page's wall clock: never ahead of it by more than the one
+    # frame the page may step ahead (0.1 s), and, on a page this cheap, not far behind it.
+    simulated, wall = after["t"] - before["t"], after["wall"] - before["wall"]
+    assert simulated <= wall + 0.1 + 1 / 200, (simulated, wall)
+    assert simulated >= 0.5 * wall, (simulated, wall)
     changed = np.any(first != second, axis=2)
     assert changed.sum() > 200, "the linkage was drawn in the same place twice"
     # The pixels that changed lie where the linkage is: around the crank and the rocker,
