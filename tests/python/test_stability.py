@@ -42,17 +42,19 @@ def run_case1(steps, tolerance=1e-10):
     return run
 
 
-def test_one_100_s_step_equals_a_thousand_steps(unzipped, model_description):
+def test_one_100_s_step_equals_a_thousand_steps(unzipped, model_description, report):
     t_long, one = run_case1([(100.0, 1)])(unzipped, model_description)
     t_many, many = run_case1([(0.1, 1000)])(unzipped, model_description)
     assert t_long == 100.0 and abs(t_many - 100.0) < 1e-9
+    report["one_100s_step_vs_1000_steps_max_difference"] = float(np.max(np.abs(one - many)))
     assert np.max(np.abs(one - many)) < 1e-8
 
 
-def test_nanosecond_steps_then_a_long_one(unzipped, model_description):
+def test_nanosecond_steps_then_a_long_one(unzipped, model_description, report):
     t, tiny = run_case1([(1e-9, 1000), (1.0 - 1e-6, 1)])(unzipped, model_description)
     _, plain = run_case1([(1.0, 1)])(unzipped, model_description)
     assert abs(t - 1.0) < 1e-12
+    report["nanosecond_steps_then_one_vs_one_step_max_difference"] = float(np.max(np.abs(tiny - plain)))
     assert np.max(np.abs(tiny - plain)) < 1e-8
 
 

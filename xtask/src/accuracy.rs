@@ -9,7 +9,7 @@ use crate::setup::{root, run};
 use crate::{builders, fmu, Result};
 
 /// The test files whose figures the report holds.
-const MEASURING: [&str; 10] = [
+const MEASURING: [&str; 11] = [
     "test_physics.py",
     "test_stability.py",
     "test_stiff.py",
@@ -20,6 +20,7 @@ const MEASURING: [&str; 10] = [
     "test_fmi3.py",
     "test_coupling.py",
     "test_sensitivities.py",
+    "test_libcosim.py",
 ];
 
 pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
