@@ -28,7 +28,7 @@ def test_nothing_points_outside_the_repository():
 
 
 def test_every_relative_link_resolves():
-    link = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
+    link = re.compile(r"\]\(([^)#\s]+)(?:#[^)\s]*)?(?:\s+\"[^\"]*\")?\)")
     broken = []
     for doc in (p for p in tracked() if p.suffix == ".md"):
         for target in link.findall(doc.read_text()):
@@ -75,14 +75,14 @@ def documents():
 
 def report_rows(report, label):
     """The lines of `report` its quote's label names: a label is fragments joined by " · ",
-    each a whole cell of a table row or, in prose, a part of the line."""
+    each a whole cell of a table row or, where no row has them all, a part of a line of
+    prose."""
     fragments = [f.strip() for f in label.split(" · ")]
-    def names(line):
-        if line.startswith("|"):
-            cells = [c.strip() for c in line.strip().strip("|").split("|")]
-            return all(f in cells for f in fragments)
-        return all(f in line for f in fragments)
-    return [line for line in report.read_text().splitlines() if names(line)]
+    lines = report.read_text().splitlines()
+    rows = [line for line in lines if line.startswith("|")
+            and all(f in [c.strip() for c in line.strip().strip("|").split("|")] for f in fragments)]
+    return rows or [line for line in lines if not line.startswith("|")
+                    and all(f in line for f in fragments)]
 
 
 def quotes():
@@ -104,6 +104,9 @@ def test_quoted_figures_match_their_report_rows():
     for doc, i, text, report, label in quotes():
         checked += 1
         where = f"{doc}:{i}: [{text}]({report.name})"
+        if not report.exists():
+            wrong.append(f"{where}: no such report")
+            continue
         if not label:
             wrong.append(f"{where}: no label (the link's title) names the report's row")
             continue
@@ -119,14 +122,30 @@ def test_quoted_figures_match_their_report_rows():
     assert not wrong, "\n".join(wrong)
 
 
+def test_every_quoted_report_names_the_commit_and_machine_it_measured():
+    """A figure is worth what its provenance is: each report a document quotes says the
+    machine and the commit of the build it measured (instructions.md, a row per build)."""
+    quoted = {report for _, _, _, report, _ in quotes() if report.exists()}
+    assert quoted
+    unnamed = [r.name for r in sorted(quoted)
+               if not (re.search(r"^Machine: .*commit [0-9a-f]{7}", r.read_text(), re.M)
+                       or re.search(r"^\| [0-9a-f]{7} \|", r.read_text(), re.M))]
+    assert not unnamed, f"reports that do not say what they measured: {unnamed}"
+
+
 MEASURED = re.compile(
-    r"(?<![\w.])(?:\d\.\d+e[-+]?\d+"
+    r"(?<![\w.\-])(?:\d\.\d+e[-+]?\d+"
     r"|\d+(?:[,\u2009\u202f ]\d{3})*(?:\.\d+)?\s?(?:%|×|ns\b|µs\b|ms\b|s\b|MiB\b|MB\b|KiB\b|kB\b"
     r"|bytes\b|instructions\b|points/s\b|evaluations\b))")
 
 # Numbers with the look of a measurement that are not one, with the reason.
 NOT_MEASURED = {
     "95 %": "the intervals' confidence level",
+    "1.5e-6": "the step-size control's loosest internal tolerance, a constant of the code",
+    "≥ 1.3×": "a target",
+    "≥ 1.8×": "a target",
+    "1280 × 800": "a window's size",
+    "in 13 ms": "a test's input ramp",
 }
 
 
