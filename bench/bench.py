@@ -124,9 +124,10 @@ def reference_states(out, samples):
 
 def errors(states, ref):
     """Final-time max error, RMS over the samples, and the final error in units of each
-    component's scale (max(1, max |y_i|))."""
-    states = np.asarray(states)
-    diff = np.abs(states - ref)
+    component's scale (max(1, max |y_i|)). A run that did not finish (a peer whose states
+    went non-finite, kept as null) has an infinite error: it is never the accurate one."""
+    states = np.asarray(states, dtype=float)
+    diff = np.nan_to_num(np.abs(states - ref), nan=np.inf)
     scale = np.maximum(1.0, np.abs(ref).max(axis=0))
     return float(diff[-1].max()), float(np.sqrt(np.mean(diff ** 2))), float((diff[-1] / scale).max())
 
