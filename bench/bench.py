@@ -378,7 +378,7 @@ def floor_lines(floor):
              "| scenario | H | FMU / floor |", "| --- | --- | --- |"]
     for scenario, h in sorted({(f["scenario"], f["H"]) for f in floor}):
         ratios = [f["ratio"] for f in floor if (f["scenario"], f["H"]) == (scenario, h)]
-        lines.append(f"| {scenario} | H = {h:g} s | {min(ratios):.2f}–{max(ratios):.2f} |")
+        lines.append(f"| {scenario} | {h:g} s | {min(ratios):.2f}–{max(ratios):.2f} |")
     return lines
 
 
