@@ -7,14 +7,17 @@
 //! C master's command line and writes its output. The runs must agree with linux64's bit
 //! for bit, or the test names the first value that differs and by how much.
 
-use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use crate::master::{
+    build_native_master, compile_master, read_description, read_token, run_master, windows_path,
+    Agreement, Description, SCENARIOS,
+};
 use crate::platforms::{self, Target, Zig, MINGW_GCC};
+use crate::setup::Result;
 use crate::setup::{root, run};
-use crate::Result;
 
 const WINE: &str = "/usr/lib/wine/wine64";
 const QEMU: &str = "/usr/bin/qemu-aarch64-static";
@@ -39,148 +42,6 @@ const RUST_TESTS_ON_WINDOWS: &[&str] = &[
     "integrators",
 ];
 
-/// How a scenario's runs must agree with linux64's.
-#[derive(Clone, Copy, PartialEq)]
-enum Agreement {
-    /// Bit for bit: the integrator and model use only IEEE-exact operations and their own
-    /// sines and cosines.
-    Bits,
-    /// The Reals within twice the error the FMU promises (10 × tolerance × max(1, |y|)),
-    /// as two runs each that close to the solution are: Radau IIA's step-size control
-    /// takes powers from the C library, whose last bits differ between platforms, so its
-    /// steps, and the step counts, may too.
-    Tolerance,
-}
-
-struct Scenario {
-    name: &'static str,
-    tolerance: f64,
-    step: f64,
-    stop: f64,
-    /// (variable, value) set in initialisation mode.
-    settings: &'static [(&'static str, f64)],
-    agreement: Agreement,
-}
-
-const SCENARIOS: &[Scenario] = &[
-    Scenario {
-        name: "paper case 1",
-        tolerance: 1e-10,
-        step: 0.01,
-        stop: 10.0,
-        settings: &[],
-        agreement: Agreement::Bits,
-    },
-    Scenario {
-        name: "free run",
-        tolerance: 1e-8,
-        step: 0.1,
-        stop: 100.0,
-        settings: &[
-            ("builtin_laws", 0.0),
-            ("omega2_0", 6.0),
-            ("twist12_0", 0.2),
-            ("twist34_0", -0.1),
-            ("omega4_0", -1.0),
-        ],
-        agreement: Agreement::Bits,
-    },
-    Scenario {
-        name: "paper case 2, implicit solver",
-        tolerance: 1e-6,
-        step: 0.01,
-        stop: 10.0,
-        settings: &[("k34", 40.0), ("solver", 3.0)],
-        agreement: Agreement::Tolerance,
-    },
-];
-
-/// A variable of the model description: value reference and type element.
-#[derive(Clone)]
-pub struct Variable {
-    pub vr: u32,
-    kind: char,
-}
-
-pub struct Description {
-    pub guid: String,
-    /// The FMI 3.0 description's instantiation token, when the master runs FMI 3.0 too.
-    pub token: Option<String>,
-    pub variables: BTreeMap<String, Variable>,
-    /// The outputs, in the description's order.
-    outputs: Vec<String>,
-}
-
-pub fn read_description(xml: &Path) -> Result<Description> {
-    use quick_xml::events::Event;
-    let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
-    let mut reader = quick_xml::Reader::from_str(&text);
-    let mut description = Description {
-        guid: String::new(),
-        token: None,
-        variables: BTreeMap::new(),
-        outputs: Vec::new(),
-    };
-    let mut current: Option<(String, u32, bool)> = None;
-    loop {
-        let event = reader
-            .read_event()
-            .map_err(|e| format!("{}: {e}", xml.display()))?;
-        let element = match &event {
-            Event::Start(e) | Event::Empty(e) => e,
-            Event::Eof => break,
-            _ => continue,
-        };
-        let attribute = |name: &str| -> Option<String> {
-            element
-                .try_get_attribute(name)
-                .ok()
-                .flatten()
-                .and_then(|a| a.unescape_value().ok().map(|v| v.into_owned()))
-        };
-        match element.name().as_ref() {
-            b"fmiModelDescription" => description.guid = attribute("guid").unwrap_or_default(),
-            b"ScalarVariable" => {
-                let name = attribute("name").ok_or("a ScalarVariable without a name")?;
-                let vr = attribute("valueReference")
-                    .and_then(|v| v.parse().ok())
-                    .ok_or_else(|| format!("{name}: no valid valueReference"))?;
-                let output = attribute("causality").as_deref() == Some("output");
-                current = Some((name, vr, output));
-            }
-            tag @ (b"Real" | b"Integer" | b"Enumeration" | b"Boolean") => {
-                if let Some((name, vr, output)) = current.take() {
-                    let kind = match tag {
-                        b"Real" => 'R',
-                        b"Boolean" => 'B',
-                        b"Enumeration" => 'E',
-                        _ => 'I',
-                    };
-                    if output {
-                        description.outputs.push(name.clone());
-                    }
-                    description.variables.insert(name, Variable { vr, kind });
-                }
-            }
-            _ => {}
-        }
-    }
-    if description.guid.is_empty() || description.outputs.is_empty() {
-        return Err(format!("{}: no guid or no outputs", xml.display()));
-    }
-    Ok(description)
-}
-
-/// The instantiation token of an FMI 3.0 model description.
-fn read_token(xml: &Path) -> Result<String> {
-    let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
-    text.split("instantiationToken=\"")
-        .nth(1)
-        .and_then(|rest| rest.split('"').next())
-        .map(str::to_string)
-        .ok_or_else(|| format!("{}: no instantiationToken", xml.display()))
-}
-
 /// Where the tests' builds and runs go.
 fn work_dir() -> PathBuf {
     root().join("target/platforms")
@@ -196,33 +57,6 @@ fn build_masters(zig: &Zig) -> Result<(PathBuf, PathBuf, PathBuf)> {
     let aarch64 = dir.join("master-aarch64");
     compile_master(&mut zig.cc("aarch64-linux-gnu.2.17"), &aarch64, &["-ldl"])?;
     Ok((native, windows, aarch64))
-}
-
-/// The C master for this machine, in `dir` (also what `cargo xtask instructions` runs).
-pub fn build_native_master(dir: &Path) -> Result<PathBuf> {
-    let native = dir.join("master");
-    compile_master(&mut Command::new("cc"), &native, &["-ldl"])?;
-    Ok(native)
-}
-
-/// Compile tests/platforms/master.c with `compiler` (its own options given) and the shared
-/// flags into `output`, linking `libraries`.
-fn compile_master(compiler: &mut Command, output: &Path, libraries: &[&str]) -> Result {
-    let fmi2 = crate::builders::fmi_headers("2")?;
-    let fmi3 = fmi2
-        .parent()
-        .and_then(Path::parent)
-        .map(|fmi_sys| fmi_sys.join("fmi-standard3/headers"))
-        .ok_or("no folder above fmi-sys's FMI 2.0 headers")?;
-    run(compiler
-        .args(["-O2", "-std=c99", "-Wall", "-Wextra", "-Werror", "-I"])
-        .arg(fmi2)
-        .arg("-I")
-        .arg(fmi3)
-        .arg("-o")
-        .arg(output)
-        .arg(root().join("tests/platforms/master.c"))
-        .args(libraries))
 }
 
 /// Wine's settings: a prefix kept with the cross builds (its creation takes a while), no
@@ -245,69 +79,6 @@ fn wine_env(command: &mut Command) -> Result<&mut Command> {
         )
         .env("WINEDEBUG", "-all")
         .env("WINEPATH", windows_path(&dlls)))
-}
-
-/// A Linux path as Wine's Z: drive sees it.
-fn windows_path(path: &Path) -> String {
-    format!("Z:{}", path.display()).replace('/', "\\")
-}
-
-/// One run of a master: the recorded points, as text lines, and the loop's time.
-fn run_master(
-    how: &mut Command,
-    library: &Path,
-    output: &Path,
-    scenario: &Scenario,
-    description: &Description,
-    (windows, fmi3): (bool, bool),
-) -> Result<(Vec<String>, f64)> {
-    let path = |p: &Path| {
-        if windows {
-            windows_path(p)
-        } else {
-            p.display().to_string()
-        }
-    };
-    let instance_key = match (&description.token, fmi3) {
-        (Some(token), true) => format!("fmi3:{token}"),
-        (None, true) => return Err("an FMI 3.0 run without an instantiation token".into()),
-        (_, false) => description.guid.clone(),
-    };
-    how.arg(path(library))
-        .arg(instance_key)
-        .arg(format!("{:e}", scenario.tolerance))
-        .arg(format!("{}", scenario.step))
-        .arg(format!("{}", scenario.stop))
-        .arg(path(output));
-    for (name, value) in scenario.settings {
-        let v = &description.variables[*name];
-        let value = if v.kind == 'R' {
-            format!("{value:e}")
-        } else {
-            format!("{}", *value as i64)
-        };
-        how.arg(format!("{}:{}={value}", v.kind, v.vr));
-    }
-    how.arg("--");
-    for name in &description.outputs {
-        let v = &description.variables[name];
-        how.arg(format!("{}:{}", v.kind, v.vr));
-    }
-    let shown = format!("{how:?}");
-    let result = how
-        .output()
-        .map_err(|e| format!("cannot run {shown}: {e}"))?;
-    let stderr = String::from_utf8_lossy(&result.stderr);
-    if !result.status.success() {
-        return Err(format!("{shown} failed ({}): {stderr}", result.status));
-    }
-    let seconds = stderr
-        .lines()
-        .find_map(|l| l.strip_prefix("loop_seconds="))
-        .and_then(|s| s.trim().parse().ok())
-        .ok_or_else(|| format!("{shown}: no loop time in {stderr}"))?;
-    let text = fs::read_to_string(output).map_err(|e| format!("{}: {e}", output.display()))?;
-    Ok((text.lines().map(str::to_string).collect(), seconds))
 }
 
 /// The differences between two recordings, as (values compared, values that differ, the
@@ -389,7 +160,7 @@ fn compare_platforms(
     zig: &Zig,
 ) -> Result<Vec<String>> {
     let (native, windows, arm) = build_masters(zig)?;
-    let node_program = crate::web::ensure_node()?;
+    let node_program = crate::page::ensure_node()?;
     let dir = work_dir();
     let mut report = Vec::new();
     let mut failures = Vec::new();
@@ -476,33 +247,6 @@ fn compare_platforms(
     Ok(report)
 }
 
-/// The stepping loop's seconds of paper case 1 (the first scenario) run by `how` over
-/// `library`, the fastest of `repeats` runs, for the benchmarks; the recording in `dir`.
-pub fn paper_case_seconds(
-    how: impl Fn() -> Command,
-    library: &Path,
-    description: &Description,
-    dir: &Path,
-    repeats: usize,
-) -> Result<f64> {
-    let scenario = &SCENARIOS[0];
-    let output = dir.join("paper-case-1.txt");
-    let mut fastest = f64::INFINITY;
-    for _ in 0..repeats {
-        let mut command = how();
-        let (_, seconds) = run_master(
-            &mut command,
-            library,
-            &output,
-            scenario,
-            description,
-            (false, false),
-        )?;
-        fastest = fastest.min(seconds);
-    }
-    Ok(fastest)
-}
-
 /// The crate's Rust tests built for Windows and run under Wine as cargo's runner.
 fn rust_tests_under_wine(zig: &Zig) -> Result {
     let mut command = platforms::cross_cargo(Target::Win64, "test", zig)?;
@@ -532,10 +276,13 @@ pub fn test(
         .with_file_name("fmi3")
         .join("modelDescription.xml");
     description.token = Some(read_token(&fmi3_xml)?);
-    let win64 = binaries.join(format!("win64/{}.dll", crate::MODEL_IDENTIFIER));
-    let aarch64 = binaries.join(format!("aarch64-linux/{}.so", crate::MODEL_IDENTIFIER));
+    let win64 = binaries.join(format!("win64/{}.dll", crate::setup::MODEL_IDENTIFIER));
+    let aarch64 = binaries.join(format!(
+        "aarch64-linux/{}.so",
+        crate::setup::MODEL_IDENTIFIER
+    ));
     rust_tests_under_wine(zig)?;
-    let wasm32 = crate::web::build_wasm()?;
+    let wasm32 = crate::page::build_wasm()?;
     let comparisons = compare_platforms(&description, linux64, (&win64, &aarch64, &wasm32), zig)?;
     let reports = root().join("target/test-reports");
     fs::create_dir_all(&reports).map_err(|e| e.to_string())?;
@@ -559,7 +306,10 @@ pub fn test(
 
 #[cfg(test)]
 mod tests {
+    use std::collections::BTreeMap;
+
     use super::*;
+    use crate::master::Variable;
 
     fn description() -> Description {
         let variables = BTreeMap::from([

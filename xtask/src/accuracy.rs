@@ -5,8 +5,9 @@
 use std::fs;
 use std::process::Command;
 
+use crate::setup::Result;
 use crate::setup::{root, run};
-use crate::{builders, fmu, Result};
+use crate::{builders, fmu};
 
 /// The test files whose figures the report holds.
 const MEASURING: [&str; 11] = [

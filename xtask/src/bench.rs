@@ -6,8 +6,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::cli::Parsed;
+use crate::fmu;
+use crate::setup::Result;
 use crate::setup::*;
-use crate::{fmu, Result};
 
 /// The benchmark harness, built in a target directory of its own: its peer crates unify
 /// features of the build dependencies (fmi-sys's bindgen) differently, and in the shared

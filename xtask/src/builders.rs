@@ -1,13 +1,13 @@
 //! The artefacts several jobs build and use, below the jobs that use them (none of which
-//! imports another for them): the compiled DC motor and flywheel load FMUs, the sweep's wheel installed in the
-//! venv, and the FMI 2.0 headers that C code here compiles against.
+//! imports another for them; `cargo xtask tidy` checks it): the compiled DC motor, flywheel
+//! load and bouncing-ball FMUs, the sweep's wheel installed in the venv, and the FMI 2.0 and
+//! 3.0 headers that C code here compiles against.
 
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::setup::*;
-use crate::Result;
 
 /// Build and pack the motor; returns the archive.
 pub(crate) fn build_motor() -> Result<PathBuf> {

@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::Result;
+use crate::setup::Result;
 
 /// A flag: `--name` alone, or `--name VALUE` when `value` names its value.
 pub struct Flag {
@@ -11,6 +11,13 @@ pub struct Flag {
     pub value: Option<&'static str>,
     pub help: &'static str,
 }
+
+/// `--quick`: the jobs that offer a small subset of their work.
+pub const QUICK: Flag = Flag {
+    name: "quick",
+    value: None,
+    help: "a small subset",
+};
 
 /// A job of `cargo xtask`.
 pub struct Job {

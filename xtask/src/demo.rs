@@ -4,8 +4,8 @@
 use std::process::Command;
 
 use crate::cli::Parsed;
+use crate::setup::Result;
 use crate::setup::*;
-use crate::Result;
 
 pub(crate) fn job(_: &Parsed) -> Result {
     let packed = crate::fmu::build_fmu(false)?;

@@ -2,7 +2,8 @@
 //! to measured data through `python -m fmusweep fit`, and the fit benchmark.
 
 use crate::cli::{Flag, Parsed};
-use crate::{sweep, Result};
+use crate::setup::Result;
+use crate::sweep;
 
 pub(crate) fn job(parsed: &Parsed) -> Result {
     sweep::run_fmusweep(&["fit"], parsed)

@@ -6,8 +6,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use crate::cli::Parsed;
+use crate::platforms;
 use crate::setup::*;
-use crate::{platforms, Result, MODEL_IDENTIFIER};
+use crate::setup::{Result, MODEL_IDENTIFIER};
 
 /// Where the cross-built binaries are put, checked, under their platform folders.
 pub(crate) const PLATFORM_BINARIES: &str = "target/fmu/platforms";

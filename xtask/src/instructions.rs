@@ -12,8 +12,8 @@ use std::fs;
 use std::path::Path;
 use std::process::Command;
 
+use crate::setup::Result;
 use crate::setup::{apt_install, output_of, root};
-use crate::Result;
 
 const OUTPUTS: [&str; 10] = [
     "phi1",
@@ -42,7 +42,7 @@ fn slot_settings(xml: &Path, parameters: &[&str]) -> Result<Vec<String>> {
         .nth(1)
         .and_then(|rest| rest.split("</SimpleType>").next())
         .ok_or_else(|| format!("{}: no SensitivityParameter type", xml.display()))?;
-    let description = crate::abi_tests::read_description(xml)?;
+    let description = crate::master::read_description(xml)?;
     parameters
         .iter()
         .enumerate()
@@ -65,7 +65,7 @@ fn slot_settings(xml: &Path, parameters: &[&str]) -> Result<Vec<String>> {
 
 /// The description's GUID and the value references of [`OUTPUTS`].
 fn references(xml: &Path) -> Result<(String, Vec<u32>)> {
-    let description = crate::abi_tests::read_description(xml)?;
+    let description = crate::master::read_description(xml)?;
     let refs = OUTPUTS
         .iter()
         .map(|name| {
@@ -120,7 +120,7 @@ pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
     let dir = root().join("target/instructions");
     fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
     let (guid, refs) = references(&root().join("target/fmu/assets/modelDescription.xml"))?;
-    let master = crate::abi_tests::build_native_master(&dir)?;
+    let master = crate::master::build_native_master(&dir)?;
     let xml = root().join("target/fmu/assets/modelDescription.xml");
     let points = (STOP / STEP).round() as u64;
     let commit = build_label();

@@ -56,7 +56,8 @@ pub(crate) fn module_of(relative: &str) -> Option<&str> {
 }
 
 /// Violations in `code` (the lines of code of the file `name`, in module `module`): each
-/// `crate::X` with X in a layer above the module's, or the other C ABI.
+/// `crate::X`, or `X` of a grouped `crate::{X, Y::z}` (over several lines too), with X in a
+/// layer above the module's, or the other C ABI.
 pub(crate) fn arrows_up(
     layers: &[Vec<String>],
     name: &str,
@@ -66,16 +67,12 @@ pub(crate) fn arrows_up(
     let rank = |m: &str| layers.iter().position(|layer| layer.iter().any(|l| l == m));
     let Some(own) = rank(module) else {
         return vec![format!(
-            "{name}: module `{module}` has no place in ARCHITECTURE.md's layer table"
+            "{name}: module `{module}` has no place in its layer table"
         )];
     };
     let mut found = Vec::new();
-    for (number, line) in code {
-        for used in line.split("crate::").skip(1) {
-            let target: String = used
-                .chars()
-                .take_while(|c| c.is_alphanumeric() || *c == '_')
-                .collect();
+    for (number, line) in whole_groups(code) {
+        for target in imported_modules(&line) {
             if target == module {
                 continue;
             }
@@ -97,6 +94,68 @@ pub(crate) fn arrows_up(
     found
 }
 
+/// The lines of `code`, a `crate::{` group that spans lines joined onto its first line.
+fn whole_groups(code: impl Iterator<Item = (usize, String)>) -> Vec<(usize, String)> {
+    let mut lines = Vec::new();
+    let mut open: Option<(usize, String)> = None;
+    for (number, line) in code {
+        let (number, line) = match open.take() {
+            Some((first, mut joined)) => {
+                joined.push(' ');
+                joined.push_str(&line);
+                (first, joined)
+            }
+            None => (number, line),
+        };
+        let unclosed = line
+            .find("crate::{")
+            .is_some_and(|at| line[at..].matches('{').count() > line[at..].matches('}').count());
+        if unclosed {
+            open = Some((number, line));
+        } else {
+            lines.push((number, line));
+        }
+    }
+    lines.extend(open);
+    lines
+}
+
+/// The top modules a line uses through `crate::`: `crate::a::b` gives `a`, and
+/// `crate::{a, b::{c, d}, e}` gives `a`, `b` and `e`.
+fn imported_modules(line: &str) -> Vec<String> {
+    let name = |text: &str| -> String {
+        text.trim_start()
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let mut found = Vec::new();
+    for used in line.split("crate::").skip(1) {
+        let Some(group) = used.strip_prefix('{') else {
+            found.push(name(used));
+            continue;
+        };
+        let (mut depth, mut start) = (0usize, 0usize);
+        for (at, c) in group.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' if depth == 0 => {
+                    found.push(name(&group[start..at]));
+                    break;
+                }
+                '}' => depth -= 1,
+                ',' if depth == 0 => {
+                    found.push(name(&group[start..at]));
+                    start = at + 1;
+                }
+                _ => {}
+            }
+        }
+    }
+    found.retain(|n| !n.is_empty());
+    found
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -105,6 +164,26 @@ mod tests {
         | C ABIs | `src/fmi2/`, `src/fmi3/`, `src/abi.rs` | x |\n\
         | instance | `src/instance/` | y |\n| model | `src/model/` | z |\n\n\
         Beside them: `src/variables.rs` is the table.\n\nMore.\n";
+
+    #[test]
+    fn a_grouped_import_names_each_of_its_modules_over_several_lines_too() {
+        assert_eq!(
+            imported_modules("use crate::{a, b::{c, d}, e};"),
+            ["a", "b", "e"]
+        );
+        assert_eq!(imported_modules("crate::x::y(crate::z)"), ["x", "z"]);
+        let layers = vec![vec!["top".to_string()], vec!["low".to_string()]];
+        let lines = ["use crate::{", "    other,", "    top::Thing,", "};"];
+        let code = lines
+            .iter()
+            .enumerate()
+            .map(|(n, l)| (n + 1, l.to_string()));
+        let found = arrows_up(&layers, "f.rs", "low", code);
+        assert_eq!(
+            found,
+            ["f.rs:1: `low` imports from `top`, a layer above it"]
+        );
+    }
 
     #[test]
     fn an_import_from_above_or_from_the_peer_is_found() {

@@ -16,7 +16,9 @@ mod fit;
 mod fmu;
 mod instructions;
 mod layers;
+mod master;
 mod motor;
+mod page;
 mod platforms;
 mod setup;
 mod sweep;
@@ -24,17 +26,7 @@ mod test;
 mod tidy;
 mod web;
 
-use cli::{Flag, Job};
-
-type Result<T = ()> = std::result::Result<T, String>;
-
-const MODEL_IDENTIFIER: &str = "CyclicMechanism";
-
-const QUICK: Flag = Flag {
-    name: "quick",
-    value: None,
-    help: "a small subset",
-};
+use cli::{Flag, Job, QUICK};
 
 const JOBS: &[Job] = &[
     Job {

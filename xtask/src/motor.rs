@@ -6,8 +6,8 @@
 //! coupled steps and sweeps with them.
 
 use crate::cli::{Flag, Parsed};
+use crate::setup::Result;
 use crate::setup::{root, run};
-use crate::Result;
 
 pub(crate) fn job(_: &Parsed) -> Result {
     println!("FMU: {}", crate::builders::build_motor()?.display());
@@ -58,5 +58,5 @@ pub(crate) const BENCH_FLAGS: &[Flag] = &[
         value: Some("FMU"),
         help: "another build of CyclicMechanism.fmu, its coupled step measured beside this one",
     },
-    crate::QUICK,
+    crate::cli::QUICK,
 ];

@@ -11,7 +11,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use crate::setup::{apt_install, clang_include_dir, output_of, python_path, root, run};
-use crate::{Result, MODEL_IDENTIFIER};
+use crate::setup::{Result, MODEL_IDENTIFIER};
 
 /// The Debian Rust toolchain that builds the standard library for any target from source,
 /// pinned: what every cross build needs, the wasm32 one included.

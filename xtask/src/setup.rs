@@ -2,11 +2,15 @@
 //! fresh Debian machine lacks (Debian packages, the pinned Python venv, cargo-zigbuild),
 //! the portable (glibc 2.17) build, and the stamps that let an unchanged re-run skip work.
 
+/// What a job and its builders return: the error is the message a user reads.
+pub(crate) type Result<T = ()> = std::result::Result<T, String>;
+
+/// The FMU's model identifier: the names of its library and archives.
+pub(crate) const MODEL_IDENTIFIER: &str = "CyclicMechanism";
+
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-use crate::Result;
 
 pub(crate) fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

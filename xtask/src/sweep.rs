@@ -5,8 +5,9 @@ use std::fs;
 use std::process::Command;
 
 use crate::cli::{Flag, Parsed};
+use crate::fmu;
+use crate::setup::Result;
 use crate::setup::*;
-use crate::{fmu, Result};
 
 /// `cargo xtask sweep SPEC [options]`: the packed FMU is the default FMU of the spec.
 pub(crate) fn job(parsed: &Parsed) -> Result {

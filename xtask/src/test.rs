@@ -10,7 +10,8 @@ use std::time::Instant;
 
 use crate::cli::Parsed;
 use crate::setup::*;
-use crate::{abi_tests, fmu, platforms, Result, MODEL_IDENTIFIER};
+use crate::setup::{Result, MODEL_IDENTIFIER};
+use crate::{abi_tests, fmu, platforms};
 
 /// Each stage's wall time, said as the run goes and again at its end: where a suite's time
 /// goes, in every log.
@@ -85,7 +86,7 @@ pub(crate) fn job(_: &Parsed) -> Result {
     let ball = crate::builders::build_bouncing_ball()?;
     let (ball_me, ball_me3) = crate::builders::build_bouncing_ball_me()?;
     ensure_chromium()?;
-    let page = crate::web::build_page()?;
+    let page = crate::page::build_page()?;
     stages.done("the package, examples and page");
     // Memcheck of the FMPy suite runs beside the Python suite, at the lowest priority: it
     // takes the core time the suite leaves idle (much of the suite is one process waiting

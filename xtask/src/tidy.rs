@@ -9,8 +9,8 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::cli::Parsed;
+use crate::setup::Result;
 use crate::setup::{cargo, ensure_venv, root, run, Packages};
-use crate::Result;
 
 /// The files allowed to hold `unsafe`: the FMI 2 and 3 C ABIs and what they share (the
 /// call guard, the master's logger, the FMU state pointers), the AVX copy of the step, the
@@ -81,16 +81,60 @@ pub(crate) fn check() -> Result {
             }
         }
     }
+    problems.extend(xtask_arrows_up()?);
     type_check()?;
     if problems.is_empty() {
         println!(
             "xtask: tidy: formatted, clippy clean, unsafe only where allowed, no arrow up in \
-             src/, no figures in src/ comments, fmusweep typed (mypy --strict)"
+             src/ or xtask/, no figures in src/ comments, fmusweep typed (mypy --strict)"
         );
         Ok(())
     } else {
         Err(format!("tidy:\n{}", problems.join("\n")))
     }
+}
+
+/// xtask's own layers, top down: the job that runs the others, the jobs, the builders
+/// below them, and what every module uses. A module of xtask/src/ not placed here is
+/// reported; `main.rs` (the job table) is above them all.
+const XTASK_LAYERS: &[&[&str]] = &[
+    &["test"],
+    &[
+        "abi_tests",
+        "accuracy",
+        "bench",
+        "demo",
+        "fit",
+        "instructions",
+        "motor",
+        "sweep",
+        "tidy",
+        "web",
+    ],
+    &["builders", "fmu", "layers", "master", "page", "platforms"],
+    &["cli", "setup"],
+];
+
+/// Imports from a layer above in xtask itself (builders below the jobs).
+fn xtask_arrows_up() -> Result<Vec<String>> {
+    let layers: Vec<Vec<String>> = XTASK_LAYERS
+        .iter()
+        .map(|layer| layer.iter().map(|m| m.to_string()).collect())
+        .collect();
+    let mut problems = Vec::new();
+    for file in rust_files(&root().join("xtask/src"))? {
+        let Some(module) = file.file_stem().and_then(|s| s.to_str()) else {
+            continue;
+        };
+        if module == "main" {
+            continue;
+        }
+        let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+        let name = format!("xtask/src/{module}.rs");
+        let code = code_lines(&text).map(|(n, line)| (n, line.to_string()));
+        problems.extend(crate::layers::arrows_up(&layers, &name, module, code));
+    }
+    Ok(problems)
 }
 
 fn rust_files(dir: &Path) -> Result<Vec<PathBuf>> {
