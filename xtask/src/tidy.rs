@@ -63,7 +63,7 @@ pub(crate) fn check() -> Result {
     let architecture = fs::read_to_string(root().join("ARCHITECTURE.md"))
         .map_err(|e| format!("ARCHITECTURE.md: {e}"))?;
     let layers = crate::layers::from_architecture(&architecture)?;
-    for dir in ["src", "runner/src"] {
+    for dir in ["src", "runner/src", "integrators/src", "web/src"] {
         for file in rust_files(&root().join(dir))? {
             let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
             let name = file
