@@ -242,26 +242,30 @@ impl CoSimulation {
     /// (the plant moves past the change point, and the integrator starts afresh there),
     /// otherwise the plant placed on its way at `target` and the rest left for the next
     /// steps ([`CoSimulation::go_on_crossing`]). Returns whether the crossing is complete.
-    pub fn cross(&mut self, plant: &mut Plant, crossing: &Crossing, target: f64) -> bool {
-        self.crossing_pending = false;
-        if let Some(tracker) = &mut self.sensitivities {
-            tracker.break_at_change_point(plant.time());
+    /// A run carrying sensitivities is not crossed, nothing changed: the branch is a choice,
+    /// not a differentiable function of the parameters.
+    pub fn cross(
+        &mut self,
+        plant: &mut Plant,
+        crossing: &Crossing,
+        target: f64,
+    ) -> Result<bool, String> {
+        if self.sensitivities.is_some() {
+            return Err(
+                "sensitivities end at the change point: the motion's branch there is a choice, \
+                 not a differentiable function of the parameters, so a run with sensitivity \
+                 slots set does not cross it"
+                    .into(),
+            );
         }
+        self.crossing_pending = false;
         self.in_flight = Some(InFlight {
             start: plant.time(),
             from: *plant.state(),
             inputs: plant.inputs_at(plant.time()),
             crossing: *crossing,
         });
-        self.go_on_crossing(plant, target)
-    }
-
-    /// Why the run's sensitivities ended (a change point crossed with slots set), where
-    /// they did: no step goes on without them.
-    pub fn sensitivities_ended(&self) -> Option<&str> {
-        self.sensitivities
-            .as_ref()
-            .and_then(|tracker| tracker.ended())
+        Ok(self.go_on_crossing(plant, target))
     }
 
     /// Whether a crossing is under way: the plant stands on its path.
@@ -431,7 +435,7 @@ impl CoSimulation {
         let work = self.solver.work_left();
         let values = tracker.advance(
             plant,
-            (plant.time(), t_end, y),
+            (t_end, y),
             (experiment.limit(), fresh, self.integrator_inputs),
             (projection_accuracy(experiment.tolerance), work),
         )?;

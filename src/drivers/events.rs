@@ -210,14 +210,6 @@ impl Stepper<'_> {
         if let SolverError::WorkLimit { t } = error {
             return Err(Refusal::OutOfWork(t));
         }
-        // A run whose sensitivities ended fails on them, wherever it stands: not a change
-        // point to locate (it may stand just past the one it crossed).
-        if let Some(reason) = self.driver.sensitivities_ended() {
-            return Err(Refusal::Refused(format!(
-                "the step to t = {} cannot go on: {reason}",
-                number(target)
-            )));
-        }
         let start = self.plant.time();
         let located = match self.locate_change_point(target, &error) {
             Located::NotAChangePoint => {
@@ -268,7 +260,10 @@ impl Stepper<'_> {
             .driver
             .plan_crossing(self.plant)
             .map_err(|e| Refusal::Refused(format!("at t = {}: {e}", number(start))))?;
-        let complete = self.driver.cross(self.plant, &crossing, target);
+        let complete = self
+            .driver
+            .cross(self.plant, &crossing, target)
+            .map_err(|reason| Refusal::Refused(format!("at t = {}: {reason}", number(start))))?;
         self.happenings.push(Happening::Crossed {
             at: start,
             crossing,

@@ -273,9 +273,6 @@ pub struct Tracker {
     /// The slots in use, in order, and their parameters.
     slots: Vec<(usize, Sensitive)>,
     width: Width,
-    /// Why the run cannot go on (it crossed a change point, across which the state is
-    /// not differentiable): the next step says so.
-    broken: Option<String>,
 }
 
 impl Tracker {
@@ -289,25 +286,18 @@ impl Tracker {
         Some(Self {
             width: Width::new(&slots, plant, tolerances),
             slots,
-            broken: None,
         })
     }
 
     /// S at the plant's new point `t_end`, by slot: the driver has just moved its state
-    /// there from `start`, to `y_end` (projected), and the plant takes both next.
+    /// there, from the plant's time, to `y_end` (projected), and the plant takes both next.
     pub fn advance(
         &mut self,
         plant: &Plant,
-        (start, t_end, y_end): (f64, f64, &State),
+        (t_end, y_end): (f64, &State),
         (limit, fresh, inputs): (f64, bool, Inputs),
         (projection_accuracy, work): (f64, u64),
     ) -> Result<[[f64; SLOTS]; STATE_SIZE], SolverError> {
-        if let Some(reason) = &self.broken {
-            return Err(SolverError::ProjectionFailed {
-                t: start,
-                reason: reason.clone(),
-            });
-        }
         let step = Step {
             t_end,
             y_end: *y_end,
@@ -320,24 +310,10 @@ impl Tracker {
         self.width.advance(plant, &step, &self.slots)
     }
 
-    /// Why the run has no sensitivities any more, where it has none.
-    pub fn ended(&self) -> Option<&str> {
-        self.broken.as_deref()
-    }
-
-    /// A change point was crossed at `t`: from there on the run has no sensitivities.
-    pub fn break_at_change_point(&mut self, t: f64) {
-        self.broken.get_or_insert_with(|| {
-            format!(
-                "sensitivities end at the change point crossed at t = {}: the motion's branch \
-                 there is a choice, not a differentiable function of the parameters",
-                model::number(t)
-            )
-        });
-    }
-
+    /// The run, after a flag that is always false here: earlier builds set it when the run
+    /// had crossed a change point (now refused with slots set), and kept the layout.
     pub fn serialize_into(&self, w: &mut Writer) {
-        w.bool(self.broken.is_some());
+        w.bool(false);
         self.width.serialize_into(w);
     }
 
@@ -347,11 +323,16 @@ impl Tracker {
         if slots.is_empty() {
             return Ok(None);
         }
-        let broken = r.bool()?;
+        if r.bool()? {
+            return Err(FormatError(
+                "the state was saved after its sensitivities ended at a change point: a run \
+                 with sensitivity slots set does not go on past one"
+                    .into(),
+            ));
+        }
         Ok(Some(Self {
             width: Width::deserialize_from(r, &slots)?,
             slots,
-            broken: broken.then(|| "sensitivities ended before this state was saved".into()),
         }))
     }
 }
