@@ -16,7 +16,7 @@ from bench_sweep import machine  # noqa: E402
 
 def shown(value):
     """A figure as printed: three significant digits, integers whole."""
-    if isinstance(value, bool) or isinstance(value, int):
+    if isinstance(value, (bool, int)):
         return str(value)
     if isinstance(value, float):
         return f"{value:#.3g}"

@@ -254,23 +254,20 @@ def names_missing(raw: dict[str, Any], description: dict[str, Any]) -> list[Spec
     variables = Variables(description)
     errors = Collector()
 
-    def entries(*path: str) -> dict[str, Any]:
-        return _table(raw, *path)
-
     for table, causalities, types in (("parameters", SETTABLE, VALUE_TYPES),
                                       ("inputs", ("input",), ("real",))):
-        for name in entries("scenario", table):
+        for name in _table(raw, "scenario", table):
             errors.run(lambda: variables.get(name, f"scenario.{table}.{name}", causalities, types))
-    for where, names in (("design.parameters", entries("design", "parameters")),
-                         ("fit.parameters", entries("fit", "parameters"))):
+    for where, names in (("design.parameters", _table(raw, "design", "parameters")),
+                         ("fit.parameters", _table(raw, "fit", "parameters"))):
         for name in names:
             errors.run(lambda: variables.get(name, f"{where}.{name}", SETTABLE, VALUE_TYPES))
-    for metric, entry in entries("outputs", "metrics").items():
+    for metric, entry in _table(raw, "outputs", "metrics").items():
         variable = entry.get("variable") if isinstance(entry, dict) else None
         if isinstance(variable, str):
             errors.run(lambda: variables.get(variable, f"outputs.metrics.{metric}.variable", None,
                                              VALUE_TYPES))
-    listed = entries("outputs", "series").get("variables")
+    listed = _table(raw, "outputs", "series").get("variables")
     for name in listed if isinstance(listed, list) else []:
         if isinstance(name, str):
             errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
@@ -296,16 +293,13 @@ def values_out_of_range(raw: dict[str, Any], description: dict[str, Any]) -> lis
             errors.append(SpecError(field, f"{name} = {shown}: outside the FMU's range "
                                            f"[{low:g}, {high:g}]"))
 
-    def table(*path: str) -> dict[str, Any]:
-        return _table(raw, *path)
-
-    for name, value in table("scenario", "parameters").items():
+    for name, value in _table(raw, "scenario", "parameters").items():
         check(f"scenario.parameters.{name}", name, value)
-    for name, entry in table("fit", "parameters").items():
+    for name, entry in _table(raw, "fit", "parameters").items():
         for key in ("start", "range"):
             if isinstance(entry, dict) and key in entry:
                 check(f"fit.parameters.{name}.{key}", name, entry[key])
-    for name, entry in table("design", "parameters").items():
+    for name, entry in _table(raw, "design", "parameters").items():
         if isinstance(entry, dict):
             values = entry.get("values", entry.get("range"))
             linspace = entry.get("linspace")

@@ -125,6 +125,23 @@ class Slave:
     def get(self, *names):
         return self.fmu.getFloat64([self.vr[n] for n in names])
 
+    def step_to_change_point(self, h=1e-3):
+        """Steps of h from t = 0 until one returns early: the event's flag and its time."""
+        t = 0.0
+        while True:
+            event, _, early, last = self.fmu.doStep(t, h)
+            if early:
+                return event, last
+            t += h
+
+    def handle_event(self, branch=None):
+        """Event mode at a change point, on `branch` if given, then Step Mode again."""
+        self.fmu.enterEventMode()
+        if branch is not None:
+            self.fmu.setInt64([self.vr["change_point_branch"]], [branch])
+        self.fmu.updateDiscreteStates()
+        self.fmu.enterStepMode()
+
     def free(self):
         """The instance freed (FMPy does not free it when the object goes): under valgrind
         an instance left over is a leak attributed to the FMU."""
@@ -143,10 +160,7 @@ def change_point_run(unzipped3, md, branch, until=8.0, h=1e-3):
         if early:
             assert event and last < target
             events.append((last, slave.get(*STATES), slave.get("energy")[0]))
-            slave.fmu.enterEventMode()
-            slave.fmu.setInt64([slave.vr["change_point_branch"]], [branch])
-            slave.fmu.updateDiscreteStates()
-            slave.fmu.enterStepMode()
+            slave.handle_event(branch)
             t = last
         else:
             assert not event
@@ -190,18 +204,11 @@ def test_sensitivities_end_at_a_change_point_with_the_reason(unzipped3, model_de
     k34 = next(int(i.value) for i in items if i.name == "k34")
     slave = Slave(unzipped3, model_description3, True, True,
                   enumerations={"sensitivity_1.parameter": k34}, **CHANGE_POINT)
-    t = 0.0
-    while True:
-        event, _, early, last = slave.fmu.doStep(t, 1e-3)
-        if early:
-            break
-        t += 1e-3
+    event, last = slave.step_to_change_point()
     assert event and last > 0
     before = slave.get(*STATES, "sensitivity_1.phi3")
     assert np.all(np.isfinite(before)) and before[-1] != 0.0
-    slave.fmu.enterEventMode()
-    slave.fmu.updateDiscreteStates()
-    slave.fmu.enterStepMode()
+    slave.handle_event()
     with pytest.raises(FMICallException) as refused:
         slave.fmu.doStep(last, 1e-3)
     assert refused.value.status == fmi3Discard
@@ -219,18 +226,10 @@ def test_the_branch_taken_is_the_tangent_chosen(unzipped3, model_description3):
     slopes = np.roots([l3 * l3 - L * l3, -2 * l2 * l3, L * l2 + l2 * l2])
     for branch in (1, 2):
         slave = Slave(unzipped3, model_description3, True, True, **CHANGE_POINT)
-        t = 0.0
-        while True:
-            event, _, early, last = slave.fmu.doStep(t, 1e-3)
-            if early:
-                break
-            t += 1e-3
+        _, last = slave.step_to_change_point()
         w2, w3 = slave.get("omega2", "omega3")
         arrival = w3 / w2
-        slave.fmu.enterEventMode()
-        slave.fmu.setInt64([slave.vr["change_point_branch"]], [branch])
-        slave.fmu.updateDiscreteStates()
-        slave.fmu.enterStepMode()
+        slave.handle_event(branch)
         slave.fmu.doStep(last, 2e-3)
         w2, w3 = slave.get("omega2", "omega3")
         nearest = slopes[np.argmin(np.abs(slopes - w3 / w2))]
@@ -291,9 +290,7 @@ def test_without_event_mode_the_step_ends_at_the_change_point(unzipped3, model_d
         assert not early
         if event:
             flagged.append(t)
-            slave.fmu.enterEventMode()
-            slave.fmu.updateDiscreteStates()
-            slave.fmu.enterStepMode()
+            slave.handle_event()
         t += 1e-3
     assert len(flagged) == 1 and 4.0 < flagged[0] < 4.2, flagged
     slave.free()
@@ -307,9 +304,7 @@ def test_fmu_state_round_trips_bit_for_bit(unzipped3, model_description3):
         for _ in range(steps):
             event, _, early, last = slave.fmu.doStep(t, 1e-3)
             if early:
-                slave.fmu.enterEventMode()
-                slave.fmu.updateDiscreteStates()
-                slave.fmu.enterStepMode()
+                slave.handle_event()
                 t = last
             else:
                 t += 1e-3
@@ -317,29 +312,17 @@ def test_fmu_state_round_trips_bit_for_bit(unzipped3, model_description3):
         return seen
 
     source = Slave(unzipped3, model_description3, True, True, **CHANGE_POINT)
-    t = 0.0
-    while True:
-        _, _, early, last = source.fmu.doStep(t, 1e-3)
-        if early:
-            t = last
-            break
-        t += 1e-3
+    _, t = source.step_to_change_point()
     state = source.fmu.getFMUState()
     buffer = source.fmu.serializeFMUState(state)
-    source.fmu.enterEventMode()
-    source.fmu.updateDiscreteStates()
-    source.fmu.enterStepMode()
+    source.handle_event()
     expected = go_on(source, t)
     source.fmu.setFMUState(state)
-    source.fmu.enterEventMode()
-    source.fmu.updateDiscreteStates()
-    source.fmu.enterStepMode()
+    source.handle_event()
     assert go_on(source, t) == expected
     target = Slave(unzipped3, model_description3, True, True, **CHANGE_POINT)
     target.fmu.setFMUState(target.fmu.deserializeFMUState(buffer))
-    target.fmu.enterEventMode()
-    target.fmu.updateDiscreteStates()
-    target.fmu.enterStepMode()
+    target.handle_event()
     assert go_on(target, t) == expected
     source.fmu.freeFMUState(state)
     source.free()
