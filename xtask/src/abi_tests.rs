@@ -321,6 +321,7 @@ mod tests {
             token: None,
             variables,
             outputs: vec!["x".into(), "n".into()],
+            items: BTreeMap::new(),
         }
     }
 

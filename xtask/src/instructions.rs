@@ -12,6 +12,7 @@ use std::fs;
 use std::path::Path;
 use std::process::Command;
 
+use crate::master::{read_description, Description};
 use crate::setup::Result;
 use crate::setup::{apt_install, output_of, root};
 
@@ -34,49 +35,40 @@ const TOLERANCE: f64 = 1e-8;
 const SLOT_SETS: [&[&str]; 3] = [&[], &["k34", "d34"], &["J1", "k12", "k34", "d12", "d34"]];
 
 /// The master's settings that put `parameters` into sensitivity slots 1, 2, …: each slot's
-/// Enumeration set to the item's value, read from the description.
-fn slot_settings(xml: &Path, parameters: &[&str]) -> Result<Vec<String>> {
-    let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
-    let items = text
-        .split("<SimpleType name=\"SensitivityParameter\">")
-        .nth(1)
-        .and_then(|rest| rest.split("</SimpleType>").next())
-        .ok_or_else(|| format!("{}: no SensitivityParameter type", xml.display()))?;
-    let description = crate::master::read_description(xml)?;
+/// Enumeration set to the item's value.
+fn slot_settings(description: &Description, parameters: &[&str]) -> Result<Vec<String>> {
     parameters
         .iter()
         .enumerate()
         .map(|(i, name)| {
-            let value = items
-                .split(&format!("<Item name=\"{name}\" value=\""))
-                .nth(1)
-                .and_then(|rest| rest.split('"').next())
-                .ok_or_else(|| format!("{}: no sensitivity item {name}", xml.display()))?;
-            let slot = format!("sensitivity_{}.parameter", i + 1);
-            let vr = description
-                .variables
-                .get(&slot)
-                .map(|v| v.vr)
-                .ok_or_else(|| format!("no variable {slot} in {}", xml.display()))?;
-            Ok(format!("E:{vr}={value}"))
+            let item = ("SensitivityParameter".to_string(), name.to_string());
+            let value = description
+                .items
+                .get(&item)
+                .ok_or_else(|| format!("the description has no sensitivity item {name}"))?;
+            Ok(format!(
+                "E:{}={value}",
+                vr_of(description, &format!("sensitivity_{}.parameter", i + 1))?
+            ))
         })
         .collect()
 }
 
 /// The description's GUID and the value references of [`OUTPUTS`].
-fn references(xml: &Path) -> Result<(String, Vec<u32>)> {
-    let description = crate::master::read_description(xml)?;
-    let refs = OUTPUTS
+fn references(description: &Description) -> Result<Vec<u32>> {
+    OUTPUTS
         .iter()
-        .map(|name| {
-            description
-                .variables
-                .get(*name)
-                .map(|v| v.vr)
-                .ok_or_else(|| format!("no variable {name} in {}", xml.display()))
-        })
-        .collect::<Result<Vec<u32>>>()?;
-    Ok((description.guid, refs))
+        .map(|name| vr_of(description, name))
+        .collect()
+}
+
+/// The value reference of the variable `name`.
+fn vr_of(description: &Description, name: &str) -> Result<u32> {
+    description
+        .variables
+        .get(name)
+        .map(|v| v.vr)
+        .ok_or_else(|| format!("the description has no variable {name}"))
 }
 
 /// Instructions counted inside the stepping and reading functions.
@@ -119,16 +111,22 @@ pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
     let packed = crate::fmu::build_fmu(false)?;
     let dir = root().join("target/instructions");
     fs::create_dir_all(&dir).map_err(|e| e.to_string())?;
-    let (guid, refs) = references(&root().join("target/fmu/assets/modelDescription.xml"))?;
+    let description = read_description(&root().join("target/fmu/assets/modelDescription.xml"))?;
+    let refs = references(&description)?;
     let master = crate::master::build_native_master(&dir)?;
-    let xml = root().join("target/fmu/assets/modelDescription.xml");
     let points = (STOP / STEP).round() as u64;
     let commit = build_label();
     let path = root().join("docs/bench/instructions.md");
     let mut report = fs::read_to_string(&path).unwrap_or_default();
     for parameters in SLOT_SETS {
-        let settings = slot_settings(&xml, parameters)?;
-        let total = count(&master, &packed.linux64, &guid, (&settings, &refs), &dir)?;
+        let settings = slot_settings(&description, parameters)?;
+        let total = count(
+            &master,
+            &packed.linux64,
+            &description.guid,
+            (&settings, &refs),
+            &dir,
+        )?;
         let slots = match parameters {
             [] => "none".to_string(),
             names => names.join(", "),
@@ -145,22 +143,16 @@ pub(crate) fn job(_: &crate::cli::Parsed) -> Result {
     Ok(())
 }
 
-/// The commit the FMU was built from, marked `-modified` when the library's sources differ
-/// from it (the report itself, or other files, do not count).
+/// The build: the last commit that changed the library's sources (its crate and the
+/// integrators), marked `-modified` when the working tree's differ from it; a commit of
+/// other files alone measures the same build and adds no row.
 fn build_label() -> String {
     let git = |args: &[&str]| {
         output_of(Command::new("git").arg("-C").arg(root()).args(args)).unwrap_or_default()
     };
-    let commit = git(&["rev-parse", "--short", "HEAD"]);
-    let changed = git(&[
-        "status",
-        "--porcelain",
-        "--",
-        "src",
-        "build.rs",
-        "Cargo.toml",
-        "Cargo.lock",
-    ]);
+    let sources = ["src", "integrators", "build.rs", "Cargo.toml", "Cargo.lock"];
+    let commit = git(&[&["log", "-1", "--format=%h", "--"][..], &sources].concat());
+    let changed = git(&[&["status", "--porcelain", "--"][..], &sources].concat());
     let modified = if changed.trim().is_empty() {
         ""
     } else {

@@ -80,6 +80,8 @@ pub struct Description {
     pub variables: BTreeMap<String, Variable>,
     /// The outputs, in the description's order.
     pub(crate) outputs: Vec<String>,
+    /// The Enumerations' items: (type name, item name) → value.
+    pub items: BTreeMap<(String, String), i64>,
 }
 
 pub fn read_description(xml: &Path) -> Result<Description> {
@@ -91,8 +93,10 @@ pub fn read_description(xml: &Path) -> Result<Description> {
         token: None,
         variables: BTreeMap::new(),
         outputs: Vec::new(),
+        items: BTreeMap::new(),
     };
     let mut current: Option<(String, u32, bool)> = None;
+    let mut simple_type = String::new();
     loop {
         let event = reader
             .read_event()
@@ -111,6 +115,14 @@ pub fn read_description(xml: &Path) -> Result<Description> {
         };
         match element.name().as_ref() {
             b"fmiModelDescription" => description.guid = attribute("guid").unwrap_or_default(),
+            b"SimpleType" => simple_type = attribute("name").unwrap_or_default(),
+            b"Item" => {
+                let name = attribute("name").ok_or("an Item without a name")?;
+                let value = attribute("value")
+                    .and_then(|v| v.parse().ok())
+                    .ok_or_else(|| format!("item {name}: no valid value"))?;
+                description.items.insert((simple_type.clone(), name), value);
+            }
             b"ScalarVariable" => {
                 let name = attribute("name").ok_or("a ScalarVariable without a name")?;
                 let vr = attribute("valueReference")
