@@ -21,7 +21,7 @@ use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::instance::{FmuState, State, Version};
 use cyclic_mechanism::variables::{count, variable, VarType};
 use fmi_sys::fmi2::*;
-use integrators::snapshot::fnv1a_64;
+use integrators::bytes::fnv1a_64;
 
 /// A value reference: mostly the FMU's, some past them, some anything.
 fn vr(rng: &mut Rng) -> u32 {

@@ -15,7 +15,7 @@ use std::fmt::Write as _;
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::variables::{variables, Causality, VarType};
 use fmi_sys::fmi2::*;
-use integrators::snapshot::fnv1a_64;
+use integrators::bytes::fnv1a_64;
 
 mod common;
 

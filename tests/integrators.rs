@@ -6,7 +6,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
-use integrators::snapshot::{Reader, Writer};
+use integrators::bytes::{Reader, Writer};
 use integrators::{Dop853, OdeSystem, Radau5, Rk4, Stepper, Tolerances};
 
 /// Counts this thread's allocations while `COUNTING` is set.
@@ -149,8 +149,8 @@ fn restore_bit_for_bit<S: Stepper<2>>() {
         .unwrap();
     let mut w = Writer::default();
     method.serialize_into(&mut w);
-    let bytes = w.finish(7);
-    let mut reader = Reader::open(&bytes, 7).unwrap();
+    let bytes = w.into_bytes();
+    let mut reader = Reader::new(&bytes);
     let mut copy = S::deserialize_from(&mut reader).unwrap();
     reader.finish().unwrap();
     copy.check_memory(&Oscillator, t, &y).unwrap();

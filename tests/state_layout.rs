@@ -5,13 +5,13 @@
 
 use std::ffi::CString;
 
-use cyclic_mechanism::instance::{Instance, Interface, Version};
+use cyclic_mechanism::instance::{Instance, Interface, Version, FORMAT_VERSION};
 use cyclic_mechanism::plant::Value;
 use cyclic_mechanism::variables::value_reference;
-use integrators::snapshot::{fnv1a_64, FORMAT_VERSION};
+use integrators::bytes::fnv1a_64;
 
 /// The version and the layout it was pinned with.
-const PINNED: (u32, u64) = (18, 0xebfedc245662db44);
+const PINNED: (u32, u64) = (19, 0xebfedc245662db44);
 
 fn instance(interface: Interface) -> Instance {
     let name = CString::new("layout").expect("no NUL");
@@ -60,6 +60,6 @@ fn the_serialized_layout_is_the_one_its_format_version_was_pinned_with() {
         (FORMAT_VERSION, layout),
         PINNED,
         "the serialized layout is {layout:#x}: when it changed, raise FORMAT_VERSION in \
-         integrators/src/snapshot.rs and pin the two here"
+         src/instance/state_frame.rs and pin the two here"
     );
 }

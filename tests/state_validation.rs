@@ -11,7 +11,7 @@ mod common;
 use cyclic_mechanism::fmi2::*;
 use cyclic_mechanism::variables::{value_reference, variables, Causality, VarType};
 use fmi_sys::fmi2::*;
-use integrators::snapshot::fnv1a_64;
+use integrators::bytes::fnv1a_64;
 
 const HEADER: usize = 28;
 

@@ -18,7 +18,7 @@ use super::{
     after_accepted, check_step_size, first_step, plan_step, OdeSystem, Progress, SolverError,
     Stepper, Tolerances,
 };
-use crate::snapshot::{same_bits, FormatError, Reader, Writer};
+use crate::bytes::{same_bits, FormatError, Reader, Writer};
 
 const STAGES: usize = 12;
 /// Stage slots: the twelve stages, f(t + h, y_new) (the next step's first stage), and the
@@ -535,7 +535,7 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
     }
 
     /// Everything the integrator remembers (step size, stages, dense output, counters),
-    /// for a serialized FMU state: restoring it continues bit for bit.
+    /// as bytes: restoring it continues bit for bit.
     fn serialize_into(&self, w: &mut Writer) {
         self.progress.serialize_into(w);
         self.stages.iter().for_each(|stage| w.f64s(stage));
@@ -724,8 +724,8 @@ mod tests {
         let copy_of = |solver: &Dop853<2>| {
             let mut w = Writer::default();
             solver.serialize_into(&mut w);
-            let bytes = w.finish(7);
-            let mut reader = Reader::open(&bytes, 7).unwrap();
+            let bytes = w.into_bytes();
+            let mut reader = Reader::new(&bytes);
             Dop853::<2>::deserialize_from(&mut reader)
         };
         let copy = copy_of(&solver).unwrap();

@@ -1,13 +1,13 @@
 //! Integrators, generic over a small trait and ignorant of the problem they solve.
-//! Fixed-size state (`[f64; N]`), no heap allocation while stepping. The FMU steps its
-//! mechanism with them, and the sweep's runner a Model Exchange FMU's states.
+//! Fixed-size state (`[f64; N]`), no heap allocation while stepping; what a method
+//! remembers can be written to bytes and read back to continue bit for bit.
 
+pub mod bytes;
 pub mod dop853;
 mod dop853_tableau;
 mod linear;
 pub mod radau5;
 pub mod rk4;
-pub mod snapshot;
 pub mod switching;
 pub mod text;
 
@@ -16,7 +16,7 @@ pub use radau5::Radau5;
 pub use rk4::Rk4;
 pub use switching::{Choice, Integrator, Method};
 
-use crate::snapshot::{FormatError, Reader, Writer};
+use crate::bytes::{FormatError, Reader, Writer};
 use crate::text::number;
 
 /// An ODE y' = f(t, y) on a manifold the system can project onto.
@@ -100,8 +100,7 @@ pub trait Stepper<const N: usize>: Clone + Sized {
     fn check_memory<S: OdeSystem<N>>(&self, system: &S, t: f64, y: &[f64; N])
         -> Result<(), String>;
 
-    /// Everything the method remembers, for a serialized FMU state: restoring it
-    /// continues bit for bit.
+    /// Everything the method remembers, as bytes: restoring it continues bit for bit.
     fn serialize_into(&self, w: &mut Writer);
 
     /// The method written by [`Stepper::serialize_into`].

@@ -18,7 +18,7 @@ use super::{
     after_accepted, check_step_size, combine, first_step, plan_step, OdeSystem, Progress,
     SolverError, Statistics, Stepper, Tolerances,
 };
-use crate::snapshot::{same_bits, FormatError, Reader, Writer};
+use crate::bytes::{same_bits, FormatError, Reader, Writer};
 
 const SQRT6: f64 = 2.449_489_742_783_178;
 /// Nodes c of Radau IIA (order 5).
@@ -636,7 +636,7 @@ impl<const N: usize> Stepper<N> for Radau5<N> {
         Ok(())
     }
 
-    /// Everything the integrator remembers, for a serialized FMU state.
+    /// Everything the integrator remembers, in the byte form of [`crate::bytes`].
     fn serialize_into(&self, w: &mut Writer) {
         self.progress.serialize_into(w);
         w.f64s(&self.f0);

@@ -20,7 +20,7 @@ use super::{
     after_accepted, check_step_size, first_step, plan_step, OdeSystem, Progress, SolverError,
     Stepper, Tolerances,
 };
-use crate::snapshot::{same_bits, FormatError, Reader, Writer};
+use crate::bytes::{same_bits, FormatError, Reader, Writer};
 
 const SAFETY: f64 = 0.9;
 const FACTOR_MIN: f64 = 0.2;

@@ -25,7 +25,7 @@
 use super::{
     Dop853, OdeSystem, Progress, Radau5, Rk4, SolverError, Statistics, Stepper, Tolerances,
 };
-use crate::snapshot::{FormatError, Reader, Writer};
+use crate::bytes::{FormatError, Reader, Writer};
 
 /// Radau IIA ends a step on every communication point, so it can only beat a
 /// stability-limited DOP853 when the communication step is several DOP853 steps long.
@@ -297,7 +297,7 @@ impl<const N: usize> Integrator<N> {
         };
     }
 
-    /// Everything the integrator remembers, for a serialized FMU state.
+    /// Everything the integrator remembers, in the byte form of [`crate::bytes`].
     pub fn serialize_into(&self, w: &mut Writer) {
         w.u8(match self.choice {
             Choice::Auto => 0,

@@ -14,7 +14,7 @@
 use crate::model::change_point::{self, Crossing};
 use crate::model::{self, Inputs, ModelError, Parameters, Projected, State, STATE_SIZE};
 use crate::plant::{check_inputs, Activity, InputDerivatives, Plant};
-use integrators::snapshot::{same_bits, FormatError, Reader, Writer};
+use integrators::bytes::{same_bits, FormatError, Reader, Writer};
 use integrators::{Integrator, OdeSystem, SolverError, Statistics, Tolerances};
 
 use super::sensitivity::Tracker;
@@ -211,7 +211,7 @@ impl CoSimulation {
             integrator_inputs: Inputs::default(),
             restart: true,
             solver: Integrator::new(
-                plant.solver_kind().choice(),
+                super::method_choice(plant.solver_kind()),
                 tolerances(experiment.tolerance),
             ),
             carried: None,
@@ -343,10 +343,7 @@ impl CoSimulation {
 
     /// What the statistics outputs show.
     pub fn activity(&self) -> Activity {
-        Activity {
-            statistics: self.solver.statistics(),
-            method: self.solver.method(),
-        }
+        super::activity(self.solver.statistics(), self.solver.method())
     }
 
     /// `solver = dop853` on a problem where DOP853 is limited by stability (see
@@ -855,8 +852,8 @@ mod tests {
         let mut w = Writer::default();
         plant.serialize_into(&mut w);
         driver.serialize_into(&mut w);
-        let bytes = w.finish(7);
-        let mut r = Reader::open(&bytes, 7).unwrap();
+        let bytes = w.into_bytes();
+        let mut r = Reader::new(&bytes);
         let mut plant_2 = Plant::deserialize_from(&mut r).unwrap();
         let mut driver_2 = CoSimulation::deserialize_from(&mut r, &plant_2, &experiment)
             .expect("a deferred input change restores");

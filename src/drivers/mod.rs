@@ -17,7 +17,39 @@ pub mod sensitivity;
 pub use cosimulation::CoSimulation;
 pub use model_exchange::Exchange;
 
-use crate::model::{self, ModelError};
+use crate::model::ModelError;
+use crate::plant::{Activity, SolverKind};
+use integrators::text::number;
+use integrators::{Choice, Method, Statistics};
+
+/// The integrators' choice for what the `solver` parameter names.
+pub fn method_choice(kind: SolverKind) -> Choice {
+    match kind {
+        SolverKind::Auto => Choice::Auto,
+        SolverKind::Dop853 => Choice::Fixed(Method::Dop853),
+        SolverKind::Implicit => Choice::Fixed(Method::Radau5),
+    }
+}
+
+/// The statistics outputs of an integrator that counted `statistics` and integrates with
+/// `method` now.
+pub fn activity(statistics: Statistics, method: Method) -> Activity {
+    Activity {
+        steps: statistics.n_steps,
+        rejected: statistics.n_rejected,
+        right_hand_sides: statistics.n_rhs,
+        active: match method {
+            Method::Dop853 => SolverKind::Dop853,
+            Method::Radau5 => SolverKind::Implicit,
+        },
+    }
+}
+
+/// The statistics outputs before an integrator for `kind` has run: no work, and the
+/// method it would start with.
+pub fn idle_activity(kind: SolverKind) -> Activity {
+    activity(Statistics::default(), method_choice(kind).first_method())
+}
 
 /// Relative tolerance when the master gives none (the DefaultExperiment's).
 pub const DEFAULT_TOLERANCE: f64 = 1e-8;
@@ -48,7 +80,7 @@ impl Experiment {
         if !(low..=high).contains(&tolerance) {
             return Err(ModelError::new(format!(
                 "tolerance = {} must lie in [{low:e}, {high:e}]",
-                model::number(tolerance)
+                number(tolerance)
             )));
         }
         Ok(())

@@ -14,7 +14,7 @@ use crate::model::chart::{coordinates_for, full_state, handover_indicator_at, in
 use crate::model::{Chart, Coordinates, Independent, ModelError, State};
 use crate::plant::Plant;
 use crate::variables::STATES as STATE_NAMES;
-use integrators::snapshot::{same_bits, FormatError, Reader, Writer};
+use integrators::bytes::{same_bits, FormatError, Reader, Writer};
 
 /// The number of continuous states.
 pub const CONTINUOUS_STATES: usize = STATE_NAMES.len();

@@ -4,11 +4,12 @@
 //! fields in one order, each part checking its values again on reading.
 
 use super::state::{Interface, State, Version};
+use super::state_frame;
 use super::status::Failure;
-use crate::description::{self, DEFAULT_EXPERIMENT};
-use crate::drivers::{CoSimulation, Exchange, Experiment};
+use crate::description::DEFAULT_EXPERIMENT;
+use crate::drivers::{self, CoSimulation, Exchange, Experiment};
 use crate::plant::{Activity, Plant};
-use integrators::snapshot::{fnv1a_64, FormatError, Reader, Writer};
+use integrators::bytes::{FormatError, Writer};
 
 /// The driver of an instance, by interface; each exists once initialisation (or, in
 /// initialization mode, a read) has assembled the plant, so that in initialization mode a
@@ -64,7 +65,7 @@ pub struct FmuState {
 }
 
 impl FmuState {
-    /// Just after fmi2Instantiate: every variable at its start value.
+    /// Just after instantiation: every variable at its start value.
     pub(super) fn new(interface: Interface, version: Version) -> Self {
         let mut plant = Plant::new();
         plant.set_time(DEFAULT_EXPERIMENT.0);
@@ -86,16 +87,13 @@ impl FmuState {
     pub(super) fn activity(&self) -> Activity {
         match &self.driver {
             Driver::CoSimulation(Some(driver)) => driver.activity(),
-            _ => Activity {
-                method: self.plant.solver_kind().choice().first_method(),
-                ..Activity::idle()
-            },
+            _ => drivers::idle_activity(self.plant.solver_kind()),
         }
     }
 
-    /// The versioned, position-independent byte form (see [`crate::snapshot`]).
+    /// The versioned, position-independent byte form (framed by [`state_frame`]).
     pub fn serialize(&self) -> Vec<u8> {
-        self.write().finish(interface_hash())
+        state_frame::frame(&self.write().into_bytes())
     }
 
     /// The layout of this state's serialized payload: the kinds of its fields, in order,
@@ -129,7 +127,7 @@ impl FmuState {
 
     fn read(bytes: &[u8]) -> Result<Self, FormatError> {
         let invalid = |what: String| FormatError(format!("invalid serialized state: {what}"));
-        let mut r = Reader::open(bytes, interface_hash())?;
+        let mut r = state_frame::open(bytes)?;
         let interface = match r.u8()? {
             0 => Interface::ModelExchange,
             1 => Interface::CoSimulation,
@@ -199,7 +197,7 @@ impl FmuState {
                 self.interface().name()
             ));
         }
-        let steps = self.activity().statistics.n_steps;
+        let steps = self.activity().steps;
         if !initialised && (self.plant.time() != self.experiment.start || steps != 0) {
             return Err("an instance before initialisation has not moved".into());
         }
@@ -229,10 +227,4 @@ impl FmuState {
         }
         Ok(())
     }
-}
-
-/// Serialized states carry this hash of the interface (either version's): a state of
-/// another FMU, or of another build of its interface, is refused.
-pub(super) fn interface_hash() -> u64 {
-    fnv1a_64(&description::interface_hash().to_le_bytes())
 }

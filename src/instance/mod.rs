@@ -9,6 +9,7 @@ mod handles;
 pub mod logger;
 mod logging;
 pub mod state;
+mod state_frame;
 mod status;
 mod stepping;
 mod values;
@@ -19,6 +20,7 @@ pub use fmu_state::{Driver, FmuState};
 use handles::StateHandles;
 pub use logger::Logger;
 pub use state::{Interface, State, Version};
+pub use state_frame::FORMAT_VERSION;
 pub use status::{Category, Failure, Outcome, Status};
 
 use crate::description::LOG_CATEGORIES;

@@ -194,10 +194,10 @@ impl Instance {
             }
         }
         if self.log_enabled(Category::Solver) {
-            let s = self.fmu_state.activity().statistics;
+            let s = self.fmu_state.activity();
             let message = format!(
                 "t = {target}: {} steps, {} rejected, {} right-hand sides so far",
-                s.n_steps, s.n_rejected, s.n_rhs
+                s.steps, s.rejected, s.right_hand_sides
             );
             self.log(Status::Ok, Category::Solver, &message);
         }

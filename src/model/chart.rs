@@ -14,6 +14,7 @@
 //! without a branch cut (see [`base_angle`]) and the assembly branch (the sign before the
 //! acos) and the follower's whole turns are fixed when the chart is entered.
 
+use integrators::text::number;
 use std::f64::consts::{PI, TAU};
 
 use super::kinematics::constraint_terms;
@@ -179,8 +180,8 @@ pub fn full_state<T: Scalar>(
             "the loop's speeds are undetermined at phi2 = {}, phi3 = {} (B1 = {}, C1 = {})",
             y[1].value(),
             y[2].value(),
-            super::number(t.b1.value()),
-            super::number(t.c1.value())
+            number(t.b1.value()),
+            number(t.c1.value())
         )));
     }
     y[5] = w2;

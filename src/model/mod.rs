@@ -36,8 +36,6 @@ pub struct Inputs<T = f64> {
     pub load_torque: T,
 }
 
-pub use integrators::text::number;
-
 /// A model error: the message says which variable and which rule.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModelError(String);

@@ -5,7 +5,8 @@
 //! (name, unit, description, rule) from which the FMI variable table, the model
 //! description and the documentation are derived.
 
-use super::{number, ModelError};
+use super::ModelError;
+use integrators::text::number;
 
 /// What values a parameter admits; checked before a value is applied. Every rule bounds
 /// the magnitude too: within these ranges every derived quantity (energies, accelerations,

@@ -6,6 +6,7 @@ use super::kinematics::{
 };
 use super::trig::sin_cos_pair;
 use super::{ModelError, Parameters, State};
+use integrators::text::number;
 
 /// The constraint's conditioning (B1²/J2 + C1²/J3, normalised by its largest possible
 /// value) below which the configuration counts as singular: |G| at 1e-4 of its scale,
@@ -278,8 +279,8 @@ pub fn check_passage(
              one because {}",
             y[1],
             y[2],
-            super::number(b1),
-            super::number(c1),
+            number(b1),
+            number(c1),
             equal_sums(p)
         ))
     };
@@ -342,8 +343,8 @@ pub fn initial_state(p: &Parameters) -> Result<State, ModelError> {
             "the assembly at phi2_0 = {phi2} is a change point (B1 = {}, C1 = {}: crank, rod \
              and rocker collinear), where the motion is not determined; this geometry has one \
              because {}; change phi2_0 or the lengths",
-            super::number(t.b1),
-            super::number(t.c1),
+            number(t.b1),
+            number(t.c1),
             equal_sums(p)
         )));
     }
@@ -357,7 +358,7 @@ pub fn initial_state(p: &Parameters) -> Result<State, ModelError> {
                  and rocker aligned), where the crank cannot move: omega2_0 = {} is not a \
                  possible initial speed there (the initial velocity is undetermined by \
                  omega2_0); set omega2_0 = 0 to start at rest, or change phi2_0",
-                super::number(t.c1),
+                number(t.c1),
                 p.omega2_0
             )));
         }

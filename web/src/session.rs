@@ -11,6 +11,7 @@ use cyclic_mechanism::model::params::Rule;
 use cyclic_mechanism::model::{self, PARAMETERS};
 use cyclic_mechanism::plant::{Activity, Plant, Value};
 use cyclic_mechanism::variables::{self, Causality, Slot, Twin, VarType, Variable};
+use integrators::text::number;
 
 /// How a completed step went.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -334,7 +335,7 @@ fn causality(c: Causality) -> &'static str {
 /// A number as JSON has them: the infinite bounds of a range as the largest finite ones.
 fn json_number(x: f64) -> String {
     if x.is_finite() {
-        model::number(x)
+        number(x)
     } else if x > 0.0 {
         format!("{:e}", f64::MAX)
     } else {
