@@ -7,6 +7,7 @@ pub mod dop853;
 mod dop853_tableau;
 mod linear;
 pub mod radau5;
+mod radau5_tableau;
 pub mod rk4;
 pub mod switching;
 pub mod text;
