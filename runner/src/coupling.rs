@@ -25,7 +25,7 @@ pub const MIN_STEP_FRACTION: f64 = 1e-9;
 
 /// What a point reports of its coupling.
 #[derive(Clone, Copy, Debug, Serialize, PartialEq)]
-pub struct CouplingReport {
+pub struct CouplingRecord {
     /// The largest estimate of an accepted step, in units of the connections' scales.
     pub worst_estimate: f64,
     pub accepted: u64,
@@ -43,9 +43,31 @@ pub enum Verdict {
     GiveUp,
 }
 
-/// The step-size controller of one system instance.
+/// The rule of a coupling tolerance: a relative error, finite, in (0, 1).
+pub fn check_tolerance(tolerance: f64) -> Result<(), String> {
+    if tolerance.is_finite() && 0.0 < tolerance && tolerance < 1.0 {
+        Ok(())
+    } else {
+        Err(format!(
+            "coupling_tolerance must be a number in (0, 1), got {tolerance}"
+        ))
+    }
+}
+
+/// A connection as the estimate sees it: whether it carries a Real (only those drift
+/// along a polynomial) and how many derivatives it passes with its value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Connection {
+    pub real: bool,
+    pub derivatives: usize,
+}
+
+/// The step-size controller of one system instance, with the estimate it judges by.
 pub struct Controller {
     tolerance: f64,
+    connections: Vec<Connection>,
+    /// Per connection, the largest |value| passed so far (at least 1): its drift's unit.
+    scales: Vec<f64>,
     /// The order of the estimate in the step: 1 + the fewest derivatives a connection
     /// passes.
     order: f64,
@@ -53,17 +75,20 @@ pub struct Controller {
     proposed: f64,
     /// The previous accepted step's estimate over the tolerance.
     previous: f64,
-    report: CouplingReport,
+    report: CouplingRecord,
 }
 
 impl Controller {
-    pub fn new(tolerance: f64, fewest_derivatives: usize) -> Self {
+    pub fn new(tolerance: f64, connections: Vec<Connection>) -> Self {
+        let fewest = connections.iter().map(|c| c.derivatives).min().unwrap_or(0);
         Self {
             tolerance,
-            order: 1.0 + fewest_derivatives as f64,
+            scales: vec![1.0; connections.len()],
+            connections,
+            order: 1.0 + fewest as f64,
             proposed: 0.0,
             previous: 1.0,
-            report: CouplingReport {
+            report: CouplingRecord {
                 worst_estimate: 0.0,
                 accepted: 0,
                 rejected: 0,
@@ -72,12 +97,44 @@ impl Controller {
         }
     }
 
-    /// Forget the last point: a new point starts from the output grid's step.
+    /// Forget the last point: a new point starts from the output grid's step, and its
+    /// connections' scales from 1.
     pub fn restart(&mut self) {
-        *self = Self::new(self.tolerance, self.order as usize - 1);
+        *self = Self::new(self.tolerance, std::mem::take(&mut self.connections));
     }
 
-    pub fn report(&self) -> CouplingReport {
+    /// The estimate of a step of `h`: the largest drift of a Real connection, what its
+    /// target is given now (`now`) against the polynomial it was given at the step's
+    /// start (`given`), in its scale; and the connection that drifted most.
+    pub fn estimate(&self, given: &[[f64; 3]], now: &[[f64; 3]], h: f64) -> (f64, Option<usize>) {
+        let mut largest = (0.0_f64, None);
+        for (k, c) in self.connections.iter().enumerate() {
+            if c.real {
+                let d = drift(&given[k], c.derivatives, h, now[k][0]);
+                let relative = d / self.scales[k].max(now[k][0].abs());
+                if largest.1.is_none() || relative > largest.0 {
+                    largest = (relative, Some(k));
+                }
+            }
+        }
+        largest
+    }
+
+    /// After an accepted step that passed `given`: each connection's scale grows to the
+    /// largest |value| passed so far.
+    pub fn widen_scales(&mut self, given: &[[f64; 3]]) {
+        for (scale, given) in self.scales.iter_mut().zip(given) {
+            *scale = scale.max(given[0].abs());
+        }
+    }
+
+    /// The step of about which a connection passing `derivatives` would meet the
+    /// tolerance, from its `estimate` over a step of `h`.
+    pub fn step_needed(&self, h: f64, estimate: f64, derivatives: usize) -> f64 {
+        h * (self.tolerance / estimate).powf(1.0 / (1.0 + derivatives as f64))
+    }
+
+    pub fn report(&self) -> CouplingRecord {
         self.report
     }
 
@@ -138,7 +195,7 @@ impl Controller {
 
 /// How far a connection's actual output `now`, `h` after the step's start, lies from the
 /// polynomial its target was given (value and derivatives at the start).
-pub fn drift(given: &[f64; 3], derivatives: usize, h: f64, now: f64) -> f64 {
+fn drift(given: &[f64; 3], derivatives: usize, h: f64, now: f64) -> f64 {
     let mut predicted = given[0];
     if derivatives >= 1 {
         predicted += h * given[1];
@@ -155,7 +212,13 @@ mod tests {
 
     #[test]
     fn a_step_lands_on_the_grid_without_a_sliver() {
-        let mut c = Controller::new(1e-4, 2);
+        let mut c = Controller::new(
+            1e-4,
+            vec![Connection {
+                real: true,
+                derivatives: 2,
+            }],
+        );
         assert_eq!(c.next_step(0.0, 0.01, 0.01), 0.01);
         c.proposed = 0.004;
         assert_eq!(c.next_step(0.0, 0.01, 0.01), 0.004);
@@ -169,7 +232,13 @@ mod tests {
 
     #[test]
     fn a_step_shortened_to_land_keeps_the_step_proposed() {
-        let mut c = Controller::new(1e-4, 2);
+        let mut c = Controller::new(
+            1e-4,
+            vec![Connection {
+                real: true,
+                derivatives: 2,
+            }],
+        );
         c.proposed = 0.004;
         assert_eq!(c.judge(0.001, 1e-9, 0.01), Verdict::Accept);
         assert_eq!(c.proposed, 0.005); // grown fivefold, no less than before
@@ -180,7 +249,13 @@ mod tests {
 
     #[test]
     fn a_large_estimate_shrinks_the_step_and_a_small_one_grows_it() {
-        let mut c = Controller::new(1e-4, 2);
+        let mut c = Controller::new(
+            1e-4,
+            vec![Connection {
+                real: true,
+                derivatives: 2,
+            }],
+        );
         assert_eq!(c.judge(0.01, 1e-2, 0.01), Verdict::Reject);
         assert!(c.proposed < 0.01 * 0.5);
         let shrunk = c.proposed;
@@ -193,7 +268,13 @@ mod tests {
 
     #[test]
     fn an_estimate_too_large_at_the_smallest_step_gives_up() {
-        let mut c = Controller::new(1e-4, 0);
+        let mut c = Controller::new(
+            1e-4,
+            vec![Connection {
+                real: true,
+                derivatives: 0,
+            }],
+        );
         let smallest = MIN_STEP_FRACTION * 0.01;
         assert_eq!(c.judge(smallest, 1.0, 0.01), Verdict::GiveUp);
     }

@@ -100,7 +100,7 @@ impl EnumerationTypes {
     }
 }
 
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct Description {
     pub fmi_version: String,
     pub model_name: String,
@@ -159,130 +159,22 @@ impl Description {
 
     pub fn parse(xml: &str) -> Result<Self, String> {
         let mut reader = Reader::from_str(xml);
-        let mut description = Description {
-            fmi_version: String::new(),
-            model_name: String::new(),
-            guid: String::new(),
-            model_identifier: None,
-            can_handle_variable_step: false,
-            can_interpolate_inputs: false,
-            max_output_derivative_order: 0,
-            can_get_and_set_state: false,
-            has_event_mode: false,
-            log_categories: Vec::new(),
-            has_model_exchange: false,
-            exchange_identifier: None,
-            continuous_states: 0,
-            event_indicators: 0,
-            variables: Vec::new(),
-        };
-        // Inside FMI 2.0's <ModelStructure><Derivatives>, whose <Unknown>s are the states.
-        let mut in_derivatives = false;
-        // The variable being read: an FMI 2.0 <ScalarVariable> takes its type from its
-        // child element; an FMI 3.0 one may have <Dimension> (an array) and <Alias>
-        // children.
-        let mut open: Option<Variable> = None;
-        // The element that closes an open FMI 3.0 variable.
-        let mut open_tag: Vec<u8> = Vec::new();
-        let mut in_variables = false;
-        let mut enumerations = EnumerationTypes::default();
+        let mut parse = Parse::default();
         loop {
             let event = reader.read_event().map_err(|e| e.to_string())?;
             match &event {
-                Event::Start(e) | Event::Empty(e) => {
-                    let empty = matches!(event, Event::Empty(_));
-                    if !in_variables && enumerations.read(e, empty)? {
-                        continue;
-                    }
-                    let tag = e.local_name();
-                    let fmi3 = description.fmi_version.starts_with("3.");
-                    match tag.as_ref() {
-                        b"fmiModelDescription" => description.read_root(e)?,
-                        b"CoSimulation" => description.read_co_simulation(e)?,
-                        b"ModelExchange" => {
-                            description.has_model_exchange = true;
-                            description.exchange_identifier = attribute(e, "modelIdentifier")?;
-                        }
-                        b"Derivatives" if !fmi3 => in_derivatives = !empty,
-                        b"Unknown" if in_derivatives => description.continuous_states += 1,
-                        b"ContinuousStateDerivative" if fmi3 && !in_variables => {
-                            description.continuous_states += 1;
-                        }
-                        b"EventIndicator" if fmi3 && !in_variables => {
-                            description.event_indicators += 1;
-                        }
-                        b"ModelVariables" => in_variables = !empty,
-                        b"Category" if !in_variables => {
-                            description.log_categories.extend(attribute(e, "name")?);
-                        }
-                        b"ScalarVariable" if !fmi3 => {
-                            let variable = variable(e, BaseType::Real, "Real")?;
-                            if empty {
-                                return Err(format!(
-                                    "variable {} has no type element",
-                                    variable.name
-                                ));
-                            }
-                            open = Some(variable);
-                        }
-                        tag @ (b"Real" | b"Integer" | b"Boolean" | b"String" | b"Enumeration")
-                            if !fmi3 =>
-                        {
-                            if let Some(variable) = open.as_mut() {
-                                variable.base_type = fmi2_type(tag);
-                                variable.fmi_type = String::from_utf8_lossy(tag).into_owned();
-                                variable.start = attribute(e, "start")?;
-                                variable.min = attribute(e, "min")?;
-                                variable.max = attribute(e, "max")?;
-                                variable.declared_type = attribute(e, "declaredType")?;
-                            }
-                        }
-                        b"Dimension" if fmi3 => {
-                            if let Some(variable) = open.as_mut() {
-                                variable.base_type = BaseType::Unsupported;
-                                if !variable.fmi_type.ends_with("[]") {
-                                    variable.fmi_type.push_str("[]");
-                                }
-                            }
-                        }
-                        b"Alias" if fmi3 => {
-                            if let (Some(variable), Some(name)) =
-                                (open.as_ref(), attribute(e, "name")?)
-                            {
-                                let alias = Variable {
-                                    name,
-                                    description: attribute(e, "description")?,
-                                    ..variable.clone()
-                                };
-                                description.variables.push(alias);
-                            }
-                        }
-                        tag if fmi3 && in_variables && open.is_none() => {
-                            let variable = fmi3_variable(e, tag)?;
-                            if empty {
-                                description.variables.push(variable);
-                            } else {
-                                open = Some(variable);
-                                open_tag = tag.to_vec();
-                            }
-                        }
-                        _ => {}
-                    }
-                }
-                Event::End(e) => match e.local_name().as_ref() {
-                    tag @ (b"SimpleType" | b"EnumerationType") => enumerations.close(tag),
-                    b"ModelVariables" => in_variables = false,
-                    b"Derivatives" => in_derivatives = false,
-                    b"ScalarVariable" => description.variables.extend(open.take()),
-                    tag if open.is_some() && tag == open_tag.as_slice() => {
-                        description.variables.extend(open.take());
-                    }
-                    _ => {}
-                },
+                Event::Start(e) => parse.start(e, false)?,
+                Event::Empty(e) => parse.start(e, true)?,
+                Event::End(e) => parse.end(e.local_name().as_ref()),
                 Event::Eof => break,
                 _ => {}
             }
         }
+        let Parse {
+            mut description,
+            enumerations,
+            ..
+        } = parse;
         enumerations.give_items(&mut description.variables);
         match description.fmi_version.as_str() {
             "2.0" => {}
@@ -413,6 +305,141 @@ fn attribute(e: &BytesStart, name: &str) -> Result<Option<String>, String> {
         }
     }
     Ok(None)
+}
+
+/// Where a reading of `modelDescription.xml` is: the description so far, and the
+/// element it is inside.
+#[derive(Default)]
+struct Parse {
+    description: Description,
+    /// Inside FMI 2.0's <ModelStructure><Derivatives>, whose <Unknown>s are the states.
+    in_derivatives: bool,
+    /// The variable being read: an FMI 2.0 <ScalarVariable> takes its type from its child
+    /// element; an FMI 3.0 one may have <Dimension> (an array) and <Alias> children.
+    open: Option<Variable>,
+    /// The element that closes an open FMI 3.0 variable.
+    open_tag: Vec<u8>,
+    in_variables: bool,
+    enumerations: EnumerationTypes,
+}
+
+impl Parse {
+    /// An element opens (`empty`: and closes at once).
+    fn start(&mut self, e: &BytesStart, empty: bool) -> Result<(), String> {
+        if !self.in_variables && self.enumerations.read(e, empty)? {
+            return Ok(());
+        }
+        let tag = e.local_name();
+        let fmi3 = self.description.fmi_version.starts_with("3.");
+        let description = &mut self.description;
+        match tag.as_ref() {
+            b"fmiModelDescription" => description.read_root(e)?,
+            b"CoSimulation" => description.read_co_simulation(e)?,
+            b"ModelExchange" => {
+                description.has_model_exchange = true;
+                description.exchange_identifier = attribute(e, "modelIdentifier")?;
+            }
+            b"Derivatives" if !fmi3 => self.in_derivatives = !empty,
+            b"Unknown" if self.in_derivatives => description.continuous_states += 1,
+            b"ContinuousStateDerivative" if fmi3 && !self.in_variables => {
+                description.continuous_states += 1;
+            }
+            b"EventIndicator" if fmi3 && !self.in_variables => {
+                description.event_indicators += 1;
+            }
+            b"ModelVariables" => self.in_variables = !empty,
+            b"Category" if !self.in_variables => {
+                description.log_categories.extend(attribute(e, "name")?);
+            }
+            tag if fmi3 => self.start_fmi3_variable(e, tag, empty)?,
+            tag => self.start_fmi2_variable(e, tag, empty)?,
+        }
+        Ok(())
+    }
+
+    /// FMI 2.0: a <ScalarVariable> and its type element.
+    fn start_fmi2_variable(
+        &mut self,
+        e: &BytesStart,
+        tag: &[u8],
+        empty: bool,
+    ) -> Result<(), String> {
+        match tag {
+            b"ScalarVariable" => {
+                let variable = variable(e, BaseType::Real, "Real")?;
+                if empty {
+                    return Err(format!("variable {} has no type element", variable.name));
+                }
+                self.open = Some(variable);
+            }
+            b"Real" | b"Integer" | b"Boolean" | b"String" | b"Enumeration" => {
+                if let Some(variable) = self.open.as_mut() {
+                    variable.base_type = fmi2_type(tag);
+                    variable.fmi_type = String::from_utf8_lossy(tag).into_owned();
+                    variable.start = attribute(e, "start")?;
+                    variable.min = attribute(e, "min")?;
+                    variable.max = attribute(e, "max")?;
+                    variable.declared_type = attribute(e, "declaredType")?;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// FMI 3.0: a variable element, and its <Dimension> and <Alias> children.
+    fn start_fmi3_variable(
+        &mut self,
+        e: &BytesStart,
+        tag: &[u8],
+        empty: bool,
+    ) -> Result<(), String> {
+        match tag {
+            b"Dimension" => {
+                if let Some(variable) = self.open.as_mut() {
+                    variable.base_type = BaseType::Unsupported;
+                    if !variable.fmi_type.ends_with("[]") {
+                        variable.fmi_type.push_str("[]");
+                    }
+                }
+            }
+            b"Alias" => {
+                if let (Some(variable), Some(name)) = (self.open.as_ref(), attribute(e, "name")?) {
+                    let alias = Variable {
+                        name,
+                        description: attribute(e, "description")?,
+                        ..variable.clone()
+                    };
+                    self.description.variables.push(alias);
+                }
+            }
+            tag if self.in_variables && self.open.is_none() => {
+                let variable = fmi3_variable(e, tag)?;
+                if empty {
+                    self.description.variables.push(variable);
+                } else {
+                    self.open = Some(variable);
+                    self.open_tag = tag.to_vec();
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// An element closes.
+    fn end(&mut self, tag: &[u8]) {
+        match tag {
+            b"SimpleType" | b"EnumerationType" => self.enumerations.close(tag),
+            b"ModelVariables" => self.in_variables = false,
+            b"Derivatives" => self.in_derivatives = false,
+            b"ScalarVariable" => self.description.variables.extend(self.open.take()),
+            tag if self.open.is_some() && tag == self.open_tag.as_slice() => {
+                self.description.variables.extend(self.open.take());
+            }
+            _ => {}
+        }
+    }
 }
 
 #[cfg(test)]

@@ -1,4 +1,5 @@
-//! `fmu-runner serve DIR`: load the co-simulation FMU (FMI 2.0) unpacked in DIR and answer
+//! `fmu-runner serve DIR`: load the FMU (FMI 2.0 or 3.0, Co-Simulation or Model Exchange)
+//! or the coupled system unpacked in DIR and answer
 //! requests on standard input (see `protocol`). The sweep's workers start one runner per
 //! FMU and keep it for their whole life, so the per-point work never passes through
 //! Python; a crash of the FMU ends only this process.
@@ -13,7 +14,7 @@ fn main() {
     let dir = match args.as_slice() {
         [_, command, dir] if command == "serve" => dir,
         _ => {
-            eprintln!("usage: fmu-runner serve <directory of an unpacked FMI 2.0 or 3.0 co-simulation FMU>");
+            eprintln!("usage: fmu-runner serve <directory of an unpacked FMI 2.0 or 3.0 FMU, or of a system>");
             std::process::exit(2);
         }
     };

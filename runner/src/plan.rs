@@ -155,58 +155,54 @@ pub struct Plan {
     pub timeout_s: Option<f64>,
 }
 
-fn finite(what: &str, x: f64) -> Result<f64, String> {
-    if x.is_finite() {
-        Ok(x)
-    } else {
-        Err(format!("{what} must be finite, got {x}"))
+/// Start, stop, step and the number of communication steps, each checked.
+fn time_grid(spec: &PlanSpec) -> Result<(f64, f64, f64, u64), String> {
+    let (start, stop, step) = (
+        finite("start", spec.start)?,
+        finite("stop", spec.stop)?,
+        finite("step", spec.step)?,
+    );
+    if step <= 0.0 || stop <= start {
+        return Err(format!(
+            "need step > 0 and stop > start, got start {start}, stop {stop}, step {step}"
+        ));
     }
+    let steps = (stop - start) / step;
+    let n_steps = steps.round();
+    if (steps - n_steps).abs() > 1e-6 || n_steps < 1.0 {
+        return Err(format!(
+            "stop − start = {} is not a whole number of communication steps of {step}",
+            stop - start
+        ));
+    }
+    Ok((start, stop, step, n_steps as u64))
 }
 
-impl Plan {
-    pub fn resolve(spec: PlanSpec, description: &Description) -> Result<Plan, String> {
-        let (start, stop, step) = (
-            finite("start", spec.start)?,
-            finite("stop", spec.stop)?,
-            finite("step", spec.step)?,
-        );
-        if step <= 0.0 || stop <= start {
-            return Err(format!(
-                "need step > 0 and stop > start, got start {start}, stop {stop}, step {step}"
-            ));
-        }
-        let steps = (stop - start) / step;
-        let n_steps = steps.round();
-        if (steps - n_steps).abs() > 1e-6 || n_steps < 1.0 {
-            return Err(format!(
-                "stop − start = {} is not a whole number of communication steps of {step}",
-                stop - start
-            ));
-        }
-        if let Some(tol) = spec.tolerance {
-            if !(tol.is_finite() && tol > 0.0) {
-                return Err(format!("tolerance must be finite and > 0, got {tol}"));
-            }
-        }
-        for (name, value) in &spec.fixed {
-            description.variable(name)?;
-            finite(name, *value)?;
-        }
-        let inputs = spec
-            .inputs
-            .into_iter()
-            .map(|(name, table)| resolve_input(description, &name, table))
-            .collect::<Result<Vec<_>, _>>()?;
+/// What a plan reads at every communication point, and where the metrics and the
+/// series find it in the read buffer.
+struct Reads {
+    by_type: ByType,
+    names: Vec<String>,
+    metrics: Vec<(usize, Accumulator)>,
+    series: Option<(Vec<usize>, u64)>,
+}
 
-        // One read slot per distinct variable, by type, in first-use order.
-        let mut reads = ByType::default();
+impl Reads {
+    /// One read slot per distinct variable of the metrics and the series, by type, the
+    /// metrics' windows checked against the run's (start, stop, step).
+    fn resolve(
+        spec: &PlanSpec,
+        description: &Description,
+        (start, stop, step): (f64, f64, f64),
+    ) -> Result<Self, String> {
+        let mut by_type = ByType::default();
         let mut read_vars: Vec<&Variable> = Vec::new();
         let mut slot_of = |name: &str| -> Result<usize, String> {
             let variable = description.variable(name)?;
             if let Some(i) = read_vars.iter().position(|v| v.name == name) {
                 return Ok(i);
             }
-            reads.push(variable)?;
+            by_type.push(variable)?;
             read_vars.push(variable);
             Ok(read_vars.len() - 1)
         };
@@ -238,28 +234,60 @@ impl Plan {
         };
         // Slots were numbered in first-use order; the buffer is laid out by type.
         let layout = buffer_layout(&read_vars);
-        let metrics = metrics
-            .into_iter()
-            .map(|(slot, acc)| (layout[slot], acc))
-            .collect();
-        let series =
-            series.map(|(slots, every)| (slots.iter().map(|&s| layout[s]).collect(), every));
-        let mut read_names = vec![String::new(); read_vars.len()];
+        let mut names = vec![String::new(); read_vars.len()];
         for (slot, v) in read_vars.iter().enumerate() {
-            read_names[layout[slot]] = v.name.clone();
+            names[layout[slot]] = v.name.clone();
         }
+        Ok(Reads {
+            by_type,
+            names,
+            metrics: metrics
+                .into_iter()
+                .map(|(slot, acc)| (layout[slot], acc))
+                .collect(),
+            series: series
+                .map(|(slots, every)| (slots.iter().map(|&s| layout[s]).collect(), every)),
+        })
+    }
+}
+
+fn finite(what: &str, x: f64) -> Result<f64, String> {
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(format!("{what} must be finite, got {x}"))
+    }
+}
+
+impl Plan {
+    pub fn resolve(mut spec: PlanSpec, description: &Description) -> Result<Plan, String> {
+        let (start, stop, step, n_steps) = time_grid(&spec)?;
+        if let Some(tol) = spec.tolerance {
+            if !(tol.is_finite() && tol > 0.0) {
+                return Err(format!("tolerance must be finite and > 0, got {tol}"));
+            }
+        }
+        for (name, value) in &spec.fixed {
+            description.variable(name)?;
+            finite(name, *value)?;
+        }
+        let inputs = std::mem::take(&mut spec.inputs)
+            .into_iter()
+            .map(|(name, table)| resolve_input(description, &name, table))
+            .collect::<Result<Vec<_>, _>>()?;
+        let reads = Reads::resolve(&spec, description, (start, stop, step))?;
         Ok(Plan {
             start,
             stop,
             step,
-            n_steps: n_steps as u64,
+            n_steps,
             tolerance: spec.tolerance,
             fixed: spec.fixed.into_iter().collect(),
             inputs,
-            reads,
-            read_names,
-            metrics,
-            series,
+            reads: reads.by_type,
+            read_names: reads.names,
+            metrics: reads.metrics,
+            series: reads.series,
             timeout_s: spec.timeout_s,
         })
     }

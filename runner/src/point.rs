@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-use crate::coupling::CouplingReport;
+use crate::coupling::CouplingRecord;
 use crate::description::Description;
 use crate::fmi::Status;
 use crate::messages;
@@ -16,9 +16,9 @@ use crate::unit::Unit;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Outcome {
     Ok,
-    /// The FMU returned fmi2Discard: it could not complete a step.
+    /// The FMU discarded a step (either version's Discard): it could not complete it.
     Discard,
-    /// The FMU returned fmi2Error or fmi2Fatal, or broke a rule of the standard.
+    /// The FMU returned Error or Fatal, or broke a rule of the standard.
     Error,
     /// Over the per-point wall-time budget.
     Timeout,
@@ -48,7 +48,7 @@ pub struct PointResult {
     /// Rows of (t, variables…), flattened.
     pub series: Vec<f64>,
     /// What the steps reported of the coupling (a system with a coupling tolerance).
-    pub coupling: Option<CouplingReport>,
+    pub coupling: Option<CouplingRecord>,
 }
 
 /// The values one request sets at every point, by type, with the point's own columns.

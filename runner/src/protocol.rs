@@ -16,12 +16,13 @@ use serde::Deserialize;
 use serde_json::{json, Value};
 
 use crate::description::Description;
-use crate::exchange::{Method, Shape};
+use crate::exchange::{method_named, Shape};
 use crate::fmi::{Interface, Library};
 use crate::plan::{Plan, PlanSpec};
 use crate::point::{Assignments, Runner};
 use crate::system::{is_system, SystemLibrary};
 use crate::target::Target;
+use integrators::Method;
 
 /// The longest a finished point's reply waits in the buffer.
 const FLUSH_EVERY: Duration = Duration::from_millis(20);
@@ -89,7 +90,7 @@ impl Session {
     /// the defaults), if they are not the ones loaded: a runner kept between studies may
     /// have run others.
     fn choose_interface(&mut self, plan: &PlanSpec) -> Result<(), String> {
-        let method = Method::from_name(plan.integrator.as_deref())?;
+        let method = method_named(plan.integrator.as_deref())?;
         let wanted = match plan.interface.as_deref() {
             Some(name) => Interface::from_name(name)?,
             None if self.interface.is_none() => return Ok(()),

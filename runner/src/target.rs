@@ -4,8 +4,8 @@
 
 use std::rc::Rc;
 
-use crate::coupling::CouplingReport;
-use crate::exchange::{Exchange, Shape};
+use crate::coupling::CouplingRecord;
+use crate::exchange::{ExchangeRun, Shape};
 use crate::fmi::each_call;
 use crate::fmi::{Instance, Library, Status};
 use crate::system::{SystemInstance, SystemLibrary};
@@ -25,7 +25,7 @@ impl Target {
     pub fn instantiate(&self) -> Result<Running, String> {
         Ok(match self {
             Target::Fmu(library) => Running::Fmu(Instance::new(library, c"sweep")?),
-            Target::Exchange(library, shape) => Running::Exchange(Exchange::new(
+            Target::Exchange(library, shape) => Running::Exchange(ExchangeRun::new(
                 Instance::new(library, c"sweep")?,
                 shape.clone(),
             )),
@@ -38,7 +38,7 @@ impl Target {
 /// calls on the runner's per-step path stay direct (and inlinable), as without systems.
 pub enum Running {
     Fmu(Instance),
-    Exchange(Exchange),
+    Exchange(ExchangeRun),
     System(SystemInstance),
 }
 
@@ -83,7 +83,7 @@ impl Unit for Running {
         }
     }
 
-    fn coupling(&self) -> Option<CouplingReport> {
+    fn coupling(&self) -> Option<CouplingRecord> {
         match self {
             Running::Fmu(unit) => unit.coupling(),
             Running::Exchange(unit) => unit.coupling(),

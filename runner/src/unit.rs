@@ -2,7 +2,7 @@
 //! FMU's instance implements here and a coupled system ([`crate::system`]) beside it. The
 //! point's master loop, metrics and series do not tell them apart ([`crate::target`]).
 
-use crate::coupling::CouplingReport;
+use crate::coupling::CouplingRecord;
 use crate::fmi::{each_call, Instance, Status};
 
 /// The co-simulation calls of a point's master loop, in FMI 2.0's words (an FMI 3.0
@@ -24,7 +24,7 @@ pub trait Unit {
     fn events(&self) -> u64;
     /// What a point's steps reported of the coupling, for a system with a coupling
     /// tolerance; None for anything else.
-    fn coupling(&self) -> Option<CouplingReport> {
+    fn coupling(&self) -> Option<CouplingRecord> {
         None
     }
     /// For a system with a coupling tolerance: an input that moves on from its value along

@@ -22,42 +22,16 @@
 //! be able to save and restore its FMU state, so that a rejected step can be taken again.
 
 use std::ffi::CString;
-use std::path::Path;
 use std::rc::Rc;
 
-use serde::Deserialize;
-
 use crate::archive::Unpacked;
-use crate::coupling::{drift, Controller, CouplingReport, Verdict};
-use crate::description::{Description, Variable};
-use crate::fmi::{Instance, Interface, Library, Status};
-use crate::plan::type_group;
+use crate::coupling::{Connection, Controller, CouplingRecord, Verdict};
+use crate::fmi::{Instance, Library, Status};
 use crate::unit::Unit;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SystemFile {
-    components: Vec<ComponentFile>,
-    connections: Vec<ConnectionFile>,
-    #[serde(default)]
-    input_derivatives: usize,
-    #[serde(default)]
-    coupling_tolerance: Option<f64>,
-}
+mod load;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ComponentFile {
-    name: String,
-    file: String,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ConnectionFile {
-    from: String,
-    to: String,
-}
+pub use load::is_system;
 
 struct Component {
     name: CString,
@@ -107,200 +81,16 @@ impl SystemLibrary {
     }
 }
 
-/// Whether `dir` holds a system rather than an unpacked FMU.
-pub fn is_system(dir: &Path) -> bool {
-    dir.join("system.json").is_file()
-}
-
-impl SystemLibrary {
-    /// Load the system in `dir`, with the description of its variables as one FMU's.
-    pub fn load(dir: &Path) -> Result<(Description, Rc<SystemLibrary>), String> {
-        let path = dir.join("system.json");
-        let text =
-            std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let file: SystemFile =
-            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
-        let mut components = Vec::new();
-        let mut descriptions = Vec::new();
-        for c in &file.components {
-            // Inside the served folder, which the caller removes even if this process dies.
-            let unpacked = Unpacked::within(&dir.join(&c.file), dir)?;
-            let description = Description::read(unpacked.dir())
-                .map_err(|e| format!("component {}: {e}", c.name))?;
-            let library = Library::load(unpacked.dir(), &description, Interface::CoSimulation)
-                .map_err(|e| format!("component {}: {e}", c.name))?;
-            components.push(Component {
-                name: CString::new(c.name.as_str()).map_err(|e| e.to_string())?,
-                interpolates: description.can_interpolate_inputs && library.exports_derivatives().1,
-                library,
-                _unpacked: unpacked,
-            });
-            descriptions.push(description);
-        }
-        let names: Vec<&str> = file.components.iter().map(|c| c.name.as_str()).collect();
-        let find = |end: &str| find_variable(end, &names, &descriptions);
-        let mut links = Vec::new();
-        let mut link_names = Vec::new();
-        let mut fed = Vec::new();
-        for c in &file.connections {
-            let (from, output) = find(&c.from)?;
-            let (to, input) = find(&c.to)?;
-            let mut link = link(
-                (from, output, &descriptions[from]),
-                (to, input, &descriptions[to]),
-                file.input_derivatives,
-            )?;
-            // A description may promise derivatives its binary does not export.
-            if !(components[from].library.exports_derivatives().0 && components[to].interpolates) {
-                link.derivatives = 0;
-            }
-            links.push(link);
-            link_names.push(format!("{} → {}", c.from, c.to));
-            fed.push((to, input.value_reference));
-        }
-        let mut variables = Vec::new();
-        let mut routes = Vec::new();
-        for (component, description) in descriptions.iter().enumerate() {
-            for v in &description.variables {
-                let connected = fed.contains(&(component, v.value_reference));
-                if (v.causality == "input" && connected) || v.causality == "independent" {
-                    continue;
-                }
-                let Ok(group) = type_group(v) else { continue };
-                routes.push(Route {
-                    component,
-                    vr: v.value_reference,
-                    group,
-                });
-                variables.push(Variable {
-                    name: format!("{}.{}", names[component], v.name),
-                    value_reference: (routes.len() - 1) as u32,
-                    ..v.clone()
-                });
-            }
-        }
-        let description = Description {
-            fmi_version: "2.0".into(),
-            model_name: "system".into(),
-            guid: String::new(),
-            model_identifier: Some("system".into()),
-            can_handle_variable_step: descriptions.iter().all(|d| d.can_handle_variable_step),
-            can_interpolate_inputs: false,
-            max_output_derivative_order: 0,
-            can_get_and_set_state: false,
-            has_event_mode: false,
-            log_categories: Vec::new(),
-            has_model_exchange: false,
-            exchange_identifier: None,
-            continuous_states: 0,
-            event_indicators: 0,
-            variables,
-        };
-        if let Some(tolerance) = file.coupling_tolerance {
-            check_rollback(tolerance, &components, &descriptions)?;
-        }
-        let system = SystemLibrary {
-            components,
-            routes,
-            links,
-            link_names,
-            coupling_tolerance: file.coupling_tolerance,
-        };
-        Ok((description, Rc::new(system)))
-    }
-}
-
-/// A coupling tolerance needs a positive tolerance and components that can roll back.
-fn check_rollback(
-    tolerance: f64,
-    components: &[Component],
-    descriptions: &[Description],
-) -> Result<(), String> {
-    if !(tolerance.is_finite() && tolerance > 0.0) {
-        return Err(format!(
-            "coupling_tolerance must be a finite number > 0, got {tolerance}"
-        ));
-    }
-    for (c, d) in components.iter().zip(descriptions) {
-        if !(d.can_get_and_set_state && c.library.exports_state()) {
-            return Err(format!(
-                "component {}: a coupling tolerance needs components that can save and \
-                 restore their FMU state (canGetAndSetFMUstate), and this one cannot",
-                c.name.to_string_lossy()
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// The component and variable that `end` ("component.variable") names.
-fn find_variable<'a>(
-    end: &str,
-    names: &[&str],
-    descriptions: &'a [Description],
-) -> Result<(usize, &'a Variable), String> {
-    let (component, variable) = end
-        .split_once('.')
-        .ok_or_else(|| format!("connection end {end:?} is not component.variable"))?;
-    let index = names
-        .iter()
-        .position(|n| *n == component)
-        .ok_or_else(|| format!("connection end {end:?}: no component {component:?}"))?;
-    let v = descriptions[index]
-        .variable(variable)
-        .map_err(|e| format!("connection end {end:?}: {e}"))?;
-    Ok((index, v))
-}
-
-/// The link from output `from` to input `to`, checked, with the derivative orders both
-/// ends support up to `wanted`.
-fn link(
-    (source, output, source_description): (usize, &Variable, &Description),
-    (target, input, target_description): (usize, &Variable, &Description),
-    wanted: usize,
-) -> Result<Link, String> {
-    let what = format!("connection {} → {}", output.name, input.name);
-    if output.causality != "output" || input.causality != "input" {
-        return Err(format!(
-            "{what}: a connection goes from an output to an input (these are {} and {})",
-            output.causality, input.causality
-        ));
-    }
-    if output.base_type != input.base_type {
-        return Err(format!("{what}: the two ends have different types"));
-    }
-    let group = type_group(output)?;
-    let derivatives = if group == 0 && target_description.can_interpolate_inputs {
-        wanted.min(source_description.max_output_derivative_order as usize)
-    } else {
-        0
-    };
-    Ok(Link {
-        from: Route {
-            component: source,
-            vr: output.value_reference,
-            group,
-        },
-        to: Route {
-            component: target,
-            vr: input.value_reference,
-            group,
-        },
-        derivatives: derivatives.min(2),
-    })
-}
-
 /// One instance of each component.
 pub struct SystemInstance {
     system: Rc<SystemLibrary>,
     instances: Vec<Instance>,
     /// With a coupling tolerance: the step-size controller, and per connection the value
-    /// and derivatives its target was given at the step's start and its scale.
+    /// and derivatives its target was given at the step's start.
     controller: Option<Controller>,
     given: Vec<[f64; 3]>,
     /// What the connections give at a controlled step's end, before it is accepted.
     given_next: Vec<[f64; 3]>,
-    scales: Vec<f64>,
     /// Whether the last controlled step's end passed every connection and nothing was set
     /// since: the next step starts from those values.
     passed: bool,
@@ -328,21 +118,22 @@ impl SystemInstance {
                     .map_err(|e| format!("component {}: {e}", c.name.to_string_lossy()))
             })
             .collect::<Result<_, _>>()?;
-        let fewest = system
+        let connections = system
             .links
             .iter()
-            .map(|l| l.derivatives)
-            .min()
-            .unwrap_or(0);
+            .map(|l| Connection {
+                real: l.from.group == 0,
+                derivatives: l.derivatives,
+            })
+            .collect();
         Ok(Self {
             system: Rc::clone(system),
             instances,
             controller: system
                 .coupling_tolerance
-                .map(|tol| Controller::new(tol, fewest)),
+                .map(|tol| Controller::new(tol, connections)),
             given: vec![[0.0; 3]; system.links.len()],
             given_next: vec![[0.0; 3]; system.links.len()],
-            scales: vec![1.0; system.links.len()],
             passed: false,
         })
     }
@@ -488,7 +279,6 @@ impl Unit for SystemInstance {
         if let Some(controller) = self.controller.as_mut() {
             controller.restart();
         }
-        self.scales.iter_mut().for_each(|s| *s = 1.0);
         self.passed = false;
         self.each("fmi2Reset", Instance::reset)
     }
@@ -554,7 +344,7 @@ impl Unit for SystemInstance {
         self.instances.iter().map(Instance::events).sum()
     }
 
-    fn coupling(&self) -> Option<CouplingReport> {
+    fn coupling(&self) -> Option<CouplingRecord> {
         self.controller.as_ref().map(Controller::report)
     }
 
@@ -637,13 +427,15 @@ impl SystemInstance {
             let (estimate, worst_link) = match stepped {
                 Status::Discard => (f64::INFINITY, None),
                 s if !s.proceeds() => return s,
-                _ => self.largest_drift(next, h),
+                _ => self.controller().estimate(&self.given, next, h),
             };
             match self.controller_mut().judge(h, estimate, grid) {
                 Verdict::Accept => {
                     worst = worst.max(stepped).max(saved);
                     std::mem::swap(&mut self.given, next);
-                    self.widen_scales();
+                    if let Some(controller) = self.controller.as_mut() {
+                        controller.widen_scales(&self.given);
+                    }
                     t = if lands { end } else { t + h };
                     self.passed = true;
                 }
@@ -665,30 +457,6 @@ impl SystemInstance {
         let passed = self.pass_all(&mut given);
         self.given = given;
         passed
-    }
-
-    /// The largest drift of a Real connection over a step of `h`: what its target is given
-    /// now (`now`) against the polynomial it was given at the step's start, in its scale;
-    /// and the connection that drifted most.
-    fn largest_drift(&self, now: &[[f64; 3]], h: f64) -> (f64, Option<usize>) {
-        let mut largest = (0.0_f64, None);
-        for (k, link) in self.system.links.iter().enumerate() {
-            if link.from.group == 0 {
-                let d = drift(&self.given[k], link.derivatives, h, now[k][0]);
-                let relative = d / self.scales[k].max(now[k][0].abs());
-                if largest.1.is_none() || relative > largest.0 {
-                    largest = (relative, Some(k));
-                }
-            }
-        }
-        largest
-    }
-
-    /// Each connection's scale grows to the largest |value| passed so far.
-    fn widen_scales(&mut self) {
-        for (scale, given) in self.scales.iter_mut().zip(&self.given) {
-            *scale = scale.max(given[0].abs());
-        }
     }
 
     /// The point cannot meet the tolerance: say where, over what step, on which connection,
@@ -714,7 +482,7 @@ impl SystemInstance {
                 d + 1
             ),
         };
-        let needed = h * (tolerance / estimate).powf(1.0 / (1.0 + derivatives as f64));
+        let needed = controller.step_needed(h, estimate, derivatives);
         log::error!(
             "the coupling error cannot be held to the tolerance {tolerance:e}: at t = {t}, \
              over the smallest communication step ({h:.3e} s), the connection {} drifts \
@@ -734,81 +502,5 @@ impl SystemInstance {
 
     fn controller_mut(&mut self) -> &mut Controller {
         self.controller.as_mut().expect("a controlled system")
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn description(can_interpolate: bool, max_order: u32, variables: &str) -> Description {
-        Description::parse(&format!(
-            r#"<?xml version="1.0"?>
-<fmiModelDescription fmiVersion="2.0" modelName="m" guid="{{g}}">
-  <CoSimulation modelIdentifier="m" canInterpolateInputs="{can_interpolate}"
-    maxOutputDerivativeOrder="{max_order}"/>
-  <ModelVariables>{variables}</ModelVariables>
-</fmiModelDescription>"#
-        ))
-        .unwrap()
-    }
-
-    const MOTOR: &str = r#"
-    <ScalarVariable name="omega" valueReference="4" causality="input"><Real start="0"/></ScalarVariable>
-    <ScalarVariable name="torque" valueReference="6" causality="output"><Real/></ScalarVariable>
-    <ScalarVariable name="mode" valueReference="7" causality="output"><Integer/></ScalarVariable>"#;
-    const MECHANISM: &str = r#"
-    <ScalarVariable name="M_m" valueReference="1" causality="input"><Real start="0"/></ScalarVariable>
-    <ScalarVariable name="omega1" valueReference="9" causality="output"><Real/></ScalarVariable>"#;
-
-    fn pair(wanted: usize, interpolates: bool) -> Result<Link, String> {
-        let motor = description(true, 1, MOTOR);
-        let mechanism = description(interpolates, 2, MECHANISM);
-        let descriptions = [motor, mechanism];
-        let names = ["motor", "mechanism"];
-        let (from, output) = find_variable("motor.torque", &names, &descriptions)?;
-        let (to, input) = find_variable("mechanism.M_m", &names, &descriptions)?;
-        link(
-            (from, output, &descriptions[from]),
-            (to, input, &descriptions[to]),
-            wanted,
-        )
-    }
-
-    /// Derivatives up to what was asked, what the source gives and what the target takes.
-    #[test]
-    fn a_link_passes_the_derivatives_both_ends_support() {
-        let orders = |wanted, interpolates| pair(wanted, interpolates).unwrap().derivatives;
-        assert_eq!(orders(2, true), 1); // the motor gives only the first
-        assert_eq!(orders(0, true), 0);
-        assert_eq!(orders(2, false), 0); // the mechanism would not take them
-        let link = pair(2, true).unwrap();
-        assert_eq!((link.from.vr, link.to.vr, link.from.group), (6, 1, 0));
-    }
-
-    #[test]
-    fn a_wrong_connection_is_refused_with_its_ends_named() {
-        let descriptions = [description(true, 1, MOTOR), description(true, 2, MECHANISM)];
-        let names = ["motor", "mechanism"];
-        let refusal = |from: &str, to: &str| {
-            let (a, output) = find_variable(from, &names, &descriptions)?;
-            let (b, input) = find_variable(to, &names, &descriptions)?;
-            link(
-                (a, output, &descriptions[a]),
-                (b, input, &descriptions[b]),
-                2,
-            )
-            .map(|_| ())
-        };
-        let said = refusal("motor.omega", "mechanism.M_m").unwrap_err();
-        assert!(said.contains("from an output to an input"), "{said}");
-        let said = refusal("motor.mode", "mechanism.M_m").unwrap_err();
-        assert!(said.contains("different types"), "{said}");
-        let said = refusal("pump.torque", "mechanism.M_m").unwrap_err();
-        assert!(said.contains("no component \"pump\""), "{said}");
-        let said = refusal("motor.speed", "mechanism.M_m").unwrap_err();
-        assert!(said.contains("\"speed\""), "{said}");
-        let said = refusal("torque", "mechanism.M_m").unwrap_err();
-        assert!(said.contains("not component.variable"), "{said}");
     }
 }
