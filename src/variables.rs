@@ -1,7 +1,7 @@
 //! The one table of FMI variables. Value references are positions in [`variables`]:
 //! inputs, outputs, the parameters of [`PARAMETERS`], then the solver statistics
 //! (Integer outputs) and the solver choice (an Enumeration parameter). The FMI dispatch
-//! (`fmi2GetReal`/`fmi2SetReal`), `modelDescription.xml`, the documentation and the
+//! (either version's getters and setters), both `modelDescription.xml` files, the documentation and the
 //! README's table are all derived from here, so they cannot drift apart.
 
 use crate::model::params::INPUT_RULE;

@@ -60,7 +60,7 @@ fn input_vrs() -> [u32; 2] {
 
 /// The serialized state's header; the interface's byte follows it, then the version's,
 /// then the FMI state's code.
-const HEADER: usize = 28;
+const HEADER: usize = cyclic_mechanism::instance::STATE_HEADER;
 const STATE_CODE: usize = HEADER + 2;
 
 /// Why the FMU refuses `bytes`, with the interface and FMI state they describe.

@@ -13,7 +13,7 @@ use cyclic_mechanism::variables::{value_reference, variables, Causality, VarType
 use fmi_sys::fmi2::*;
 use integrators::bytes::fnv1a_64;
 
-const HEADER: usize = 28;
+const HEADER: usize = cyclic_mechanism::instance::STATE_HEADER;
 
 /// Paper case 1 run to t = 1 s; its serialized state.
 fn running_instance() -> (fmi2Component, Vec<u8>) {

@@ -53,7 +53,7 @@ pub enum Happening {
 }
 
 /// Why a step stopped short of its end.
-enum Refusal {
+enum ShortOfEnd {
     /// The call's work is spent, at this time.
     OutOfWork(f64),
     /// The step cannot go on: refused, for this reason.
@@ -73,9 +73,10 @@ enum Located {
     Reached,
 }
 
-/// One step of the plant to `target` under `handling`, within [`CALL_WORK`]: how it ended,
-/// or why it was refused (plant and driver then as before the call); what happened on the
-/// way is pushed onto `happenings`.
+/// One step of the plant to `target` under `handling`, within the work the driver was
+/// allowed ([`super::master_step`] allows one call's): how it ended, or why it was refused
+/// (plant and driver then as before the call); what happened on the way is pushed onto
+/// `happenings`.
 #[inline(always)]
 pub fn step(
     plant: &mut Plant,
@@ -85,7 +86,6 @@ pub fn step(
     handling: EventHandling,
     happenings: &mut Vec<Happening>,
 ) -> Result<StepEnd, String> {
-    driver.allow_work(CALL_WORK);
     // The common case, a step that neither starts at nor meets a change point.
     let error = if driver.crossing_pending() || driver.crossing_in_flight() {
         None
@@ -98,7 +98,7 @@ pub fn step(
     // The plant stands where the step began (a failed advance leaves it there): what a
     // refusal puts back.
     let before = (plant.clone(), driver.clone());
-    Stepper {
+    StepWithEvents {
         plant,
         driver,
         experiment,
@@ -109,7 +109,7 @@ pub fn step(
 }
 
 /// The rest of a step, where it meets or starts at a change point, or fails.
-struct Stepper<'a> {
+struct StepWithEvents<'a> {
     plant: &'a mut Plant,
     driver: &'a mut CoSimulation,
     experiment: &'a Experiment,
@@ -117,7 +117,7 @@ struct Stepper<'a> {
     happenings: &'a mut Vec<Happening>,
 }
 
-impl Stepper<'_> {
+impl StepWithEvents<'_> {
     /// From a failure (`error`), or from a change point the plant stands at: each change
     /// point located and crossed as the handling says, then on, until the step's end, an
     /// early return, or a refusal, which puts `before` back.
@@ -167,10 +167,10 @@ impl Stepper<'_> {
         before: (Plant, CoSimulation),
         now: f64,
         target: f64,
-        refusal: Refusal,
+        refusal: ShortOfEnd,
     ) -> Result<StepEnd, String> {
         let message = match refusal {
-            Refusal::OutOfWork(at) => {
+            ShortOfEnd::OutOfWork(at) => {
                 if self.handling.early_return
                     && (self
                         .driver
@@ -192,7 +192,7 @@ impl Stepper<'_> {
                     }
                 )
             }
-            Refusal::Refused(message) => message,
+            ShortOfEnd::Refused(message) => message,
         };
         (*self.plant, *self.driver) = before;
         Err(message)
@@ -206,26 +206,26 @@ impl Stepper<'_> {
         &mut self,
         target: f64,
         error: SolverError,
-    ) -> Result<Option<StepEnd>, Refusal> {
+    ) -> Result<Option<StepEnd>, ShortOfEnd> {
         if let SolverError::WorkLimit { t } = error {
-            return Err(Refusal::OutOfWork(t));
+            return Err(ShortOfEnd::OutOfWork(t));
         }
         let start = self.plant.time();
         let located = match self.locate_change_point(target, &error) {
             Located::NotAChangePoint => {
-                return Err(Refusal::Refused(format!(
+                return Err(ShortOfEnd::Refused(format!(
                     "step from t = {} to {} failed: {error}",
                     number(start),
                     number(target)
                 )))
             }
-            Located::OutOfWork(t) => return Err(Refusal::OutOfWork(t)),
+            Located::OutOfWork(t) => return Err(ShortOfEnd::OutOfWork(t)),
             Located::Reached => return Ok(Some(StepEnd::Complete)),
             Located::At(located) => located,
         };
         if !self.handling.event_mode {
             let (start, target, located) = (number(start), number(target), number(located));
-            return Err(Refusal::Refused(format!(
+            return Err(ShortOfEnd::Refused(format!(
                 "the step from t = {start} to {target} meets a change point at t = {located} \
                  ({error}); without event mode the FMU does not choose a branch: instantiate \
                  with eventModeUsed = true to go on (docs/model.md §7), or step to t = \
@@ -249,21 +249,21 @@ impl Stepper<'_> {
     /// or as far as `target` where the crossing lasts longer than the step (the next steps
     /// go on with it). Returns whether it is complete.
     #[cold]
-    fn cross(&mut self, target: f64) -> Result<bool, Refusal> {
+    fn cross(&mut self, target: f64) -> Result<bool, ShortOfEnd> {
         let start = self.plant.time();
         let left = self.driver.work_left();
         if left < CROSSING_WORK {
-            return Err(Refusal::OutOfWork(start));
+            return Err(ShortOfEnd::OutOfWork(start));
         }
         self.driver.allow_work(left - CROSSING_WORK);
         let crossing = self
             .driver
             .plan_crossing(self.plant)
-            .map_err(|e| Refusal::Refused(format!("at t = {}: {e}", number(start))))?;
+            .map_err(|e| ShortOfEnd::Refused(format!("at t = {}: {e}", number(start))))?;
         let complete = self
             .driver
             .cross(self.plant, &crossing, target)
-            .map_err(|reason| Refusal::Refused(format!("at t = {}: {reason}", number(start))))?;
+            .map_err(|reason| ShortOfEnd::Refused(format!("at t = {}: {reason}", number(start))))?;
         self.happenings.push(Happening::Crossed {
             at: start,
             crossing,

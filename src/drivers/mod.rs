@@ -1,16 +1,21 @@
 //! The drivers over the [`Plant`](crate::plant::Plant): each moves the plant's time and
 //! state in the way one kind of master expects, and none knows the C interface.
 //!
+//! - [`master_step`]: a master's step, assembled once for FMI 2.0, FMI 3.0 and the page
+//!   (the experiment set up, the step's arguments, one call's work, the policy);
 //! - [`cosimulation`]: the FMU integrates itself between communication points (integrator
-//!   choice, restart rules, dense output, projection at communication points);
+//!   choice, restart rules, dense output, projection at communication points), with its
+//!   copy of the step compiled for the processor in [`isa`];
+//! - [`events`]: a co-simulation step in which a change point is an event;
+//! - [`sensitivity`]: the parameter sensitivities integrated beside the state;
 //! - [`model_exchange`]: the master integrates the loop's independent coordinates.
 //!
-//! Both read the master's [`Experiment`]. Both FMI versions drive the plant through these
-//! same two.
+//! All read the master's [`Experiment`]. Both FMI versions drive the plant through these.
 
 pub mod cosimulation;
 pub mod events;
 pub mod isa;
+pub mod master_step;
 pub mod model_exchange;
 pub mod sensitivity;
 

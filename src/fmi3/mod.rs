@@ -20,12 +20,14 @@
 
 pub mod common;
 pub mod cosimulation;
+pub mod instantiation;
 pub mod model_description;
 pub mod model_exchange;
 pub mod state_machine;
 
 pub use common::*;
 pub use cosimulation::*;
+pub use instantiation::*;
 pub use model_exchange::*;
 
 use crate::abi::null_argument;

@@ -20,15 +20,14 @@ pub use fmu_state::{Driver, FmuState};
 use handles::StateHandles;
 pub use logger::Logger;
 pub use state::{Interface, State, Version};
-pub use state_frame::FORMAT_VERSION;
+pub use state_frame::{FORMAT_VERSION, HEADER as STATE_HEADER};
 pub use status::{Category, Failure, Outcome, Status};
 
 use crate::description::LOG_CATEGORIES;
 use crate::drivers::events::EventHandling;
 pub use crate::drivers::events::StepEnd;
 use crate::drivers::model_exchange::CONTINUOUS_STATES;
-use crate::drivers::{CoSimulation, Exchange, Experiment};
-use integrators::text::number;
+use crate::drivers::{master_step, Exchange};
 
 pub struct Instance {
     name: CString,
@@ -101,29 +100,10 @@ impl Instance {
         start: f64,
         stop: Option<f64>,
     ) -> Outcome {
-        if !start.is_finite() {
-            return Err(Failure::error(format!(
-                "startTime = {start} must be finite"
-            )));
-        }
-        if let Some(stop) = stop {
-            if !(stop.is_finite() && stop >= start) {
-                return Err(Failure::error(format!(
-                    "stopTime = {} must be finite and >= startTime = {}",
-                    number(stop),
-                    number(start)
-                )));
-            }
-        }
-        if let Some(tolerance) = tolerance {
-            Experiment::check_tolerance(tolerance).map_err(|e| Failure::error(e.to_string()))?;
-        }
         let fmu_state = &mut self.fmu_state;
-        fmu_state.experiment = Experiment {
-            tolerance: tolerance.unwrap_or(fmu_state.experiment.tolerance),
-            start,
-            stop,
-        };
+        fmu_state.experiment =
+            master_step::set_up(tolerance, start, stop, fmu_state.experiment.tolerance)
+                .map_err(|e| Failure::error(e.to_string()))?;
         fmu_state.plant.set_time(start);
         Ok(())
     }
@@ -192,16 +172,15 @@ impl Instance {
             |e: crate::model::ModelError| Failure::error(format!("initialisation failed: {e}"));
         let interface = self.interface();
         let fmu_state = &mut self.fmu_state;
-        fmu_state
-            .plant
-            .initialize(fmu_state.experiment.start)
-            .map_err(failed)?;
         fmu_state.driver = match interface {
-            Interface::CoSimulation => Driver::CoSimulation(Some(CoSimulation::new(
-                &fmu_state.plant,
-                &fmu_state.experiment,
-            ))),
+            Interface::CoSimulation => Driver::CoSimulation(Some(
+                master_step::start(&mut fmu_state.plant, &fmu_state.experiment).map_err(failed)?,
+            )),
             Interface::ModelExchange => {
+                fmu_state
+                    .plant
+                    .initialize(fmu_state.experiment.start)
+                    .map_err(failed)?;
                 refuse_sensitivities(&fmu_state.plant)?;
                 Driver::ModelExchange(Some(Exchange::start(&mut fmu_state.plant).map_err(failed)?))
             }

@@ -163,7 +163,6 @@ pub fn cross(
     branch: Branch,
 ) -> Result<Crossing, ModelError> {
     let node = locate_node(p, y[1], y[2])?;
-    let (first, second) = tangents(p, node)?;
     let v = [y[5], y[6]];
     let speed = v[0].hypot(v[1]);
     if speed == 0.0 {
@@ -172,28 +171,8 @@ pub fn cross(
         ));
     }
     let arrival = [v[0] / speed, v[1] / speed];
-    // The tangent the motion arrives along is the one nearest the velocity.
-    let along = |d: [f64; 2]| (d[0] * arrival[0] + d[1] * arrival[1]).abs();
-    let (arriving, other) = if along(first) >= along(second) {
-        (first, second)
-    } else {
-        (second, first)
-    };
+    let (arriving, chosen) = branch_tangents(p, node, (v, arrival), branch)?;
     let inertia = |d: [f64; 2]| p.J2 * d[0] * d[0] + p.J3 * d[1] * d[1];
-    let forward = |d: [f64; 2]| {
-        // An acute angle with the arrival velocity in the kinetic metric.
-        let sign = if p.J2 * d[0] * v[0] + p.J3 * d[1] * v[1] >= 0.0 {
-            1.0
-        } else {
-            -1.0
-        };
-        [d[0] * sign, d[1] * sign]
-    };
-    let arriving = forward(arriving);
-    let chosen = match branch {
-        Branch::Straight => arriving,
-        Branch::Turn => forward(other),
-    };
     let offset = [node.0 - y[1], node.1 - y[2]];
     let distance = offset[0].hypot(offset[1]);
     if offset[0] * arrival[0] + offset[1] * arrival[1] <= 0.0 {
@@ -244,6 +223,38 @@ pub fn cross(
     Err(ModelError::new(
         "the linkage does not leave the change point's neighbourhood along the chosen branch",
     ))
+}
+
+/// The tangents at `node` that the motion with velocity `v` (ω2, ω3; `arrival` its unit
+/// direction) arrives along and leaves along on `branch`, each pointing forward: at an
+/// acute angle with `v` in the kinetic metric.
+fn branch_tangents(
+    p: &Parameters,
+    node: (f64, f64),
+    (v, arrival): ([f64; 2], [f64; 2]),
+    branch: Branch,
+) -> Result<([f64; 2], [f64; 2]), ModelError> {
+    let (first, second) = tangents(p, node)?;
+    // The tangent the motion arrives along is the one nearest the velocity.
+    let along = |d: [f64; 2]| (d[0] * arrival[0] + d[1] * arrival[1]).abs();
+    let (arriving, other) = if along(first) >= along(second) {
+        (first, second)
+    } else {
+        (second, first)
+    };
+    let forward = |d: [f64; 2]| {
+        let sign = if p.J2 * d[0] * v[0] + p.J3 * d[1] * v[1] >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        [d[0] * sign, d[1] * sign]
+    };
+    let chosen = match branch {
+        Branch::Straight => forward(arriving),
+        Branch::Turn => forward(other),
+    };
+    Ok((forward(arriving), chosen))
 }
 
 /// The state `dt` after `y`, crank and rocker at `exit` with (ω2, ω3) = `velocity`;

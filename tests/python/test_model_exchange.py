@@ -278,8 +278,9 @@ def test_fmu_state_restores_model_exchange_exactly(model):
     model.fmu.freeFMUstate(saved)
 
 
-def reseal(buffer, header=28):
-    """Recompute the serialized state's checksum (FNV-1a 64 of the payload)."""
+def reseal(buffer, header=36):
+    """Recompute the serialized state's checksum (FNV-1a 64 of the payload, after the
+    36 bytes of the header: magic, format version, 128-bit interface hash, length)."""
     h = 0xcbf29ce484222325
     for byte in buffer[header:-8]:
         h = ((h ^ byte) * 0x100000001b3) % 2**64

@@ -1,11 +1,12 @@
 //! One run of the mechanism as a page drives it: variables set by value reference, a
-//! start, steps to the page's communication points, outputs read back. The steps are the
-//! FMI 3.0 co-simulation steps of the FMU with event mode and without early return
-//! ([`events::step`]): a change point is crossed within the step and reported, never a
-//! stop.
+//! start, steps to the page's communication points, outputs read back. The experiment, the
+//! start and the steps are the FMU's own, as the drivers assemble them for every master
+//! ([`master_step`]): FMI 3.0 co-simulation steps with event mode and without early
+//! return, so that a change point is crossed within the step and reported, never a stop.
 
-use cyclic_mechanism::drivers::events::{self, EventHandling, Happening, StepEnd};
-use cyclic_mechanism::drivers::{CoSimulation, Experiment, StepRefusal};
+use cyclic_mechanism::drivers::events::{EventHandling, Happening, StepEnd};
+use cyclic_mechanism::drivers::master_step;
+use cyclic_mechanism::drivers::{CoSimulation, Experiment, DEFAULT_TOLERANCE};
 use cyclic_mechanism::model::linkage::LINKAGE_CLASSES;
 use cyclic_mechanism::model::params::Rule;
 use cyclic_mechanism::model::{self, PARAMETERS};
@@ -89,22 +90,12 @@ impl Session {
     /// not finite): the consistent start for the parameters set, or why there is none (a
     /// geometry that cannot close, for one).
     pub fn start(&mut self, tolerance: f64, start: f64, stop: f64) -> Result<(), String> {
-        Experiment::check_tolerance(tolerance).map_err(|e| e.to_string())?;
-        if !start.is_finite() {
-            return Err(format!("start = {start}: must be finite"));
-        }
-        if stop.is_finite() && stop <= start {
-            return Err(format!("stop = {stop} must lie after start = {start}"));
-        }
-        let experiment = Experiment {
-            tolerance,
-            start,
-            stop: stop.is_finite().then_some(stop),
-        };
-        self.plant
-            .initialize(start)
+        let stop = stop.is_finite().then_some(stop);
+        let experiment = master_step::set_up(Some(tolerance), start, stop, DEFAULT_TOLERANCE)
+            .map_err(|e| e.to_string())?;
+        let driver = master_step::start(&mut self.plant, &experiment)
             .map_err(|e| format!("no start: {e}"))?;
-        self.driver = Some(CoSimulation::new(&self.plant, &experiment));
+        self.driver = Some(driver);
         self.experiment = Some(experiment);
         Ok(())
     }
@@ -116,33 +107,20 @@ impl Session {
         let (Some(driver), Some(experiment)) = (self.driver.as_mut(), self.experiment) else {
             return Err("the run has not started".into());
         };
-        let now = self.plant.time();
-        let target =
-            experiment
-                .step_target(now, current, step)
-                .map_err(|refusal| match refusal {
-                    StepRefusal::Step => format!("step = {step}: must be finite and > 0"),
-                    StepRefusal::Point => {
-                        format!("current = {current} is not the run's time {now}")
-                    }
-                    StepRefusal::PastStop { target, .. } => {
-                        format!("a step to {target} would pass the stop time")
-                    }
-                })?;
         let mut happenings = Vec::new();
         let handling = EventHandling {
             event_mode: true,
             early_return: false,
         };
-        let end = events::step(
+        let end = master_step::step_with_events(
             &mut self.plant,
             driver,
             &experiment,
-            target,
+            (current, step),
             handling,
             &mut happenings,
         )
-        .map_err(|e| format!("{e}; the run stays at t = {now}"))?;
+        .map_err(|failure| failure.message().to_string())?;
         for happening in &happenings {
             if let Happening::Crossed { at, .. } = *happening {
                 self.crossings += 1;
@@ -447,8 +425,11 @@ mod tests {
             .step(0.0, f64::NAN)
             .unwrap_err()
             .contains("finite and > 0"));
-        assert!(s.step(0.5, 0.1).unwrap_err().contains("not the run's time"));
-        assert!(s.step(0.0, 2.0).unwrap_err().contains("pass the stop time"));
+        assert!(s.step(0.5, 0.1).unwrap_err().contains("does not match"));
+        assert!(s
+            .step(0.0, 2.0)
+            .unwrap_err()
+            .contains("would pass stopTime"));
         assert!(s.set(vr("solver"), 1.5).is_err());
     }
 
