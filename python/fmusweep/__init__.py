@@ -1,4 +1,5 @@
-"""fmusweep: scripted sweeps of an FMI 2.0 or 3.0 co-simulation FMU at the FMU's own speed.
+"""fmusweep: sweeps and fits of an FMI 2.0 or 3.0 FMU (Co-Simulation or Model Exchange), or of
+a coupled system of them, at the FMU's own speed.
 
     from fmusweep import run_sweep
     results = run_sweep("examples/sweeps/rod_force_grid.toml", fmu="Model.fmu")
@@ -20,7 +21,7 @@ from .sweep import SweepReport, run_sweep
 from .fitting import FitResult, FitSpec, fit
 from .native import NativeRunner, RunnerError
 from .results import Results, load_results
-from .sensitivity import morris_effects, sobol_indices
+from .indices import morris_effects, sobol_indices
 from .spec import Spec, SpecError
 
 __all__ = ["run_sweep", "fit", "FitResult", "FitSpec", "load_results", "Results", "SweepReport", "Spec", "SpecError",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import pathlib
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import pandas as pd
@@ -13,9 +14,32 @@ from .store import ResultStore
 
 if TYPE_CHECKING:
     from .design import Design
-    from .sweep import SweepReport
 
-__all__ = ["Results", "load_results"]
+__all__ = ["Results", "SweepReport", "load_results"]
+
+
+@dataclass
+class SweepReport:
+    """What a run did: counts, times and where the results are."""
+    out: str
+    points: int
+    computed: int
+    resumed: int
+    batch_size: int
+    batches: int
+    workers: int
+    engine: str
+    wall_s: float
+    point_seconds: float  # the sum of the points' own wall times
+    startup_s: float = 0.0  # connecting to (or starting) the cluster, shipping the FMU
+    dispatch_s: float = 0.0  # from the first task submitted to the last batch saved
+    statuses: dict[str, int] = field(default_factory=dict)
+    # Finished batches whose results the Dask scheduler still held in memory when the last
+    # batch was saved (its own accounting; 0: nothing of them stays on the workers). None
+    # when the sweep ran without Dask.
+    held_results: int | None = None
+    # How the engine was chosen: "as asked", or the measurement that chose it.
+    engine_choice: str = "as asked"
 
 
 class Results:
@@ -55,7 +79,7 @@ class Results:
 
     def analyse(self, design: Design) -> None:
         """The sensitivity indices of a sobol or morris design, into sensitivity.json."""
-        from .sensitivity import analyse, has_indices
+        from .indices import analyse, has_indices
         from .store import atomic_write_text
         if not has_indices(design):
             # Nothing to read: a grid of 10⁶ points is not loaded for no index.

@@ -14,7 +14,7 @@ A specification is a TOML file or the equivalent dict::
     start = 0.0
     stop = 10.0
     step = 0.01                        # communication step
-    tolerance = 1e-8                   # optional: passed to fmi2SetupExperiment
+    tolerance = 1e-8                   # optional: the FMU's tolerance, as its master passes it
     interface = "model_exchange"       # optional: the FMU's ME interface, integrated here
     integrator = "radau5"              # optional, Model Exchange: dop853 (default) or radau5
     timeout = 60.0                     # optional: wall-time budget per point, seconds
@@ -86,7 +86,8 @@ class MetricSpec:
 
 
 # The interfaces a single FMU may run through (``[scenario] interface``): a Model Exchange
-# FMU's states are integrated by the runner's DOP853 at the scenario's tolerance.
+# FMU's states are integrated by the runner (DOP853 or Radau IIA, as ``integrator`` says) at
+# the scenario's tolerance.
 INTERFACES = ("co_simulation", "model_exchange")
 # What integrates a Model Exchange FMU (``[scenario] integrator``): DOP853 by default, or
 # Radau IIA for a stiff one.

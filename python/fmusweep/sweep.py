@@ -12,8 +12,7 @@ import sys
 import time
 import warnings
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -23,13 +22,12 @@ from .design import Design
 from .errors import SpecError, SpecWarning, refuse_in_spawned_child
 from .pool import check_engine
 from .records import Batch, PointResult, Points, Rows
+from .results import Results, SweepReport
 from .spec import Spec
 from .store import coupling_columns
 from .ssp import check_ssp
 from .study import Study, Target, load_spec, spec_name
 
-if TYPE_CHECKING:
-    from .results import Results
 
 __all__ = ["run_sweep", "SweepReport", "BATCH_SECONDS"]
 
@@ -43,30 +41,6 @@ CALIBRATION_POINTS = 4
 # from the calibration points) runs in this process: starting a LocalCluster and
 # preparing its workers costs about this much (bench-sweep's report gives the startup).
 SERIAL_BELOW_S = 2.0
-
-
-@dataclass
-class SweepReport:
-    """What a run did: counts, times and where the results are."""
-    out: str
-    points: int
-    computed: int
-    resumed: int
-    batch_size: int
-    batches: int
-    workers: int
-    engine: str
-    wall_s: float
-    point_seconds: float  # the sum of the points' own wall times
-    startup_s: float = 0.0  # connecting to (or starting) the cluster, shipping the FMU
-    dispatch_s: float = 0.0  # from the first task submitted to the last batch saved
-    statuses: dict[str, int] = field(default_factory=dict)
-    # Finished batches whose results the Dask scheduler still held in memory when the last
-    # batch was saved (its own accounting; 0: nothing of them stays on the workers). None
-    # when the sweep ran without Dask.
-    held_results: int | None = None
-    # How the engine was chosen: "as asked", or the measurement that chose it.
-    engine_choice: str = "as asked"
 
 
 def _tables(spec: Spec, study: Study, names: list[str], rows: Rows,
@@ -273,7 +247,6 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
         engine=study.pool.engine, wall_s=time.perf_counter() - started,
         point_seconds=keep.point_seconds, startup_s=study.pool.startup_s,
         dispatch_s=dispatch_s, statuses=keep.statuses, held_results=held, engine_choice=note)
-    from .results import Results
     results = Results(study.store.out, None, study.store.meta, report)
     results.analyse(design)
     if plots:

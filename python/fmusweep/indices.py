@@ -1,5 +1,6 @@
-"""Sensitivity indices from a finished Sobol' or Morris sweep (SALib's estimators), per
-metric, with their confidence intervals."""
+"""Sobol' and Morris indices of a finished sweep (SALib's estimators), per metric, with their
+confidence intervals: how much of a metric's variance each design column explains. (The
+FMU's own sensitivities, ∂y/∂p, are another thing: docs/sensitivities.md.)"""
 
 from __future__ import annotations
 
