@@ -1,7 +1,10 @@
-//! The layers of `src/`, as ARCHITECTURE.md's table gives them (top down), and the check
-//! that no module imports from a layer above its own, and that the two C ABIs import
-//! nothing from each other. The table is the one source: a module it does not place is
-//! reported too.
+//! The layers of every crate, as ARCHITECTURE.md's tables give them (top down): the FMU's
+//! `src/` in its layer table, the other crates in the table of their layers. The checks:
+//! no module imports from a layer above its own, the two C ABIs import nothing from each
+//! other, and no modules import each other round a circle. The tables are the one source:
+//! a module they do not place is reported too.
+
+use std::collections::{BTreeMap, BTreeSet};
 
 /// The modules named in the rows of ARCHITECTURE.md's layer table, top down; a row's
 /// modules share a layer. The modules "beside them" (the paragraph after the table) share
@@ -44,15 +47,92 @@ fn modules_in(text: &str) -> Vec<String> {
         .collect()
 }
 
-/// The top module a file of `src/` belongs to (`src/instance/mod.rs` → `instance`);
-/// `None` for the crate root and the binaries.
+/// A crate's layers, top down: each a list of module names.
+pub(crate) type Layers = Vec<Vec<String>>;
+
+/// The other crates' layers: each row of the table headed `| crate | layers, top down |`
+/// names a crate's folder and its layers, top down, separated by `›`.
+pub(crate) fn other_crates(text: &str) -> Result<Vec<(String, Layers)>, String> {
+    let rows: Vec<&str> = text
+        .lines()
+        .skip_while(|line| !line.starts_with("| crate | layers, top down |"))
+        .skip(2)
+        .take_while(|line| line.starts_with('|'))
+        .collect();
+    if rows.is_empty() {
+        return Err("ARCHITECTURE.md: no table \"| crate | layers, top down |\"".into());
+    }
+    rows.iter()
+        .map(|row| {
+            let folder = cell(row, 1).trim().trim_matches('`').trim_end_matches('/');
+            let layers: Vec<Vec<String>> = cell(row, 2)
+                .split('›')
+                .map(|layer| {
+                    layer
+                        .split('`')
+                        .skip(1)
+                        .step_by(2)
+                        .map(str::to_string)
+                        .collect()
+                })
+                .collect();
+            if folder.is_empty() || layers.iter().any(Vec::is_empty) {
+                return Err(format!(
+                    "ARCHITECTURE.md: a crate's layers row is empty: {row}"
+                ));
+            }
+            Ok((folder.to_string(), layers))
+        })
+        .collect()
+}
+
+/// The top module a file of a crate belongs to (`src/instance/mod.rs` → `instance`,
+/// `runner/src/fmi/fmi2.rs` → `fmi`); `None` for the crate roots and the binaries.
 pub(crate) fn module_of(relative: &str) -> Option<&str> {
-    let path = relative.strip_prefix("src/")?;
+    let (_, path) = relative.split_once("src/")?;
     let first = path.split('/').next()?;
-    if first == "bin" || first == "lib.rs" {
+    if ["bin", "lib.rs", "main.rs"].contains(&first) {
         return None;
     }
     Some(first.strip_suffix(".rs").unwrap_or(first))
+}
+
+/// Whether `super::` in the file means the crate: a top module's own file.
+pub(crate) fn super_is_crate(relative: &str) -> bool {
+    relative
+        .split_once("src/")
+        .is_some_and(|(_, path)| !path.contains('/') || path.ends_with("/mod.rs"))
+}
+
+/// Modules that import each other round a circle: the strongly connected parts of
+/// `graph` (module → the modules it imports) with more than one module.
+pub(crate) fn circles(graph: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
+    let reaches = |from: &str| {
+        let mut seen = BTreeSet::new();
+        let mut todo = vec![from.to_string()];
+        while let Some(m) = todo.pop() {
+            for next in graph.get(&m).into_iter().flatten() {
+                if seen.insert(next.clone()) {
+                    todo.push(next.clone());
+                }
+            }
+        }
+        seen
+    };
+    let reach: BTreeMap<&String, BTreeSet<String>> =
+        graph.keys().map(|m| (m, reaches(m))).collect();
+    let mut found: Vec<Vec<String>> = Vec::new();
+    for (m, from_m) in &reach {
+        let circle: Vec<String> = from_m
+            .iter()
+            .filter(|other| reach.get(other).is_some_and(|r| r.contains(*m)))
+            .cloned()
+            .collect();
+        if circle.len() > 1 && !found.contains(&circle) {
+            found.push(circle);
+        }
+    }
+    found
 }
 
 /// Violations in `code` (the lines of code of the file `name`, in module `module`): each
@@ -122,7 +202,7 @@ fn whole_groups(code: impl Iterator<Item = (usize, String)>) -> Vec<(usize, Stri
 
 /// The top modules a line uses through `crate::`: `crate::a::b` gives `a`, and
 /// `crate::{a, b::{c, d}, e}` gives `a`, `b` and `e`.
-fn imported_modules(line: &str) -> Vec<String> {
+pub(crate) fn imported_modules(line: &str) -> Vec<String> {
     let name = |text: &str| -> String {
         text.trim_start()
             .chars()
@@ -205,5 +285,28 @@ mod tests {
         assert_eq!(module_of("src/instance/mod.rs"), Some("instance"));
         assert_eq!(module_of("src/plant.rs"), Some("plant"));
         assert_eq!(module_of("src/lib.rs"), None);
+        assert_eq!(module_of("runner/src/fmi/fmi2.rs"), Some("fmi"));
+        assert_eq!(module_of("runner/src/main.rs"), None);
+        assert!(super_is_crate("runner/src/fmi/mod.rs") && super_is_crate("web/src/a.rs"));
+        assert!(!super_is_crate("runner/src/fmi/fmi2.rs"));
+    }
+
+    #[test]
+    fn the_other_crates_layers_and_their_circles_are_read() {
+        let text = "| crate | layers, top down |\n| --- | --- |\n\
+            | `web/` | `exports` › `session`, `page` |\n";
+        let crates = other_crates(text).unwrap();
+        assert_eq!(crates[0].0, "web");
+        assert_eq!(crates[0].1, [vec!["exports"], vec!["session", "page"]]);
+        let graph: BTreeMap<String, BTreeSet<String>> = [
+            ("a", &["b"][..]),
+            ("b", &["c"]),
+            ("c", &["a"]),
+            ("d", &["a"]),
+        ]
+        .iter()
+        .map(|(m, to)| (m.to_string(), to.iter().map(|t| t.to_string()).collect()))
+        .collect();
+        assert_eq!(circles(&graph), [vec!["a", "b", "c"]]);
     }
 }

@@ -21,6 +21,7 @@ mod motor;
 mod page;
 mod platforms;
 mod setup;
+mod sizes;
 mod sweep;
 mod test;
 mod tidy;

@@ -59,34 +59,27 @@ pub(crate) fn check() -> Result {
         "-D",
         "warnings",
     ]))?;
-    let mut problems = Vec::new();
     let architecture = fs::read_to_string(root().join("ARCHITECTURE.md"))
         .map_err(|e| format!("ARCHITECTURE.md: {e}"))?;
-    let layers = crate::layers::from_architecture(&architecture)?;
-    for dir in ["src", "runner/src", "integrators/src", "web/src"] {
+    let mut problems = layer_problems(&architecture)?;
+    for dir in PRODUCT {
         for file in rust_files(&root().join(dir))? {
             let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-            let name = file
-                .strip_prefix(root())
-                .unwrap_or(&file)
-                .to_string_lossy()
-                .into_owned();
+            let name = relative(&file);
             problems.extend(unsafe_outside_ffi(&name, &text));
+            problems.extend(crate::sizes::too_long(&name, &text));
             if dir == "src" {
                 problems.extend(figures_in_comments(&name, &text));
-                if let Some(module) = crate::layers::module_of(&name) {
-                    let code = code_lines(&text).map(|(n, line)| (n, line.to_string()));
-                    problems.extend(crate::layers::arrows_up(&layers, &name, module, code));
-                }
+                problems.extend(unknown_to_layer(&name, &text));
             }
         }
     }
-    problems.extend(xtask_arrows_up()?);
     type_check()?;
     if problems.is_empty() {
         println!(
-            "xtask: tidy: formatted, clippy clean, unsafe only where allowed, no arrow up in \
-             src/ or xtask/, no figures in src/ comments, fmusweep typed (mypy --strict)"
+            "xtask: tidy: formatted, clippy clean, unsafe only where allowed, no arrow up and \
+             no circle in any crate or in fmusweep, no file or function too long, no figures \
+             in src/ comments, fmusweep typed (mypy --strict)"
         );
         Ok(())
     } else {
@@ -94,47 +87,141 @@ pub(crate) fn check() -> Result {
     }
 }
 
-/// xtask's own layers, top down: the job that runs the others, the jobs, the builders
-/// below them, and what every module uses. A module of xtask/src/ not placed here is
-/// reported; `main.rs` (the job table) is above them all.
-const XTASK_LAYERS: &[&[&str]] = &[
-    &["test"],
-    &[
-        "abi_tests",
-        "accuracy",
-        "bench",
-        "demo",
-        "fit",
-        "instructions",
-        "motor",
-        "sweep",
-        "tidy",
-        "web",
-    ],
-    &["builders", "fmu", "layers", "master", "page", "platforms"],
-    &["cli", "setup"],
-];
+/// The product's crates, whose files are held to the rules on `unsafe` and on length.
+const PRODUCT: [&str; 4] = ["src", "integrators/src", "runner/src", "web/src"];
 
-/// Imports from a layer above in xtask itself (builders below the jobs).
-fn xtask_arrows_up() -> Result<Vec<String>> {
-    let layers: Vec<Vec<String>> = XTASK_LAYERS
-        .iter()
-        .map(|layer| layer.iter().map(|m| m.to_string()).collect())
-        .collect();
+/// A file's path from the repository's root.
+fn relative(file: &Path) -> String {
+    file.strip_prefix(root())
+        .unwrap_or(file)
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// Arrows up and circles in every crate: the FMU's `src/` by ARCHITECTURE.md's layer
+/// table, the runner, the integrators, the page's crate and xtask by the table of the
+/// other crates' layers.
+fn layer_problems(architecture: &str) -> Result<Vec<String>> {
+    let mut crates = vec![(
+        "src".to_string(),
+        crate::layers::from_architecture(architecture)?,
+    )];
     let mut problems = Vec::new();
-    for file in rust_files(&root().join("xtask/src"))? {
-        let Some(module) = file.file_stem().and_then(|s| s.to_str()) else {
-            continue;
-        };
-        if module == "main" {
-            continue;
+    for (folder, layers) in crate::layers::other_crates(architecture)? {
+        match folder.starts_with("python/") {
+            true => problems.extend(package_shape(&folder, &layers)?),
+            false => crates.push((format!("{folder}/src"), layers)),
         }
-        let text = fs::read_to_string(&file).map_err(|e| format!("{}: {e}", file.display()))?;
-        let name = format!("xtask/src/{module}.rs");
-        let code = code_lines(&text).map(|(n, line)| (n, line.to_string()));
-        problems.extend(crate::layers::arrows_up(&layers, &name, module, code));
+    }
+    for (dir, layers) in &crates {
+        let mut graph = std::collections::BTreeMap::new();
+        for file in rust_files(&root().join(dir))? {
+            let name = relative(&file);
+            let Some(module) = crate::layers::module_of(&name) else {
+                continue;
+            };
+            let text = fs::read_to_string(&file).map_err(|e| format!("{name}: {e}"))?;
+            let code: Vec<(usize, String)> = code_lines(&text)
+                .map(|(n, line)| match crate::layers::super_is_crate(&name) {
+                    true => (n, line.replace("super::", "crate::")),
+                    false => (n, line.to_string()),
+                })
+                .collect();
+            let imported: &mut std::collections::BTreeSet<String> =
+                graph.entry(module.to_string()).or_default();
+            for (_, line) in &code {
+                imported.extend(
+                    crate::layers::imported_modules(line)
+                        .into_iter()
+                        .filter(|m| m != module && layers.iter().flatten().any(|l| l == m)),
+                );
+            }
+            problems.extend(crate::layers::arrows_up(
+                layers,
+                &name,
+                module,
+                code.into_iter(),
+            ));
+        }
+        for circle in crate::layers::circles(&graph) {
+            problems.push(format!(
+                "{dir}: modules import each other round a circle: {}",
+                circle.join(", ")
+            ));
+        }
     }
     Ok(problems)
+}
+
+/// The Python package in `folder`: arrows up by `layers` and circles, every import
+/// counted, and its files' and functions' lengths (`xtask/python/package_shape.py`).
+fn package_shape(folder: &str, layers: &[Vec<String>]) -> Result<Vec<String>> {
+    let python = ensure_venv(Packages::Tests)?;
+    let table = format!(
+        "[{}]",
+        layers
+            .iter()
+            .map(|layer| format!("[\"{}\"]", layer.join("\",\"")))
+            .collect::<Vec<_>>()
+            .join(",")
+    );
+    let out = Command::new(python)
+        .current_dir(root())
+        .arg("xtask/python/package_shape.py")
+        .arg(folder.trim_end_matches('/'))
+        .arg(table)
+        .output()
+        .map_err(|e| format!("package_shape.py: {e}"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "package_shape.py on {folder} failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        ));
+    }
+    Ok(String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .map(str::to_string)
+        .collect())
+}
+
+/// What a module of `src/` does not know, as ARCHITECTURE.md says, by the paths its `use`
+/// lines name: the model and the plant no integrator (of that crate only how a message
+/// prints a number, and for the plant its byte form), and below the instance no C type.
+const UNKNOWN: &[(&str, &str, &[&str])] = &[
+    ("model", "integrators::", &["integrators::text::"]),
+    (
+        "plant",
+        "integrators::",
+        &["integrators::text::", "integrators::bytes::"],
+    ),
+    ("variables", "integrators::", &[]),
+    ("description", "integrators::", &[]),
+];
+
+/// Below the instance, none of these: the C interface's types.
+const C_TYPES: &[&str] = &["fmi_sys", "std::ffi", "std::os::raw", "libc::"];
+
+/// Lines of a file of `src/` that name what its layer does not know.
+fn unknown_to_layer(name: &str, text: &str) -> Vec<String> {
+    let Some(module) = crate::layers::module_of(name) else {
+        return Vec::new();
+    };
+    let below_instance = ["drivers", "plant", "model", "description", "variables"];
+    let mut found = Vec::new();
+    for (number, line) in code_lines(text) {
+        for (who, path, allowed) in UNKNOWN {
+            let named = line.contains(path) && !allowed.iter().any(|a| line.contains(a));
+            if *who == module && named {
+                found.push(format!("{name}:{number}: `{module}` names `{path}`, which ARCHITECTURE.md says it does not know"));
+            }
+        }
+        if below_instance.contains(&module) && C_TYPES.iter().any(|c| line.contains(c)) {
+            found.push(format!(
+                "{name}:{number}: `{module}` names a C type, below the instance"
+            ));
+        }
+    }
+    found
 }
 
 fn rust_files(dir: &Path) -> Result<Vec<PathBuf>> {
