@@ -61,12 +61,13 @@ def opened(path: pathlib.Path, drawn: str = FIRST_SCREEN) -> dict:
 def eager_copy(results, directory: pathlib.Path) -> pathlib.Path:
     """The same sweep's report with every plot drawn on opening (the report before the
     plots were drawn as they come into view)."""
+    from fmusweep.indices import charts
     from fmusweep.report import first_series, sweep_report
     directory.mkdir()
-    names = results.meta["design"]["names"]
-    return sweep_report(directory, names, results.points, results.meta["metrics"],
-                        results.sensitivity, first_series(results.out, results.points),
-                        eager=True)
+    design = results.meta["design"]
+    return sweep_report(directory, design["names"], results.points, results.meta["metrics"],
+                        charts(design["kind"], results.sensitivity),
+                        first_series(results.out, results.points), eager=True)
 
 
 def first_point_of_later_calls(tmp: pathlib.Path) -> dict:

@@ -16,7 +16,7 @@ of this machine or over an existing cluster; results land in Parquet as batches 
 
 from importlib import metadata as _metadata
 
-from .design import Design, generate
+from .designs import Design, generate
 from .sweep import SweepReport, run_sweep
 from .fitting import FitResult, FitSpec, fit
 from .native import NativeRunner, RunnerError

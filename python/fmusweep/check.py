@@ -16,7 +16,7 @@ from .errors import Collector, SpecError, did_you_mean
 from .records import Plan, Rows
 
 if TYPE_CHECKING:
-    from .design import Design
+    from .designs import Design
     from .native import NativeRunner
     from .spec import Scenario, Spec
 

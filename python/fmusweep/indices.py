@@ -1,54 +1,36 @@
-"""Sobol' and Morris indices of a finished sweep (SALib's estimators), per metric, with their
-confidence intervals: how much of a metric's variance each design column explains. (The
-FMU's own sensitivities, ∂y/∂p, are another thing: docs/sensitivities.md.)"""
+"""Sobol' and Morris indices of a finished sweep, per metric, each kind's own (its module in
+``designs``): how much of a metric's variance each design column explains. (The FMU's own
+sensitivities, ∂y/∂p, are another thing: docs/sensitivities.md.)"""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import numpy.typing as npt
+
+from .designs import kind_of
+from .designs.morris import morris_effects
+from .designs.sobol import sobol_indices
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from .design import Design
+    from .designs import Design, IndexChart
 
-__all__ = ["sobol_indices", "morris_effects", "analyse"]
-
-
-def sobol_indices(problem: dict[str, Any], values: npt.ArrayLike, second_order: bool = False,
-                  seed: int = 0) -> dict[str, Any]:
-    """S1, ST and their 95 % confidence half-widths for one output over a Saltelli
-    design (the rows in SALib's order)."""
-    from SALib.analyze import sobol
-    result = sobol.analyze(problem, np.asarray(values, dtype=float),
-                           calc_second_order=second_order, seed=seed)
-    keys = ["S1", "S1_conf", "ST", "ST_conf"]
-    return {"method": "sobol", "names": list(problem["names"]),
-            **{k: np.asarray(result[k]).tolist() for k in keys}}
-
-
-def morris_effects(problem: dict[str, Any], rows: npt.ArrayLike, values: npt.ArrayLike,
-                   levels: int = 4, seed: int = 0) -> dict[str, Any]:
-    from SALib.analyze import morris
-    result = morris.analyze(problem, np.asarray(rows, dtype=float),
-                            np.asarray(values, dtype=float), num_levels=levels, seed=seed)
-    keys = ["mu", "mu_star", "sigma", "mu_star_conf"]
-    return {"method": "morris", "names": list(problem["names"]),
-            **{k: np.asarray(result[k], dtype=float).tolist() for k in keys}}
+__all__ = ["sobol_indices", "morris_effects", "analyse", "has_indices", "charts"]
 
 
 def has_indices(design: Design) -> bool:
-    """Whether the design is one whose points give sensitivity indices."""
-    return design.kind in ("sobol", "morris")
+    """Whether the design is one whose points give indices."""
+    return kind_of(design.kind).indices is not None
 
 
 def analyse(design: Design, points: pd.DataFrame, metric_names: list[str],
             seed: int) -> dict[str, Any]:
-    """Indices for every metric of a sobol or morris design; a metric with failed points
-    gets a note instead (the estimators need every point of the design)."""
-    if not has_indices(design):
+    """Indices for every metric of a design whose kind gives them; a metric with failed
+    points gets a note instead (the estimators need every point of the design)."""
+    estimate = kind_of(design.kind).indices
+    if estimate is None:
         return {}
     found: dict[str, Any] = {}
     for name in metric_names:
@@ -58,10 +40,15 @@ def analyse(design: Design, points: pd.DataFrame, metric_names: list[str],
             found[name] = {"method": design.kind,
                            "note": f"{failed} of {len(values)} points have no value; "
                                    "the indices need every point of the design"}
-        elif design.problem is None:
-            raise AssertionError("a sampled design keeps its SALib problem")
-        elif design.kind == "sobol":
-            found[name] = sobol_indices(design.problem, values, design.second_order, seed)
         else:
-            found[name] = morris_effects(design.problem, design.rows, values, design.levels, seed)
+            found[name] = estimate(design, values, seed)
     return found
+
+
+def charts(kind: str, found: dict[str, Any]) -> list[IndexChart]:
+    """How the indices `found` (by metric) of a `kind` design are drawn; none for a metric
+    that has a note instead."""
+    chart = kind_of(kind).chart
+    if chart is None:
+        return []
+    return [chart(metric, indices) for metric, indices in found.items() if "names" in indices]

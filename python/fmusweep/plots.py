@@ -1,7 +1,8 @@
-"""Pictures of a sweep, written next to its results: a metric against its parameter (one
-varying parameter), heatmaps (a two-parameter grid), metric-against-parameter scatter
-matrices (Latin hypercubes and other designs), and Sobol' S1/ST bars with confidence
-intervals."""
+"""Pictures of a sweep, written next to its results, as its design's kind says: a metric
+against its parameter (one varying parameter), heatmaps (a two-parameter grid),
+metric-against-parameter scatter matrices (the other designs), and the indices of the
+kinds that give them, as each kind's chart says (bars with confidence intervals, or
+labelled points)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .designs import kind_of
+
 if TYPE_CHECKING:
     import pandas as pd
 
-    from .design import Design
+    from .designs import Design, IndexChart
 
 __all__ = ["plot_all"]
 
@@ -43,18 +46,19 @@ def plot_all(design: Design, points: pd.DataFrame, metric_names: list[str],
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     varying = [n for n in design.names if points[n].nunique() > 1]
+    kind = kind_of(design.kind)
+    view = kind.metric_view(len(varying)) if varying else "none"
     written = []
-    if design.kind == "grid" and len(varying) == 1:
+    if view == "lines":
         written.append(_lines(points, varying[0], metric_names, out / "metrics.png"))
-    elif design.kind == "grid" and len(varying) == 2:
+    elif view == "heatmap":
         written += [_heatmap(points, varying, m, out / f"heatmap_{m}.png") for m in metric_names]
-    elif varying:
+    elif view == "scatter":
         written.append(_scatter_matrix(points, varying, metric_names, out / "scatter.png"))
-    for metric, s in sensitivity.items():
-        if s.get("method") == "sobol" and "S1" in s:
-            written.append(_sobol_bars(metric, s, out / f"sobol_{metric}.png"))
-        elif s.get("method") == "morris" and "mu_star" in s:
-            written.append(_morris(metric, s, out / f"morris_{metric}.png"))
+    for metric, found in sensitivity.items():
+        if kind.chart is not None and "names" in found:
+            chart = kind.chart(metric, found)
+            written.append(_index_chart(chart, out / f"{design.kind}_{chart.metric}.png"))
     return written
 
 
@@ -138,30 +142,30 @@ def _scatter_matrix(points: pd.DataFrame, names: list[str], metrics: list[str],
     return _save(fig, path)
 
 
-def _sobol_bars(metric: str, s: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
+def _index_chart(chart: IndexChart, path: pathlib.Path) -> pathlib.Path:
+    """A kind's indices of one metric: grouped bars with their half-widths, or labelled
+    points."""
     plt = _pyplot()
-    names = s["names"]
-    x = np.arange(len(names))
-    fig, ax = plt.subplots(figsize=(1.1 * len(names) + 3, 4))
-    ax.bar(x - 0.2, s["S1"], 0.4, yerr=s["S1_conf"], capsize=3, label="S1 (first order)")
-    ax.bar(x + 0.2, s["ST"], 0.4, yerr=s["ST_conf"], capsize=3, label="ST (total)")
-    ax.set_xticks(x, names)
-    ax.set_ylabel("Sobol' index")
-    ax.axhline(0, color="k", lw=0.6)
-    ax.set_title(f"Sensitivity of {metric} (bars: 95 % confidence)")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
-    ax.grid(axis="y", alpha=0.3)
-    return _save(fig, path)
-
-
-def _morris(metric: str, s: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.scatter(s["mu_star"], s["sigma"])
-    for name, x, y in zip(s["names"], s["mu_star"], s["sigma"]):
-        ax.annotate(name, (x, y), textcoords="offset points", xytext=(4, 4))
-    ax.set_xlabel("μ* (mean |elementary effect|)")
-    ax.set_ylabel("σ (spread: interaction or nonlinearity)")
-    ax.set_title(f"Morris screening of {metric}")
-    ax.grid(alpha=0.3)
+    names = chart.names
+    if chart.style == "bars":
+        x = np.arange(len(names))
+        width = 0.8 / len(chart.series)
+        fig, ax = plt.subplots(figsize=(1.1 * len(names) + 3, 4))
+        for k, (label, values) in enumerate(chart.series.items()):
+            offset = (k - (len(chart.series) - 1) / 2) * width
+            ax.bar(x + offset, values, width, yerr=chart.errors.get(label), capsize=3,
+                   label=label)
+        ax.set_xticks(x, names)
+        ax.axhline(0, color="k", lw=0.6)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        ax.grid(axis="y", alpha=0.3)
+    else:
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        ax.scatter(chart.series["x"], chart.series["y"])
+        for name, at_x, at_y in zip(names, chart.series["x"], chart.series["y"]):
+            ax.annotate(name, (at_x, at_y), textcoords="offset points", xytext=(4, 4))
+        ax.grid(alpha=0.3)
+    ax.set_xlabel(chart.axes[0])
+    ax.set_ylabel(chart.axes[1])
+    ax.set_title(chart.title)
     return _save(fig, path)

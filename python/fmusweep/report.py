@@ -22,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 if TYPE_CHECKING:
+    from .designs import IndexChart
     from .fitting.problem import Evaluation
     from .fitting.spec import FitSpec
 
@@ -118,10 +119,11 @@ def _hover(points: pd.DataFrame, names: list[str]) -> list[str]:
 
 
 def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metrics: list[str],
-                 sensitivity: dict[str, Any], series: pd.DataFrame | None,
+                 charts: list[IndexChart], series: pd.DataFrame | None,
                  eager: bool = False) -> pathlib.Path:
-    """Write ``out/report.html`` for a sweep's points (parameters `names`) and return it;
-    `eager` draws every plot on opening instead of as it comes into view."""
+    """Write ``out/report.html`` for a sweep's points (parameters `names`), with the charts
+    of its design's indices, and return it; `eager` draws every plot on opening instead of
+    as it comes into view."""
     points = points.sort_values("point").reset_index(drop=True)
     varied = [n for n in names if points[n].nunique() > 1] or names[:1]
     labels = _hover(points, names)
@@ -139,7 +141,7 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
         if grid is not None:
             sections.append(_heatmap_section(k, metric, points, varied, grid))
         sections.append(_metric_section(k, metric, points, varied, failed))
-    sections += [_sensitivity_section(m, s) for m, s in sensitivity.items() if "names" in s]
+    sections += [_index_section(chart) for chart in charts]
     sections.append(_failed_table(points, names))
     if kept:
         sections.append("<h2>Time series of the chosen point</h2><p id=\"series-note\" class=\"note\">"
@@ -278,18 +280,21 @@ def _metric_section(k: int, metric: str, points: pd.DataFrame, varied: list[str]
             "below the others: they have no value.</p>" + _plot(f"metric-{k}", data, layout))
 
 
-def _sensitivity_section(metric: str, s: dict[str, Any]) -> str:
-    div = f"sensitivity-{html.escape(metric)}"
-    if s.get("method") == "sobol":
-        data = [{"type": "bar", "name": key, "x": s["names"], "y": s[key],
-                 "error_y": {"type": "data", "array": s[f"{key}_conf"]}} for key in ("S1", "ST")]
-        layout = {"barmode": "group", "title": {"text": f"Sobol' indices of {metric} (95 % confidence)"}}
+def _index_section(chart: IndexChart) -> str:
+    """A kind's indices of one metric: grouped bars with their half-widths, or labelled
+    points."""
+    if chart.style == "bars":
+        data = [{"type": "bar", "name": label, "x": chart.names, "y": values,
+                 "error_y": {"type": "data", "array": chart.errors.get(label, [])}}
+                for label, values in chart.series.items()]
+        layout: dict[str, Any] = {"barmode": "group"}
     else:
-        data = [{"type": "scatter", "mode": "markers+text", "x": s["mu_star"], "y": s["sigma"],
-                 "text": s["names"], "textposition": "top right"}]
-        layout = {"title": {"text": f"Morris screening of {metric}"}, "xaxis": {"title": {"text": "μ*"}},
-                  "yaxis": {"title": {"text": "σ"}}}
-    return _plot(div, data, layout)
+        data = [{"type": "scatter", "mode": "markers+text", "x": chart.series["x"],
+                 "y": chart.series["y"], "text": chart.names, "textposition": "top right"}]
+        layout = {}
+    layout.update({"title": {"text": chart.title}, "xaxis": {"title": {"text": chart.axes[0]}},
+                   "yaxis": {"title": {"text": chart.axes[1]}}})
+    return _plot(f"indices-{html.escape(chart.metric)}", data, layout)
 
 
 def _failed_table(points: pd.DataFrame, names: list[str]) -> str:

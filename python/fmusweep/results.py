@@ -13,7 +13,7 @@ import pandas as pd
 from .store import ResultStore
 
 if TYPE_CHECKING:
-    from .design import Design
+    from .designs import Design
 
 __all__ = ["Results", "SweepReport", "load_results"]
 
@@ -101,9 +101,11 @@ class Results:
         from .plots import plot_all
         self.plots = plot_all(design, self.points, self.meta["metrics"], self.sensitivity,
                               self.out / "plots")
+        from .indices import charts
         from .report import first_series, sweep_report
         self.report_html = sweep_report(self.out, design.names, self.points, self.meta["metrics"],
-                                        self.sensitivity, first_series(self.out, self.points))
+                                        charts(design.kind, self.sensitivity),
+                                        first_series(self.out, self.points))
 
     def __repr__(self) -> str:
         counts = self.points["status"].value_counts().to_dict()

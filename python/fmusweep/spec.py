@@ -53,7 +53,7 @@ import tomllib
 from dataclasses import dataclass, field
 from typing import Any, Callable, TypeVar
 
-from . import design as _design
+from .designs import KINDS, Design, generate, kind_of
 from .columns import SERIES_COLUMNS, SWEEP_COLUMNS, refuse_collisions
 from .errors import Collector, SpecError, refuse
 from .ssd import SspContents, read_ssp
@@ -73,7 +73,7 @@ METRIC_KINDS = ("final", "min", "max", "peak_abs", "mean", "rms", "peak_to_peak"
 # and the mechanism the coupling error dominates the run's error over a wide range of FMU
 # tolerances (bench-coupling's report), and a tenth keeps a margin.
 FMU_TOLERANCE_RATIO = 0.1
-DESIGN_KINDS = ("grid", "list", "lhs", "sobol", "morris")
+DESIGN_KINDS = tuple(KINDS)
 
 
 @dataclass(frozen=True)
@@ -298,11 +298,11 @@ class Spec:
     design: dict[str, Any]
     seed: int | None
     metrics: list[MetricSpec]
-    series_variables: list[str] = field(default_factory=list)
-    series_every: int = 0
     # The design's points, made when the spec is checked (sampling a large design costs
     # seconds).
-    points: _design.Design = field(default=None, repr=False)  # type: ignore[assignment]
+    points: Design = field(repr=False)
+    series_variables: list[str] = field(default_factory=list)
+    series_every: int = 0
 
     # --- loading -------------------------------------------------------------------
     @staticmethod
@@ -326,7 +326,7 @@ class Spec:
         scenario = errors.run(lambda: Scenario.of(raw, base_dir))
         header = errors.run(lambda: _design_header(raw, scenario))
         # The design's own fields are checked where its points are generated.
-        points = errors.run(lambda: _design.generate(header[1], header[0], header[2])
+        points = errors.run(lambda: generate(header[1], header[0], header[2])
                             if header is not None else None)
         outputs = errors.run(lambda: _outputs(raw, scenario))
         if header is not None and outputs is not None:
@@ -340,14 +340,11 @@ class Spec:
                                                   "co-simulation interfaces")
         design, kind, seed = header
         metrics, series_variables, every = outputs
-        spec = Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
-                    ssp=(base_dir / ssp) if ssp else None, system=system, scenario=scenario,
-                    design_kind=kind, design=design,
-                    seed=seed, metrics=metrics, series_variables=series_variables,
-                    series_every=every)
         assert points is not None
-        spec.points = points
-        return spec
+        return Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
+                    ssp=(base_dir / ssp) if ssp else None, system=system, scenario=scenario,
+                    design_kind=kind, design=design, seed=seed, metrics=metrics, points=points,
+                    series_variables=series_variables, series_every=every)
 
     # --- derived ---------------------------------------------------------------------
     def plan(self) -> Plan:
@@ -393,12 +390,11 @@ def _design_header(raw: dict[str, Any],
     too (whose own mistakes are reported apart)."""
     design = _table(raw, "design", "spec", required=True)
     kind = design.get("kind", "grid")
-    if kind not in DESIGN_KINDS:
-        raise SpecError("design.kind", f"must be one of {', '.join(DESIGN_KINDS)}, got {kind!r}")
+    needs_seed = kind_of(kind).needs_seed
     seed = design.get("seed")
     if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
         raise SpecError("design.seed", f"must be a whole number ≥ 0, got {seed!r}")
-    if kind in ("lhs", "sobol", "morris") and seed is None:
+    if needs_seed and seed is None:
         raise SpecError("design.seed", f"a {kind} design needs a seed, so that it can be repeated")
     if not _table(design, "parameters", "design"):
         raise SpecError("design.parameters", "names no parameter: the design is empty")

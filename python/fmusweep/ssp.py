@@ -29,7 +29,7 @@ from .records import Batch, Plan, PointResult, Points, Rows
 from .worker import trace, worker_name
 
 if TYPE_CHECKING:
-    from .design import Design
+    from .designs import Design
     from .spec import Spec
 
 __all__ = ["describe_ssp", "check_ssp", "run_ssp_batch", "metrics_of"]

@@ -18,7 +18,7 @@ import numpy as np
 import pyarrow as pa
 
 from .check import check_against_fmu
-from .design import Design
+from .designs import Design
 from .errors import SpecError, SpecWarning, refuse_in_spawned_child
 from .pool import check_engine
 from .records import Batch, PointResult, Points, Rows

@@ -127,8 +127,8 @@ def test_a_sobol_sweeps_report_draws_its_indices_and_design_matrix(fmu_path, tmp
     with Browser() as browser:
         browser.open(results.report_html)
         browser.wait_for("document.querySelectorAll('.main-svg').length > 0")
-        bars = browser.evaluate("document.getElementById('sensitivity-peak_rod_force').data.map(t => t.name)")
-        assert bars == ["S1", "ST"]
+        bars = browser.evaluate("document.getElementById('indices-peak_rod_force').data.map(t => t.name)")
+        assert bars == ["S1 (first order)", "ST (total)"]
         assert browser.evaluate("document.getElementById('design').data[0].type") == "splom"
         # Every point of the matrix is labelled with its number and values.
         texts = browser.evaluate("document.getElementById('design').data[0].text")
@@ -185,7 +185,7 @@ def _synthetic_report(directory, metrics):
     for name, values in metrics.items():
         points[name] = values(points)
     directory.mkdir(parents=True, exist_ok=True)
-    return sweep_report(directory, ["k", "L"], points, list(metrics), {}, None)
+    return sweep_report(directory, ["k", "L"], points, list(metrics), [], None)
 
 
 def test_a_metric_spanning_decades_is_coloured_on_a_log_scale_and_says_so(tmp_path):

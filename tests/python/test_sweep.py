@@ -380,3 +380,45 @@ def test_the_final_table_is_streamed_in_point_order_from_its_parts(tmp_path):
                                     "status": pa.array(["ok"] * len(points))}), None)
     assert store.consolidate() == 12
     assert pq.read_table(tmp_path / "points.parquet")["point"].to_pylist() == list(range(12))
+
+
+def test_a_new_design_kind_is_one_module(fmu_path, tmp_path, monkeypatch):
+    """What a kind is lives in its module of fmusweep.designs: a kind registered there
+    alone (here a seeded Halton sequence with its own field) has its fields checked, its
+    seed asked for, its points made and swept, and its pictures drawn, with no other file
+    knowing it."""
+    from scipy.stats import qmc
+
+    from fmusweep import designs
+    from fmusweep.designs.base import (Design, DesignKind, count_of, not_too_many, per_column,
+                                       range_of)
+
+    def make(names, params, d, seed):
+        bounds = per_column(names, lambda name: range_of(name, params[name], allow_log=False))
+        n = count_of(d, "points", "design.points")
+        not_too_many(n)
+        unit = qmc.Halton(d=len(names), seed=seed).random(n)
+        low, high = (np.array([b[k] for b in bounds]) for k in (0, 1))
+        return Design("halton", names, stored=low + unit * (high - low))
+
+    halton = DesignKind("halton", frozenset({"seed", "points"}), needs_seed=True, make=make)
+    monkeypatch.setitem(designs.KINDS, "halton", halton)
+    spec = {"scenario": {"stop": 0.2, "step": 0.01, "tolerance": 1e-6},
+            "design": {"kind": "halton", "seed": 5, "points": 6,
+                       "parameters": {"k12": {"range": [50.0, 150.0]},
+                                      "k34": {"range": [50.0, 150.0]}}},
+            "outputs": {"metrics": {"peak": {"variable": "rod_force", "kind": "peak_abs"}}}}
+    results = run_sweep(spec, fmu=str(fmu_path), out=str(tmp_path / "out"), serial=True,
+                        progress=False)
+    assert len(results.points) == 6 and (results.points["status"] == "ok").all()
+    assert results.points["k12"].between(50.0, 150.0).all()
+    assert [p.name for p in results.plots] == ["scatter.png"] and results.report_html
+    for field, value in (("samples", 6), ("seed", None)):
+        wrong = copy.deepcopy(spec)
+        wrong["design"][field] = value
+        if value is None:
+            del wrong["design"][field]
+        with pytest.raises(SpecError) as refused:
+            run_sweep(wrong, fmu=str(fmu_path), out=str(tmp_path / field), serial=True,
+                      progress=False)
+        assert f"design.{field}" in str(refused.value)

@@ -92,7 +92,7 @@ def test_no_import_cycle_among_the_modules():
     for module in graph:
         visit(module, [])
     assert "fitting.run" in graph["fitting"] and "fitting.method" in graph["fitting.run"]
-    assert "design" not in graph["errors"] and "spec" not in graph["design"]
+    assert "designs" not in graph["errors"] and "spec" not in graph["designs"]
 
 
 def test_pip_installs_the_package_in_a_fresh_environment(fmu_path, tmp_path):

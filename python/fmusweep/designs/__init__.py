@@ -1,0 +1,48 @@
+"""Designs: the parameter points of a sweep. Each kind is one module here, with all that
+kind is: the fields of its ``[design]`` table, whether it needs a seed, how its points are
+made, and, for the kinds that give them, its indices and how they are drawn. ``KINDS``
+names them; a new kind is a new module added to it.
+
+- ``grid`` (``grid.py``): the full-factorial product of each parameter's values.
+- ``list`` (``listed.py``): point i takes each parameter's i-th value.
+- ``lhs`` (``lhs.py``): a seeded Latin hypercube over each parameter's range.
+- ``sobol`` (``sobol.py``): Saltelli's design, and Sobol' indices of every metric.
+- ``morris`` (``morris.py``): Morris' trajectories, and elementary effects of every metric.
+
+A grid keeps only its axes and makes a point's values from its index when a batch needs
+them, so that the client's memory does not grow with the number of points; the sampled
+designs are held whole (their generators make them so).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from . import grid, lhs, listed, morris, sobol
+from .base import Design, DesignKind, IndexChart
+from ..errors import SpecError
+
+__all__ = ["Design", "DesignKind", "IndexChart", "KINDS", "kind_of", "generate"]
+
+KINDS: dict[str, DesignKind] = {k.name: k for k in (grid.KIND, listed.KIND, lhs.KIND,
+                                                      sobol.KIND, morris.KIND)}
+
+
+def kind_of(name: str) -> DesignKind:
+    """The kind a design names; a SpecError on ``design.kind`` for any other."""
+    kind = KINDS.get(name)
+    if kind is None:
+        raise SpecError("design.kind", f"must be one of {', '.join(KINDS)}, got {name!r}")
+    return kind
+
+
+def generate(kind: str, d: dict[str, Any], seed: int | None) -> Design:
+    """The points of a `kind` design from its table `d` (``[design]``) and seed."""
+    found = kind_of(kind)
+    allowed = {"kind", "parameters", *found.fields}
+    unknown = sorted(set(d) - allowed)
+    if unknown:
+        raise SpecError(f"design.{unknown[0]}", f"is not a field of a {kind} design; "
+                        f"expected {', '.join(sorted(allowed))}")
+    params = d["parameters"]
+    return found.make(list(params), params, d, seed)
