@@ -62,7 +62,7 @@ def eager_copy(results, directory: pathlib.Path) -> pathlib.Path:
     """The same sweep's report with every plot drawn on opening (the report before the
     plots were drawn as they come into view)."""
     from fmusweep.indices import charts
-    from fmusweep.report import first_series, sweep_report
+    from fmusweep.show.report import first_series, sweep_report
     directory.mkdir()
     design = results.meta["design"]
     return sweep_report(directory, design["names"], results.points, results.meta["metrics"],
@@ -92,7 +92,7 @@ def first_point_of_later_calls(tmp: pathlib.Path) -> dict:
 def plotly_alone(tmp: pathlib.Path) -> dict:
     """The floor of any such report here: a page with Plotly's JavaScript and one plot of
     two points, opened the same way."""
-    from fmusweep.report import _page, _plot
+    from fmusweep.show.report import _page, _plot
     page = tmp / "plotly_alone.html"
     page.write_text(_page("Plotly alone", "", [_plot("one", [{"x": [0, 1], "y": [0, 1]}], {})]))
     return {"bytes": page.stat().st_size, **opened(page)}

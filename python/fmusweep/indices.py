@@ -4,6 +4,9 @@ sensitivities, ∂y/∂p, are another thing: docs/sensitivities.md.)"""
 
 from __future__ import annotations
 
+import json
+import pathlib
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -11,13 +14,14 @@ import numpy as np
 from .designs import kind_of
 from .designs.morris import morris_effects
 from .designs.sobol import sobol_indices
+from .store import atomic_write_text
 
 if TYPE_CHECKING:
     import pandas as pd
 
     from .designs import Design, IndexChart
 
-__all__ = ["sobol_indices", "morris_effects", "analyse", "has_indices", "charts"]
+__all__ = ["sobol_indices", "morris_effects", "analyse", "has_indices", "charts", "write_indices"]
 
 
 def has_indices(design: Design) -> bool:
@@ -42,6 +46,19 @@ def analyse(design: Design, points: pd.DataFrame, metric_names: list[str],
                                    "the indices need every point of the design"}
         else:
             found[name] = estimate(design, values, seed)
+    return found
+
+
+def write_indices(design: Design, points: Callable[[], pd.DataFrame], metric_names: list[str],
+                  seed: int, out: pathlib.Path) -> dict[str, Any]:
+    """The indices of a finished sweep, written to ``out/sensitivity.json`` where its kind
+    gives any: `points` is asked for only then (a grid of 10⁶ points is not loaded for no
+    index)."""
+    if not has_indices(design):
+        return {}
+    found = analyse(design, points(), metric_names, seed)
+    if found:
+        atomic_write_text(json.dumps(found, indent=2), out / "sensitivity.json")
     return found
 
 

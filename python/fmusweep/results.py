@@ -6,14 +6,11 @@ import json
 import os
 import pathlib
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import pandas as pd
 
 from .store import ResultStore
-
-if TYPE_CHECKING:
-    from .designs import Design
 
 __all__ = ["Results", "SweepReport", "load_results"]
 
@@ -77,35 +74,11 @@ class Results:
     def ok(self) -> pd.DataFrame:
         return self.points[self.points["status"] == "ok"]
 
-    def analyse(self, design: Design) -> None:
-        """The sensitivity indices of a sobol or morris design, into sensitivity.json."""
-        from .indices import analyse, has_indices
-        from .store import atomic_write_text
-        if not has_indices(design):
-            # Nothing to read: a grid of 10⁶ points is not loaded for no index.
-            self.sensitivity = {}
-            return
-        seed = self.meta.get("seed") or 0
-        self.sensitivity = analyse(design, self.points, self.meta["metrics"], seed)
-        if self.sensitivity:
-            atomic_write_text(json.dumps(self.sensitivity, indent=2), self.out / "sensitivity.json")
-
     @property
     def notes(self) -> list[str]:
         """What the analysis could not do, per metric (indices that failed points rule out)."""
         return [f"{name}: {found['note']}" for name, found in self.sensitivity.items()
                 if "note" in found]
-
-    def plot(self, design: Design) -> None:
-        """The pictures in plots/ and the interactive report.html."""
-        from .plots import plot_all
-        self.plots = plot_all(design, self.points, self.meta["metrics"], self.sensitivity,
-                              self.out / "plots")
-        from .indices import charts
-        from .report import first_series, sweep_report
-        self.report_html = sweep_report(self.out, design.names, self.points, self.meta["metrics"],
-                                        charts(design.kind, self.sensitivity),
-                                        first_series(self.out, self.points))
 
     def __repr__(self) -> str:
         counts = self.points["status"].value_counts().to_dict()

@@ -21,11 +21,13 @@ from .check import check_against_fmu
 from .designs import Design
 from .errors import SpecError, SpecWarning, refuse_in_spawned_child
 from .pool import check_engine
+from .indices import write_indices
 from .records import Batch, PointResult, Points, Rows
 from .results import Results, SweepReport
 from .spec import Spec
 from .store import coupling_columns
 from .ssp import check_ssp
+from .show import show_sweep
 from .study import Study, Target, load_spec, spec_name
 
 
@@ -248,9 +250,12 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
         point_seconds=keep.point_seconds, startup_s=study.pool.startup_s,
         dispatch_s=dispatch_s, statuses=keep.statuses, held_results=held, engine_choice=note)
     results = Results(study.store.out, None, study.store.meta, report)
-    results.analyse(design)
+    meta = study.store.meta
+    results.sensitivity = write_indices(design, lambda: results.points, meta["metrics"],
+                                        meta.get("seed") or 0, results.out)
     if plots:
-        results.plot(design)
+        results.plots, results.report_html = show_sweep(results.out, design, results.points,
+                                                        meta["metrics"], results.sensitivity)
     return results
 
 

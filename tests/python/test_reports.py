@@ -176,7 +176,7 @@ def test_a_two_parameter_grid_draws_heatmaps_with_its_failed_cells(sweep):
 def _synthetic_report(directory, metrics):
     """A report of a 30 × 20 grid whose metrics are written here (no FMU run)."""
     import pandas as pd
-    from fmusweep.report import sweep_report
+    from fmusweep.show.report import sweep_report
     k, L = np.meshgrid(np.linspace(1.0, 2.0, 30), np.linspace(0.1, 0.2, 20), indexing="ij")
     n = k.size
     points = pd.DataFrame({"point": np.arange(n), "point_id": [f"id{i}" for i in range(n)],

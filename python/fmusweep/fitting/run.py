@@ -120,15 +120,12 @@ def _run(spec: FitSpec, study: Study, started: float, *, serial: bool, engine_no
     atomic_write_text(json.dumps(summary, indent=2), out_dir / "fit.json")
     written: list[pathlib.Path] = []
     if plots and best is not None and summary["status"] != "failed":
-        from .plots import plot_fit
+        from ..show import show_fit
         # The optimiser's last accepted point: run, and kept, on the way.
         assert best.estimate is not None
         at_best = problem.cached(best.estimate)
         runs = at_best.runs if at_best is not None and at_best.ok else None
-        if runs is not None:
-            written = plot_fit(spec, runs, summary, out_dir / "plots")
-        from ..report import fit_report
-        fit_report(out_dir, spec, runs, summary)
+        written = show_fit(out_dir, spec, runs, summary)
     return FitResult(out_dir, summary, written)
 
 

@@ -11,29 +11,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .designs import kind_of
+from ..designs import kind_of
+from .drawing import pyplot, save
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from .designs import Design, IndexChart
+    from ..designs import Design, IndexChart
 
-__all__ = ["plot_all"]
-
-
-def _pyplot() -> Any:
-    """matplotlib's pyplot on the Agg backend (no display needed)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
-def _save(fig: Any, path: pathlib.Path) -> pathlib.Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    _pyplot().close(fig)
-    return path
+__all__ = ["sweep_pictures"]
 
 
 def _failed_note(points: pd.DataFrame) -> str:
@@ -41,7 +27,7 @@ def _failed_note(points: pd.DataFrame) -> str:
     return f" ({failed} of {len(points)} points failed)" if failed else ""
 
 
-def plot_all(design: Design, points: pd.DataFrame, metric_names: list[str],
+def sweep_pictures(design: Design, points: pd.DataFrame, metric_names: list[str],
              sensitivity: dict[str, Any], out: pathlib.Path) -> list[pathlib.Path]:
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -71,7 +57,7 @@ def _spans_decades(values: Any) -> bool:
 
 def _lines(points: pd.DataFrame, name: str, metrics: list[str],
            path: pathlib.Path) -> pathlib.Path:
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(len(metrics), 1, figsize=(7, 2.6 * len(metrics)), sharex=True,
                              squeeze=False)
     ordered = points.sort_values(name)
@@ -81,7 +67,7 @@ def _lines(points: pd.DataFrame, name: str, metrics: list[str],
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel(name)
     fig.suptitle(f"Metrics against {name}{_failed_note(points)}")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _cell_edges(values: np.ndarray) -> tuple[np.ndarray, bool]:
@@ -100,7 +86,7 @@ def _cell_edges(values: np.ndarray) -> tuple[np.ndarray, bool]:
 
 def _heatmap(points: pd.DataFrame, names: list[str], metric: str,
              path: pathlib.Path) -> pathlib.Path:
-    plt = _pyplot()
+    plt = pyplot()
     x_name, y_name = names
     table = points.pivot_table(index=y_name, columns=x_name, values=metric, aggfunc="first",
                                dropna=False)
@@ -118,12 +104,12 @@ def _heatmap(points: pd.DataFrame, names: list[str], metric: str,
     ax.set_xlabel(x_name)
     ax.set_ylabel(y_name)
     ax.set_title(f"{metric} over {x_name} × {y_name}{_failed_note(points)}")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _scatter_matrix(points: pd.DataFrame, names: list[str], metrics: list[str],
                     path: pathlib.Path) -> pathlib.Path:
-    plt = _pyplot()
+    plt = pyplot()
     fig, axes = plt.subplots(len(metrics), len(names), figsize=(2.6 * len(names) + 1, 2.4 * len(metrics) + 0.8),
                              squeeze=False, sharey="row")
     ok = points[points["status"] == "ok"]
@@ -139,13 +125,13 @@ def _scatter_matrix(points: pd.DataFrame, names: list[str], metrics: list[str],
             if j == 0:
                 ax.set_ylabel(metric)
     fig.suptitle(f"Each metric against each parameter{_failed_note(points)}")
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _index_chart(chart: IndexChart, path: pathlib.Path) -> pathlib.Path:
     """A kind's indices of one metric: grouped bars with their half-widths, or labelled
     points."""
-    plt = _pyplot()
+    plt = pyplot()
     names = chart.names
     if chart.style == "bars":
         x = np.arange(len(names))
@@ -168,4 +154,4 @@ def _index_chart(chart: IndexChart, path: pathlib.Path) -> pathlib.Path:
     ax.set_xlabel(chart.axes[0])
     ax.set_ylabel(chart.axes[1])
     ax.set_title(chart.title)
-    return _save(fig, path)
+    return save(fig, path)

@@ -22,9 +22,9 @@ import numpy as np
 import pandas as pd
 
 if TYPE_CHECKING:
-    from .designs import IndexChart
-    from .fitting.problem import Evaluation
-    from .fitting.spec import FitSpec
+    from ..designs import IndexChart
+    from ..fitting.problem import Evaluation
+    from ..fitting.spec import FitSpec
 
 __all__ = ["sweep_report", "fit_report", "first_series", "SERIES_POINTS", "SERIES_SAMPLES"]
 

@@ -8,18 +8,18 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..plots import _pyplot, _save
+from .drawing import pyplot, save
 from ..records import Rows
 
 if TYPE_CHECKING:
-    from .data import Data
-    from .problem import Evaluation
-    from .spec import FitSpec
+    from ..fitting.data import Data
+    from ..fitting.problem import Evaluation
+    from ..fitting.spec import FitSpec
 
-__all__ = ["plot_fit"]
+__all__ = ["fit_pictures"]
 
 
-def plot_fit(spec: FitSpec, best: list[Evaluation], summary: dict[str, Any],
+def fit_pictures(spec: FitSpec, best: list[Evaluation], summary: dict[str, Any],
              out: pathlib.Path) -> list[pathlib.Path]:
     """The pictures of the best fit's runs (`best`, one per experiment): each experiment's
     own pair, named after it where there are several, and the correlation matrix."""
@@ -52,7 +52,7 @@ def _estimates_text(summary: dict[str, Any]) -> str:
 
 def _trajectories(data: Data, predictions: Rows, summary: dict[str, Any], title: str,
                   path: pathlib.Path) -> pathlib.Path:
-    plt = _pyplot()
+    plt = pyplot()
     n = len(data.columns)
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.6 * n + 0.6), sharex=True, squeeze=False)
     for j, (ax, name) in enumerate(zip(axes[:, 0], data.columns)):
@@ -64,11 +64,11 @@ def _trajectories(data: Data, predictions: Rows, summary: dict[str, Any], title:
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle(f"{title or 'M'}{'m' if title else ''}easured and fitted (95 % intervals): "
                  f"{_estimates_text(summary)}", fontsize=9, wrap=True)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _residuals(data: Data, predictions: Rows, title: str, path: pathlib.Path) -> pathlib.Path:
-    plt = _pyplot()
+    plt = pyplot()
     n = len(data.columns)
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.2 * n + 0.6), sharex=True, squeeze=False)
     for j, (ax, name) in enumerate(zip(axes[:, 0], data.columns)):
@@ -82,11 +82,11 @@ def _residuals(data: Data, predictions: Rows, title: str, path: pathlib.Path) ->
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("time (s)")
     fig.suptitle(f"{title or 'R'}{'r' if title else ''}esiduals (dashed: ± 2 σ where σ is given)", fontsize=9)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _correlation(spec: FitSpec, summary: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
-    plt = _pyplot()
+    plt = pyplot()
     names = spec.names
     p = len(names)
     matrix = np.eye(p)
@@ -108,13 +108,13 @@ def _correlation(spec: FitSpec, summary: dict[str, Any], path: pathlib.Path) -> 
                     color="white" if dark else "black")
     fig.colorbar(image, ax=ax, shrink=0.8)
     ax.set_title("Correlation of the estimates", fontsize=10)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def _profiles(summary: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
     """Each profiled parameter's cost rise against its value, the 95 % threshold, and the
     two intervals: the profile's (where the curve crosses) and the Wald one."""
-    plt = _pyplot()
+    plt = pyplot()
     profiles = summary["profiles"]
     n = len(profiles)
     columns = min(n, 3)
@@ -146,4 +146,4 @@ def _profiles(summary: dict[str, Any], path: pathlib.Path) -> pathlib.Path:
         ax.set_ylabel("cost − least cost")
     axes[0, 0].legend(loc="upper center", fontsize=7)
     fig.suptitle("Likelihood profiles: the other parameters re-optimised at each point", fontsize=9)
-    return _save(fig, path)
+    return save(fig, path)
