@@ -342,18 +342,94 @@ pub fn variables_text() -> String {
     text
 }
 
-/// A hash of the interface that either version's instances share (the variable table, the
-/// states, the event indicators, the output derivatives): it stamps serialized FMU states,
-/// so that a state is restored only by a binary with the same interface. Formed once per
-/// process.
-pub fn interface_hash() -> u128 {
+/// FMI 2.0's Co-Simulation capability flags, as declared; the FMI functions refuse what is
+/// false.
+pub const FMI2_CO_SIMULATION: &[(&str, bool)] = &[
+    ("needsExecutionTool", false),
+    ("canHandleVariableCommunicationStepSize", true),
+    ("canInterpolateInputs", true),
+    ("canRunAsynchronuously", false),
+    ("canBeInstantiatedOnlyOncePerProcess", false),
+    ("canNotUseMemoryManagementFunctions", true),
+    ("canGetAndSetFMUstate", true),
+    ("canSerializeFMUstate", true),
+    ("providesDirectionalDerivative", true),
+];
+
+/// FMI 2.0's Model Exchange capability flags, as declared.
+pub const FMI2_MODEL_EXCHANGE: &[(&str, bool)] = &[
+    ("needsExecutionTool", false),
+    // Chart changes come from the event indicator, not from completed steps.
+    ("completedIntegratorStepNotNeeded", true),
+    ("canBeInstantiatedOnlyOncePerProcess", false),
+    ("canNotUseMemoryManagementFunctions", true),
+    ("canGetAndSetFMUstate", true),
+    ("canSerializeFMUstate", true),
+    ("providesDirectionalDerivative", true),
+];
+
+/// FMI 3.0's Co-Simulation capabilities, as declared (the output derivatives' order is written
+/// beside them): as for Model Exchange, with event mode, and a step that may return early
+/// (at a change point, docs/model.md §7); no intermediate update.
+pub const FMI3_CO_SIMULATION: &[(&str, bool)] = &[
+    ("needsExecutionTool", false),
+    ("canBeInstantiatedOnlyOncePerProcess", false),
+    ("canGetAndSetFMUState", true),
+    ("canSerializeFMUState", true),
+    ("providesDirectionalDerivatives", true),
+    ("providesAdjointDerivatives", true),
+    ("canHandleVariableCommunicationStepSize", true),
+    ("mightReturnEarlyFromDoStep", true),
+    ("hasEventMode", true),
+];
+
+/// FMI 3.0's Model Exchange capabilities, as declared: FMU states and their serialization,
+/// directional and adjoint derivatives; no per-element dependencies and no evaluation of
+/// clocked discrete states.
+pub const FMI3_MODEL_EXCHANGE: &[(&str, bool)] = &[
+    ("needsExecutionTool", false),
+    ("canBeInstantiatedOnlyOncePerProcess", false),
+    ("canGetAndSetFMUState", true),
+    ("canSerializeFMUState", true),
+    ("providesDirectionalDerivatives", true),
+    ("providesAdjointDerivatives", true),
+    ("needsCompletedIntegratorStep", false),
+];
+
+/// The interface's identity: a hash of what defines it in either version's model
+/// description (the variable table, the states, the event indicators, the output
+/// derivatives, each version's capabilities). FMI 2.0's GUID and FMI 3.0's instantiation
+/// token are its text ([`identity_text`]), and it stamps serialized FMU states, so that a
+/// state is restored only by a binary with the same interface. Formed once per process:
+/// formatting the whole variable table costs as much as a short simulation.
+pub fn identity() -> u128 {
     static HASH: std::sync::OnceLock<u128> = std::sync::OnceLock::new();
     *HASH.get_or_init(|| {
         let mut text = format!(
             "{MODEL_IDENTIFIER} {MAX_OUTPUT_DERIVATIVE_ORDER} indicators={EVENT_INDICATORS} \
              states={STATE_REFERENCES:?}"
         );
+        let capabilities = [
+            ("fmi2 cs", FMI2_CO_SIMULATION),
+            ("fmi2 me", FMI2_MODEL_EXCHANGE),
+            ("fmi3 cs", FMI3_CO_SIMULATION),
+            ("fmi3 me", FMI3_MODEL_EXCHANGE),
+        ];
+        for (interface, flags) in capabilities {
+            text += &format!(" {interface}:");
+            for (name, value) in flags {
+                text += &format!(" {name}={value}");
+            }
+        }
         text += &variables_text();
         fnv1a_128(text.as_bytes())
     })
+}
+
+/// The identity as a UUID's text, as FMI tools show GUIDs and tokens; formed once per
+/// process, held without the heap ([`UuidText`]).
+pub fn identity_text() -> &'static str {
+    static TEXT: std::sync::OnceLock<UuidText> = std::sync::OnceLock::new();
+    TEXT.get_or_init(|| UuidText::new(&uuid_text(identity())))
+        .as_str()
 }

@@ -1,68 +1,30 @@
 //! `modelDescription.xml`, generated with quick-xml from the variable table, the declared
 //! capabilities and the log categories: the binary and the XML share one source.
-//! The GUID is a hash of everything in the XML that defines the interface, so it changes
-//! whenever the interface does.
+//! The GUID is the interface's identity, a hash of everything either version's XML says
+//! that defines the interface, so it changes whenever the interface does.
 
 use quick_xml::events::{BytesDecl, Event};
 use quick_xml::Writer;
 use std::io;
 
 use crate::description::{
-    fnv1a_128, type_attributes, uuid_text, variables_text, write_default_experiment,
-    write_interface, write_items, write_log_categories, write_units, write_unknown, Items,
-    UuidText, DESCRIPTION_ATTRIBUTES, EVENT_INDICATORS, MAX_OUTPUT_DERIVATIVE_ORDER,
-    MODEL_IDENTIFIER, MODEL_NAME,
+    identity_text, type_attributes, write_default_experiment, write_interface, write_items,
+    write_log_categories, write_units, write_unknown, Items, DESCRIPTION_ATTRIBUTES,
+    EVENT_INDICATORS, FMI2_CO_SIMULATION, FMI2_MODEL_EXCHANGE, MAX_OUTPUT_DERIVATIVE_ORDER,
+    MODEL_NAME,
 };
 use crate::model::LINKAGE_CLASSES;
 use crate::variables::{
     is_unknown, variables, Causality, Unknowns, Variable, LINKAGE_TYPE, SOLVER_ITEMS, SOLVER_TYPE,
-    STATE_REFERENCES,
 };
 use crate::variables::{BRANCHES, BRANCH_TYPE, SENSITIVITY_ITEMS, SENSITIVITY_TYPE};
 
 pub const FMI_VERSION: &str = "2.0";
-/// Model Exchange capability flags, as declared.
-pub const EXCHANGE_CAPABILITIES: &[(&str, bool)] = &[
-    ("needsExecutionTool", false),
-    // Chart changes come from the event indicator, not from completed steps.
-    ("completedIntegratorStepNotNeeded", true),
-    ("canBeInstantiatedOnlyOncePerProcess", false),
-    ("canNotUseMemoryManagementFunctions", true),
-    ("canGetAndSetFMUstate", true),
-    ("canSerializeFMUstate", true),
-    ("providesDirectionalDerivative", true),
-];
 
-/// Co-simulation capability flags, as declared; the FMI functions refuse what is false.
-pub const CAPABILITIES: &[(&str, bool)] = &[
-    ("needsExecutionTool", false),
-    ("canHandleVariableCommunicationStepSize", true),
-    ("canInterpolateInputs", true),
-    ("canRunAsynchronuously", false),
-    ("canBeInstantiatedOnlyOncePerProcess", false),
-    ("canNotUseMemoryManagementFunctions", true),
-    ("canGetAndSetFMUstate", true),
-    ("canSerializeFMUstate", true),
-    ("providesDirectionalDerivative", true),
-];
-
-/// The GUID: a 128-bit FNV-1a hash of the interface, formatted as a UUID. Formed once per
-/// process: every fmi2Instantiate and every serialized state checks it, and formatting the
-/// whole variable table costs as much as a short simulation.
+/// The GUID: the interface's identity ([`identity_text`]), which FMI 3.0's instantiation
+/// token and every serialized state share.
 pub fn guid() -> &'static str {
-    static GUID: std::sync::OnceLock<UuidText> = std::sync::OnceLock::new();
-    GUID.get_or_init(|| UuidText::new(&interface_guid()))
-        .as_str()
-}
-
-fn interface_guid() -> String {
-    let mut text = format!("{MODEL_IDENTIFIER} {FMI_VERSION} {MAX_OUTPUT_DERIVATIVE_ORDER}");
-    for (name, value) in CAPABILITIES.iter().chain(EXCHANGE_CAPABILITIES) {
-        text += &format!(" {name}={value}");
-    }
-    text += &format!(" indicators={EVENT_INDICATORS} states={STATE_REFERENCES:?}");
-    text += &variables_text();
-    uuid_text(fnv1a_128(text.as_bytes()))
+    identity_text()
 }
 
 /// The complete `modelDescription.xml`.
@@ -87,11 +49,11 @@ fn write_model_description(w: &mut Writer<Vec<u8>>) -> io::Result<()> {
         .with_attributes(DESCRIPTION_ATTRIBUTES)
         .with_attribute(("numberOfEventIndicators", indicators.as_str()))
         .write_inner_content(|w| {
-            write_interface(w, "ModelExchange", EXCHANGE_CAPABILITIES, &[])?;
+            write_interface(w, "ModelExchange", FMI2_MODEL_EXCHANGE, &[])?;
             write_interface(
                 w,
                 "CoSimulation",
-                CAPABILITIES,
+                FMI2_CO_SIMULATION,
                 &[("maxOutputDerivativeOrder", order.as_str())],
             )?;
             write_units(w)?;

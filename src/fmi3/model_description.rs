@@ -9,9 +9,9 @@ use quick_xml::Writer;
 use std::io;
 
 use crate::description::{
-    fnv1a_128, type_attributes, uuid_text, write_default_experiment, write_interface, write_items,
-    write_log_categories, write_units, write_unknown, Items, UuidText, DESCRIPTION_ATTRIBUTES,
-    MAX_OUTPUT_DERIVATIVE_ORDER, MODEL_NAME,
+    identity_text, type_attributes, write_default_experiment, write_interface, write_items,
+    write_log_categories, write_units, write_unknown, Items, DESCRIPTION_ATTRIBUTES,
+    FMI3_CO_SIMULATION, FMI3_MODEL_EXCHANGE, MAX_OUTPUT_DERIVATIVE_ORDER, MODEL_NAME,
 };
 use crate::model::LINKAGE_CLASSES;
 use crate::variables::{
@@ -25,46 +25,15 @@ pub const FMI_VERSION: &str = "3.0";
 /// The value reference of the independent variable `time`.
 pub const TIME_REFERENCE: u32 = 0;
 
-/// Model Exchange capabilities, as declared: FMU states and their serialization,
-/// directional and adjoint derivatives; no per-element dependencies and no evaluation of
-/// clocked discrete states.
-pub const EXCHANGE_CAPABILITIES: &[(&str, bool)] = &[
-    ("needsExecutionTool", false),
-    ("canBeInstantiatedOnlyOncePerProcess", false),
-    ("canGetAndSetFMUState", true),
-    ("canSerializeFMUState", true),
-    ("providesDirectionalDerivatives", true),
-    ("providesAdjointDerivatives", true),
-    ("needsCompletedIntegratorStep", false),
-];
-
-/// Co-Simulation capabilities, as declared (the output derivatives' order is written
-/// beside them): as for Model Exchange, with event mode, and a step that may return early
-/// (at a change point, docs/model.md §7); no intermediate update.
-pub const CAPABILITIES: &[(&str, bool)] = &[
-    ("needsExecutionTool", false),
-    ("canBeInstantiatedOnlyOncePerProcess", false),
-    ("canGetAndSetFMUState", true),
-    ("canSerializeFMUState", true),
-    ("providesDirectionalDerivatives", true),
-    ("providesAdjointDerivatives", true),
-    ("canHandleVariableCommunicationStepSize", true),
-    ("mightReturnEarlyFromDoStep", true),
-    ("hasEventMode", true),
-];
-
 /// A variable's FMI 3.0 value reference.
 pub fn reference(fmi2_reference: u32) -> u32 {
     fmi2_reference + 1
 }
 
-/// The instantiation token: a hash of this description written without it, so that it
-/// changes whenever anything in the interface does.
+/// The instantiation token: the interface's identity ([`identity_text`]), as FMI 2.0's
+/// GUID.
 pub fn instantiation_token() -> &'static str {
-    static TOKEN: std::sync::OnceLock<UuidText> = std::sync::OnceLock::new();
-    TOKEN
-        .get_or_init(|| UuidText::new(&uuid_text(fnv1a_128(document("").as_bytes()))))
-        .as_str()
+    identity_text()
 }
 
 /// The complete FMI 3.0 `modelDescription.xml`.
@@ -91,11 +60,11 @@ fn write_model_description(w: &mut Writer<Vec<u8>>, token: &str) -> io::Result<(
         ])
         .with_attributes(DESCRIPTION_ATTRIBUTES)
         .write_inner_content(|w| {
-            write_interface(w, "ModelExchange", EXCHANGE_CAPABILITIES, &[])?;
+            write_interface(w, "ModelExchange", FMI3_MODEL_EXCHANGE, &[])?;
             write_interface(
                 w,
                 "CoSimulation",
-                CAPABILITIES,
+                FMI3_CO_SIMULATION,
                 &[("maxOutputDerivativeOrder", order.as_str())],
             )?;
             write_units(w)?;
@@ -237,10 +206,7 @@ mod tests {
         }
         assert_eq!(instantiation_token(), instantiation_token());
         assert!(text.contains(instantiation_token()));
-        assert_ne!(
-            instantiation_token(),
-            crate::description::uuid_text(crate::description::interface_hash())
-        );
+        assert_eq!(instantiation_token(), crate::description::identity_text());
     }
 
     #[test]

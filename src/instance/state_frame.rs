@@ -2,7 +2,7 @@
 //! payload's length, the payload, and a checksum. A truncated, corrupted or foreign buffer
 //! is refused with a reason before a field of it is read.
 
-use crate::description::interface_hash;
+use crate::description::identity;
 use integrators::bytes::{fnv1a_64, FormatError, Reader};
 
 const MAGIC: &[u8; 8] = b"CYCMSTAT";
@@ -18,7 +18,7 @@ pub(super) fn frame(payload: &[u8]) -> Vec<u8> {
     let mut out = Vec::with_capacity(HEADER + payload.len() + CHECKSUM);
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-    out.extend_from_slice(&interface_hash().to_le_bytes());
+    out.extend_from_slice(&identity().to_le_bytes());
     out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
     out.extend_from_slice(payload);
     out.extend_from_slice(&fnv1a_64(payload).to_le_bytes());
@@ -44,7 +44,7 @@ pub(super) fn open(buffer: &[u8]) -> Result<Reader<'_>, FormatError> {
             "serialized state format version {version}; this binary reads version {FORMAT_VERSION}"
         ));
     }
-    if u128::from_le_bytes(header[12..28].try_into().expect("16 bytes")) != interface_hash() {
+    if u128::from_le_bytes(header[12..28].try_into().expect("16 bytes")) != identity() {
         return fail("the serialized state comes from an FMU with another interface".into());
     }
     let length = u64::from_le_bytes(header[28..36].try_into().expect("8 bytes"));

@@ -315,7 +315,7 @@ mod tests {
     #[test]
     fn a_change_to_any_crate_the_runner_is_built_from_rebuilds_the_wheel() {
         let scratch = std::env::temp_dir().join(format!("wheel-inputs-{}", std::process::id()));
-        for folder in ["python", "runner", "integrators"] {
+        for folder in ["python", "runner", "integrators", "fmi-description"] {
             copy_tree(&root().join(folder), &scratch.join(folder));
         }
         fs::copy(root().join("Cargo.lock"), scratch.join("Cargo.lock")).expect("copied");

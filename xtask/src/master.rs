@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::setup::{root, run, Result};
+use fmi_description::BaseType;
 
 /// How a scenario's runs must agree with linux64's.
 #[derive(Clone, Copy, PartialEq)]
@@ -84,69 +85,41 @@ pub struct Description {
     pub items: BTreeMap<(String, String), i64>,
 }
 
+/// The model description at `xml`, by the project's one reader of it
+/// (`fmi-description`): the scalar variables by name with their kind, the outputs in order,
+/// and the Enumerations' items by their declared type.
 pub fn read_description(xml: &Path) -> Result<Description> {
-    use quick_xml::events::Event;
     let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
-    let mut reader = quick_xml::Reader::from_str(&text);
+    let read = fmi_description::Description::parse(&text)
+        .map_err(|e| format!("{}: {e}", xml.display()))?;
     let mut description = Description {
-        guid: String::new(),
+        guid: read.guid.clone(),
         token: None,
         variables: BTreeMap::new(),
         outputs: Vec::new(),
         items: BTreeMap::new(),
     };
-    let mut current: Option<(String, u32, bool)> = None;
-    let mut simple_type = String::new();
-    loop {
-        let event = reader
-            .read_event()
-            .map_err(|e| format!("{}: {e}", xml.display()))?;
-        let element = match &event {
-            Event::Start(e) | Event::Empty(e) => e,
-            Event::Eof => break,
-            _ => continue,
+    for v in &read.variables {
+        let kind = match v.base_type {
+            BaseType::Real => 'R',
+            BaseType::Boolean => 'B',
+            BaseType::Enumeration => 'E',
+            BaseType::Integer => 'I',
+            BaseType::String | BaseType::Unsupported => continue,
         };
-        let attribute = |name: &str| -> Option<String> {
-            element
-                .try_get_attribute(name)
-                .ok()
-                .flatten()
-                .and_then(|a| a.unescape_value().ok().map(|v| v.into_owned()))
-        };
-        match element.name().as_ref() {
-            b"fmiModelDescription" => description.guid = attribute("guid").unwrap_or_default(),
-            b"SimpleType" => simple_type = attribute("name").unwrap_or_default(),
-            b"Item" => {
-                let name = attribute("name").ok_or("an Item without a name")?;
-                let value = attribute("value")
-                    .and_then(|v| v.parse().ok())
-                    .ok_or_else(|| format!("item {name}: no valid value"))?;
-                description.items.insert((simple_type.clone(), name), value);
-            }
-            b"ScalarVariable" => {
-                let name = attribute("name").ok_or("a ScalarVariable without a name")?;
-                let vr = attribute("valueReference")
-                    .and_then(|v| v.parse().ok())
-                    .ok_or_else(|| format!("{name}: no valid valueReference"))?;
-                let output = attribute("causality").as_deref() == Some("output");
-                current = Some((name, vr, output));
-            }
-            tag @ (b"Real" | b"Integer" | b"Enumeration" | b"Boolean") => {
-                if let Some((name, vr, output)) = current.take() {
-                    let kind = match tag {
-                        b"Real" => 'R',
-                        b"Boolean" => 'B',
-                        b"Enumeration" => 'E',
-                        _ => 'I',
-                    };
-                    if output {
-                        description.outputs.push(name.clone());
-                    }
-                    description.variables.insert(name, Variable { vr, kind });
-                }
-            }
-            _ => {}
+        if v.causality == "output" {
+            description.outputs.push(v.name.clone());
         }
+        let declared = v.declared_type.clone().unwrap_or_default();
+        for (item, value) in &v.items {
+            description
+                .items
+                .insert((declared.clone(), item.clone()), *value);
+        }
+        let vr = v.value_reference;
+        description
+            .variables
+            .insert(v.name.clone(), Variable { vr, kind });
     }
     if description.guid.is_empty() || description.outputs.is_empty() {
         return Err(format!("{}: no guid or no outputs", xml.display()));
@@ -157,11 +130,9 @@ pub fn read_description(xml: &Path) -> Result<Description> {
 /// The instantiation token of an FMI 3.0 model description.
 pub(crate) fn read_token(xml: &Path) -> Result<String> {
     let text = fs::read_to_string(xml).map_err(|e| format!("{}: {e}", xml.display()))?;
-    text.split("instantiationToken=\"")
-        .nth(1)
-        .and_then(|rest| rest.split('"').next())
-        .map(str::to_string)
-        .ok_or_else(|| format!("{}: no instantiationToken", xml.display()))
+    fmi_description::Description::parse(&text)
+        .map(|read| read.guid)
+        .map_err(|e| format!("{}: {e}", xml.display()))
 }
 
 /// The C master for this machine, in `dir` (also what `cargo xtask instructions` runs).

@@ -121,7 +121,7 @@ class Problem:
         self.reused = 0
         # Per experiment, the fitted parameters (places in the vector) whose sensitivities
         # the FMU computes in its run, and the slot value that selects each.
-        offer = (read_offer(study.target.archive.data)
+        offer = (read_offer(study.target.description)
                  if spec.jacobian == "sensitivities" and spec.system is None else None)
         self.sensitive: list[list[tuple[int, int]]] = []
         for e in spec.experiments:

@@ -9,10 +9,8 @@ Nothing here knows which FMU it reads."""
 
 from __future__ import annotations
 
-import io
-import xml.etree.ElementTree as ElementTree
-import zipfile
 from dataclasses import dataclass
+from typing import Any
 
 __all__ = ["Offer", "read_offer", "slot_parameter", "slot_variable"]
 
@@ -40,26 +38,15 @@ class Offer:
         return all(slot_variable(k, variable) in self.variables for k in range(1, self.slots + 1))
 
 
-def read_offer(fmu: bytes) -> Offer | None:
-    """The sensitivities the FMU archive `fmu` offers; None where its model description
-    has no slot."""
-    try:
-        with zipfile.ZipFile(io.BytesIO(fmu)) as archive:
-            root = ElementTree.fromstring(archive.read("modelDescription.xml"))
-    except (KeyError, zipfile.BadZipFile, ElementTree.ParseError):
-        return None
-    by_name = {e.get("name"): e for e in root.iter() if e.get("name")}
-    types = {e.get("name"): e for e in root.iter()
-             if e.get("name") and any(item.tag.endswith("Item") for item in e.iter())}
+def read_offer(description: dict[str, Any]) -> Offer | None:
+    """The sensitivities an FMU offers, from its description (the runner's reading of its
+    modelDescription.xml, each Enumeration with its items); None where it has no slot."""
+    by_name = {v["name"]: v for v in description.get("variables", [])}
     slots, items = 0, dict[str, int]()
     while (slot := by_name.get(slot_parameter(slots + 1))) is not None:
-        declared = slot.get("declaredType") or next(
-            (child.get("declaredType") for child in slot if child.get("declaredType")), None)
-        enumeration = types.get(declared)
-        if enumeration is None:
+        found = {str(name): int(value) for name, value in (slot.get("items") or {}).items()}
+        if not found:
             break
-        found = {item.get("name", ""): int(item.get("value", "0"))
-                 for item in enumeration.iter() if item.tag.endswith("Item")}
         if slots and found != items:
             break  # every slot must offer the same parameters
         items = found
