@@ -406,6 +406,13 @@ pub fn cross_cargo(target: Target, subcommand: &str, zig: &Zig) -> Result<Comman
         .env_remove("CARGO")
         .env_remove("RUSTUP_TOOLCHAIN")
         .env_remove("CARGO_MANIFEST_DIR");
+    target_environment(&mut command, target, zig)?;
+    Ok(command)
+}
+
+/// What each cross target's build needs of its own: the linker, stripping, visibility,
+/// the macOS deployment target, and the headers bindgen is to see.
+fn target_environment(command: &mut Command, target: Target, zig: &Zig) -> Result {
     let clang = clang_include_dir()?;
     let bindgen = format!(
         "BINDGEN_EXTRA_CLANG_ARGS_{}",
@@ -458,7 +465,7 @@ pub fn cross_cargo(target: Target, subcommand: &str, zig: &Zig) -> Result<Comman
             );
         }
     }
-    Ok(command)
+    Ok(())
 }
 
 /// Files to pack, as (path in the FMU, file).
