@@ -183,7 +183,7 @@ impl Description {
             v if v.starts_with("3.") => description.refuse_clocks()?,
             v => {
                 return Err(format!(
-                    "fmiVersion is {v:?}; this runner loads FMI 2.0 and FMI 3.0 FMUs"
+                    "an FMI {v} FMU (fmiVersion={v:?}); this runner loads FMI 2.0 and FMI 3.0 FMUs"
                 ))
             }
         }

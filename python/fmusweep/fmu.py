@@ -10,12 +10,11 @@ import io
 import pathlib
 import shutil
 import tempfile
-import xml.etree.ElementTree as ElementTree
 import zipfile
 from typing import Any
 
 from .errors import SpecError
-from .native import NativeRunner
+from .native import NativeRunner, RunnerError
 
 __all__ = ["Archive", "local_runner", "open_for_checks"]
 
@@ -50,14 +49,22 @@ def local_runner(fmu: Archive) -> NativeRunner:
     if kept is not None:
         return kept[1]
     directory = pathlib.Path(tempfile.mkdtemp(prefix=f"fmusweep-{fmu.sha256[:12]}-"))
-    with zipfile.ZipFile(io.BytesIO(fmu.data)) as archive:
-        for member in archive.namelist():
-            target = (directory / member).resolve()
-            if not target.is_relative_to(directory.resolve()):
-                raise ValueError(f"the FMU holds a path outside its archive: {member}")
-        archive.extractall(directory)
-    # Executable bits are not kept by zipfile; shared libraries load without them.
-    runner = NativeRunner(directory)
+    try:
+        with zipfile.ZipFile(io.BytesIO(fmu.data)) as archive:
+            for member in archive.namelist():
+                target = (directory / member).resolve()
+                if not target.is_relative_to(directory.resolve()):
+                    raise ValueError(f"the FMU holds a path outside its archive: {member}")
+            archive.extractall(directory)
+        # Executable bits are not kept by zipfile; shared libraries load without them.
+        runner = NativeRunner(directory)
+    except RunnerError as e:
+        shutil.rmtree(directory, ignore_errors=True)
+        # The unpacked folder is this process's affair: the archive's own paths are named.
+        raise RunnerError(str(e).replace(f"{directory}{os.sep}", "")) from None
+    except BaseException:
+        shutil.rmtree(directory, ignore_errors=True)
+        raise
     _RUNNERS[fmu.sha256] = (directory, runner)
     return runner
 
@@ -76,33 +83,12 @@ def open_for_checks(fmu: str | os.PathLike[str] | None, spec_fmu: str | os.PathL
         target = Archive.read(path)
     except (OSError, ValueError) as e:
         raise SpecError(named_by, str(e)) from None
-    version = fmi_version(target)
-    if version is None:
-        raise SpecError(named_by, f"{path} has no readable modelDescription.xml: it is not an FMU")
-    if version not in ("2.0", "3.0"):
-        raise SpecError(named_by, f"{path} is an FMI {version} FMU (its modelDescription.xml says "
-                               f"fmiVersion=\"{version}\"); fmusweep runs FMI 2.0 and FMI 3.0 "
-                               f"Co-Simulation FMUs")
-    local = local_runner(target)
+    # The runner reads the description (the one reader of it): an archive it cannot load,
+    # of another FMI version for one, is refused naming the file that named it.
+    try:
+        local = local_runner(target)
+    except (RunnerError, ValueError) as e:
+        raise SpecError(named_by, f"{path}: {e}") from None
     return target, local, local.describe()
 
 
-def fmi_version(fmu: Archive) -> str | None:
-    """The fmiVersion its modelDescription.xml declares; None without a readable one."""
-    with zipfile.ZipFile(io.BytesIO(fmu.data)) as archive:
-        try:
-            text = archive.read("modelDescription.xml")
-        except KeyError:
-            return None
-    try:
-        return ElementTree.fromstring(text).get("fmiVersion")
-    except ElementTree.ParseError:
-        return None
-
-
-@atexit.register
-def _close_all() -> None:
-    for directory, runner in _RUNNERS.values():
-        runner.close()
-        shutil.rmtree(directory, ignore_errors=True)
-    _RUNNERS.clear()

@@ -148,6 +148,7 @@ def test_an_fmi1_archive_is_refused_naming_the_users_file(fmu_path, tmp_path):
     assert refused.value.field == "fmu"
     said = str(refused.value)
     assert str(old) in said and "FMI 1.0" in said and "FMI 2.0 and FMI 3.0" in said, said
+    assert "fmusweep-" not in said, "the folder it was unpacked into is named: " + said
     assert not (tmp_path / "out").exists()
 
 
