@@ -112,7 +112,7 @@ def system_rate(fmu, other, points, tmp, engine=("native", 2), step=1e-3, tolera
     best = 0.0
     for _ in range(REPEATS):
         out = pathlib.Path(tempfile.mkdtemp(dir=tmp)) / "rate"
-        r = run_sweep(spec, out=out, serial=True, progress=False, plots=False).report
+        r = run_sweep(spec, out=out, serial=True, progress=False, plots=False).summary
         best = max(best, r.computed / r.point_seconds)
     return best
 
@@ -138,7 +138,7 @@ def ssp_rates(fmu, motor, points, slow_points, tmp):
     for _ in range(REPEATS):
         out = pathlib.Path(tempfile.mkdtemp(dir=tmp)) / "ssp"
         native = run_sweep(ssp_spec(ssp, points), out=out, serial=True, progress=False, plots=False)
-        best = max(best, native.report.computed / native.report.point_seconds)
+        best = max(best, native.summary.computed / native.summary.point_seconds)
     table = system_spec(fmu, motor, 10.0, 1e-3, points)
     table["system"]["connections"] = [["mechanism.omega1", "motor.omega"],
                                       ["motor.torque", "mechanism.M_m"]]
@@ -146,7 +146,7 @@ def ssp_rates(fmu, motor, points, slow_points, tmp):
                          serial=True, progress=False, plots=False)
     out = pathlib.Path(tempfile.mkdtemp(dir=tmp)) / "fmpy"
     fmpy = run_sweep(ssp_spec(ssp, slow_points, "fmpy"), out=out, serial=True, progress=False,
-                     plots=False).report
+                     plots=False).summary
     return {"ssp_native": best, "ssp_fmpy_compiled": fmpy.computed / fmpy.point_seconds,
             "ssp_native_equals_table": bool(native.points["final"].equals(by_table.points["final"]))}
 

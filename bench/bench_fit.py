@@ -74,7 +74,7 @@ def sweep_rate(fmu, scenario: dict, interval: float, points: int, tmp, **engine)
             "outputs": {"series": {"variables": MEASURED, "interval": interval}}}
     out = pathlib.Path(tempfile.mkdtemp(dir=tmp))
     t0 = time.perf_counter()
-    r = run_sweep(spec, fmu=fmu, out=out / "sweep", progress=False, plots=False, **engine).report
+    r = run_sweep(spec, fmu=fmu, out=out / "sweep", progress=False, plots=False, **engine).summary
     wall = time.perf_counter() - t0
     return {"rate": points / wall, "after_startup": points / (wall - r.startup_s),
             "run_s": r.point_seconds / r.computed}

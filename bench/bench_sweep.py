@@ -84,7 +84,7 @@ def per_worker_rates(fmu, n, repeats):
     def whole_sweep(series):
         with tempfile.TemporaryDirectory() as out:
             return run_sweep(spec(n, series=series), fmu=fmu, out=pathlib.Path(out) / "s",
-                             serial=True, progress=False, plots=False).report.dispatch_s
+                             serial=True, progress=False, plots=False).summary.dispatch_s
     whole = best_of(repeats, lambda: whole_sweep(False))
     whole_series = best_of(repeats, lambda: whole_sweep(True))
     rate = lambda seconds: n / seconds
@@ -184,7 +184,7 @@ def dask_runs(fmu, n_scaling, n_small, repeats=3):
         for workers in (1, 2):
             with tempfile.TemporaryDirectory() as out:
                 rep = run_sweep(spec(n_scaling), fmu=fmu, out=pathlib.Path(out) / "s",
-                                workers=workers, progress=False, plots=False).report
+                                workers=workers, progress=False, plots=False).summary
             computed = rep.computed - 4  # the calibration points run in the client
             run = {
                 "points_per_s": computed / rep.dispatch_s, "dispatch_s": rep.dispatch_s,
@@ -199,7 +199,7 @@ def dask_runs(fmu, n_scaling, n_small, repeats=3):
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as out:
         rep = run_sweep(spec(n_small), fmu=fmu, out=pathlib.Path(out) / "s", workers=2,
-                        progress=False, plots=False).report
+                        progress=False, plots=False).summary
     found["small_sweep"] = {"points": n_small, "seconds_all_included": time.perf_counter() - t0,
                             "startup_s": rep.startup_s}
     return found
@@ -217,7 +217,7 @@ def ssp_rate(fmu, points, stop=1.0):
                 "scenario": {"stop": stop, "step": 1e-3},
                 "design": {"kind": "grid", "parameters": {"mechanism.Mr_b0": {"linspace": [10.0, 30.0, points]}}},
                 "outputs": {"metrics": {"omega1_final": {"variable": "mechanism.omega1", "kind": "final"}}}}
-        rep = run_sweep(spec, out=pathlib.Path(d) / "out", serial=True, progress=False, plots=False).report
+        rep = run_sweep(spec, out=pathlib.Path(d) / "out", serial=True, progress=False, plots=False).summary
     return {"points": points, "points_per_s": rep.computed / rep.point_seconds}
 
 
@@ -319,8 +319,8 @@ def sweep_memory(fmu, per_axis, series):
                             progress=False, plots=False, on_batch=sample)
         wall = time.perf_counter() - t0
     return {"points": per_axis ** 2, "series": series, "wall_s": wall,
-            "batch_size": results.report.batch_size, "batches": results.report.batches,
-            "held_results": results.report.held_results,
+            "batch_size": results.summary.batch_size, "batches": results.summary.batches,
+            "held_results": results.summary.held_results,
             "rss_kib": {str(m): taken[m] for m in marks},
             "growth": {name: (taken[1.0][name] - kib) / kib for name, kib in taken[0.1].items()}}
 

@@ -41,7 +41,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         results = run_sweep(spec, fmu=fmu, out=pathlib.Path(tmp) / "out", workers=2,
                             progress=False, plots=False)
-        points = results.report.points
+        points = results.summary.points
         peak = status_kib("VmHWM")
         written = (pathlib.Path(tmp) / "out" / "points.parquet").stat().st_size
     print(json.dumps({"points": points, "before_kib": before, "peak_kib": peak,

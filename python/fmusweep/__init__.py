@@ -17,14 +17,14 @@ of this machine or over an existing cluster; results land in Parquet as batches 
 from importlib import metadata as _metadata
 
 from .designs import Design, generate
-from .sweep import SweepReport, run_sweep
+from .sweep import SweepSummary, run_sweep
 from .fitting import FitResult, FitSpec, fit
 from .native import NativeRunner, RunnerError
 from .results import Results, load_results
 from .indices import morris_effects, sobol_indices
 from .spec import Spec, SpecError
 
-__all__ = ["run_sweep", "fit", "FitResult", "FitSpec", "load_results", "Results", "SweepReport", "Spec", "SpecError",
+__all__ = ["run_sweep", "fit", "FitResult", "FitSpec", "load_results", "Results", "SweepSummary", "Spec", "SpecError",
            "Design", "generate", "NativeRunner", "RunnerError", "sobol_indices",
            "morris_effects"]
 

@@ -133,7 +133,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         progress=not args.no_progress, plots=not args.no_plots))
     if isinstance(results, int):
         return results
-    r = results.report
+    r = results.summary
     assert r is not None  # a sweep just run reports itself
     counts = ", ".join(f"{n} {s}" for s, n in sorted(r.statuses.items())) or "nothing new"
     print(f"fmusweep: {_count(r.points, 'point')} ({r.resumed} already done; computed: "

@@ -12,11 +12,11 @@ import pandas as pd
 
 from .store import ResultStore
 
-__all__ = ["Results", "SweepReport", "load_results"]
+__all__ = ["Results", "SweepSummary", "load_results"]
 
 
 @dataclass
-class SweepReport:
+class SweepSummary:
     """What a run did: counts, times and where the results are."""
     out: str
     points: int
@@ -42,16 +42,16 @@ class SweepReport:
 class Results:
     """``points``: one row per point (parameters, status, message, metrics, t_end, steps,
     wall_s, worker); ``series()``: the time series in long form; ``meta``: what
-    ``sweep.json`` records; ``report``: counts and times of the run that returned it;
+    ``sweep.json`` records; ``summary``: counts and times of the run that returned it;
     ``sensitivity``: indices per metric for sobol and morris designs; ``plots`` and
     ``report_html``: the pictures and the interactive report, where written."""
 
     def __init__(self, out: str | os.PathLike[str], points: pd.DataFrame | None,
-                 meta: dict[str, Any], report: SweepReport | None = None):
+                 meta: dict[str, Any], summary: SweepSummary | None = None):
         self.out = pathlib.Path(out)
         self._points = points
         self.meta = meta
-        self.report = report
+        self.summary = summary
         path = self.out / "sensitivity.json"
         self.sensitivity: dict[str, Any] = json.loads(path.read_text()) if path.exists() else {}
         self.plots: list[pathlib.Path] = sorted((self.out / "plots").glob("*.png"))

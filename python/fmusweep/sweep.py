@@ -23,7 +23,7 @@ from .errors import SpecError, SpecWarning, refuse_in_spawned_child
 from .pool import check_engine
 from .indices import write_indices
 from .records import Batch, PointResult, Points, Rows
-from .results import Results, SweepReport
+from .results import Results, SweepSummary
 from .spec import Spec
 from .store import coupling_columns
 from .ssp import check_ssp
@@ -31,7 +31,7 @@ from .show import show_sweep
 from .study import Study, Target, load_spec, spec_name
 
 
-__all__ = ["run_sweep", "SweepReport", "BATCH_SECONDS"]
+__all__ = ["run_sweep", "SweepSummary", "BATCH_SECONDS"]
 
 # A batch is sized to about this much work: Dask spends milliseconds per task.
 BATCH_SECONDS = 0.5
@@ -243,13 +243,13 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
     finally:
         keep.bar.close()
     study.finish()
-    report = SweepReport(
+    summary = SweepSummary(
         out=str(study.store.out), points=len(design), computed=sum(keep.statuses.values()),
         resumed=len(done), batch_size=size, batches=batches, workers=study.pool.workers,
         engine=study.pool.engine, wall_s=time.perf_counter() - started,
         point_seconds=keep.point_seconds, startup_s=study.pool.startup_s,
         dispatch_s=dispatch_s, statuses=keep.statuses, held_results=held, engine_choice=note)
-    results = Results(study.store.out, None, study.store.meta, report)
+    results = Results(study.store.out, None, study.store.meta, summary)
     meta = study.store.meta
     results.sensitivity = write_indices(design, lambda: results.points, meta["metrics"],
                                         meta.get("seed") or 0, results.out)

@@ -29,7 +29,7 @@ def serial_grid(fmu_path, tmp_path_factory):
 def test_local_cluster_gives_the_serial_results(fmu_path, tmp_path, serial_grid):
     results = run_sweep(grid_spec(), fmu=fmu_path, out=tmp_path / "out", workers=2,
                         batch_size=2, progress=False, plots=False)
-    assert results.report.workers == 2 and results.report.engine == "LocalCluster"
+    assert results.summary.workers == 2 and results.summary.engine == "LocalCluster"
     assert same_results(results.points, serial_grid.points, METRICS)
     # The points ran on both workers (and the calibration batch in the client).
     assert results.points["worker"].nunique() == 3
@@ -46,7 +46,7 @@ def test_a_real_scheduler_and_workers_give_the_serial_results(fmu_path, tmp_path
                                                               dask_cluster):
     results = run_sweep(grid_spec(), fmu=fmu_path, out=tmp_path / "out", scheduler=dask_cluster,
                         batch_size=2, progress=False, plots=False)
-    assert results.report.workers == 2
+    assert results.summary.workers == 2
     assert same_results(results.points, serial_grid.points, METRICS)
     assert {"worker-w0", "worker-w1"} <= set(results.points["worker"])
 
@@ -165,8 +165,8 @@ def test_no_finished_batch_is_held_on_the_cluster(fmu_path, tmp_path, dask_clust
     nothing of a written batch stays on the workers; every point is there once."""
     results = run_sweep(small_grid(60), fmu=fmu_path, out=tmp_path / "out",
                         scheduler=dask_cluster, batch_size=12, progress=False, plots=False)
-    assert results.report.batches == 301
-    assert results.report.held_results == 0
+    assert results.summary.batches == 301
+    assert results.summary.held_results == 0
     points = results.points["point"]
     assert len(points) == 3600 and points.is_unique
     assert (results.points["status"] == "ok").all()

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from fmusweep import RunnerError, SpecError, run_sweep
+from fmusweep import SpecError, run_sweep
 from sweep_helpers import grid_spec, in_description, repacked
 from test_sweep_system import MECHANISM, system_spec
 
@@ -141,8 +141,9 @@ def _without_binary(name, data):
 def test_an_fmi3_fmu_the_runner_cannot_run_is_refused_by_name(fmu3_path, tmp_path, change,
                                                               words):
     bad = repacked(fmu3_path, tmp_path / "Changed.fmu", change)
-    with pytest.raises(RunnerError) as refused:
+    with pytest.raises(SpecError) as refused:
         sweep(grid_spec(), bad, tmp_path / "out")
+    assert refused.value.field == "fmu" and str(bad) in str(refused.value)
     for word in words:
         assert word in str(refused.value), str(refused.value)
     assert not (tmp_path / "out" / "points.parquet").exists()
@@ -172,6 +173,6 @@ def test_an_fmi3_sweep_resumes_what_was_lost(tmp_path):
     (tmp_path / "whole" / "points.parquet").unlink()
     again = run_sweep(CHANGE_POINTS, out=tmp_path / "whole", serial=True, progress=False,
                       plots=False, batch_size=2, resume=True)
-    assert again.report.resumed == 8 - 2 and again.report.computed == 2
+    assert again.summary.resumed == 8 - 2 and again.summary.computed == 2
     columns = ["point", "status", "phi4_end", "energy_end", "events", "t_end"]
     assert again.points[columns].equals(whole[columns])

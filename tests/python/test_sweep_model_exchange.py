@@ -158,6 +158,6 @@ def test_a_model_exchange_sweep_resumes_what_was_lost(ball_me_paths, tmp_path):
     parts[1].unlink()
     (tmp_path / "whole" / "points.parquet").unlink()
     again = run_sweep(spec, resume=True, **options)
-    assert again.report.resumed == 12 - 2 and again.report.computed == 2
+    assert again.summary.resumed == 12 - 2 and again.summary.computed == 2
     columns = ["point", "status", "h_end", "bounces", "kicks", "events", "t_end"]
     assert again.points[columns].equals(whole[columns])

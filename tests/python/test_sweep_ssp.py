@@ -190,4 +190,4 @@ def test_an_ssp_sweep_on_dask_resumes_what_was_lost(compiled_ssp, tmp_path):
     (out / "points.parquet").unlink()
     again = run_sweep(spec, out=out, workers=2, batch_size=2, progress=False, plots=False,
                       resume=True)
-    assert again.report.computed < 6 and again.points[columns].equals(serial[columns])
+    assert again.summary.computed < 6 and again.points[columns].equals(serial[columns])

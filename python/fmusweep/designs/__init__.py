@@ -1,7 +1,7 @@
 """Designs: the parameter points of a sweep. Each kind is one module here, with all that
 kind is: the fields of its ``[design]`` table, whether it needs a seed, how its points are
-made, and, for the kinds that give them, its indices and how they are drawn. ``KINDS``
-names them; a new kind is a new module added to it.
+made, and, for the kinds that give them, its indices and how they are drawn, as the
+module's ``KIND``. ``KINDS`` finds them: a new kind is a new module here, nothing else.
 
 - ``grid`` (``grid.py``): the full-factorial product of each parameter's values.
 - ``list`` (``listed.py``): point i takes each parameter's i-th value.
@@ -16,16 +16,28 @@ designs are held whole (their generators make them so).
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from typing import Any
 
-from . import grid, lhs, listed, morris, sobol
 from .base import Design, DesignKind, IndexChart
 from ..errors import SpecError
 
 __all__ = ["Design", "DesignKind", "IndexChart", "KINDS", "kind_of", "generate"]
 
-KINDS: dict[str, DesignKind] = {k.name: k for k in (grid.KIND, listed.KIND, lhs.KIND,
-                                                      sobol.KIND, morris.KIND)}
+
+
+def _kinds() -> dict[str, DesignKind]:
+    """The ``KIND`` of every module of this package, by name."""
+    found: dict[str, DesignKind] = {}
+    for module in sorted(m.name for m in pkgutil.iter_modules(__path__)):
+        kind = getattr(importlib.import_module(f"{__name__}.{module}"), "KIND", None)
+        if isinstance(kind, DesignKind):
+            found[kind.name] = kind
+    return found
+
+
+KINDS: dict[str, DesignKind] = _kinds()
 
 
 def kind_of(name: str) -> DesignKind:
