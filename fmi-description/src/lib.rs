@@ -129,6 +129,18 @@ pub struct Description {
     pub continuous_states: usize,
     pub event_indicators: usize,
     pub variables: Vec<Variable>,
+    /// The tool that wrote the FMU (`generationTool`), if it says.
+    pub generation_tool: Option<String>,
+    /// The outputs of the model structure, each with the variables it depends on directly
+    /// (`None`: on every input, as the standard says of an output without a list).
+    pub output_dependencies: Vec<OutputDependencies>,
+}
+
+/// An output of the model structure and what it depends on directly, by value reference.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct OutputDependencies {
+    pub value_reference: u32,
+    pub dependencies: Option<Vec<u32>>,
 }
 
 impl Variable {
@@ -175,9 +187,11 @@ impl Description {
         let Parse {
             mut description,
             enumerations,
+            fmi2_outputs,
             ..
         } = parse;
         enumerations.give_items(&mut description.variables);
+        description.resolve_fmi2_outputs(&fmi2_outputs)?;
         match description.fmi_version.as_str() {
             "2.0" => {}
             v if v.starts_with("3.") => description.refuse_clocks()?,
@@ -190,9 +204,43 @@ impl Description {
         Ok(description)
     }
 
+    /// FMI 2.0's outputs and their dependencies, given by the 1-based index of each
+    /// variable among the ScalarVariables, as value references.
+    fn resolve_fmi2_outputs(
+        &mut self,
+        outputs: &[(usize, Option<Vec<usize>>)],
+    ) -> Result<(), String> {
+        let reference = |index: usize| {
+            index
+                .checked_sub(1)
+                .and_then(|i| self.variables.get(i))
+                .map(|v| v.value_reference)
+                .ok_or_else(|| {
+                    format!("ModelStructure names variable index {index}, which there is not")
+                })
+        };
+        let mut resolved = Vec::new();
+        for (index, dependencies) in outputs {
+            resolved.push(OutputDependencies {
+                value_reference: reference(*index)?,
+                dependencies: match dependencies {
+                    None => None,
+                    Some(list) => Some(
+                        list.iter()
+                            .map(|&d| reference(d))
+                            .collect::<Result<_, _>>()?,
+                    ),
+                },
+            });
+        }
+        self.output_dependencies.extend(resolved);
+        Ok(())
+    }
+
     fn read_root(&mut self, e: &BytesStart) -> Result<(), String> {
         self.fmi_version = attribute(e, "fmiVersion")?.unwrap_or_default();
         self.model_name = attribute(e, "modelName")?.unwrap_or_default();
+        self.generation_tool = attribute(e, "generationTool")?;
         let token = if self.fmi_version.starts_with("3.") {
             "instantiationToken"
         } else {
@@ -298,6 +346,28 @@ fn fmi3_variable(e: &BytesStart, tag: &[u8]) -> Result<Variable, String> {
     Ok(variable)
 }
 
+/// An attribute that must be a whole number ≥ 0.
+fn whole_number(value: Option<String>, what: &str) -> Result<usize, String> {
+    value
+        .as_deref()
+        .and_then(|v| v.trim().parse().ok())
+        .ok_or_else(|| format!("{what} must be a whole number ≥ 0, got {value:?}"))
+}
+
+/// A space-separated list of whole numbers (`dependencies`); `None` without the attribute.
+fn whole_numbers(value: Option<String>) -> Result<Option<Vec<usize>>, String> {
+    value
+        .map(|list| {
+            list.split_whitespace()
+                .map(|v| {
+                    v.parse()
+                        .map_err(|_| format!("dependencies {list:?}: {v:?} is not a whole number"))
+                })
+                .collect()
+        })
+        .transpose()
+}
+
 fn attribute(e: &BytesStart, name: &str) -> Result<Option<String>, String> {
     for attr in e.attributes() {
         let attr = attr.map_err(|err| err.to_string())?;
@@ -316,6 +386,10 @@ struct Parse {
     description: Description,
     /// Inside FMI 2.0's <ModelStructure><Derivatives>, whose <Unknown>s are the states.
     in_derivatives: bool,
+    /// Inside FMI 2.0's <ModelStructure><Outputs>, whose <Unknown>s name their variables
+    /// (and dependencies) by index, resolved once every variable is read.
+    in_outputs: bool,
+    fmi2_outputs: Vec<(usize, Option<Vec<usize>>)>,
     /// The variable being read: an FMI 2.0 <ScalarVariable> takes its type from its child
     /// element; an FMI 3.0 one may have <Dimension> (an array) and <Alias> children.
     open: Option<Variable>,
@@ -342,7 +416,21 @@ impl Parse {
                 description.exchange_identifier = attribute(e, "modelIdentifier")?;
             }
             b"Derivatives" if !fmi3 => self.in_derivatives = !empty,
+            b"Outputs" if !fmi3 => self.in_outputs = !empty,
             b"Unknown" if self.in_derivatives => description.continuous_states += 1,
+            b"Unknown" if self.in_outputs => {
+                let index = whole_number(attribute(e, "index")?, "Unknown index")?;
+                let dependencies = whole_numbers(attribute(e, "dependencies")?)?;
+                self.fmi2_outputs.push((index, dependencies));
+            }
+            b"Output" if fmi3 && !self.in_variables => {
+                let vr = whole_number(attribute(e, "valueReference")?, "Output valueReference")?;
+                description.output_dependencies.push(OutputDependencies {
+                    value_reference: vr as u32,
+                    dependencies: whole_numbers(attribute(e, "dependencies")?)?
+                        .map(|d| d.into_iter().map(|x| x as u32).collect()),
+                });
+            }
             b"ContinuousStateDerivative" if fmi3 && !self.in_variables => {
                 description.continuous_states += 1;
             }
@@ -435,6 +523,7 @@ impl Parse {
             b"SimpleType" | b"EnumerationType" => self.enumerations.close(tag),
             b"ModelVariables" => self.in_variables = false,
             b"Derivatives" => self.in_derivatives = false,
+            b"Outputs" => self.in_outputs = false,
             b"ScalarVariable" => self.description.variables.extend(self.open.take()),
             tag if self.open.is_some() && tag == self.open_tag.as_slice() => {
                 self.description.variables.extend(self.open.take());
@@ -582,5 +671,32 @@ mod tests {
             error.contains("\"tick\"") && error.contains("clocks"),
             "{error}"
         );
+    }
+
+    #[test]
+    fn outputs_name_what_they_depend_on_by_value_reference() {
+        let fmi2 = XML.replace(
+            "</ModelVariables>",
+            "</ModelVariables><ModelStructure><Outputs><Unknown index=\"2\" dependencies=\"1 3\"/>\
+             </Outputs></ModelStructure>",
+        );
+        let d = Description::parse(&fmi2).unwrap();
+        assert_eq!(d.output_dependencies.len(), 1);
+        let out = &d.output_dependencies[0];
+        assert_eq!(
+            (out.value_reference, out.dependencies.clone()),
+            (7, Some(vec![3, 8]))
+        );
+        let fmi3 = r#"<fmiModelDescription fmiVersion="3.0" modelName="M" instantiationToken="{t}"
+            generationTool="a tool"><CoSimulation modelIdentifier="M"/><ModelVariables>
+            <Float64 name="u" valueReference="1" causality="input" start="0"/>
+            <Float64 name="y" valueReference="2" causality="output"/></ModelVariables>
+            <ModelStructure><Output valueReference="2"/></ModelStructure></fmiModelDescription>"#;
+        let d = Description::parse(fmi3).unwrap();
+        assert_eq!(d.generation_tool.as_deref(), Some("a tool"));
+        assert_eq!(d.output_dependencies[0].value_reference, 2);
+        assert!(d.output_dependencies[0].dependencies.is_none());
+        let wrong = fmi2.replace("index=\"2\"", "index=\"9\"");
+        assert!(Description::parse(&wrong).unwrap_err().contains("index 9"));
     }
 }

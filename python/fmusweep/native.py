@@ -62,6 +62,17 @@ def runner_path() -> pathlib.Path:
     return path
 
 
+def describe_unpacked(directory: str | os.PathLike[str]) -> dict[str, Any]:
+    """The description of the FMU unpacked in `directory`, as the runner reads it (its one
+    reader of modelDescription.xml) without loading the FMU's binary."""
+    done = subprocess.run([str(runner_path()), "describe", str(directory)],
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RunnerError(done.stderr.strip() or f"the runner exited with {done.returncode}")
+    description: dict[str, Any] = json.loads(done.stdout)["description"]
+    return description
+
+
 # How much longer than the per-point budget a point may go without any answer before the
 # runner is killed: the runner itself checks the budget after every communication step,
 # so only a step that never returns reaches this.

@@ -57,7 +57,7 @@ from typing import Any
 from .errors import Collector, SpecError, refuse
 from .fields import finite
 from .fmu import Archive, local_runner, open_for_checks
-from .native import NativeRunner, RunnerError
+from .native import NativeRunner, RunnerError, describe_unpacked
 from .ssd import SspContents
 
 __all__ = ["System", "load_system"]
@@ -164,7 +164,7 @@ class System:
                 _refuse_python_written(f"{self.origin}.components.{name}", description)
         if self.coupling_tolerance is not None:
             for name, description in descriptions.items():
-                if not description.coSimulation.canGetAndSetFMUstate:
+                if not description["can_get_and_set_state"]:
                     raise SpecError(f"{self.origin}.components.{name}",
                                     "system.coupling_tolerance takes a step again from every "
                                     "component's saved state, and this FMU cannot save its "
@@ -188,14 +188,15 @@ class System:
         target = errors.run(lambda: _variable(descriptions[c.target], c.target, c.input, where))
         errors.raise_any()
         assert source is not None and target is not None
-        if source.causality != "output":
-            raise SpecError(where, f"{c.source}.{c.output} has causality {source.causality}; "
+        if source["causality"] != "output":
+            raise SpecError(where, f"{c.source}.{c.output} has causality {source['causality']}; "
                                    "a connection starts at an output")
-        if target.causality != "input":
-            raise SpecError(where, f"{c.target}.{c.input} has causality {target.causality}; "
+        if target["causality"] != "input":
+            raise SpecError(where, f"{c.target}.{c.input} has causality {target['causality']}; "
                                    "a connection ends at an input")
-        if _value_kind(source.type) != _value_kind(target.type):
-            raise SpecError(where, f"{c}: a {source.type} output cannot feed a {target.type} input")
+        if source["type"] != target["type"]:
+            raise SpecError(where, f"{c}: a {source['fmi_type']} output cannot feed a "
+                                   f"{target['fmi_type']} input")
         if (c.target, c.input) in fed:
             raise SpecError(where, f"{c.target}.{c.input} is fed twice (also by connection "
                                    f"{fed[(c.target, c.input)]})")
@@ -210,9 +211,9 @@ class System:
                 description = _description(f"{self.origin}.components.{name}", path)
             except SpecError:
                 continue
-            variables += [{"name": f"{name}.{v.name}", "causality": v.causality,
-                           "variability": v.variability, "type": _runner_type(v.type)}
-                          for v in description.modelVariables]
+            variables += [{"name": f"{name}.{v['name']}", "causality": v["causality"],
+                           "variability": v["variability"], "type": v["type"]}
+                          for v in description["variables"]]
         return {"variables": variables}
 
     def digest(self) -> str:
@@ -273,11 +274,11 @@ class System:
             for name, path in self.components.items():
                 shutil.copyfile(path, directory / f"{name}.fmu")
                 node.add_fmu(f"{name}.fmu")
-                for v in descriptions[name].modelVariables:
-                    if v.causality == "output":
-                        node.add_output(f"{name}.fmu", v.name, f"{name}.{v.name}")
-                    elif v.causality == "input" and (name, v.name) not in fed:
-                        node.add_input(f"{name}.{v.name}", f"{name}.fmu", v.name)
+                for v in descriptions[name]["variables"]:
+                    if v["causality"] == "output":
+                        node.add_output(f"{name}.fmu", v["name"], f"{name}.{v['name']}")
+                    elif v["causality"] == "input" and (name, v["name"]) not in fed:
+                        node.add_input(f"{name}.{v['name']}", f"{name}.fmu", v["name"])
             for c in self.connections:
                 node.add_link(f"{c.source}.fmu", c.output, f"{c.target}.fmu", c.input)
             try:
@@ -319,12 +320,12 @@ def _options(table: dict[str, Any], engines: tuple[str, ...]) -> tuple[str, int,
     return engine, derivatives, tolerance
 
 
-def _refuse_python_written(where: str, description: Any) -> None:
+def _refuse_python_written(where: str, description: dict[str, Any]) -> None:
     """A component written in Python (PythonFMU) runs Python at every step: the native
     runner, whose point is running none, refuses it by name."""
-    tool = description.generationTool or ""
+    tool = description.get("generation_tool") or ""
     if tool.startswith("PythonFMU"):
-        raise SpecError(where, f"{description.modelName} is written in Python ({tool}); the "
+        raise SpecError(where, f"{description['model_name']} is written in Python ({tool}); the "
                                "native runner runs compiled FMUs only (an SSP file with it "
                                "runs through FMPy with [system] engine = \"fmpy\")")
 
@@ -398,48 +399,38 @@ def _connection(i: int, pair: object, components: dict[str, Any]) -> Connection:
     return Connection(source, output, target, input_)
 
 
-def _description(where: str, path: pathlib.Path) -> Any:
-    """The component's model description, as FMPy reads it (a mistake named by `where`)."""
-    try:
-        import fmpy
-    except ImportError:
-        raise SpecError(where, "a [system] needs FMPy to read its components: "
-                               "pip install 'fmusweep[systems]'") from None
+def _description(where: str, path: pathlib.Path) -> dict[str, Any]:
+    """The component's model description, as the runner reads it (a mistake named by
+    `where`)."""
     try:
         data = path.read_bytes()
     except OSError as e:
         raise SpecError(where, f"cannot read {path}: {e.strerror}") from None
     if not zipfile.is_zipfile(io.BytesIO(data)):
         raise SpecError(where, f"{path} is not an FMU (not a zip archive)")
-    try:
-        description = fmpy.read_model_description(str(path), validate=False)
-    except Exception as e:
-        raise SpecError(where, f"{path}: its modelDescription.xml cannot be read: {e}") from None
-    if description.fmiVersion not in ("2.0", "3.0") or description.coSimulation is None:
+    with tempfile.TemporaryDirectory(prefix="fmusweep-description-") as directory:
+        with zipfile.ZipFile(io.BytesIO(data)) as archive:
+            try:
+                archive.extract("modelDescription.xml", directory)
+            except KeyError:
+                raise SpecError(where, f"{path} is not an FMU (it has no "
+                                       "modelDescription.xml)") from None
+        try:
+            description = describe_unpacked(directory)
+        except RunnerError as e:
+            message = str(e).replace(f"{directory}{os.sep}", "")
+            raise SpecError(where, f"{path}: {message}") from None
+    if description.get("model_identifier") is None:
         raise SpecError(where, f"{path} is not an FMI 2.0 or 3.0 co-simulation FMU")
     return description
 
 
-# FMI 3.0's names of the types FMI 2.0 calls Real and Integer: a system may mix versions.
-_FMI2_KIND = {"Float64": "Real", "Int32": "Integer"}
-
-
-def _value_kind(fmi_type: str) -> str:
-    """The kind of value a variable of this type passes, in FMI 2.0's words."""
-    return _FMI2_KIND.get(fmi_type, fmi_type)
-
-
-def _runner_type(fmi_type: str) -> str:
-    """A variable's type in the runner's words (its description's ``type``)."""
-    return {"Real": "real", "Float64": "real", "Integer": "integer", "Int32": "integer",
-            "Boolean": "boolean", "Enumeration": "enumeration",
-            "String": "string"}.get(fmi_type, "unsupported")
-
-
-def _variable(description: Any, component: str, name: str, where: str) -> Any:
-    for v in description.modelVariables:
-        if v.name == name:
-            return v
+def _variable(description: dict[str, Any], component: str, name: str,
+              where: str) -> dict[str, Any]:
+    for v in description["variables"]:
+        if v["name"] == name:
+            found: dict[str, Any] = v
+            return found
     raise SpecError(where, f"component {component} has no variable {name!r}")
 
 
@@ -472,12 +463,19 @@ def _dependencies(connections: list[Connection], descriptions: dict[str, Any]) -
     for c in connections:
         edges.setdefault(f"{c.source}.{c.output}", set()).add(f"{c.target}.{c.input}")
     for name, description in descriptions.items():
-        inputs = {v.name for v in description.modelVariables if v.causality == "input"}
-        for unknown in description.outputs:
-            depends = (inputs if unknown.dependencies is None
-                       else {d.name for d in unknown.dependencies} & inputs)
+        variables = description["variables"]
+        inputs = {v["name"] for v in variables if v["causality"] == "input"}
+        # By value reference, the first name (FMI 3.0's aliases share a reference).
+        named: dict[int, str] = {}
+        for v in variables:
+            named.setdefault(v["value_reference"], v["name"])
+        for output in description["output_dependencies"]:
+            listed = output["dependencies"]
+            depends = (inputs if listed is None
+                       else {named.get(vr, "") for vr in listed} & inputs)
             for input_ in depends:
-                edges.setdefault(f"{name}.{input_}", set()).add(f"{name}.{unknown.variable.name}")
+                edges.setdefault(f"{name}.{input_}", set()).add(
+                    f"{name}.{named[output['value_reference']]}")
     return edges
 
 

@@ -1,8 +1,12 @@
 //! `fmu-runner serve DIR`: load the FMU (FMI 2.0 or 3.0, Co-Simulation or Model Exchange)
-//! or the coupled system unpacked in DIR and answer
-//! requests on standard input (see `protocol`). The sweep's workers start one runner per
-//! FMU and keep it for their whole life, so the per-point work never passes through
-//! Python; a crash of the FMU ends only this process.
+//! or the coupled system unpacked in DIR and answer requests on standard input (see
+//! `protocol`). The sweep's workers start one runner per FMU and keep it for their whole
+//! life, so the per-point work never passes through Python; a crash of the FMU ends only
+//! this process.
+//!
+//! `fmu-runner describe DIR`: print the description of the FMU unpacked in DIR as JSON,
+//! read by the one reader of it (`fmi-description`) without loading its binary: what
+//! fmusweep checks a system's components against before anything runs.
 
 use std::io::BufWriter;
 use std::path::Path;
@@ -13,8 +17,12 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let dir = match args.as_slice() {
         [_, command, dir] if command == "serve" => dir,
+        [_, command, dir] if command == "describe" => describe(Path::new(dir)),
         _ => {
-            eprintln!("usage: fmu-runner serve <directory of an unpacked FMI 2.0 or 3.0 FMU, or of a system>");
+            eprintln!(
+                "usage: fmu-runner serve|describe <directory of an unpacked FMI 2.0 or 3.0 FMU, \
+                 or of a system (serve)>"
+            );
             std::process::exit(2);
         }
     };
@@ -46,5 +54,20 @@ fn main() {
     if let Err(e) = session.serve(stdin.lock(), &mut out) {
         eprintln!("fmu-runner: {e}");
         std::process::exit(1);
+    }
+}
+
+/// The description of the FMU unpacked in `dir`, as JSON on standard output; the reason it
+/// cannot be read on standard error, and exit code 1.
+fn describe(dir: &Path) -> ! {
+    match fmu_runner::description::Description::read(dir) {
+        Ok(description) => {
+            println!("{}", serde_json::json!({ "description": description }));
+            std::process::exit(0)
+        }
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(1)
+        }
     }
 }

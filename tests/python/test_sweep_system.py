@@ -177,11 +177,20 @@ def _bad_systems(fmu_path, motor_path, tmp):
             "system.coupling_tolerance",
             lambda s: s["system"].update(engine="container", input_derivatives=0,
                                          coupling_tolerance=1e-4)),
+        "a component written in Python": (
+            "system.components.motor",
+            lambda s: components(motor=str(python_written(motor_path, tmp)))(s)),
         "a coupling tolerance with a component that cannot roll back": (
             "system.components.motor",
             lambda s: s["system"].update(coupling_tolerance=1e-4, components={
                 "motor": str(without_state(motor_path, tmp)), "mechanism": str(fmu_path)})),
     }
+
+
+def python_written(fmu, directory):
+    """A copy of `fmu` whose description says PythonFMU wrote it."""
+    return repacked(fmu, directory / "pythonfmu.fmu",
+                    in_description(b'generationTool="', b'generationTool="PythonFMU 0.6.5, '))
 
 
 def without_state(fmu, directory):
