@@ -287,4 +287,18 @@ mod tests {
         assert_eq!(drift(&given, 2, 0.5, 2.5), 0.0);
         assert_eq!(drift(&given, 2, 0.5, 3.0), 0.5);
     }
+
+    /// The rule the spec's check states too (fmusweep's system.py): a number in (0, 1).
+    #[test]
+    fn a_coupling_tolerance_is_a_number_in_zero_to_one() {
+        for bad in [0.0, 1.0, -1e-5, 2.0, f64::NAN, f64::INFINITY] {
+            assert!(
+                check_tolerance(bad).unwrap_err().contains("(0, 1)"),
+                "{bad}"
+            );
+        }
+        for good in [1e-12, 1e-5, 0.5] {
+            assert!(check_tolerance(good).is_ok(), "{good}");
+        }
+    }
 }
