@@ -5,8 +5,10 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import signal
+import threading
 import sys
 import warnings
 from typing import Any, Callable, Sequence, TypeVar
@@ -61,8 +63,30 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM (or the parent's end), ending a run as Ctrl-C does: what finished is kept."""
 
 
+# Set once a run is being interrupted: what the cluster's event loop then logs of the
+# calls cut short (distributed's `sync` may fail to cancel a call not yet started, a
+# NameError its own callback logs) is the interrupt's, not a fault to show.
+_ENDING = threading.Event()
+
+
 def _on_sigterm(signum: int, frame: object) -> None:
+    _ENDING.set()
     raise Terminated()
+
+
+def _on_sigint(signum: int, frame: object) -> None:
+    _ENDING.set()
+    raise KeyboardInterrupt()
+
+
+class _QuietWhileEnding(logging.Filter):
+    """Drops the event loop's records once the run is being interrupted."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not _ENDING.is_set()
+
+
+_EVENT_LOOP_LOGGERS = ("tornado.application", "asyncio")
 
 
 def _end_with_parent() -> None:
@@ -92,6 +116,13 @@ def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
     """run()'s result, or the exit code after a refusal (2) or an interrupt (130), each
     said on standard error."""
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    # As Python's own, but marking the interrupt first; left alone where SIGINT is ignored.
+    interrupt = signal.getsignal(signal.SIGINT)
+    if interrupt is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _on_sigint)
+    quiet = _QuietWhileEnding()
+    for name in _EVENT_LOOP_LOGGERS:
+        logging.getLogger(name).addFilter(quiet)
     shown = warnings.showwarning
     warnings.showwarning = lambda message, category, *_: print(
         f"{prog}: warning: {message}", file=sys.stderr)
@@ -108,6 +139,11 @@ def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
         return 143 if isinstance(e, Terminated) else 130
     finally:
         signal.signal(signal.SIGTERM, previous)
+        if interrupt is signal.default_int_handler:
+            signal.signal(signal.SIGINT, interrupt)
+        for name in _EVENT_LOOP_LOGGERS:
+            logging.getLogger(name).removeFilter(quiet)
+        _ENDING.clear()
         warnings.showwarning = shown
 
 

@@ -397,3 +397,34 @@ def test_values_out_of_the_fmus_range_come_with_the_specs_own_mistakes(fmu_path,
     assert set(said) == {"scenario.tolerance", "scenario.parameters.d12",
                          "design.parameters.J2"}, said
     assert "J2 = -0.1" in said["design.parameters.J2"]
+
+
+def test_what_the_event_loop_logs_of_calls_cut_short_is_not_shown(capfd, caplog):
+    """A SIGTERM that cuts a cluster's call short may make its event loop log an error
+    while the run unwinds (distributed cancelling a call not yet started): the one line
+    that says what ended is all that shows."""
+    import logging
+
+    from fmusweep.cli import Terminated, _guarded
+
+    loop = logging.getLogger("tornado.application")
+
+    def run():
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)  # the signal arrives during it
+        except Terminated:
+            loop.error("Exception in callback cancel")
+            raise
+        return 0
+
+    with caplog.at_level(logging.ERROR, logger="tornado.application"):
+        assert _guarded("fmusweep", "every finished batch is saved", run) == 143
+        assert [r for r in caplog.records if r.name == "tornado.application"] == []
+        # Outside an interrupt the loop's errors are logged as before.
+        loop.error("shown")
+        assert [r.getMessage() for r in caplog.records] == ["shown"]
+    err = capfd.readouterr().err
+    assert err.strip().splitlines() == [
+        "fmusweep: terminated; every finished batch is saved: run the same command again "
+        "with --resume"], err
