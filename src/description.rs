@@ -48,14 +48,13 @@ pub const LOG_CATEGORIES: &[(&str, &str)] = &[
     ),
 ];
 
-/// A 128-bit hash written as a UUID in braces, as FMI tools show GUIDs.
 /// A UUID's text, "{8-4-4-4-12}", held without the heap: a master may unload the library
 /// (dlclose) while it keeps static data, and a heap block only a static pointed to would then
 /// be lost.
-pub struct UuidText([u8; 38]);
+struct UuidText([u8; 38]);
 
 impl UuidText {
-    pub fn new(text: &str) -> Self {
+    fn new(text: &str) -> Self {
         Self(
             text.as_bytes()
                 .try_into()
@@ -63,12 +62,13 @@ impl UuidText {
         )
     }
 
-    pub fn as_str(&self) -> &str {
+    fn as_str(&self) -> &str {
         std::str::from_utf8(&self.0).expect("a UUID's text is ASCII")
     }
 }
 
-pub fn uuid_text(hash: u128) -> String {
+/// A 128-bit hash written as a UUID in braces, as FMI tools show GUIDs.
+fn uuid_text(hash: u128) -> String {
     let hex = format!("{hash:032x}");
     format!(
         "{{{}-{}-{}-{}-{}}}",
@@ -80,7 +80,7 @@ pub fn uuid_text(hash: u128) -> String {
     )
 }
 
-pub fn fnv1a_128(bytes: &[u8]) -> u128 {
+fn fnv1a_128(bytes: &[u8]) -> u128 {
     const OFFSET: u128 = 0x6c62272e07bb014262b821756295c58d;
     const PRIME: u128 = 0x0000000001000000000000000000013B;
     bytes
@@ -324,8 +324,8 @@ pub fn variables_markdown() -> String {
 }
 
 /// Every variable with what defines it (reference, name, type, causality, variability,
-/// unit, start, range), as text: what the hashes that identify the interface hash.
-pub fn variables_text() -> String {
+/// unit, start, range), as text: what the interface's identity hashes with the rest.
+fn variables_text() -> String {
     let mut text = String::new();
     for (vr, v) in variables() {
         text += &format!(

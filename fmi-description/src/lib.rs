@@ -346,8 +346,8 @@ fn fmi3_variable(e: &BytesStart, tag: &[u8]) -> Result<Variable, String> {
     Ok(variable)
 }
 
-/// An attribute that must be a whole number ≥ 0.
-fn whole_number(value: Option<String>, what: &str) -> Result<usize, String> {
+/// An attribute that must be a whole number ≥ 0 of type `T`.
+fn whole_number<T: std::str::FromStr>(value: Option<String>, what: &str) -> Result<T, String> {
     value
         .as_deref()
         .and_then(|v| v.trim().parse().ok())
@@ -355,7 +355,7 @@ fn whole_number(value: Option<String>, what: &str) -> Result<usize, String> {
 }
 
 /// A space-separated list of whole numbers (`dependencies`); `None` without the attribute.
-fn whole_numbers(value: Option<String>) -> Result<Option<Vec<usize>>, String> {
+fn whole_numbers<T: std::str::FromStr>(value: Option<String>) -> Result<Option<Vec<T>>, String> {
     value
         .map(|list| {
             list.split_whitespace()
@@ -424,11 +424,12 @@ impl Parse {
                 self.fmi2_outputs.push((index, dependencies));
             }
             b"Output" if fmi3 && !self.in_variables => {
-                let vr = whole_number(attribute(e, "valueReference")?, "Output valueReference")?;
                 description.output_dependencies.push(OutputDependencies {
-                    value_reference: vr as u32,
-                    dependencies: whole_numbers(attribute(e, "dependencies")?)?
-                        .map(|d| d.into_iter().map(|x| x as u32).collect()),
+                    value_reference: whole_number(
+                        attribute(e, "valueReference")?,
+                        "Output valueReference",
+                    )?,
+                    dependencies: whole_numbers(attribute(e, "dependencies")?)?,
                 });
             }
             b"ContinuousStateDerivative" if fmi3 && !self.in_variables => {
@@ -696,6 +697,13 @@ mod tests {
         assert_eq!(d.generation_tool.as_deref(), Some("a tool"));
         assert_eq!(d.output_dependencies[0].value_reference, 2);
         assert!(d.output_dependencies[0].dependencies.is_none());
+        let beyond = fmi3.replace(
+            "<Output valueReference=\"2\"",
+            "<Output valueReference=\"4294967298\"",
+        );
+        assert!(Description::parse(&beyond)
+            .unwrap_err()
+            .contains("valueReference"));
         let wrong = fmi2.replace("index=\"2\"", "index=\"9\"");
         assert!(Description::parse(&wrong).unwrap_err().contains("index 9"));
     }

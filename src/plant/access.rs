@@ -235,11 +235,10 @@ impl Plant {
     /// The rule of a writable variable on its new value (of the variable's type); the
     /// refusal of a variable that cannot be written.
     fn check_rule_of(&self, var: &Variable, value: Value) -> Result<(), AccessError> {
-        let refuse = |rule: &str| {
+        let refuse = |v: i32, rule: &str| {
             Err(AccessError::NotAllowed(format!(
-                "{} = {}: must be {rule}",
-                var.name,
-                shown(value)
+                "{} = {v}: must be {rule}",
+                var.name
             )))
         };
         match (var.slot, value) {
@@ -257,18 +256,22 @@ impl Plant {
                 Value::Integer(v),
             ) => self.check_sensitivity_choice(var.name, v),
             (Slot::SolverChoice, Value::Integer(v)) if solver_kind(v).is_none() => {
-                refuse("1 (auto), 2 (dop853) or 3 (implicit)")
+                refuse(v, "1 (auto), 2 (dop853) or 3 (implicit)")
             }
-            (Slot::Twin(Twin::Solver), Value::Integer(v)) if solver_kind(v).is_none() => {
-                refuse("0 (as solver says), 1 (auto), 2 (dop853) or 3 (implicit)")
-            }
+            (Slot::Twin(Twin::Solver), Value::Integer(v)) if solver_kind(v).is_none() => refuse(
+                v,
+                "0 (as solver says), 1 (auto), 2 (dop853) or 3 (implicit)",
+            ),
             (Slot::ChangePointBranch, Value::Integer(v)) if Branch::from_value(v).is_none() => {
-                refuse("1 (straight) or 2 (turn)")
+                refuse(v, "1 (straight) or 2 (turn)")
             }
             (Slot::Twin(Twin::ChangePointBranch), Value::Integer(v))
                 if Branch::from_value(v).is_none() =>
             {
-                refuse("0 (as change_point_branch says), 1 (straight) or 2 (turn)")
+                refuse(
+                    v,
+                    "0 (as change_point_branch says), 1 (straight) or 2 (turn)",
+                )
             }
             (
                 Slot::SolverChoice
@@ -338,15 +341,6 @@ const FIRST_STATE_VR: u32 = {
     }
     first as u32
 };
-
-/// A value as a refusal shows it.
-fn shown(value: Value) -> String {
-    match value {
-        Value::Real(v) => number(v),
-        Value::Integer(v) => v.to_string(),
-        Value::Boolean(v) => v.to_string(),
-    }
-}
 
 /// The FMI accessor must match the variable's type.
 fn check_type(var: &Variable, value: Value) -> Result<(), AccessError> {
