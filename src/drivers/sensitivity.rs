@@ -310,10 +310,8 @@ impl Tracker {
         self.width.advance(plant, &step, &self.slots)
     }
 
-    /// The run, after a flag that is always false here: earlier builds set it when the run
-    /// had crossed a change point (now refused with slots set), and kept the layout.
+    /// The run's sensitivities and their integration's memory.
     pub fn serialize_into(&self, w: &mut Writer) {
-        w.bool(false);
         self.width.serialize_into(w);
     }
 
@@ -322,13 +320,6 @@ impl Tracker {
         let slots = plant.sensitivity_slots();
         if slots.is_empty() {
             return Ok(None);
-        }
-        if r.bool()? {
-            return Err(FormatError(
-                "the state was saved after its sensitivities ended at a change point: a run \
-                 with sensitivity slots set does not go on past one"
-                    .into(),
-            ));
         }
         Ok(Some(Self {
             width: Width::deserialize_from(r, &slots)?,

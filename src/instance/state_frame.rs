@@ -8,7 +8,7 @@ use integrators::bytes::{fnv1a_64, FormatError, Reader};
 const MAGIC: &[u8; 8] = b"CYCMSTAT";
 /// Raise when the payload's layout changes (`tests/state_layout.rs` pins the two
 /// together), so that an old buffer is refused by its version rather than misread.
-pub const FORMAT_VERSION: u32 = 19;
+pub const FORMAT_VERSION: u32 = 20;
 /// The header's bytes: magic, version, interface hash, payload length.
 pub const HEADER: usize = 8 + 4 + 16 + 8;
 const CHECKSUM: usize = 8;
