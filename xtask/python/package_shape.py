@@ -1,21 +1,20 @@
-"""The shape of a Python package, for `cargo xtask tidy`: every import counted (those under
-TYPE_CHECKING and inside functions too), none from a layer above its module's, no
-modules importing each other round a circle, no file longer than MAX_FILE_LINES and no
-function longer than MAX_FUNCTION_LINES. Prints one problem per line.
+"""What `cargo xtask tidy` needs to know of a Python package's shape, as lines of text it
+judges by the same rules as the crates (layers, circles, lengths): every module with its
+file and length, every import of a module of the package (those under TYPE_CHECKING and
+inside functions too) with its line, every function with its length.
 
-Usage: package_shape.py PACKAGE_DIR LAYERS_JSON (a list of layers, top down, each a list
-of modules named from the package: "cli", "fitting.run", "__init__" for the package's
-own, "fitting" for a subpackage's)."""
+Usage: package_shape.py PACKAGE_DIR. Prints, one fact a line, tab-separated:
+  module NAME PATH LINES
+  import NAME LINE TARGET
+  function PATH LINE NAME LINES
+Modules are named from the package: "cli", "fitting.run", "__init__" for the package's
+own, "fitting" for a subpackage's."""
 
 from __future__ import annotations
 
 import ast
-import json
 import pathlib
 import sys
-
-MAX_FILE_LINES = 700
-MAX_FUNCTION_LINES = 80
 
 
 def module_name(package: pathlib.Path, path: pathlib.Path) -> str:
@@ -26,11 +25,12 @@ def module_name(package: pathlib.Path, path: pathlib.Path) -> str:
 
 
 def imports(tree: ast.AST, name: str, is_package: bool, package: str,
-            known: set[str]) -> set[str]:
-    """The package's modules this module imports, wherever the import stands."""
+            known: set[str]) -> list[tuple[int, str]]:
+    """(line, module) for each module of the package this module imports, wherever the
+    import stands."""
     own = [] if name == "__init__" else name.split(".")
     base = own if is_package else own[:-1]
-    found: set[str] = set()
+    found: list[tuple[int, str]] = []
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
             if node.level:
@@ -41,75 +41,35 @@ def imports(tree: ast.AST, name: str, is_package: bool, package: str,
             else:
                 continue
             stem = ".".join(target) or "__init__"
-            subs = [".".join(target + [a.name]) for a in node.names]
-            found.update(s for s in subs if s in known)
-            if not any(s in known for s in subs) and stem in known:
-                found.add(stem)
+            subs = [s for s in (".".join(target + [a.name]) for a in node.names) if s in known]
+            found += [(node.lineno, s) for s in subs or ([stem] if stem in known else [])]
         elif isinstance(node, ast.Import):
             for alias in node.names:
                 parts = alias.name.split(".")
-                if parts[0] == package:
-                    target = ".".join(parts[1:]) or "__init__"
-                    if target in known:
-                        found.add(target)
-    found.discard(name)
-    return found
+                target = ".".join(parts[1:]) or "__init__"
+                if parts[0] == package and target in known:
+                    found.append((node.lineno, target))
+    return [(line, target) for line, target in found if target != name]
 
 
-def circles(graph: dict[str, set[str]]) -> list[list[str]]:
-    def reach(start: str) -> set[str]:
-        seen: set[str] = set()
-        todo = [start]
-        while todo:
-            for nxt in graph.get(todo.pop(), ()):
-                if nxt not in seen:
-                    seen.add(nxt)
-                    todo.append(nxt)
-        return seen
-    reaches = {m: reach(m) for m in graph}
-    found: list[list[str]] = []
-    for m in sorted(graph):
-        circle = sorted(o for o in reaches[m] if m in reaches.get(o, set()))
-        if len(circle) > 1 and circle not in found:
-            found.append(circle)
-    return found
-
-
-def main(package_dir: str, layers_json: str) -> int:
+def main(package_dir: str) -> int:
     package = pathlib.Path(package_dir)
-    layers: list[list[str]] = json.loads(layers_json)
-    rank = {m: i for i, layer in enumerate(layers) for m in layer}
     files = sorted(package.rglob("*.py"))
     names = {module_name(package, f): f for f in files}
-    problems: list[str] = []
-    graph: dict[str, set[str]] = {}
     for name, path in names.items():
         text = path.read_text()
         shown = path.as_posix()
         tree = ast.parse(text, filename=shown)
-        lines = len(text.splitlines())
-        if lines > MAX_FILE_LINES:
-            problems.append(f"{shown}: {lines} lines, more than {MAX_FILE_LINES}")
+        print(f"module\t{name}\t{shown}\t{len(text.splitlines())}")
+        for line, target in imports(tree, name, path.name == "__init__.py", package.name,
+                                    set(names)):
+            print(f"import\t{name}\t{line}\t{target}")
         for node in ast.walk(tree):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 length = (node.end_lineno or node.lineno) - node.lineno + 1
-                if length > MAX_FUNCTION_LINES:
-                    problems.append(f"{shown}:{node.lineno}: function {node.name} is {length} "
-                                    f"lines, more than {MAX_FUNCTION_LINES}")
-        if name not in rank:
-            problems.append(f"{shown}: module `{name}` has no place in its layer table")
-            continue
-        graph[name] = imports(tree, name, path.name == "__init__.py", package.name, set(names))
-        for target in sorted(graph[name]):
-            if rank.get(target, len(layers)) < rank[name]:
-                problems.append(f"{shown}: `{name}` imports from `{target}`, a layer above it")
-    for circle in circles(graph):
-        problems.append(f"{package_dir}: modules import each other round a circle: "
-                        f"{', '.join(circle)}")
-    for problem in problems:
-        print(problem)
+                print(f"function\t{shown}\t{node.lineno}\t{node.name}\t{length}")
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1], sys.argv[2]))
+    sys.exit(main(sys.argv[1]))

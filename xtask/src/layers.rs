@@ -144,6 +144,23 @@ pub(crate) fn arrows_up(
     module: &str,
     code: impl Iterator<Item = (usize, String)>,
 ) -> Vec<String> {
+    let imports = whole_groups(code).into_iter().flat_map(|(number, line)| {
+        imported_modules(&line)
+            .into_iter()
+            .map(move |target| (number, target))
+    });
+    imports_up(layers, name, module, imports)
+}
+
+/// Violations among `imports` ((line, imported module) of the file `name`, in module
+/// `module`): a module above the file's own, or the other C ABI; a module the table does
+/// not place is one too.
+pub(crate) fn imports_up(
+    layers: &[Vec<String>],
+    name: &str,
+    module: &str,
+    imports: impl Iterator<Item = (usize, String)>,
+) -> Vec<String> {
     let rank = |m: &str| layers.iter().position(|layer| layer.iter().any(|l| l == m));
     let Some(own) = rank(module) else {
         return vec![format!(
@@ -151,24 +168,22 @@ pub(crate) fn arrows_up(
         )];
     };
     let mut found = Vec::new();
-    for (number, line) in whole_groups(code) {
-        for target in imported_modules(&line) {
-            if target == module {
-                continue;
-            }
-            let peers = matches!(
-                (module, target.as_str()),
-                ("fmi2", "fmi3") | ("fmi3", "fmi2")
-            );
-            match rank(&target) {
-                Some(r) if r < own => found.push(format!(
-                    "{name}:{number}: `{module}` imports from `{target}`, a layer above it"
-                )),
-                _ if peers => found.push(format!(
-                    "{name}:{number}: `{module}` imports from `{target}`: the two C ABIs are peers"
-                )),
-                _ => {}
-            }
+    for (number, target) in imports {
+        if target == module {
+            continue;
+        }
+        let peers = matches!(
+            (module, target.as_str()),
+            ("fmi2", "fmi3") | ("fmi3", "fmi2")
+        );
+        match rank(&target) {
+            Some(r) if r < own => found.push(format!(
+                "{name}:{number}: `{module}` imports from `{target}`, a layer above it"
+            )),
+            _ if peers => found.push(format!(
+                "{name}:{number}: `{module}` imports from `{target}`: the two C ABIs are peers"
+            )),
+            _ => {}
         }
     }
     found

@@ -1,6 +1,6 @@
 //! Lengths a reader can hold: no file of the product longer than `MAX_FILE_LINES` before
 //! its tests, no function longer than `MAX_FUNCTION_LINES` (the variable table, one row
-//! per variable, aside).
+//! per variable, aside); Rust's measured here, Python's by `xtask/python/package_shape.py`.
 
 /// Lines of a file before its `#[cfg(test)]` module.
 const MAX_FILE_LINES: usize = 700;
@@ -15,21 +15,34 @@ pub(crate) fn too_long(name: &str, text: &str) -> Vec<String> {
         .lines()
         .take_while(|line| !line.starts_with("#[cfg(test)]"))
         .collect();
-    let mut found = Vec::new();
-    if lines.len() > MAX_FILE_LINES && !LONG_BY_NATURE.contains(&name) {
-        found.push(format!(
-            "{name}: {} lines before its tests, more than {MAX_FILE_LINES}",
-            lines.len()
-        ));
-    }
-    for (start, function, length) in functions(&lines) {
-        if length > MAX_FUNCTION_LINES {
-            found.push(format!(
-                "{name}:{start}: fn {function} is {length} lines, more than {MAX_FUNCTION_LINES}"
-            ));
-        }
-    }
+    let mut found: Vec<String> = file_too_long(name, lines.len()).into_iter().collect();
+    found.extend(
+        functions(&lines)
+            .into_iter()
+            .filter_map(|(start, function, length)| {
+                function_too_long(name, start, &function, length)
+            }),
+    );
     found
+}
+
+/// The file `name` of `lines` lines (before its tests), if longer than allowed.
+pub(crate) fn file_too_long(name: &str, lines: usize) -> Option<String> {
+    (lines > MAX_FILE_LINES && !LONG_BY_NATURE.contains(&name))
+        .then(|| format!("{name}: {lines} lines before its tests, more than {MAX_FILE_LINES}"))
+}
+
+/// The function `function` of `name`, from line `start` and `length` lines long, if longer
+/// than allowed.
+pub(crate) fn function_too_long(
+    name: &str,
+    start: usize,
+    function: &str,
+    length: usize,
+) -> Option<String> {
+    (length > MAX_FUNCTION_LINES).then(|| {
+        format!("{name}:{start}: fn {function} is {length} lines, more than {MAX_FUNCTION_LINES}")
+    })
 }
 
 /// (first line, name, lines) of each function with a body in `lines`: from the line of

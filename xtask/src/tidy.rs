@@ -4,13 +4,14 @@
 //! comment in `src/` carries a measured figure (figures live in the reports a command
 //! writes), and `mypy --strict` passes on the Python package.
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use crate::cli::Parsed;
 use crate::setup::Result;
-use crate::setup::{cargo, ensure_venv, root, run, Packages};
+use crate::setup::{cargo, ensure_venv, output_of, root, run, Packages};
 
 /// The files allowed to hold `unsafe`: the FMI 2 and 3 C ABIs and what they share (the
 /// call guard, the master's logger, the FMU state pointers), the AVX copy of the step, the
@@ -120,7 +121,7 @@ fn layer_problems(architecture: &str) -> Result<Vec<String>> {
         }
     }
     for (dir, layers) in &crates {
-        let mut graph = std::collections::BTreeMap::new();
+        let mut graph = BTreeMap::new();
         for file in rust_files(&root().join(dir))? {
             let name = relative(&file);
             let Some(module) = crate::layers::module_of(&name) else {
@@ -133,8 +134,7 @@ fn layer_problems(architecture: &str) -> Result<Vec<String>> {
                     false => (n, line.to_string()),
                 })
                 .collect();
-            let imported: &mut std::collections::BTreeSet<String> =
-                graph.entry(module.to_string()).or_default();
+            let imported: &mut BTreeSet<String> = graph.entry(module.to_string()).or_default();
             for (_, line) in &code {
                 imported.extend(
                     crate::layers::imported_modules(line)
@@ -159,35 +159,64 @@ fn layer_problems(architecture: &str) -> Result<Vec<String>> {
     Ok(problems)
 }
 
-/// The Python package in `folder`: arrows up by `layers` and circles, every import
-/// counted, and its files' and functions' lengths (`xtask/python/package_shape.py`).
+/// The Python package in `folder`, judged as the crates are: arrows up by `layers`,
+/// circles, and its files' and functions' lengths. `xtask/python/package_shape.py` reads
+/// the facts (every import counted, wherever it stands).
 fn package_shape(folder: &str, layers: &[Vec<String>]) -> Result<Vec<String>> {
     let python = ensure_venv(Packages::Tests)?;
-    let table = format!(
-        "[{}]",
-        layers
-            .iter()
-            .map(|layer| format!("[\"{}\"]", layer.join("\",\"")))
-            .collect::<Vec<_>>()
-            .join(",")
-    );
-    let out = Command::new(python)
-        .current_dir(root())
-        .arg("xtask/python/package_shape.py")
-        .arg(folder.trim_end_matches('/'))
-        .arg(table)
-        .output()
-        .map_err(|e| format!("package_shape.py: {e}"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "package_shape.py on {folder} failed: {}",
-            String::from_utf8_lossy(&out.stderr)
+    let facts = output_of(
+        Command::new(python)
+            .current_dir(root())
+            .arg("xtask/python/package_shape.py")
+            .arg(folder.trim_end_matches('/')),
+    )?;
+    let mut problems = Vec::new();
+    let mut files = BTreeMap::new();
+    let mut imports: BTreeMap<String, Vec<(usize, String)>> = BTreeMap::new();
+    for line in facts.lines() {
+        let fact: Vec<&str> = line.split('\t').collect();
+        let number = |k: usize| fact.get(k).and_then(|v| v.parse::<usize>().ok());
+        match (fact.as_slice(), number(2), number(3), number(4)) {
+            (["module", name, path, _], _, Some(lines), _) => {
+                files.insert(name.to_string(), path.to_string());
+                imports.entry(name.to_string()).or_default();
+                problems.extend(crate::sizes::file_too_long(path, lines));
+            }
+            (["import", name, _, target], Some(at), _, _) => imports
+                .entry(name.to_string())
+                .or_default()
+                .push((at, target.to_string())),
+            (["function", path, _, function, _], Some(at), _, Some(length)) => {
+                problems.extend(crate::sizes::function_too_long(path, at, function, length))
+            }
+            _ => {
+                return Err(format!(
+                    "package_shape.py: a fact tidy cannot read: {line:?}"
+                ))
+            }
+        }
+    }
+    let mut graph = BTreeMap::new();
+    for (module, found) in &imports {
+        let file = files.get(module).map_or(module.as_str(), String::as_str);
+        problems.extend(crate::layers::imports_up(
+            layers,
+            file,
+            module,
+            found.iter().cloned(),
+        ));
+        graph.insert(
+            module.clone(),
+            found.iter().map(|(_, target)| target.clone()).collect(),
+        );
+    }
+    for circle in crate::layers::circles(&graph) {
+        problems.push(format!(
+            "{folder}: modules import each other round a circle: {}",
+            circle.join(", ")
         ));
     }
-    Ok(String::from_utf8_lossy(&out.stdout)
-        .lines()
-        .map(str::to_string)
-        .collect())
+    Ok(problems)
 }
 
 /// What a part of the product does not know, as ARCHITECTURE.md says, by the paths its
