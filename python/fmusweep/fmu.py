@@ -58,12 +58,11 @@ def local_runner(fmu: Archive) -> NativeRunner:
             archive.extractall(directory)
         # Executable bits are not kept by zipfile; shared libraries load without them.
         runner = NativeRunner(directory)
-    except RunnerError as e:
+    except BaseException as e:
         shutil.rmtree(directory, ignore_errors=True)
-        # The unpacked folder is this process's affair: the archive's own paths are named.
-        raise RunnerError(str(e).replace(f"{directory}{os.sep}", "")) from None
-    except BaseException:
-        shutil.rmtree(directory, ignore_errors=True)
+        if isinstance(e, RunnerError):
+            # The unpacked folder is this process's affair: the archive's own paths are named.
+            raise RunnerError(str(e).replace(f"{directory}{os.sep}", "")) from None
         raise
     _RUNNERS[fmu.sha256] = (directory, runner)
     return runner

@@ -26,9 +26,9 @@ __all__ = ["show_sweep", "show_fit"]
 def show_sweep(out: pathlib.Path, design: Design, points: pd.DataFrame, metrics: list[str],
                indices: dict[str, Any]) -> tuple[list[pathlib.Path], pathlib.Path]:
     """A sweep's pictures and report, beside its results in `out`."""
-    pictures = sweep_pictures(design, points, metrics, indices, out / "plots")
-    report = sweep_report(out, design.names, points, metrics, charts(design.kind, indices),
-                          first_series(out, points))
+    drawn = charts(design.kind, indices)
+    pictures = sweep_pictures(design, points, metrics, drawn, out / "plots")
+    report = sweep_report(out, design.names, points, metrics, drawn, first_series(out, points))
     return pictures, report
 
 

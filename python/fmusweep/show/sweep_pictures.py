@@ -28,12 +28,13 @@ def _failed_note(points: pd.DataFrame) -> str:
 
 
 def sweep_pictures(design: Design, points: pd.DataFrame, metric_names: list[str],
-             sensitivity: dict[str, Any], out: pathlib.Path) -> list[pathlib.Path]:
+                   charts: list[IndexChart], out: pathlib.Path) -> list[pathlib.Path]:
+    """The metrics against the design's columns as its kind draws them, and each chart of
+    its indices."""
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
     varying = [n for n in design.names if points[n].nunique() > 1]
-    kind = kind_of(design.kind)
-    view = kind.metric_view(len(varying)) if varying else "none"
+    view = kind_of(design.kind).metric_view(len(varying)) if varying else "none"
     written = []
     if view == "lines":
         written.append(_lines(points, varying[0], metric_names, out / "metrics.png"))
@@ -41,10 +42,8 @@ def sweep_pictures(design: Design, points: pd.DataFrame, metric_names: list[str]
         written += [_heatmap(points, varying, m, out / f"heatmap_{m}.png") for m in metric_names]
     elif view == "scatter":
         written.append(_scatter_matrix(points, varying, metric_names, out / "scatter.png"))
-    for metric, found in sensitivity.items():
-        if kind.chart is not None and "names" in found:
-            chart = kind.chart(metric, found)
-            written.append(_index_chart(chart, out / f"{design.kind}_{chart.metric}.png"))
+    written += [_index_chart(chart, out / f"{design.kind}_{chart.metric}.png")
+                for chart in charts]
     return written
 
 
