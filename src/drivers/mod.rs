@@ -23,7 +23,7 @@ pub use cosimulation::CoSimulation;
 pub use model_exchange::Exchange;
 
 use crate::model::ModelError;
-use crate::plant::{Activity, SolverKind};
+use crate::plant::{Activity, Plant, SolverKind};
 use integrators::text::number;
 use integrators::{Choice, Method, Statistics};
 
@@ -50,10 +50,17 @@ pub fn activity(statistics: Statistics, method: Method) -> Activity {
     }
 }
 
-/// The statistics outputs before an integrator for `kind` has run: no work, and the
-/// method it would start with.
-pub fn idle_activity(kind: SolverKind) -> Activity {
-    activity(Statistics::default(), method_choice(kind).first_method())
+/// What the statistics outputs show: a started co-simulation `driver`'s work; without
+/// one (before the start, or in Model Exchange) no work, and the method `solver` names
+/// first.
+pub fn activity_of(plant: &Plant, driver: Option<&CoSimulation>) -> Activity {
+    match driver {
+        Some(driver) => driver.activity(),
+        None => activity(
+            Statistics::default(),
+            method_choice(plant.solver_kind()).first_method(),
+        ),
+    }
 }
 
 /// Relative tolerance when the master gives none (the DefaultExperiment's).

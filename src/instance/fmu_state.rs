@@ -82,13 +82,13 @@ impl FmuState {
         self.driver.interface()
     }
 
-    /// What the statistics outputs show: the co-simulation integrator's work, or none in
-    /// Model Exchange (where the method shown is the one `solver` names first).
+    /// What the statistics outputs show ([`drivers::activity_of`]).
     pub(super) fn activity(&self) -> Activity {
-        match &self.driver {
-            Driver::CoSimulation(Some(driver)) => driver.activity(),
-            _ => drivers::idle_activity(self.plant.solver_kind()),
-        }
+        let driver = match &self.driver {
+            Driver::CoSimulation(Some(driver)) => Some(driver),
+            _ => None,
+        };
+        drivers::activity_of(&self.plant, driver)
     }
 
     /// The versioned, position-independent byte form (framed by [`state_frame`]).

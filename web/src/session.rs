@@ -6,11 +6,11 @@
 
 use cyclic_mechanism::drivers::events::{EventHandling, Happening, StepEnd};
 use cyclic_mechanism::drivers::master_step;
-use cyclic_mechanism::drivers::{CoSimulation, Experiment, DEFAULT_TOLERANCE};
+use cyclic_mechanism::drivers::{self, CoSimulation, Experiment, DEFAULT_TOLERANCE};
 use cyclic_mechanism::model::linkage::LINKAGE_CLASSES;
 use cyclic_mechanism::model::params::Rule;
 use cyclic_mechanism::model::{self, PARAMETERS};
-use cyclic_mechanism::plant::{Activity, Plant, Value};
+use cyclic_mechanism::plant::{Plant, Value};
 use cyclic_mechanism::variables::{self, Causality, Slot, Twin, VarType, Variable};
 use integrators::text::number;
 
@@ -139,10 +139,7 @@ impl Session {
 
     /// The value of variable `vr` now, as a number (a Boolean as 1 or 0).
     pub fn get(&self, vr: u32) -> Result<f64, String> {
-        let activity = self
-            .driver
-            .as_ref()
-            .map_or_else(Activity::idle, CoSimulation::activity);
+        let activity = drivers::activity_of(&self.plant, self.driver.as_ref());
         match self.plant.get(vr, &activity).map_err(|e| e.to_string())? {
             Value::Real(x) => Ok(x),
             Value::Integer(n) => Ok(f64::from(n)),
@@ -477,5 +474,14 @@ mod tests {
             json.contains("\"group\":\"Built-in laws\",\"span\":[-5,5]"),
             "{json}"
         );
+    }
+
+    /// The statistics read as the FMU's do: before the start the method `solver` names.
+    #[test]
+    fn the_active_solver_before_the_start_is_the_one_chosen() {
+        let mut s = Session::new();
+        s.set(vr("solver"), 3.0).unwrap();
+        assert_eq!(s.get(vr("active_solver")).unwrap(), 3.0);
+        assert_eq!(s.get(vr("n_steps")).unwrap(), 0.0);
     }
 }
