@@ -42,6 +42,11 @@ pub struct Variable {
     /// The element that declares the type, as the standard names it (`Real`, `Float64`,
     /// `Int64`, …; an array's with `[]`).
     pub fmi_type: String,
+    /// The state this variable is the time derivative of (its `derivative` attribute):
+    /// FMI 2.0's 1-based variable index while reading, the state's value reference once
+    /// read; FMI 3.0's value reference.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub derivative_of: Option<u32>,
     /// An Enumeration's items by name, from its declared type: what a spec may set it by.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub items: BTreeMap<String, i64>,
@@ -134,6 +139,20 @@ pub struct Description {
     /// The outputs of the model structure, each with the variables it depends on directly
     /// (`None`: on every input, as the standard says of an output without a list).
     pub output_dependencies: Vec<OutputDependencies>,
+    /// The continuous states in the order Model Exchange's state vector has them (the
+    /// model structure's derivatives), each with its derivative; shorter than
+    /// `continuous_states` when a derivative does not name its state.
+    pub states: Vec<ContinuousState>,
+    /// Whether the Model Exchange interface gives directional derivatives
+    /// (providesDirectionalDerivative, FMI 3.0's providesDirectionalDerivatives).
+    pub exchange_directional_derivatives: bool,
+}
+
+/// A continuous state and its derivative, by value reference.
+#[derive(Clone, Copy, Debug, Default, Serialize, PartialEq, Eq)]
+pub struct ContinuousState {
+    pub value_reference: u32,
+    pub derivative: u32,
 }
 
 /// An output of the model structure and what it depends on directly, by value reference.
@@ -188,10 +207,12 @@ impl Description {
             mut description,
             enumerations,
             fmi2_outputs,
+            derivatives,
             ..
         } = parse;
         enumerations.give_items(&mut description.variables);
         description.resolve_fmi2_outputs(&fmi2_outputs)?;
+        description.resolve_states(&derivatives);
         match description.fmi_version.as_str() {
             "2.0" => {}
             v if v.starts_with("3.") => description.refuse_clocks()?,
@@ -235,6 +256,41 @@ impl Description {
         }
         self.output_dependencies.extend(resolved);
         Ok(())
+    }
+
+    /// The states, from their derivatives (FMI 2.0: by 1-based variable index, FMI 3.0:
+    /// by value reference), each derivative's `derivative` attribute naming its state.
+    fn resolve_states(&mut self, derivatives: &[u32]) {
+        let fmi2 = self.fmi_version == "2.0";
+        if fmi2 {
+            let variables = self.variables.clone();
+            for variable in &mut self.variables {
+                variable.derivative_of = variable
+                    .derivative_of
+                    .and_then(|i| variables.get((i as usize).checked_sub(1)?))
+                    .map(|state| state.value_reference);
+            }
+        }
+        for &derivative in derivatives {
+            let found = if fmi2 {
+                (derivative as usize)
+                    .checked_sub(1)
+                    .and_then(|i| self.variables.get(i))
+            } else {
+                self.variables
+                    .iter()
+                    .find(|v| v.value_reference == derivative)
+            };
+            let Some((derivative, Some(state))) =
+                found.map(|v| (v.value_reference, v.derivative_of))
+            else {
+                break;
+            };
+            self.states.push(ContinuousState {
+                value_reference: state,
+                derivative,
+            });
+        }
     }
 
     fn read_root(&mut self, e: &BytesStart) -> Result<(), String> {
@@ -312,6 +368,7 @@ fn variable(e: &BytesStart, base_type: BaseType, fmi_type: &str) -> Result<Varia
         declared_type: None,
         description: attribute(e, "description")?,
         fmi_type: fmi_type.into(),
+        derivative_of: None,
         items: BTreeMap::new(),
         name,
     })
@@ -343,7 +400,15 @@ fn fmi3_variable(e: &BytesStart, tag: &[u8]) -> Result<Variable, String> {
     variable.min = attribute(e, "min")?;
     variable.max = attribute(e, "max")?;
     variable.declared_type = attribute(e, "declaredType")?;
+    variable.derivative_of = optional_number(e, "derivative")?;
     Ok(variable)
+}
+
+/// An attribute that, where present, must be a whole number ≥ 0.
+fn optional_number(e: &BytesStart, name: &str) -> Result<Option<u32>, String> {
+    attribute(e, name)?
+        .map(|v| whole_number(Some(v), name))
+        .transpose()
 }
 
 /// An attribute that must be a whole number ≥ 0 of type `T`.
@@ -390,6 +455,9 @@ struct Parse {
     /// (and dependencies) by index, resolved once every variable is read.
     in_outputs: bool,
     fmi2_outputs: Vec<(usize, Option<Vec<usize>>)>,
+    /// The derivatives of the model structure: FMI 2.0's indices, FMI 3.0's value
+    /// references.
+    derivatives: Vec<u32>,
     /// The variable being read: an FMI 2.0 <ScalarVariable> takes its type from its child
     /// element; an FMI 3.0 one may have <Dimension> (an array) and <Alias> children.
     open: Option<Variable>,
@@ -413,11 +481,24 @@ impl Parse {
             b"CoSimulation" => description.read_co_simulation(e)?,
             b"ModelExchange" => {
                 description.has_model_exchange = true;
+                description.exchange_directional_derivatives = attribute(
+                    e,
+                    if fmi3 {
+                        "providesDirectionalDerivatives"
+                    } else {
+                        "providesDirectionalDerivative"
+                    },
+                )?
+                .is_some_and(|v| v == "true");
                 description.exchange_identifier = attribute(e, "modelIdentifier")?;
             }
             b"Derivatives" if !fmi3 => self.in_derivatives = !empty,
             b"Outputs" if !fmi3 => self.in_outputs = !empty,
-            b"Unknown" if self.in_derivatives => description.continuous_states += 1,
+            b"Unknown" if self.in_derivatives => {
+                description.continuous_states += 1;
+                self.derivatives
+                    .push(whole_number(attribute(e, "index")?, "Unknown index")?);
+            }
             b"Unknown" if self.in_outputs => {
                 let index = whole_number(attribute(e, "index")?, "Unknown index")?;
                 let dependencies = whole_numbers(attribute(e, "dependencies")?)?;
@@ -434,6 +515,10 @@ impl Parse {
             }
             b"ContinuousStateDerivative" if fmi3 && !self.in_variables => {
                 description.continuous_states += 1;
+                self.derivatives.push(whole_number(
+                    attribute(e, "valueReference")?,
+                    "ContinuousStateDerivative valueReference",
+                )?);
             }
             b"EventIndicator" if fmi3 && !self.in_variables => {
                 description.event_indicators += 1;
@@ -471,6 +556,7 @@ impl Parse {
                     variable.min = attribute(e, "min")?;
                     variable.max = attribute(e, "max")?;
                     variable.declared_type = attribute(e, "declaredType")?;
+                    variable.derivative_of = optional_number(e, "derivative")?;
                 }
             }
             _ => {}
@@ -580,6 +666,44 @@ mod tests {
             (BaseType::Enumeration, Some(&-3))
         );
         assert!(d.variable("y").unwrap_err().contains("\"y\""));
+    }
+
+    /// The mechanism's own descriptions, both versions: the same six states in the same
+    /// order, each with its derivative, and directional derivatives under Model Exchange.
+    #[test]
+    fn reads_the_states_and_their_derivatives() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../modelDescription");
+        let names = |d: &Description| -> Vec<(String, String)> {
+            let name = |vr: u32| {
+                d.variables
+                    .iter()
+                    .find(|v| v.value_reference == vr)
+                    .map(|v| v.name.clone())
+                    .unwrap()
+            };
+            d.states
+                .iter()
+                .map(|s| (name(s.value_reference), name(s.derivative)))
+                .collect()
+        };
+        let fmi2 = Description::read(&root).unwrap();
+        let fmi3 = Description::read(&root.join("fmi3")).unwrap();
+        let expected: Vec<(String, String)> = [
+            "phi1",
+            "loop_angle",
+            "phi4",
+            "omega1",
+            "loop_speed",
+            "omega4",
+        ]
+        .iter()
+        .map(|s| (s.to_string(), format!("der({s})")))
+        .collect();
+        for d in [&fmi2, &fmi3] {
+            assert_eq!(names(d), expected);
+            assert_eq!(d.states.len(), d.continuous_states);
+            assert!(d.exchange_directional_derivatives);
+        }
     }
 
     #[test]

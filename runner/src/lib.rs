@@ -10,6 +10,8 @@
 
 pub mod archive;
 pub mod coupling;
+pub mod cycle;
+pub mod cycle_plan;
 pub mod description;
 pub mod exchange;
 pub mod fmi;

@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 
 use serde::Deserialize;
 
+use crate::cycle_plan::{CyclePlan, CycleSpec};
 use crate::description::{BaseType, Description, Variable};
 use crate::metrics::{Accumulator, Kind, WINDOW_SLACK};
 
@@ -29,6 +30,9 @@ pub struct PlanSpec {
     pub interface: Option<String>,
     /// `dop853` (the default) or `radau5`: what integrates a Model Exchange FMU.
     pub integrator: Option<String>,
+    /// The steady cycle: found by shooting instead of run to `stop` (which bounds the
+    /// transient it starts from), its metrics over one cycle.
+    pub cycle: Option<CycleSpec>,
 }
 
 /// A piecewise-linear signal, held beyond its ends; one point makes a constant.
@@ -153,6 +157,7 @@ pub struct Plan {
     pub metrics: Vec<(usize, Accumulator)>,
     pub series: Option<(Vec<usize>, u64)>,
     pub timeout_s: Option<f64>,
+    pub cycle: Option<CyclePlan>,
 }
 
 /// Start, stop, step and the number of communication steps, each checked.
@@ -276,6 +281,24 @@ impl Plan {
             .map(|(name, table)| resolve_input(description, &name, table))
             .collect::<Result<Vec<_>, _>>()?;
         let reads = Reads::resolve(&spec, description, (start, stop, step))?;
+        let cycle = match spec.cycle.take() {
+            None => None,
+            Some(cycle) => {
+                if let Some(input) = inputs.iter().find(|i| i.table.times.len() > 1) {
+                    return Err(format!(
+                        "cycle: a steady cycle needs constant inputs; input {:?} is a table \
+                         of {} points",
+                        description
+                            .variables
+                            .iter()
+                            .find(|v| v.value_reference == input.value_reference)
+                            .map_or("?", |v| v.name.as_str()),
+                        input.table.times.len()
+                    ));
+                }
+                Some(CyclePlan::resolve(cycle, description)?)
+            }
+        };
         Ok(Plan {
             start,
             stop,
@@ -289,6 +312,7 @@ impl Plan {
             metrics: reads.metrics,
             series: reads.series,
             timeout_s: spec.timeout_s,
+            cycle,
         })
     }
 

@@ -5,6 +5,7 @@
 use std::time::Instant;
 
 use crate::coupling::CouplingRecord;
+use crate::cycle::{self, CycleRecord, Shot, Start};
 use crate::description::Description;
 use crate::fmi::Status;
 use crate::messages;
@@ -22,6 +23,8 @@ pub enum Outcome {
     Error,
     /// Over the per-point wall-time budget.
     Timeout,
+    /// No steady cycle: none exists, or the shooting did not find it (the message says).
+    NoCycle,
 }
 
 impl Outcome {
@@ -31,6 +34,7 @@ impl Outcome {
             Outcome::Discard => "discard",
             Outcome::Error => "error",
             Outcome::Timeout => "timeout",
+            Outcome::NoCycle => "no_cycle",
         }
     }
 }
@@ -49,6 +53,8 @@ pub struct PointResult {
     pub series: Vec<f64>,
     /// What the steps reported of the coupling (a system with a coupling tolerance).
     pub coupling: Option<CouplingRecord>,
+    /// The steady cycle, when the plan asks for one.
+    pub cycle: Option<CycleRecord>,
 }
 
 /// The values one request sets at every point, by type, with the point's own columns.
@@ -166,6 +172,8 @@ pub struct Runner {
     integers: Vec<i32>,
     booleans: Vec<i32>,
     read: Vec<f64>,
+    /// The last steady cycle found: the next point's shooting starts from it.
+    last_cycle: Option<Shot>,
 }
 
 /// A failed FMI call: the outcome it maps to and what the FMU said.
@@ -195,6 +203,7 @@ impl Runner {
             integers: Vec::new(),
             booleans: Vec::new(),
             read: Vec::new(),
+            last_cycle: None,
         }
     }
 
@@ -381,6 +390,45 @@ impl Runner {
         Ok(())
     }
 
+    /// The point's steady cycle, by shooting from its initial state (or from the last
+    /// point's cycle): its metrics are the cycle's.
+    fn steady_cycle(
+        &mut self,
+        plan: &Plan,
+        assignments: &mut Assignments,
+        row: &[f64],
+        result: &mut PointResult,
+    ) -> Result<(), Stop> {
+        self.prepare(plan, assignments, row, true)?;
+        let cycle_plan = plan.cycle.as_ref().expect("a cycle plan");
+        let Some(Running::Exchange(run)) = self.instance.as_mut() else {
+            return Err(Stop(
+                Outcome::Error,
+                "a steady cycle is found through the Model Exchange interface".into(),
+            ));
+        };
+        let (fmu, t, x, nominals, indicators) = run.parts();
+        let start = Start {
+            fmu,
+            t,
+            x,
+            nominals,
+            indicators,
+        };
+        let tolerance = plan.tolerance.unwrap_or(crate::exchange::DEFAULT_TOLERANCE);
+        let budget = plan.stop - plan.start;
+        match cycle::analyse(start, cycle_plan, tolerance, budget, self.last_cycle.as_ref()) {
+            Ok((record, shot)) => {
+                result.metrics = record.metrics.iter().map(|&m| Some(m)).collect();
+                result.t_end = t + shot.period;
+                result.cycle = Some(record);
+                self.last_cycle = Some(shot);
+                Ok(())
+            }
+            Err(why) => Err(Stop(Outcome::NoCycle, why)),
+        }
+    }
+
     pub fn run_point(
         &mut self,
         plan: &mut Plan,
@@ -402,12 +450,18 @@ impl Runner {
             wall_s: 0.0,
             series: Vec::new(),
             coupling: None,
+            cycle: None,
         };
-        let ended = self.simulate(plan, assignments, row, &mut result, started);
+        let ended = if plan.cycle.is_some() {
+            self.steady_cycle(plan, assignments, row, &mut result)
+        } else {
+            self.simulate(plan, assignments, row, &mut result, started)
+        };
         result.coupling = self.instance.as_ref().and_then(Unit::coupling);
         result.events = self.instance.as_ref().map_or(0, Unit::events);
         let said = messages::take();
         match ended {
+            Ok(()) if plan.cycle.is_some() => result.message = said,
             Ok(()) => {
                 result.metrics = plan.metrics.iter().map(|(_, a)| a.value()).collect();
                 result.message = said;

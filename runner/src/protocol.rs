@@ -92,6 +92,15 @@ impl Session {
     fn choose_interface(&mut self, plan: &PlanSpec) -> Result<(), String> {
         let method = method_named(plan.integrator.as_deref())?;
         let wanted = match plan.interface.as_deref() {
+            Some(name) if plan.cycle.is_some() && name != "model_exchange" => {
+                return Err(format!(
+                    "cycle: a steady cycle is found through the Model Exchange interface, \
+                     not {name:?}"
+                ))
+            }
+            None if plan.cycle.is_some() && self.interface.is_some() => {
+                Interface::ModelExchange
+            }
             Some(name) => Interface::from_name(name)?,
             None if self.interface.is_none() => return Ok(()),
             None => Interface::default_for(&self.description),
@@ -213,6 +222,7 @@ impl Session {
                     "wall_s": r.wall_s,
                     "series_rows": r.series.len().checked_div(width).unwrap_or(0),
                     "coupling": r.coupling,
+                    "cycle": r.cycle,
                 }),
             )?;
             if !r.series.is_empty() {

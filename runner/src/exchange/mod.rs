@@ -532,6 +532,19 @@ impl Unit for ExchangeRun {
 }
 
 impl ExchangeRun {
+    /// The instance as initialised, in continuous-time mode, for an analysis of its own:
+    /// the instance, its time and states now, the states' nominals and how many event
+    /// indicators it has.
+    pub fn parts(&mut self) -> (&mut Instance, f64, Vec<f64>, &[f64], usize) {
+        (
+            &mut self.fmu,
+            self.now,
+            self.x.clone(),
+            &self.nominals,
+            self.shape.indicators,
+        )
+    }
+
     /// The initial event iteration: the states as initialised.
     fn settle_initial(&mut self) -> Status {
         let s = self.fmu.get_continuous_states(&mut self.x);

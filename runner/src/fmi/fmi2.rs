@@ -251,6 +251,33 @@ impl Instance {
         })
     }
 
+    /// fmi2GetDirectionalDerivative: `sensitivity` = ∂unknowns/∂knowns · `seed`; Error
+    /// when the FMU does not export the function.
+    pub fn get_directional_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Status {
+        assert!(knowns.len() == seed.len() && unknowns.len() == sensitivity.len());
+        let Ok(get) = self.b().fmi2GetDirectionalDerivative.as_ref() else {
+            return Status::Error;
+        };
+        // SAFETY: each array holds the length passed with it; a live component.
+        Status::from_code(unsafe {
+            get(
+                self.component,
+                unknowns.as_ptr(),
+                unknowns.len(),
+                knowns.as_ptr(),
+                knowns.len(),
+                seed.as_ptr(),
+                sensitivity.as_mut_ptr(),
+            )
+        })
+    }
+
     /// fmi2SetRealInputDerivatives of input `vr`, orders 1 to `values.len()` (at most 2);
     /// Error when the FMU does not export the function.
     pub fn set_input_derivatives(&mut self, vr: u32, values: &[f64]) -> Status {

@@ -285,6 +285,12 @@ impl Instance {
     each_call!(each_version);
     each_version!(
         get_output_derivatives(vr: u32, values: &mut [f64]),
+        get_directional_derivative(
+            unknowns: &[u32],
+            knowns: &[u32],
+            seed: &[f64],
+            sensitivity: &mut [f64]
+        ),
         set_input_derivatives(vr: u32, values: &[f64]),
         save_state(),
         restore_state(),

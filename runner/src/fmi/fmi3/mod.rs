@@ -319,6 +319,35 @@ impl Instance {
         })
     }
 
+    /// fmi3GetDirectionalDerivative: `sensitivity` = ∂unknowns/∂knowns · `seed` (scalar
+    /// variables only); Error when the FMU does not export the function.
+    pub fn get_directional_derivative(
+        &mut self,
+        unknowns: &[u32],
+        knowns: &[u32],
+        seed: &[f64],
+        sensitivity: &mut [f64],
+    ) -> Status {
+        assert!(knowns.len() == seed.len() && unknowns.len() == sensitivity.len());
+        let Ok(get) = self.b().fmi3GetDirectionalDerivative.as_ref() else {
+            return Status::Error;
+        };
+        // SAFETY: each array holds the length passed with it; a live instance.
+        Status::from_code(unsafe {
+            get(
+                self.instance,
+                unknowns.as_ptr(),
+                unknowns.len(),
+                knowns.as_ptr(),
+                knowns.len(),
+                seed.as_ptr(),
+                seed.len(),
+                sensitivity.as_mut_ptr(),
+                sensitivity.len(),
+            )
+        })
+    }
+
     /// FMI 3.0 has no input derivatives: always Error (a system never asks, as its
     /// library says it has none).
     pub fn set_input_derivatives(&mut self, _vr: u32, _values: &[f64]) -> Status {

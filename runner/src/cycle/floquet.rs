@@ -1,0 +1,183 @@
+//! What the monodromy says of a cycle's stability, and what the state equations'
+//! linearisation along it says of its modes.
+//!
+//! The monodromy Φ = ∂x(T)/∂x0 of an autonomous system's cycle has the eigenvalue 1 along
+//! the flow (Φ f = f): the Floquet multipliers that decide stability are the other n − 1,
+//! the eigenvalues of the section map's derivative P = (I − f e_kᵀ / f_k) Φ with row and
+//! column k (the cyclic state, fixed on the section) left out.
+
+use nalgebra::DMatrix;
+use serde::Serialize;
+
+/// A Floquet multiplier, with the states its eigenvector moves most.
+#[derive(Clone, Debug, Serialize)]
+pub struct Multiplier {
+    pub re: f64,
+    pub im: f64,
+    pub modulus: f64,
+    /// The states the multiplier's eigenvector moves most, largest first (each with its
+    /// share of the vector's length, scaled by the states' nominals).
+    pub states: Vec<(String, f64)>,
+}
+
+/// The multipliers of the section map, largest modulus first.
+pub fn multipliers(
+    phi: &[f64],
+    f: &[f64],
+    k: usize,
+    names: &[String],
+    nominals: &[f64],
+) -> Vec<Multiplier> {
+    let n = f.len();
+    let others: Vec<usize> = (0..n).filter(|&i| i != k).collect();
+    let m = others.len();
+    let mut p = DMatrix::<f64>::zeros(m, m);
+    for (a, &i) in others.iter().enumerate() {
+        for (b, &j) in others.iter().enumerate() {
+            // In the nominals' units, so that the eigenvectors compare states fairly.
+            p[(a, b)] =
+                (phi[i * n + j] - f[i] * phi[k * n + j] / f[k]) * nominals[j] / nominals[i];
+        }
+    }
+    let values = p.clone().complex_eigenvalues();
+    let mut found: Vec<Multiplier> = values
+        .iter()
+        .map(|z| {
+            let vector = eigenvector(&p, z.re, z.im);
+            let total: f64 = vector.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+            let mut states: Vec<(String, f64)> = others
+                .iter()
+                .zip(&vector)
+                .map(|(&i, &w)| (names[i].clone(), w / total))
+                .collect();
+            states.sort_by(|a, b| b.1.total_cmp(&a.1));
+            states.truncate(2);
+            Multiplier {
+                re: z.re,
+                im: z.im,
+                modulus: z.re.hypot(z.im),
+                states,
+            }
+        })
+        .collect();
+    found.sort_by(|a, b| b.modulus.total_cmp(&a.modulus).then(b.im.total_cmp(&a.im)));
+    found
+}
+
+/// The squared moduli of the components of an eigenvector of `p` for λ = re + i·im, by
+/// inverse iteration on (P − λ I) in real form.
+fn eigenvector(p: &DMatrix<f64>, re: f64, im: f64) -> Vec<f64> {
+    let m = p.nrows();
+    // [[P − re I, im I], [−im I, P − re I]] acting on (u, v), z = u + i v.
+    let shift = 1e-10 * (1.0 + re.hypot(im));
+    let mut big = DMatrix::<f64>::zeros(2 * m, 2 * m);
+    for a in 0..m {
+        for b in 0..m {
+            big[(a, b)] = p[(a, b)];
+            big[(m + a, m + b)] = p[(a, b)];
+        }
+        big[(a, a)] -= re + shift;
+        big[(m + a, m + a)] -= re + shift;
+        big[(a, m + a)] = im;
+        big[(m + a, a)] = -im;
+    }
+    let lu = big.lu();
+    let mut z = nalgebra::DVector::<f64>::from_element(2 * m, 1.0);
+    for _ in 0..3 {
+        match lu.solve(&z) {
+            Some(next) if next.iter().all(|x| x.is_finite()) => {
+                let norm = next.norm();
+                if norm == 0.0 {
+                    break;
+                }
+                z = next / norm;
+            }
+            _ => break,
+        }
+    }
+    (0..m).map(|a| z[a] * z[a] + z[m + a] * z[m + a]).collect()
+}
+
+/// What the multipliers say: stable when every one lies inside the unit circle by more
+/// than `band`, unstable when one lies outside by more, marginal between; and the margin,
+/// 1 − the largest modulus.
+pub fn stability(multipliers: &[Multiplier], band: f64) -> (&'static str, f64) {
+    let largest = multipliers.first().map_or(0.0, |m| m.modulus);
+    let margin = 1.0 - largest;
+    let verdict = if margin > band {
+        "stable"
+    } else if margin < -band {
+        "unstable"
+    } else {
+        "marginal"
+    };
+    (verdict, margin)
+}
+
+/// A mode of the state equations linearised at one point: an eigenvalue of A.
+#[derive(Clone, Debug, Serialize)]
+pub struct Mode {
+    /// Its frequency, |Im λ| / 2π (Hz), and damping ratio, −Re λ / |λ|.
+    pub frequency: f64,
+    pub damping: f64,
+    pub re: f64,
+    pub im: f64,
+}
+
+/// The oscillating modes of A (row-major, n × n): one per complex pair, by frequency.
+pub fn modes(a: &[f64], n: usize) -> Vec<Mode> {
+    let matrix = DMatrix::from_row_slice(n, n, a);
+    let mut found: Vec<Mode> = matrix
+        .complex_eigenvalues()
+        .iter()
+        .filter(|z| z.im > 0.0)
+        .map(|z| {
+            let modulus = z.re.hypot(z.im);
+            Mode {
+                frequency: z.im / std::f64::consts::TAU,
+                damping: -z.re / modulus,
+                re: z.re,
+                im: z.im,
+            }
+        })
+        .collect();
+    found.sort_by(|a, b| a.frequency.total_cmp(&b.frequency));
+    found
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A damped oscillator's flow over T, with a trivial cyclic state beside it: the
+    /// multipliers are e^{λT} of the oscillator's eigenvalues.
+    #[test]
+    fn multipliers_of_a_known_flow() {
+        let (zeta, omega, t): (f64, f64, f64) = (0.1, 2.0, 0.7);
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -omega * omega, -2.0 * zeta * omega]);
+        let e = (a * t).exp();
+        // State 0 is the cyclic one (θ' = 1, independent of the rest).
+        let mut phi = vec![0.0; 9];
+        phi[0] = 1.0;
+        for i in 0..2 {
+            for j in 0..2 {
+                phi[(i + 1) * 3 + j + 1] = e[(i, j)];
+            }
+        }
+        let names: Vec<String> = ["theta", "x", "v"].iter().map(|s| s.to_string()).collect();
+        let found = multipliers(&phi, &[1.0, 0.3, -0.2], 0, &names, &[1.0; 3]);
+        let decay = (-zeta * omega * t).exp();
+        let turn = omega * (1.0 - zeta * zeta).sqrt() * t;
+        assert_eq!(found.len(), 2);
+        for m in &found {
+            assert!((m.modulus - decay).abs() < 1e-12, "{m:?}");
+            assert!((m.im.abs() - decay * turn.sin()).abs() < 1e-12);
+        }
+        assert_eq!(stability(&found, 1e-6).0, "stable");
+        let modes = modes(&[0.0, 1.0, -omega * omega, -2.0 * zeta * omega], 2);
+        assert_eq!(modes.len(), 1);
+        let expected = omega * (1.0 - zeta * zeta).sqrt() / std::f64::consts::TAU;
+        assert!((modes[0].frequency - expected).abs() < 1e-12);
+        assert!((modes[0].damping - zeta).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,234 @@
+//! The steady cycle of a point, found directly instead of waited for: the periodic
+//! steady state by shooting on the Model Exchange interface ([`shooting`], over legs of
+//! the flow in [`flow`]), its Floquet multipliers and the modes of the state equations
+//! linearised along it ([`floquet`]), and metrics of outputs over one cycle ([`measure`]).
+//! docs/cycle.md explains the method.
+
+mod flow;
+mod floquet;
+mod measure;
+mod shooting;
+
+use integrators::Tolerances;
+use serde::Serialize;
+
+use crate::cycle_plan::CyclePlan;
+use crate::fmi::Instance;
+pub use floquet::{Mode, Multiplier};
+use flow::{leg, End, Problem};
+pub use shooting::Shot;
+use shooting::{NoCycle, Shooting};
+
+/// The local error held by the cycle's integration, as a fraction of the plan's
+/// tolerance (the shooting converges to the tolerance itself, which the error of a whole
+/// cycle must stay below).
+const TOLERANCE_SAFETY: f64 = 1.0 / 30.0;
+
+/// A point's steady cycle, as the runner replies it.
+#[derive(Clone, Debug, Serialize)]
+pub struct CycleRecord {
+    pub period: f64,
+    /// The state on the section, in Model Exchange's order, and the states' names.
+    pub state: Vec<f64>,
+    pub state_names: Vec<String>,
+    /// The largest scaled component of x(T) − x0 − s.
+    pub residual: f64,
+    pub iterations: usize,
+    pub runs: usize,
+    /// Whether the shooting started from the previous point's cycle.
+    pub continued: bool,
+    pub multipliers: Vec<Multiplier>,
+    pub largest_multiplier: f64,
+    pub stability: &'static str,
+    /// 1 − the largest multiplier's modulus.
+    pub margin: f64,
+    pub metrics: Vec<f64>,
+    /// The modes at points along the cycle: the time into the cycle and the modes there.
+    pub modes: Vec<(f64, Vec<Mode>)>,
+    /// The kept variables at the samples: the times into the cycle, then a row each.
+    pub kept: Vec<Vec<f64>>,
+}
+
+/// The instance a cycle is found on: a Model Exchange FMU in continuous-time mode at
+/// `t`, its states `x`, nominals and event indicators.
+pub struct Start<'a> {
+    pub fmu: &'a mut Instance,
+    pub t: f64,
+    pub x: Vec<f64>,
+    pub nominals: &'a [f64],
+    pub indicators: usize,
+}
+
+/// The band around the unit circle within which a cycle is called marginal: what the
+/// multipliers' own error allows at this tolerance.
+fn marginal_band(tolerance: f64) -> f64 {
+    (1e3 * tolerance).clamp(1e-9, 1e-3)
+}
+
+/// The steady cycle from `start`: from `guess` (a neighbour's cycle) first where given;
+/// the transient may take `budget` of time to complete a cycle.
+pub fn analyse(
+    start: Start,
+    plan: &CyclePlan,
+    tolerance: f64,
+    budget: f64,
+    guess: Option<&Shot>,
+) -> Result<(CycleRecord, Shot), String> {
+    let internal = tolerance * TOLERANCE_SAFETY;
+    let mut problem = Problem {
+        fmu: start.fmu,
+        nominals: start.nominals,
+        states: &plan.states,
+        derivatives: &plan.derivatives,
+        indicators: start.indicators,
+        tolerances: Tolerances {
+            rtol: internal,
+            atol: internal,
+        },
+    };
+    let mut shooting = Shooting::new(plan, &mut problem, budget, tolerance);
+    let shot = shooting
+        .solve(start.t, &start.x, guess)
+        .map_err(|NoCycle(why)| why)?;
+    let continued = shooting.continued;
+    let multipliers = floquet::multipliers(
+        &shot.phi,
+        &shot.f,
+        plan.state,
+        &plan.state_names,
+        start.nominals,
+    );
+    let (stability, margin) = floquet::stability(&multipliers, marginal_band(tolerance));
+    let (metrics, kept) = along(&mut problem, plan, &shot)?;
+    let modes = modes_along(&mut problem, plan, &shot)?;
+    Ok((
+        CycleRecord {
+            period: shot.period,
+            state: shot.x0.clone(),
+            state_names: plan.state_names.clone(),
+            residual: shot.residual,
+            iterations: shot.iterations,
+            runs: shot.runs,
+            continued,
+            largest_multiplier: multipliers.first().map_or(0.0, |m| m.modulus),
+            multipliers,
+            stability,
+            margin,
+            metrics,
+            modes,
+            kept,
+        },
+        shot,
+    ))
+}
+
+/// The states at `count` evenly spaced times of the cycle (from its section).
+fn states_along(
+    problem: &mut Problem,
+    shot: &Shot,
+    count: usize,
+) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
+    let times: Vec<f64> = (0..count)
+        .map(|j| shot.period * j as f64 / count as f64)
+        .collect();
+    let later: Vec<f64> = times[1..].to_vec();
+    let run = leg(problem, shot.t0, &shot.x0, End::After(shot.period), false, &later)
+        .map_err(|e| format!("the cycle's samples: {e:?}"))?;
+    let mut states = vec![shot.x0.clone()];
+    states.extend(run.sampled);
+    Ok((times, states))
+}
+
+/// The metrics over the cycle, and the kept variables at its samples.
+fn along(
+    problem: &mut Problem,
+    plan: &CyclePlan,
+    shot: &Shot,
+) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
+    if plan.reads.is_empty() {
+        return Ok((Vec::new(), Vec::new()));
+    }
+    let (times, states) = states_along(problem, shot, plan.samples)?;
+    let mut columns = vec![Vec::with_capacity(times.len()); plan.reads.len()];
+    let mut row = vec![0.0; plan.reads.len()];
+    for (t, x) in times.iter().zip(&states) {
+        let fmu = &mut problem.fmu;
+        let s = fmu
+            .set_time(shot.t0 + t)
+            .max(fmu.set_continuous_states(x))
+            .max(fmu.get_real(&plan.reads, &mut row));
+        if !s.proceeds() {
+            return Err(format!("reading the outputs along the cycle returned {s:?}"));
+        }
+        if let Some(i) = row.iter().position(|v| !v.is_finite()) {
+            return Err(format!(
+                "the FMU reported {} = {} on the cycle with a successful status",
+                plan.read_names[i], row[i]
+            ));
+        }
+        for (column, v) in columns.iter_mut().zip(&row) {
+            column.push(*v);
+        }
+    }
+    let metrics = plan
+        .metrics
+        .iter()
+        .map(|&(slot, kind, order)| measure::metric(&columns[slot], kind, order))
+        .collect();
+    let mut kept = Vec::new();
+    if plan.kept > 0 {
+        kept.push(times);
+        let first = plan.reads.len() - plan.kept;
+        kept.extend(columns.into_iter().skip(first));
+    }
+    Ok((metrics, kept))
+}
+
+/// The modes of A = ∂f/∂x (the FMU's directional derivatives) at `plan.modes` evenly
+/// spaced times of the cycle.
+fn modes_along(
+    problem: &mut Problem,
+    plan: &CyclePlan,
+    shot: &Shot,
+) -> Result<Vec<(f64, Vec<Mode>)>, String> {
+    if plan.modes == 0 {
+        return Ok(Vec::new());
+    }
+    let n = shot.x0.len();
+    let (times, states) = states_along(problem, shot, plan.modes)?;
+    let mut found = Vec::with_capacity(times.len());
+    for (t, x) in times.iter().zip(&states) {
+        let a = jacobian(problem, shot.t0 + t, x)?;
+        found.push((*t, floquet::modes(&a, n)));
+    }
+    Ok(found)
+}
+
+/// A = ∂f/∂x at (t, x), row-major, a column per directional derivative.
+fn jacobian(problem: &mut Problem, t: f64, x: &[f64]) -> Result<Vec<f64>, String> {
+    let n = x.len();
+    let mut a = vec![0.0; n * n];
+    let (mut seed, mut column) = (vec![0.0; n], vec![0.0; n]);
+    let fmu = &mut problem.fmu;
+    let mut s = fmu.set_time(t).max(fmu.set_continuous_states(x));
+    for j in 0..n {
+        seed.fill(0.0);
+        seed[j] = 1.0;
+        s = s.max(fmu.get_directional_derivative(
+            problem.derivatives,
+            problem.states,
+            &seed,
+            &mut column,
+        ));
+        for i in 0..n {
+            a[i * n + j] = column[i];
+        }
+    }
+    if !s.proceeds() {
+        return Err(format!(
+            "the state equations' Jacobian along the cycle: the FMU returned {s:?} (modes \
+             need its directional derivatives)"
+        ));
+    }
+    Ok(a)
+}

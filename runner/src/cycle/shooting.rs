@@ -1,0 +1,335 @@
+//! The periodic steady state by shooting: a state x0 on the section (the cyclic state at
+//! a whole number of periods) and a period T such that the flow over T brings x0 back to
+//! itself with the cyclic state (and those shifted with it) advanced by one period.
+//! Newton's method on the n equations x(T; x0) − x0 − s = 0 in the n unknowns (x0 but its
+//! cyclic state, fixed on the section, and T): the Jacobian's columns are the monodromy's
+//! columns less the identity, and the state's derivative at the end for T.
+
+use nalgebra::{DMatrix, DVector};
+
+use super::flow::{leg, End, Leg, Problem, Stopped};
+use crate::cycle_plan::{CyclePlan, Monodromy};
+
+/// The most Newton iterations, and the most halvings of one Newton step.
+const MOST_ITERATIONS: usize = 30;
+const MOST_HALVINGS: usize = 8;
+/// Revolutions of the transient before Newton starts, at least, and until the period
+/// changes by less than this fraction from one to the next.
+const LEAST_WARM_UP: usize = 2;
+const WARM_UP_SETTLED: f64 = 1e-2;
+/// A central difference's step, as a fraction of a state's scale.
+const DIFFERENCE_STEP: f64 = 1e-5;
+
+/// A steady cycle found.
+#[derive(Clone, Debug)]
+pub struct Shot {
+    /// Its time at the section (where every run starts), its state there and its period.
+    pub t0: f64,
+    pub x0: Vec<f64>,
+    pub period: f64,
+    /// The largest scaled component of x(T) − x0 − s at the solution.
+    pub residual: f64,
+    /// ∂x(T)/∂x0 and f(x(T)) at the solution: the monodromy.
+    pub phi: Vec<f64>,
+    pub f: Vec<f64>,
+    pub iterations: usize,
+    /// Legs integrated (a leg is one run over a cycle or part of one), warm-up included.
+    pub runs: usize,
+}
+
+/// Why no cycle was found.
+pub struct NoCycle(pub String);
+
+/// The shooting of one point: its plan, the FMU, and the work spent.
+pub struct Shooting<'a, 'b> {
+    pub plan: &'a CyclePlan,
+    pub problem: &'a mut Problem<'b>,
+    /// The direction in which the cyclic state advances: +1 or −1.
+    direction: f64,
+    /// The largest time the transient may take to complete a cycle.
+    budget: f64,
+    /// Convergence: the scaled residual the integration can reach.
+    tolerance: f64,
+    pub runs: usize,
+    /// Whether the cycle was found from the guess.
+    pub continued: bool,
+}
+
+fn stopped(what: &str, e: Stopped, plan: &CyclePlan) -> NoCycle {
+    NoCycle(match e {
+        Stopped::Event(k, t) => format!(
+            "{what}: event indicator {k} changed sign {t:.6} s into the cycle (an event on the \
+             way, such as a change point: the cycle is not smooth, and the shooting does not \
+             cross events)"
+        ),
+        Stopped::NotReached => format!(
+            "{what}: {} did not advance by its period ({}) in the time allowed: the motion is \
+             not cyclic (it stopped or turned back)",
+            plan.state_names[plan.state], plan.period
+        ),
+        Stopped::Failed(why) => format!("{what}: {why}"),
+    })
+}
+
+impl<'a, 'b> Shooting<'a, 'b> {
+    pub fn new(
+        plan: &'a CyclePlan,
+        problem: &'a mut Problem<'b>,
+        budget: f64,
+        tolerance: f64,
+    ) -> Self {
+        Shooting {
+            plan,
+            problem,
+            direction: 1.0,
+            budget,
+            tolerance,
+            runs: 0,
+            continued: false,
+        }
+    }
+
+    fn leg(&mut self, t0: f64, x0: &[f64], end: End, variational: bool) -> Result<Leg, Stopped> {
+        self.runs += 1;
+        leg(self.problem, t0, x0, end, variational, &[])
+    }
+
+    /// The cycle, from the point's initial state `(t, x)`, or first from `guess` (a
+    /// neighbouring point's cycle: its state on the section and period) where given.
+    pub fn solve(&mut self, t: f64, x: &[f64], guess: Option<&Shot>) -> Result<Shot, NoCycle> {
+        let f = self.derivative(t, x)?;
+        let k = self.plan.state;
+        self.direction = if f[k] < 0.0 { -1.0 } else { 1.0 };
+        if let Some(guess) = guess {
+            if let Ok(shot) = self.newton(guess.t0, guess.x0.clone(), guess.period) {
+                self.continued = true;
+                return Ok(shot);
+            }
+        }
+        let (t0, x0, period) = self.warm_up(t, x)?;
+        self.newton(t0, x0, period)
+    }
+
+    fn derivative(&mut self, t: f64, x: &[f64]) -> Result<Vec<f64>, NoCycle> {
+        let mut f = vec![0.0; x.len()];
+        let fmu = &mut self.problem.fmu;
+        let s = fmu
+            .set_time(t)
+            .max(fmu.set_continuous_states(x))
+            .max(fmu.get_derivatives(&mut f));
+        if !s.proceeds() {
+            return Err(NoCycle(format!(
+                "the state's derivative at the start: the FMU returned {s:?}"
+            )));
+        }
+        Ok(f)
+    }
+
+    /// The transient, a cycle at a time, until its period settles: the state on the
+    /// section, its time, and the last cycle's period.
+    fn warm_up(&mut self, t: f64, x: &[f64]) -> Result<(f64, Vec<f64>, f64), NoCycle> {
+        let (k, p) = (self.plan.state, self.plan.period);
+        let next = |value: f64, direction: f64| {
+            let cycles = value / p;
+            p * if direction > 0.0 {
+                cycles.floor() + 1.0
+            } else {
+                cycles.ceil() - 1.0
+            }
+        };
+        let (mut t, mut x) = (t, x.to_vec());
+        let (mut previous, mut cycles, mut started) = (f64::NAN, 0, None);
+        let end_of_budget = t + self.budget;
+        loop {
+            let target = next(x[k], self.direction);
+            let within = end_of_budget - t;
+            let reached = self
+                .leg(t, &x, End::Reaching { index: k, value: target, within }, false)
+                .map_err(|e| stopped("the transient before the shooting", e, self.plan))?;
+            let mut x_next = reached.x;
+            x_next[k] = target;
+            t += reached.time;
+            x = x_next;
+            let Some(t_section) = started else {
+                started = Some(t);
+                continue;
+            };
+            let period = t - t_section;
+            started = Some(t);
+            cycles += 1;
+            if cycles >= LEAST_WARM_UP && (period - previous).abs() <= WARM_UP_SETTLED * period {
+                return Ok((t, x, period));
+            }
+            previous = period;
+        }
+    }
+
+    /// The scale of each state's residual: its nominal, or its size on the cycle (a
+    /// period for the cyclic states).
+    fn scales(&self, x0: &[f64]) -> Vec<f64> {
+        let plan = self.plan;
+        (0..x0.len())
+            .map(|i| {
+                let size = if i == plan.state || plan.shifted.contains(&i) {
+                    plan.period
+                } else {
+                    x0[i].abs()
+                };
+                self.problem.nominals[i].max(size)
+            })
+            .collect()
+    }
+
+    /// x(T) − x0 − s: the cyclic state and those shifted with it advanced by a period.
+    fn residual(&self, x0: &[f64], leg: &Leg) -> Vec<f64> {
+        let shift = self.direction * self.plan.period;
+        (0..x0.len())
+            .map(|i| {
+                let advanced = i == self.plan.state || self.plan.shifted.contains(&i);
+                leg.x[i] - x0[i] - if advanced { shift } else { 0.0 }
+            })
+            .collect()
+    }
+
+    fn norm(r: &[f64], scales: &[f64]) -> f64 {
+        r.iter().zip(scales).fold(0.0, |m, (r, s)| m.max(r.abs() / s))
+    }
+
+    /// One cycle's leg from (t0, x0) over `period`, with its monodromy.
+    fn shoot(&mut self, t0: f64, x0: &[f64], period: f64) -> Result<Leg, NoCycle> {
+        let what = "a run over the cycle";
+        match self.plan.monodromy {
+            Monodromy::Variational => self
+                .leg(t0, x0, End::After(period), true)
+                .map_err(|e| stopped(what, e, self.plan)),
+            Monodromy::Differences => {
+                let mut leg = self
+                    .leg(t0, x0, End::After(period), false)
+                    .map_err(|e| stopped(what, e, self.plan))?;
+                leg.phi = Some(self.differences(t0, x0, period)?);
+                Ok(leg)
+            }
+        }
+    }
+
+    /// ∂x(T)/∂x0 by central differences, a pair of runs per state.
+    pub fn differences(&mut self, t0: f64, x0: &[f64], period: f64) -> Result<Vec<f64>, NoCycle> {
+        let n = x0.len();
+        let scales = self.scales(x0);
+        let mut phi = vec![0.0; n * n];
+        for j in 0..n {
+            let h = DIFFERENCE_STEP * scales[j];
+            let mut ends = [Vec::new(), Vec::new()];
+            for (side, sign) in [1.0, -1.0].into_iter().enumerate() {
+                let mut x = x0.to_vec();
+                x[j] += sign * h;
+                ends[side] = self
+                    .leg(t0, &x, End::After(period), false)
+                    .map_err(|e| stopped("a run of the monodromy's differences", e, self.plan))?
+                    .x;
+            }
+            for i in 0..n {
+                phi[i * n + j] = (ends[0][i] - ends[1][i]) / (2.0 * h);
+            }
+        }
+        Ok(phi)
+    }
+
+    /// Newton's method from (x0, period), x0 on the section.
+    fn newton(&mut self, t0: f64, mut x0: Vec<f64>, mut period: f64) -> Result<Shot, NoCycle> {
+        let n = x0.len();
+        let k = self.plan.state;
+        let scales = self.scales(&x0);
+        let mut leg = self.shoot(t0, &x0, period)?;
+        let mut r = self.residual(&x0, &leg);
+        let mut norm = Self::norm(&r, &scales);
+        for iteration in 0..=MOST_ITERATIONS {
+            if norm <= self.tolerance {
+                return Ok(self.shot(t0, x0, period, norm, leg, iteration));
+            }
+            if iteration == MOST_ITERATIONS {
+                break;
+            }
+            let step = newton_step(&leg, &r, k).ok_or_else(|| {
+                NoCycle(
+                    "the shooting's Jacobian is singular: a Floquet multiplier other than the \
+                     flow's own is 1 (an undamped mode, or a family of cycles), so the steady \
+                     cycle is not isolated"
+                        .into(),
+                )
+            })?;
+            let mut lambda = 1.0;
+            let mut accepted = false;
+            for _ in 0..=MOST_HALVINGS {
+                let (mut x, p) = (x0.clone(), period + lambda * step[n - 1]);
+                for (i, j) in (0..n).filter(|&i| i != k).enumerate() {
+                    x[j] += lambda * step[i];
+                }
+                if p > 0.0 {
+                    if let Ok(trial) = self.shoot(t0, &x, p) {
+                        let r_trial = self.residual(&x, &trial);
+                        let trial_norm = Self::norm(&r_trial, &scales);
+                        if trial_norm < norm || trial_norm <= self.tolerance {
+                            (x0, period, leg, r, norm) = (x, p, trial, r_trial, trial_norm);
+                            accepted = true;
+                            break;
+                        }
+                        // Newton can go no further than the integration's own error.
+                        if lambda == 1.0 && Self::step_norm(&step, &scales, k, period) <= self.tolerance {
+                            return Ok(self.shot(t0, x0, period, norm, leg, iteration + 1));
+                        }
+                    }
+                }
+                lambda *= 0.5;
+            }
+            if !accepted {
+                break;
+            }
+        }
+        Err(NoCycle(format!(
+            "the shooting did not converge: after Newton's method the periodicity residual \
+             is {norm:.3e} (scaled), above the tolerance {:.3e}",
+            self.tolerance
+        )))
+    }
+
+    fn step_norm(step: &[f64], scales: &[f64], k: usize, period: f64) -> f64 {
+        let n = scales.len();
+        let states = (0..n)
+            .filter(|&i| i != k)
+            .zip(step)
+            .fold(0.0, |m: f64, (j, d)| m.max(d.abs() / scales[j]));
+        states.max(step[n - 1].abs() / period)
+    }
+
+    fn shot(&self, t0: f64, x0: Vec<f64>, period: f64, residual: f64, leg: Leg, iterations: usize) -> Shot {
+        Shot {
+            t0,
+            x0,
+            period,
+            residual,
+            phi: leg.phi.unwrap_or_default(),
+            f: leg.f,
+            iterations,
+            runs: self.runs,
+        }
+    }
+}
+
+/// The Newton step (Δx0 without the cyclic state k, ΔT) solving
+/// [Φ − I without column k | f(x(T))] Δ = −r; `None` when singular.
+fn newton_step(leg: &Leg, r: &[f64], k: usize) -> Option<Vec<f64>> {
+    let n = r.len();
+    let phi = leg.phi.as_ref()?;
+    let mut jacobian = DMatrix::<f64>::zeros(n, n);
+    for i in 0..n {
+        for (c, j) in (0..n).filter(|&j| j != k).enumerate() {
+            jacobian[(i, c)] = phi[i * n + j] - if i == j { 1.0 } else { 0.0 };
+        }
+        jacobian[(i, n - 1)] = leg.f[i];
+    }
+    let rhs = DVector::from_iterator(n, r.iter().map(|r| -r));
+    let lu = jacobian.lu();
+    let step = lu.solve(&rhs)?;
+    step.iter().all(|s| s.is_finite()).then(|| step.iter().copied().collect())
+}

@@ -1,0 +1,245 @@
+//! What a plan asks of a steady cycle: the cyclic state and its period of angle, the other
+//! states that advance with it, the metrics of outputs over one cycle, and how the
+//! monodromy is found; names resolved against the description once, each refusal naming
+//! its field.
+
+use serde::Deserialize;
+
+use crate::description::{BaseType, Description};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CycleSpec {
+    /// The continuous state whose advance by `period` closes one cycle (a crank angle).
+    pub state: String,
+    /// The cyclic state's advance over one cycle (2π for a revolution), > 0.
+    pub period: f64,
+    /// Other states that advance by the same period over one cycle (angles of bodies that
+    /// turn with the crank); every other state returns to its value.
+    #[serde(default)]
+    pub shifted: Vec<String>,
+    #[serde(default)]
+    pub metrics: Vec<CycleMetricSpec>,
+    /// Points along the cycle, evenly spaced in time, at which the metrics' outputs are
+    /// read (and the cycle is kept when `keep` asks).
+    pub samples: Option<usize>,
+    /// `variational` (the FMU's directional derivatives integrated with the states, the
+    /// default where the FMU gives them) or `differences` (central differences of runs).
+    pub monodromy: Option<String>,
+    /// Points along the cycle, evenly spaced in time, at which the state equations are
+    /// linearised for the modes (0: none).
+    #[serde(default)]
+    pub modes: usize,
+    /// Variables whose values at the samples are returned with the cycle.
+    #[serde(default)]
+    pub keep: Vec<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CycleMetricSpec {
+    pub variable: String,
+    pub kind: CycleKind,
+    /// The harmonic's order, a whole multiple of the cycle's frequency (`harmonic` only).
+    pub order: Option<u32>,
+}
+
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum CycleKind {
+    Min,
+    Max,
+    PeakAbs,
+    PeakToPeak,
+    Mean,
+    Rms,
+    /// The amplitude of the output's component at `order` times the cycle's frequency.
+    Harmonic,
+}
+
+/// How the monodromy matrix is found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Monodromy {
+    Variational,
+    Differences,
+}
+
+/// A cycle's plan with names resolved: indices into Model Exchange's state vector, value
+/// references of Real variables.
+#[derive(Clone, Debug)]
+pub struct CyclePlan {
+    pub state: usize,
+    pub period: f64,
+    pub shifted: Vec<usize>,
+    pub state_names: Vec<String>,
+    pub states: Vec<u32>,
+    pub derivatives: Vec<u32>,
+    pub metrics: Vec<(usize, CycleKind, u32)>,
+    /// The variables read at the samples: the metrics', then those kept.
+    pub reads: Vec<u32>,
+    pub read_names: Vec<String>,
+    pub kept: usize,
+    pub samples: usize,
+    pub monodromy: Monodromy,
+    pub modes: usize,
+}
+
+/// The samples along a cycle where none are asked for: enough that a peak found by a
+/// parabola through its three nearest samples is good to about 1e-9 of the amplitude.
+pub const DEFAULT_SAMPLES: usize = 2048;
+/// The most samples and linearisation points along a cycle.
+const MOST_SAMPLES: usize = 1 << 20;
+const MOST_MODE_POINTS: usize = 4096;
+
+impl CyclePlan {
+    pub fn resolve(spec: CycleSpec, description: &Description) -> Result<CyclePlan, String> {
+        if !description.has_model_exchange {
+            return Err("cycle: the steady cycle is found by integrating the FMU's Model \
+                        Exchange interface, which this FMU does not have"
+                .into());
+        }
+        if description.states.len() != description.continuous_states {
+            return Err("cycle: the FMU's description does not say which variable each of its \
+                        continuous states is (a derivative without its `derivative` attribute)"
+                .into());
+        }
+        let state = state_index(description, &spec.state, "cycle.state")?;
+        if !(spec.period.is_finite() && spec.period > 0.0) {
+            return Err(format!(
+                "cycle.period: must be a finite number > 0 (the cyclic state's advance over \
+                 one cycle), got {}",
+                spec.period
+            ));
+        }
+        let mut shifted = Vec::new();
+        for (k, name) in spec.shifted.iter().enumerate() {
+            let index = state_index(description, name, &format!("cycle.shifted[{k}]"))?;
+            if index == state || shifted.contains(&index) {
+                return Err(format!("cycle.shifted[{k}]: {name:?} is named twice"));
+            }
+            shifted.push(index);
+        }
+        let monodromy = match spec.monodromy.as_deref() {
+            None if description.exchange_directional_derivatives => Monodromy::Variational,
+            None | Some("differences") => Monodromy::Differences,
+            Some("variational") if description.exchange_directional_derivatives => {
+                Monodromy::Variational
+            }
+            Some("variational") => {
+                return Err("cycle.monodromy: \"variational\" needs the FMU's directional \
+                            derivatives under Model Exchange, which it does not give"
+                    .into())
+            }
+            Some(other) => {
+                return Err(format!(
+                    "cycle.monodromy: must be \"variational\" or \"differences\", got {other:?}"
+                ))
+            }
+        };
+        let samples = spec.samples.unwrap_or(DEFAULT_SAMPLES);
+        if !(8..=MOST_SAMPLES).contains(&samples) {
+            return Err(format!(
+                "cycle.samples: must be between 8 and {MOST_SAMPLES}, got {samples}"
+            ));
+        }
+        if spec.modes > MOST_MODE_POINTS {
+            return Err(format!(
+                "cycle.modes: at most {MOST_MODE_POINTS} points along the cycle, got {}",
+                spec.modes
+            ));
+        }
+        let mut plan = CyclePlan {
+            state,
+            period: spec.period,
+            shifted,
+            state_names: description
+                .states
+                .iter()
+                .map(|s| name_of(description, s.value_reference))
+                .collect(),
+            states: description.states.iter().map(|s| s.value_reference).collect(),
+            derivatives: description.states.iter().map(|s| s.derivative).collect(),
+            metrics: Vec::new(),
+            reads: Vec::new(),
+            read_names: Vec::new(),
+            kept: 0,
+            samples,
+            monodromy,
+            modes: spec.modes,
+        };
+        for (k, m) in spec.metrics.iter().enumerate() {
+            let slot = plan.read(description, &m.variable, &format!("cycle.metrics[{k}]"))?;
+            let order = match (m.kind, m.order) {
+                (CycleKind::Harmonic, Some(order)) if order >= 1 && 2 * order as usize <= samples => order,
+                (CycleKind::Harmonic, order) => {
+                    return Err(format!(
+                        "cycle.metrics[{k}].order: a harmonic needs a whole order between 1 and \
+                         half the samples ({}), got {order:?}",
+                        samples / 2
+                    ))
+                }
+                (_, None) => 0,
+                (_, Some(_)) => {
+                    return Err(format!(
+                        "cycle.metrics[{k}].order: only a harmonic has an order"
+                    ))
+                }
+            };
+            plan.metrics.push((slot, m.kind, order));
+        }
+        for (k, name) in spec.keep.iter().enumerate() {
+            plan.read(description, name, &format!("cycle.keep[{k}]"))?;
+        }
+        plan.kept = spec.keep.len();
+        Ok(plan)
+    }
+
+    /// The slot of a Real variable among those read at the samples.
+    fn read(&mut self, description: &Description, name: &str, field: &str) -> Result<usize, String> {
+        let variable = description
+            .variable(name)
+            .map_err(|e| format!("{field}: {e}"))?;
+        if variable.base_type != BaseType::Real {
+            return Err(format!(
+                "{field}: {name:?} is a {} variable; a cycle's metrics read Real ones",
+                variable.fmi_type
+            ));
+        }
+        if let Some(slot) = self.read_names.iter().position(|n| n == name) {
+            return Ok(slot);
+        }
+        self.reads.push(variable.value_reference);
+        self.read_names.push(name.to_string());
+        Ok(self.reads.len() - 1)
+    }
+}
+
+/// The position of the continuous state `name` in Model Exchange's state vector.
+fn state_index(description: &Description, name: &str, field: &str) -> Result<usize, String> {
+    let variable = description
+        .variable(name)
+        .map_err(|e| format!("{field}: {e}"))?;
+    description
+        .states
+        .iter()
+        .position(|s| s.value_reference == variable.value_reference)
+        .ok_or_else(|| {
+            let names: Vec<String> = description
+                .states
+                .iter()
+                .map(|s| name_of(description, s.value_reference))
+                .collect();
+            format!(
+                "{field}: {name:?} is not a continuous state of the FMU (its states: {})",
+                names.join(", ")
+            )
+        })
+}
+
+fn name_of(description: &Description, value_reference: u32) -> String {
+    description
+        .variables
+        .iter()
+        .find(|v| v.value_reference == value_reference)
+        .map_or_else(|| format!("#{value_reference}"), |v| v.name.clone())
+}
