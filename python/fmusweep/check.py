@@ -110,7 +110,9 @@ def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
     for m in spec.metrics:
         errors.run(lambda: variables.get(m.variable, f"outputs.metrics.{m.name}.variable", None,
                                          VALUE_TYPES))
-    for name in spec.series_variables:
+    if spec.cycle is not None:
+        spec.cycle.check(description, errors)
+    for name in spec.series_variables if spec.cycle is None else []:
         errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
     columns = [design.column_values(j) for j in range(len(design.names))]
     errors.run(lambda: variables.check_columns(design.names, columns, "design.parameters"))
@@ -134,7 +136,11 @@ def values_to_ask(plan: Plan, names: list[str], field: str,
         return None, []
     fixed = {n: v for n, v in plan["fixed"].items() if f"scenario.parameters.{n}" not in refused}
     inputs = {n: t for n, t in plan["inputs"].items() if f"scenario.inputs.{n}" not in refused}
-    asked: Plan = {**plan, "fixed": fixed, "inputs": inputs, "metrics": [], "series": None}
+    asked: Plan = {**plan, "fixed": fixed, "inputs": inputs, "metrics": [], "series": None,
+                   "cycle": None}
+    if any(f == "cycle" or f.startswith("cycle.") for f in refused):
+        # The cycle's interface was refused: the values are asked through the default one.
+        asked["interface"] = None
     return asked, [j for j, n in enumerate(names) if f"{field}.{n}" not in refused]
 
 

@@ -250,8 +250,9 @@ class NativeRunner:
         ends the results; without, the results stop at the last reply received."""
         plan = self.plan
         assert plan is not None, "configure the runner before running points"
-        series = plan.get("series")
-        width = len(series["variables"]) + 1 if series else 0
+        series, cycle = plan.get("series"), plan.get("cycle")
+        width = (len(series["variables"]) + 1 if series
+                 else len(cycle["keep"]) + 1 if cycle else 0)
         results: list[PointResult] = []
         try:
             self._send({"op": "run", "names": names, "rows": rows.tolist(), "flush_each": careful})

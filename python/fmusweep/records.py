@@ -4,7 +4,7 @@ its keys are the runner's), a point's result, and a finished batch."""
 
 from __future__ import annotations
 
-from typing import Callable, NotRequired, TypedDict
+from typing import Any, Callable, NotRequired, TypedDict
 
 import numpy as np
 import numpy.typing as npt
@@ -47,6 +47,7 @@ class Plan(TypedDict):
     timeout_s: float | None
     interface: NotRequired[str | None]  # "co_simulation" or "model_exchange"
     integrator: NotRequired[str | None]  # "dop853" or "radau5" (Model Exchange)
+    cycle: NotRequired[Any]  # the steady cycle's plan (fmusweep.cycle.CyclePlan)
 
 
 class CouplingRecord(TypedDict):
@@ -74,6 +75,8 @@ class PointResult(TypedDict):
     events: NotRequired[int | None]
     series: NotRequired[npt.NDArray[np.float64]]
     coupling: NotRequired[CouplingRecord | None]
+    # The steady cycle, when the plan asks for one (runner/src/cycle/mod.rs's record).
+    cycle: NotRequired[dict[str, Any] | None]
     worker: NotRequired[str]
 
 

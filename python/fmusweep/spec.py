@@ -34,6 +34,10 @@ A specification is a TOML file or the equivalent dict::
     variables = ["omega1"]
     interval = 0.1
 
+    [cycle]                            # optional: each point's steady cycle instead of a
+    state = "loop_angle"               # transient (fmusweep.cycle); the metrics are then
+    period = 6.283185307179586         # over one cycle
+
 Everything here is checked before anything runs: each mistake is a SpecError that names
 the field (``design.parameters.k34.linspace``) and the rule it breaks. Checks that need
 the FMU (variable names, causalities, the FMU's own rules on values) are in
@@ -53,6 +57,7 @@ import tomllib
 from dataclasses import dataclass, field
 from typing import Any, Callable, TypeVar
 
+from .cycle import CYCLE_COLUMNS, CYCLE_METRIC_KINDS, CycleSpec
 from .designs import KINDS, Design, generate, kind_of
 from .columns import SERIES_COLUMNS, SWEEP_COLUMNS, refuse_collisions
 from .errors import Collector, SpecError, refuse
@@ -83,6 +88,8 @@ class MetricSpec:
     kind: str
     start: float | None
     end: float | None
+    # A harmonic's order (a metric over a steady cycle).
+    order: int | None = None
 
 
 # The interfaces a single FMU may run through (``[scenario] interface``): a Model Exchange
@@ -165,7 +172,7 @@ class Scenario:
                                        f"set it there, not both")
 
     def plan(self, metrics: list[MetricPlan], series: SeriesPlan | None,
-             system: System | None = None) -> Plan:
+             system: System | None = None, cycle: Any = None) -> Plan:
         """The native runner's plan: what every point shares, and what it reads. Without a
         tolerance of its own, a system with a coupling tolerance runs its FMUs at
         FMU_TOLERANCE_RATIO of it."""
@@ -175,7 +182,7 @@ class Scenario:
         return {"start": self.start, "stop": self.stop, "step": self.step,
                 "tolerance": tolerance, "fixed": self.parameters, "inputs": self.inputs,
                 "metrics": metrics, "series": series, "timeout_s": self.timeout,
-                "interface": self.interface, "integrator": self.integrator}
+                "interface": self.interface, "integrator": self.integrator, "cycle": cycle}
 
 
 def _times(scenario: dict[str, Any]) -> tuple[float, float, float]:
@@ -303,6 +310,8 @@ class Spec:
     points: Design = field(repr=False)
     series_variables: list[str] = field(default_factory=list)
     series_every: int = 0
+    # Each point's steady cycle instead of its transient.
+    cycle: CycleSpec | None = None
 
     # --- loading -------------------------------------------------------------------
     @staticmethod
@@ -321,17 +330,22 @@ class Spec:
         base_dir = pathlib.Path(base_dir)
         errors = Collector()
         errors.run(lambda: _only(raw, "spec", {"fmu", "ssp", "system", "scenario", "design",
-                                               "outputs"}))
+                                               "outputs", "cycle"}))
+        cycle = errors.run(lambda: CycleSpec.of(raw))
+        on_cycle = isinstance(raw.get("cycle"), dict)
         runs = errors.run(lambda: what_runs(raw, base_dir))
         scenario = errors.run(lambda: Scenario.of(raw, base_dir))
         header = errors.run(lambda: _design_header(raw, scenario))
         # The design's own fields are checked where its points are generated.
         points = errors.run(lambda: generate(header[1], header[0], header[2])
                             if header is not None else None)
-        outputs = errors.run(lambda: _outputs(raw, scenario))
+        outputs = errors.run(lambda: _outputs(raw, scenario, on_cycle))
         if header is not None and outputs is not None:
-            refuse_collisions(_column_names(header[0], outputs), SWEEP_COLUMNS + SERIES_COLUMNS,
-                              errors)
+            own = SWEEP_COLUMNS + SERIES_COLUMNS + (CYCLE_COLUMNS if on_cycle else ())
+            refuse_collisions(_column_names(header[0], outputs), own, errors)
+        if on_cycle and runs is not None and scenario is not None:
+            errors.run(lambda: _cycle_runs_alone(runs[2] is not None or runs[1] is not None,
+                                                 scenario))
         errors.raise_any()
         assert runs and scenario and header and outputs
         fmu, ssp, system = runs
@@ -340,15 +354,21 @@ class Spec:
                                                   "co-simulation interfaces")
         design, kind, seed = header
         metrics, series_variables, every = outputs
+        if cycle is not None:
+            series_variables, every = cycle.keep, 0
         assert points is not None
         return Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
                     ssp=(base_dir / ssp) if ssp else None, system=system, scenario=scenario,
                     design_kind=kind, design=design, seed=seed, metrics=metrics, points=points,
-                    series_variables=series_variables, series_every=every)
+                    series_variables=series_variables, series_every=every, cycle=cycle)
 
     # --- derived ---------------------------------------------------------------------
     def plan(self) -> Plan:
         """The native runner's plan: everything every point shares."""
+        if self.cycle is not None:
+            cycle = self.cycle.plan([(m.variable, m.kind, m.order) for m in self.metrics])
+            plan = self.scenario.plan([], None, self.system, cycle)
+            return {**plan, "interface": "model_exchange"}
         metrics = [MetricPlan({"variable": m.variable, "kind": m.kind, "from": m.start,
                                 "to": m.end}) for m in self.metrics]
         series = (SeriesPlan(variables=self.series_variables, every=self.series_every)
@@ -406,15 +426,23 @@ def _design_header(raw: dict[str, Any],
     return design, kind, seed
 
 
-def _outputs(raw: dict[str, Any], scenario: Scenario | None) -> tuple[list[MetricSpec], list[str], int]:
+def _outputs(raw: dict[str, Any], scenario: Scenario | None,
+             on_cycle: bool = False) -> tuple[list[MetricSpec], list[str], int]:
     """The [outputs] table: the metrics, and the series' variables and interval (as a
-    number of the scenario's steps, once the scenario is known)."""
+    number of the scenario's steps, once the scenario is known); with a [cycle], metrics
+    over one cycle and no series (the cycle keeps its own)."""
     outputs = _table(raw, "outputs", "spec", required=True)
     _only(outputs, "outputs", {"metrics", "series"})
     errors = Collector()
-    metrics = [errors.run(lambda: _metric(name, m, scenario))
+    read = _cycle_metric if on_cycle else _metric
+    metrics = [errors.run(lambda: read(name, m, scenario))
                for name, m in _table(outputs, "metrics", "outputs").items()]
     series = _table(outputs, "series", "outputs")
+    if series and on_cycle:
+        errors.run(lambda: refuse("outputs.series", "a sweep of steady cycles has no transient "
+                                                    "to record: cycle.keep keeps variables over "
+                                                    "one cycle"))
+        series = {}
     series_variables: list[str] = []
     every = 0
     if series:
@@ -434,7 +462,7 @@ def _outputs(raw: dict[str, Any], scenario: Scenario | None) -> tuple[list[Metri
                                            f"must be a whole multiple of scenario.step ({step}), "
                                            f"got {interval}"))
     errors.raise_any()
-    if not metrics and not series_variables:
+    if not metrics and not series_variables and not on_cycle:
         raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
     return [m for m in metrics if m is not None], series_variables, every
 
@@ -527,6 +555,58 @@ def _metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec:
     if scenario is not None:
         _window_holds_a_point(scenario, start, end, where)
     return MetricSpec(name, m["variable"], m["kind"], start, end)
+
+
+def _cycle_metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec:
+    """A metric over one steady cycle: no window, a kind the cycle has, and an order
+    for a harmonic."""
+    where = f"outputs.metrics.{name}"
+    if not isinstance(m, dict):
+        raise SpecError(where, "must be a table with variable and kind")
+    _only(m, where, {"variable", "kind", "order", "from", "to"})
+    errors = Collector()
+    for key in ("from", "to"):
+        if key in m:
+            errors.run(lambda: refuse(f"{where}.{key}", "a metric of a steady cycle is taken "
+                                                        "over one cycle: it has no window"))
+    if not isinstance(m.get("variable"), str):
+        errors.run(lambda: refuse(f"{where}.variable", "must name a variable"))
+    kind = m.get("kind")
+    if kind not in CYCLE_METRIC_KINDS:
+        errors.run(lambda: refuse(f"{where}.kind", f"must be one of "
+                                                   f"{', '.join(CYCLE_METRIC_KINDS)} over a "
+                                                   f"steady cycle, got {kind!r}"))
+    order = m.get("order")
+    if kind == "harmonic" and (isinstance(order, bool) or not isinstance(order, int)
+                               or order < 1):
+        errors.run(lambda: refuse(f"{where}.order", f"a harmonic needs its order, a whole "
+                                                    f"number ≥ 1 (times the cycle's "
+                                                    f"frequency), got {order!r}"))
+    elif kind != "harmonic" and order is not None:
+        errors.run(lambda: refuse(f"{where}.order", "only a harmonic has an order"))
+    errors.raise_any()
+    return MetricSpec(name, m["variable"], kind, None, None, order)
+
+
+def _cycle_runs_alone(system: bool, scenario: Scenario) -> None:
+    """A steady cycle is found on one FMU's Model Exchange interface, integrated by the
+    runner's DOP853."""
+    errors = Collector()
+    if system:
+        errors.run(lambda: refuse("cycle", "a coupled system has no Model Exchange interface: "
+                                           "a steady cycle is found on one FMU"))
+    if scenario.interface == "co_simulation":
+        errors.run(lambda: refuse("scenario.interface", "a steady cycle is found through the "
+                                                        "FMU's Model Exchange interface, not "
+                                                        "co_simulation"))
+    if scenario.integrator == "radau5":
+        errors.run(lambda: refuse("scenario.integrator", "a steady cycle is integrated with "
+                                                         "its variational equations by DOP853"))
+    for name, table in scenario.inputs.items():
+        if len(table["times"]) > 1:
+            errors.run(lambda: refuse(f"scenario.inputs.{name}", "a steady cycle needs "
+                                                                 "constant inputs, not a table"))
+    errors.raise_any()
 
 
 # A communication point this close to a window's end, in steps, belongs to the window (the

@@ -26,6 +26,7 @@ from .records import Batch, PointResult, Points, Rows
 from .results import Results, SweepSummary
 from .spec import Spec
 from .store import coupling_columns
+from .cycle import cycle_columns
 from .ssp import check_ssp
 from .show import show_sweep
 from .study import Study, Target, load_spec, spec_name
@@ -65,6 +66,8 @@ def _tables(spec: Spec, study: Study, names: list[str], rows: Rows,
     columns["worker"] = pa.array([batch["worker"]] * len(results), pa.string())
     if spec.system is not None and spec.system.coupling_tolerance is not None:
         columns.update(coupling_columns(results))
+    if spec.cycle is not None:
+        columns.update(cycle_columns(results))
     series = None
     if spec.series_variables:
         runs = [(int(p), r["series"]) for p, r in zip(points, results) if "series" in r]

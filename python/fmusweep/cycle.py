@@ -1,0 +1,209 @@
+"""The ``[cycle]`` table: a sweep of steady cycles instead of transients. Each point's
+periodic steady state is found by the runner by shooting on the FMU's Model Exchange
+interface (docs/cycle.md), and its metrics are taken over one cycle::
+
+    [cycle]
+    state = "loop_angle"           # the continuous state whose advance closes a cycle
+    period = 6.283185307179586     # its advance over one cycle (> 0)
+    shifted = ["phi1"]             # other states that advance by the same period
+    monodromy = "variational"      # or "differences" (default: variational where the FMU
+                                   # gives directional derivatives)
+    samples = 2048                 # points along the cycle the metrics are read at
+    modes = 8                      # points along the cycle its modes are computed at
+    keep = ["rod_force"]           # variables kept over one cycle (series/, the pictures)
+
+    [outputs.metrics]
+    peak = { variable = "rod_force", kind = "max" }
+    first = { variable = "rod_force", kind = "harmonic", order = 1 }
+
+``scenario.stop − scenario.start`` bounds the transient the search may start from.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, TypedDict
+
+import pyarrow as pa
+
+from .errors import Collector, SpecError, did_you_mean
+from .fields import number, only, table
+from .records import PointResult
+
+__all__ = ["CycleSpec", "CYCLE_METRIC_KINDS", "CYCLE_COLUMNS", "cycle_columns"]
+
+# The metrics of an output over one cycle (the runner's, runner/src/cycle_plan.rs).
+CYCLE_METRIC_KINDS = ("min", "max", "peak_abs", "peak_to_peak", "mean", "rms", "harmonic")
+MONODROMY = ("variational", "differences")
+# The columns a sweep of cycles writes of its own (the multipliers and modes as lists).
+CYCLE_COLUMNS = ("cycle_period", "cycle_multiplier", "cycle_stability", "cycle_margin",
+                 "cycle_residual", "cycle_iterations", "cycle_runs", "cycle_continued",
+                 "cycle_multipliers_re", "cycle_multipliers_im", "cycle_modes_hz",
+                 "cycle_modes_damping")
+MOST_SAMPLES = 1 << 20
+MOST_MODE_POINTS = 4096
+
+
+class CyclePlan(TypedDict):
+    """The runner's cycle plan (its keys are the runner's)."""
+    state: str
+    period: float
+    shifted: list[str]
+    metrics: list[dict[str, Any]]
+    samples: int | None
+    monodromy: str | None
+    modes: int
+    keep: list[str]
+
+
+@dataclass(frozen=True)
+class CycleSpec:
+    state: str
+    period: float
+    shifted: list[str] = field(default_factory=list)
+    monodromy: str | None = None
+    samples: int | None = None
+    modes: int = 0
+    keep: list[str] = field(default_factory=list)
+
+    @staticmethod
+    def of(raw: dict[str, Any]) -> CycleSpec | None:
+        """The [cycle] table, every mistake of its fields at once; None without one."""
+        cycle = table(raw, "cycle", "spec")
+        if not cycle and "cycle" not in raw:
+            return None
+        errors = Collector()
+        errors.run(lambda: only(cycle, "cycle", {"state", "period", "shifted", "monodromy",
+                                                 "samples", "modes", "keep"}))
+        state = errors.run(lambda: _name(cycle.get("state"), "cycle.state"))
+        period = errors.run(lambda: _period(cycle.get("period")))
+        shifted = errors.run(lambda: _names(cycle.get("shifted", []), "cycle.shifted"))
+        keep = errors.run(lambda: _names(cycle.get("keep", []), "cycle.keep"))
+        monodromy = cycle.get("monodromy")
+        if monodromy is not None and monodromy not in MONODROMY:
+            errors.run(lambda: _refuse("cycle.monodromy", f"must be one of "
+                                       f"{', '.join(map(repr, MONODROMY))}, got {monodromy!r}"))
+        samples = errors.run(lambda: _whole(cycle.get("samples"), "cycle.samples", 8, MOST_SAMPLES))
+        modes = errors.run(lambda: _whole(cycle.get("modes", 0), "cycle.modes", 0,
+                                          MOST_MODE_POINTS))
+        errors.raise_any()
+        assert state is not None and period is not None
+        return CycleSpec(state, period, shifted or [], monodromy, samples, modes or 0, keep or [])
+
+    def check(self, description: dict[str, Any], errors: Collector) -> None:
+        """Against the FMU: it has Model Exchange, the states named are its continuous
+        states, directional derivatives where the variational monodromy is asked for."""
+        if not description.get("has_model_exchange"):
+            errors.run(lambda: _refuse("cycle", "the steady cycle is found by integrating the "
+                                                "FMU's Model Exchange interface, which this FMU "
+                                                "does not have"))
+            return
+        names = {v["value_reference"]: v["name"] for v in reversed(description["variables"])}
+        states = [names.get(s["value_reference"], "?") for s in description.get("states", [])]
+        by_name = {v["name"]: v for v in description["variables"]}
+        for where, name in [("cycle.state", self.state)] + [
+                (f"cycle.shifted[{k}]", n) for k, n in enumerate(self.shifted)]:
+            errors.run(lambda: _a_state(name, where, states, by_name))
+        for k, name in enumerate(self.shifted):
+            if name == self.state or name in self.shifted[:k]:
+                errors.run(lambda: _refuse(f"cycle.shifted[{k}]", f"{name!r} is named twice"))
+        for k, name in enumerate(self.keep):
+            v = by_name.get(name)
+            if v is None or v["type"] != "real":
+                rule = (f"the FMU has no variable {name!r}{did_you_mean(name, by_name)}"
+                        if v is None else f"{name} is of type {v['type']}; a cycle keeps Real "
+                                          "variables")
+                errors.run(lambda: _refuse(f"cycle.keep[{k}]", rule))
+        if self.monodromy == "variational" and not description.get(
+                "exchange_directional_derivatives"):
+            errors.run(lambda: _refuse("cycle.monodromy", "\"variational\" needs the FMU's "
+                                       "directional derivatives under Model Exchange, which it "
+                                       "does not give"))
+
+    def plan(self, metrics: list[tuple[str, str, int | None]]) -> CyclePlan:
+        """The runner's plan, with the metrics (variable, kind, order) over one cycle."""
+        return {"state": self.state, "period": self.period, "shifted": self.shifted,
+                "metrics": [{"variable": v, "kind": k, "order": o} for v, k, o in metrics],
+                "samples": self.samples, "monodromy": self.monodromy, "modes": self.modes,
+                "keep": self.keep}
+
+
+def _refuse(where: str, rule: str) -> None:
+    raise SpecError(where, rule)
+
+
+def _name(value: object, where: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise SpecError(where, "must name a continuous state of the FMU" if value is None
+                        else f"must be a variable's name, got {value!r}")
+    return value
+
+
+def _names(value: object, where: str) -> list[str]:
+    if not isinstance(value, list) or not all(isinstance(v, str) and v for v in value):
+        raise SpecError(where, f"must be a list of variable names, got {value!r}")
+    return list(value)
+
+
+def _period(value: object) -> float:
+    period = number(value, "cycle.period")
+    if period <= 0:
+        raise SpecError("cycle.period", f"must be > 0 (the cyclic state's advance over one "
+                                        f"cycle, such as 2π for a revolution), got {period}")
+    return period
+
+
+def _whole(value: object, where: str, low: int, high: int) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise SpecError(where, f"must be a whole number from {low} to {high}, got {value!r}")
+    return value
+
+
+def _a_state(name: str, where: str, states: list[str], by_name: dict[str, Any]) -> None:
+    if name not in by_name:
+        raise SpecError(where, f"the FMU has no variable {name!r}{did_you_mean(name, by_name)}")
+    if name not in states:
+        raise SpecError(where, f"{name} is not a continuous state of the FMU (its states: "
+                               f"{', '.join(states) or 'none'})")
+
+
+def cycle_columns(results: list[PointResult]) -> dict[str, pa.Array]:
+    """Each point's cycle: its period, its largest Floquet multiplier's modulus, the
+    verdict and the margin to the unit circle, the periodicity residual, the Newton
+    iterations and runs spent, whether it continued from its neighbour's cycle; its
+    multipliers, and its modes' frequencies and damping ratios averaged along the cycle
+    (null where the point has no cycle)."""
+    cycles = [r.get("cycle") for r in results]
+
+    def column(key: str, kind: pa.DataType) -> pa.Array:
+        return pa.array([None if c is None else c[key] for c in cycles], kind)
+
+    def listed(read: Any) -> pa.Array:
+        return pa.array([None if c is None else read(c) for c in cycles],
+                        pa.list_(pa.float64()))
+
+    return {"cycle_period": column("period", pa.float64()),
+            "cycle_multiplier": column("largest_multiplier", pa.float64()),
+            "cycle_stability": column("stability", pa.string()),
+            "cycle_margin": column("margin", pa.float64()),
+            "cycle_residual": column("residual", pa.float64()),
+            "cycle_iterations": column("iterations", pa.int64()),
+            "cycle_runs": column("runs", pa.int64()),
+            "cycle_continued": column("continued", pa.bool_()),
+            "cycle_multipliers_re": listed(lambda c: [m["re"] for m in c["multipliers"]]),
+            "cycle_multipliers_im": listed(lambda c: [m["im"] for m in c["multipliers"]]),
+            "cycle_modes_hz": listed(lambda c: _along(c, "frequency")),
+            "cycle_modes_damping": listed(lambda c: _along(c, "damping"))}
+
+
+def _along(cycle: dict[str, Any], key: str) -> list[float]:
+    """A mode quantity averaged over the points along the cycle, modes matched by their
+    rank in frequency (as many modes as every point has)."""
+    points = [modes for _, modes in cycle.get("modes", [])]
+    if not points:
+        return []
+    count = min(len(modes) for modes in points)
+    return [math.fsum(modes[k][key] for modes in points) / len(points) for k in range(count)]
