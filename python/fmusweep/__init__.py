@@ -16,6 +16,7 @@ of this machine or over an existing cluster; results land in Parquet as batches 
 
 from importlib import metadata as _metadata
 
+from .cycle import Linearisation, linearise
 from .designs import Design, generate
 from .sweep import SweepSummary, run_sweep
 from .fitting import FitResult, FitSpec, fit
@@ -26,7 +27,7 @@ from .spec import Spec, SpecError
 
 __all__ = ["run_sweep", "fit", "FitResult", "FitSpec", "load_results", "Results", "SweepSummary", "Spec", "SpecError",
            "Design", "generate", "NativeRunner", "RunnerError", "sobol_indices",
-           "morris_effects"]
+           "morris_effects", "linearise", "Linearisation"]
 
 try:
     __version__ = _metadata.version("fmusweep")

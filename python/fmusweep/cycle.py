@@ -22,16 +22,21 @@ interface (docs/cycle.md), and its metrics are taken over one cycle::
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, field
 from typing import Any, TypedDict
 
+import numpy as np
+import numpy.typing as npt
 import pyarrow as pa
 
 from .errors import Collector, SpecError, did_you_mean
 from .fields import number, only, table
+from .native import RunnerError
 from .records import PointResult
 
-__all__ = ["CycleSpec", "CYCLE_METRIC_KINDS", "CYCLE_COLUMNS", "cycle_columns"]
+__all__ = ["CycleSpec", "CYCLE_METRIC_KINDS", "CYCLE_COLUMNS", "cycle_columns",
+           "Linearisation", "linearise"]
 
 # The metrics of an output over one cycle (the runner's, runner/src/cycle_plan.rs).
 CYCLE_METRIC_KINDS = ("min", "max", "peak_abs", "peak_to_peak", "mean", "rms", "harmonic")
@@ -207,3 +212,45 @@ def _along(cycle: dict[str, Any], key: str) -> list[float]:
         return []
     count = min(len(modes) for modes in points)
     return [math.fsum(modes[k][key] for modes in points) / len(points) for k in range(count)]
+
+
+@dataclass(frozen=True)
+class Linearisation:
+    """The FMU's state equations and outputs linearised at a point's initial state:
+    x' ≈ A x + B u, y ≈ C x + D u, with u its Real inputs and y its Real outputs (their
+    names in ``states``, ``inputs``, ``outputs``), from its directional derivatives; and
+    the oscillating modes of A (frequency in Hz, damping ratio), by frequency."""
+    states: list[str]
+    inputs: list[str]
+    outputs: list[str]
+    a: npt.NDArray[np.float64]
+    b: npt.NDArray[np.float64]
+    c: npt.NDArray[np.float64]
+    d: npt.NDArray[np.float64]
+    frequencies: list[float]
+    dampings: list[float]
+
+
+def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None = None,
+              ) -> Linearisation:
+    """The FMU's Model Exchange interface linearised at the initial state that
+    `parameters` (start values among them) give it."""
+    from .fmu import Archive, local_runner
+    runner = local_runner(Archive.read(fmu))
+    names = list(parameters or {})
+    runner.configure({"start": 0.0, "stop": 1.0, "step": 1.0, "tolerance": None, "fixed": {},
+                      "inputs": {}, "metrics": [], "series": None, "timeout_s": None,
+                      "interface": "model_exchange"})
+    found = runner.linearise(names, [[float((parameters or {})[n]) for n in names]])[0]
+    if found["status"] != "ok":
+        raise RunnerError(found["message"])
+    lin = found["linearisation"]
+    n, m, p = len(lin["states"]), len(lin["inputs"]), len(lin["outputs"])
+
+    def matrix(key: str, rows: int, columns: int) -> npt.NDArray[np.float64]:
+        return np.asarray(lin[key], dtype=float).reshape(rows, columns)
+
+    return Linearisation(lin["states"], lin["inputs"], lin["outputs"], matrix("a", n, n),
+                         matrix("b", n, m), matrix("c", p, n), matrix("d", p, m),
+                         [mode["frequency"] for mode in lin["modes"]],
+                         [mode["damping"] for mode in lin["modes"]])

@@ -218,6 +218,14 @@ class NativeRunner:
             {"op": "check", "names": names, "rows": listed})["checked"]
         return checked
 
+    def linearise(self, names: list[str], rows: Any) -> list[dict[str, Any]]:
+        """Each row's point linearised at its initial state (a plan through the Model
+        Exchange interface): status, and the linearisation or the message."""
+        listed = np.asarray(rows, dtype=float).tolist()
+        found: list[dict[str, Any]] = self._request(
+            {"op": "linearise", "names": names, "rows": listed})["linearised"]
+        return found
+
     def bare(self, names: list[str], rows: Any) -> float:
         listed = np.asarray(rows, dtype=float).tolist()
         return float(self._request({"op": "bare", "names": names, "rows": listed})["seconds"])

@@ -585,7 +585,7 @@ def _cycle_metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec
     elif kind != "harmonic" and order is not None:
         errors.run(lambda: refuse(f"{where}.order", "only a harmonic has an order"))
     errors.raise_any()
-    return MetricSpec(name, m["variable"], kind, None, None, order)
+    return MetricSpec(name, m["variable"], str(kind), None, None, order)
 
 
 def _cycle_runs_alone(system: bool, scenario: Scenario) -> None:

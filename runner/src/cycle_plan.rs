@@ -243,3 +243,54 @@ fn name_of(description: &Description, value_reference: u32) -> String {
         .find(|v| v.value_reference == value_reference)
         .map_or_else(|| format!("#{value_reference}"), |v| v.name.clone())
 }
+
+/// What a linearisation reads: the states and their derivatives, the Real inputs and the
+/// Real outputs, by value reference, with their names.
+#[derive(Clone, Debug)]
+pub struct LinearPlan {
+    pub states: Vec<u32>,
+    pub derivatives: Vec<u32>,
+    pub inputs: Vec<u32>,
+    pub outputs: Vec<u32>,
+    pub state_names: Vec<String>,
+    pub input_names: Vec<String>,
+    pub output_names: Vec<String>,
+}
+
+impl LinearPlan {
+    pub fn of(description: &Description) -> Result<LinearPlan, String> {
+        if !description.has_model_exchange || !description.exchange_directional_derivatives {
+            return Err("a linearisation reads the FMU's directional derivatives under Model \
+                        Exchange, which this FMU does not give"
+                .into());
+        }
+        if description.states.len() != description.continuous_states {
+            return Err("the FMU's description does not say which variable each of its \
+                        continuous states is"
+                .into());
+        }
+        let real = |causality: &str| -> (Vec<u32>, Vec<String>) {
+            description
+                .variables
+                .iter()
+                .filter(|v| v.causality == causality && v.base_type == BaseType::Real)
+                .map(|v| (v.value_reference, v.name.clone()))
+                .unzip()
+        };
+        let (inputs, input_names) = real("input");
+        let (outputs, output_names) = real("output");
+        Ok(LinearPlan {
+            states: description.states.iter().map(|s| s.value_reference).collect(),
+            derivatives: description.states.iter().map(|s| s.derivative).collect(),
+            state_names: description
+                .states
+                .iter()
+                .map(|s| name_of(description, s.value_reference))
+                .collect(),
+            inputs,
+            outputs,
+            input_names,
+            output_names,
+        })
+    }
+}

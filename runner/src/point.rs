@@ -5,7 +5,8 @@
 use std::time::Instant;
 
 use crate::coupling::CouplingRecord;
-use crate::cycle::{self, CycleRecord, Shot, Start};
+use crate::cycle::{self, CycleRecord, Linearisation, Shot, Start};
+use crate::cycle_plan::LinearPlan;
 use crate::description::Description;
 use crate::fmi::Status;
 use crate::messages;
@@ -205,6 +206,11 @@ impl Runner {
             read: Vec::new(),
             last_cycle: None,
         }
+    }
+
+    /// A new plan: no cycle of the last one guides the next point's shooting.
+    pub fn forget_cycle(&mut self) {
+        self.last_cycle = None;
     }
 
     /// A fresh instance for a new point: the kept one reset, or a new one.
@@ -418,8 +424,16 @@ impl Runner {
         let tolerance = plan.tolerance.unwrap_or(crate::exchange::DEFAULT_TOLERANCE);
         let budget = plan.stop - plan.start;
         match cycle::analyse(start, cycle_plan, tolerance, budget, self.last_cycle.as_ref()) {
-            Ok((record, shot)) => {
+            Ok((mut record, shot)) => {
                 result.metrics = record.metrics.iter().map(|&m| Some(m)).collect();
+                // The kept variables travel as the series do: rows of (t, values…).
+                let kept = std::mem::take(&mut record.kept);
+                if let Some(times) = kept.first() {
+                    for (j, t) in times.iter().enumerate() {
+                        result.series.push(*t);
+                        result.series.extend(kept[1..].iter().map(|column| column[j]));
+                    }
+                }
                 result.t_end = t + shot.period;
                 result.cycle = Some(record);
                 self.last_cycle = Some(shot);
@@ -427,6 +441,33 @@ impl Runner {
             }
             Err(why) => Err(Stop(Outcome::NoCycle, why)),
         }
+    }
+
+    /// The point's state equations and outputs linearised at its initial state, on the
+    /// Model Exchange interface.
+    pub fn linearise_point(
+        &mut self,
+        plan: &Plan,
+        linear: &LinearPlan,
+        assignments: &mut Assignments,
+        row: &[f64],
+    ) -> Result<Linearisation, String> {
+        messages::take();
+        let prepared = self.prepare(plan, assignments, row, true);
+        let said = messages::take();
+        if let Err(Stop(_, what)) = prepared {
+            self.instance = None;
+            return Err(if said.is_empty() {
+                what
+            } else {
+                format!("{what}: {said}")
+            });
+        }
+        let Some(Running::Exchange(run)) = self.instance.as_mut() else {
+            return Err("a linearisation reads the Model Exchange interface".into());
+        };
+        let (fmu, t, x, _, _) = run.parts();
+        cycle::linearise(fmu, t, x, linear)
     }
 
     pub fn run_point(

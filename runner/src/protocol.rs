@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 use serde::Deserialize;
 use serde_json::{json, Value};
 
+use crate::cycle_plan::LinearPlan;
 use crate::description::Description;
 use crate::exchange::{method_named, Shape};
 use crate::fmi::{Interface, Library};
@@ -43,6 +44,11 @@ enum Request {
     },
     /// Set each row's values in initialisation mode only: what does the FMU refuse?
     Check {
+        names: Vec<String>,
+        rows: Vec<Vec<f64>>,
+    },
+    /// Linearise each row's point at its initial state (Model Exchange).
+    Linearise {
         names: Vec<String>,
         rows: Vec<Vec<f64>>,
     },
@@ -146,6 +152,7 @@ impl Session {
                 .and_then(|()| Plan::resolve(plan, &self.description))
             {
                 Ok(plan) => {
+                    self.runner.forget_cycle();
                     let columns: Vec<_> = plan.read_names.clone();
                     self.plan = Some(plan);
                     reply(out, &json!({"configured": true, "reads": columns}))
@@ -161,6 +168,7 @@ impl Session {
                 flush_each,
             } => self.run(&names, &rows, flush_each, out),
             Request::Check { names, rows } => self.check(&names, &rows, out),
+            Request::Linearise { names, rows } => self.linearise(&names, &rows, out),
             Request::Bare { names, rows } => {
                 let answer = self
                     .prepared(&names, &rows)
@@ -208,7 +216,11 @@ impl Session {
         let mut flushed = Instant::now();
         for (i, row) in rows.iter().enumerate() {
             let r = runner.run_point(plan, &mut assignments, row);
-            let width = plan.series.as_ref().map_or(0, |(slots, _)| slots.len() + 1);
+            let width = match (&plan.series, &plan.cycle) {
+                (Some((slots, _)), _) => slots.len() + 1,
+                (None, Some(cycle)) => cycle.kept + 1,
+                (None, None) => 0,
+            };
             reply(
                 out,
                 &json!({
@@ -235,6 +247,38 @@ impl Session {
             }
         }
         reply(out, &json!({"done": rows.len()}))
+    }
+
+    fn linearise(
+        &mut self,
+        names: &[String],
+        rows: &[Vec<f64>],
+        out: &mut impl Write,
+    ) -> std::io::Result<()> {
+        if self.interface != Some(Interface::ModelExchange) {
+            return reply(
+                out,
+                &json!({"error": "a linearisation needs a plan with interface \"model_exchange\""}),
+            );
+        }
+        let linear = match LinearPlan::of(&self.description) {
+            Ok(linear) => linear,
+            Err(e) => return reply(out, &json!({ "error": e })),
+        };
+        let (plan, runner, mut assignments) = match self.prepared(names, rows) {
+            Ok(p) => p,
+            Err(e) => return reply(out, &json!({ "error": e })),
+        };
+        let results: Vec<Value> = rows
+            .iter()
+            .map(
+                |row| match runner.linearise_point(plan, &linear, &mut assignments, row) {
+                    Ok(l) => json!({"status": "ok", "linearisation": l}),
+                    Err(e) => json!({"status": "error", "message": e}),
+                },
+            )
+            .collect();
+        reply(out, &json!({ "linearised": results }))
     }
 
     fn check(

@@ -124,13 +124,18 @@ pub struct Mode {
     pub im: f64,
 }
 
+/// Eigenvalues this much smaller than A's largest are rigid-body motion (a free angle's
+/// double zero, split by rounding), not a mode.
+const RIGID: f64 = 1e-6;
+
 /// The oscillating modes of A (row-major, n × n): one per complex pair, by frequency.
 pub fn modes(a: &[f64], n: usize) -> Vec<Mode> {
     let matrix = DMatrix::from_row_slice(n, n, a);
-    let mut found: Vec<Mode> = matrix
-        .complex_eigenvalues()
+    let values = matrix.complex_eigenvalues();
+    let largest = values.iter().fold(0.0f64, |m, z| m.max(z.norm()));
+    let mut found: Vec<Mode> = values
         .iter()
-        .filter(|z| z.im > 0.0)
+        .filter(|z| z.im > 0.0 && z.norm() > RIGID * largest)
         .map(|z| {
             let modulus = z.re.hypot(z.im);
             Mode {

@@ -12,7 +12,7 @@ mod shooting;
 use integrators::Tolerances;
 use serde::Serialize;
 
-use crate::cycle_plan::CyclePlan;
+use crate::cycle_plan::{CyclePlan, LinearPlan};
 use crate::fmi::Instance;
 pub use floquet::{Mode, Multiplier};
 use flow::{leg, End, Problem};
@@ -45,7 +45,9 @@ pub struct CycleRecord {
     pub metrics: Vec<f64>,
     /// The modes at points along the cycle: the time into the cycle and the modes there.
     pub modes: Vec<(f64, Vec<Mode>)>,
-    /// The kept variables at the samples: the times into the cycle, then a row each.
+    /// The kept variables at the samples: the times into the cycle, then a row each
+    /// (replied as a series).
+    #[serde(skip)]
     pub kept: Vec<Vec<f64>>,
 }
 
@@ -206,29 +208,81 @@ fn modes_along(
 
 /// A = ∂f/∂x at (t, x), row-major, a column per directional derivative.
 fn jacobian(problem: &mut Problem, t: f64, x: &[f64]) -> Result<Vec<f64>, String> {
-    let n = x.len();
-    let mut a = vec![0.0; n * n];
-    let (mut seed, mut column) = (vec![0.0; n], vec![0.0; n]);
     let fmu = &mut problem.fmu;
-    let mut s = fmu.set_time(t).max(fmu.set_continuous_states(x));
-    for j in 0..n {
+    let s = fmu.set_time(t).max(fmu.set_continuous_states(x));
+    if !s.proceeds() {
+        return Err(format!("setting the state along the cycle returned {s:?}"));
+    }
+    block(fmu, problem.derivatives, problem.states).map_err(|e| format!("along the cycle: {e}"))
+}
+
+/// ∂unknowns/∂knowns where the FMU stands, row-major, a column per directional
+/// derivative.
+fn block(fmu: &mut Instance, unknowns: &[u32], knowns: &[u32]) -> Result<Vec<f64>, String> {
+    let (rows, columns) = (unknowns.len(), knowns.len());
+    let mut matrix = vec![0.0; rows * columns];
+    let (mut seed, mut column) = (vec![0.0; columns], vec![0.0; rows]);
+    for j in 0..columns {
         seed.fill(0.0);
         seed[j] = 1.0;
-        s = s.max(fmu.get_directional_derivative(
-            problem.derivatives,
-            problem.states,
-            &seed,
-            &mut column,
-        ));
-        for i in 0..n {
-            a[i * n + j] = column[i];
+        let s = fmu.get_directional_derivative(unknowns, knowns, &seed, &mut column);
+        if !s.proceeds() {
+            return Err(format!(
+                "the directional derivative along the {j}th known returned {s:?}"
+            ));
+        }
+        for i in 0..rows {
+            matrix[i * columns + j] = column[i];
         }
     }
+    Ok(matrix)
+}
+
+/// The state equations and outputs linearised where the FMU stands, at (t, x):
+/// x' ≈ A x + B u, y ≈ C x + D u (u the Real inputs, y the Real outputs), each matrix
+/// row-major; and the modes of A.
+#[derive(Clone, Debug, Serialize)]
+pub struct Linearisation {
+    pub t: f64,
+    pub x: Vec<f64>,
+    pub states: Vec<String>,
+    pub inputs: Vec<String>,
+    pub outputs: Vec<String>,
+    pub a: Vec<f64>,
+    pub b: Vec<f64>,
+    pub c: Vec<f64>,
+    pub d: Vec<f64>,
+    pub modes: Vec<Mode>,
+}
+
+pub fn linearise(
+    fmu: &mut Instance,
+    t: f64,
+    x: Vec<f64>,
+    plan: &LinearPlan,
+) -> Result<Linearisation, String> {
+    let s = fmu.set_time(t).max(fmu.set_continuous_states(&x));
     if !s.proceeds() {
-        return Err(format!(
-            "the state equations' Jacobian along the cycle: the FMU returned {s:?} (modes \
-             need its directional derivatives)"
-        ));
+        return Err(format!("setting the state returned {s:?}"));
     }
-    Ok(a)
+    let a = block(fmu, &plan.derivatives, &plan.states).map_err(|e| format!("A: {e}"))?;
+    let b = block(fmu, &plan.derivatives, &plan.inputs).map_err(|e| format!("B: {e}"))?;
+    let c = block(fmu, &plan.outputs, &plan.states).map_err(|e| format!("C: {e}"))?;
+    let d = block(fmu, &plan.outputs, &plan.inputs).map_err(|e| format!("D: {e}"))?;
+    if let Some(v) = [&a, &b, &c, &d].iter().flat_map(|m| m.iter()).find(|v| !v.is_finite()) {
+        return Err(format!("the FMU's directional derivatives hold {v}"));
+    }
+    let modes = floquet::modes(&a, x.len());
+    Ok(Linearisation {
+        t,
+        x,
+        states: plan.state_names.clone(),
+        inputs: plan.input_names.clone(),
+        outputs: plan.output_names.clone(),
+        a,
+        b,
+        c,
+        d,
+        modes,
+    })
 }

@@ -10,9 +10,12 @@ use nalgebra::{DMatrix, DVector};
 use super::flow::{leg, End, Leg, Problem, Stopped};
 use crate::cycle_plan::{CyclePlan, Monodromy};
 
-/// The most Newton iterations, and the most halvings of one Newton step.
+/// The most Newton iterations, and the most halvings of one Newton step; from a
+/// neighbour's cycle, fewer of each before the point's own transient is tried instead.
 const MOST_ITERATIONS: usize = 30;
 const MOST_HALVINGS: usize = 8;
+const GUESS_ITERATIONS: usize = 6;
+const GUESS_HALVINGS: usize = 2;
 /// Revolutions of the transient before Newton starts, at least, and until the period
 /// changes by less than this fraction from one to the next.
 const LEAST_WARM_UP: usize = 2;
@@ -101,13 +104,14 @@ impl<'a, 'b> Shooting<'a, 'b> {
         let k = self.plan.state;
         self.direction = if f[k] < 0.0 { -1.0 } else { 1.0 };
         if let Some(guess) = guess {
-            if let Ok(shot) = self.newton(guess.t0, guess.x0.clone(), guess.period) {
+            let patience = (GUESS_ITERATIONS, GUESS_HALVINGS);
+            if let Ok(shot) = self.newton(guess.t0, guess.x0.clone(), guess.period, patience) {
                 self.continued = true;
                 return Ok(shot);
             }
         }
         let (t0, x0, period) = self.warm_up(t, x)?;
-        self.newton(t0, x0, period)
+        self.newton(t0, x0, period, (MOST_ITERATIONS, MOST_HALVINGS))
     }
 
     fn derivative(&mut self, t: f64, x: &[f64]) -> Result<Vec<f64>, NoCycle> {
@@ -235,19 +239,26 @@ impl<'a, 'b> Shooting<'a, 'b> {
         Ok(phi)
     }
 
-    /// Newton's method from (x0, period), x0 on the section.
-    fn newton(&mut self, t0: f64, mut x0: Vec<f64>, mut period: f64) -> Result<Shot, NoCycle> {
+    /// Newton's method from (x0, period), x0 on the section, with at most `patience`
+    /// iterations and halvings of a step.
+    fn newton(
+        &mut self,
+        t0: f64,
+        mut x0: Vec<f64>,
+        mut period: f64,
+        (most_iterations, most_halvings): (usize, usize),
+    ) -> Result<Shot, NoCycle> {
         let n = x0.len();
         let k = self.plan.state;
         let scales = self.scales(&x0);
         let mut leg = self.shoot(t0, &x0, period)?;
         let mut r = self.residual(&x0, &leg);
         let mut norm = Self::norm(&r, &scales);
-        for iteration in 0..=MOST_ITERATIONS {
+        for iteration in 0..=most_iterations {
             if norm <= self.tolerance {
                 return Ok(self.shot(t0, x0, period, norm, leg, iteration));
             }
-            if iteration == MOST_ITERATIONS {
+            if iteration == most_iterations {
                 break;
             }
             let step = newton_step(&leg, &r, k).ok_or_else(|| {
@@ -260,7 +271,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
             })?;
             let mut lambda = 1.0;
             let mut accepted = false;
-            for _ in 0..=MOST_HALVINGS {
+            for _ in 0..=most_halvings {
                 let (mut x, p) = (x0.clone(), period + lambda * step[n - 1]);
                 for (i, j) in (0..n).filter(|&i| i != k).enumerate() {
                     x[j] += lambda * step[i];
