@@ -44,6 +44,7 @@ MONODROMY = ("variational", "differences")
 # The columns a sweep of cycles writes of its own (the multipliers and modes as lists).
 CYCLE_COLUMNS = ("cycle_period", "cycle_multiplier", "cycle_stability", "cycle_margin",
                  "cycle_residual", "cycle_iterations", "cycle_runs", "cycle_continued",
+                 "cycle_state",
                  "cycle_multipliers_re", "cycle_multipliers_im", "cycle_modes_hz",
                  "cycle_modes_damping")
 MOST_SAMPLES = 1 << 20
@@ -179,6 +180,7 @@ def cycle_columns(results: list[PointResult]) -> dict[str, pa.Array]:
     """Each point's cycle: its period, its largest Floquet multiplier's modulus, the
     verdict and the margin to the unit circle, the periodicity residual, the Newton
     iterations and runs spent, whether it continued from its neighbour's cycle; its
+    state on the section (in the order of the FMU's Model Exchange states), its
     multipliers, and its modes' frequencies and damping ratios averaged along the cycle
     (null where the point has no cycle)."""
     cycles = [r.get("cycle") for r in results]
@@ -198,6 +200,7 @@ def cycle_columns(results: list[PointResult]) -> dict[str, pa.Array]:
             "cycle_iterations": column("iterations", pa.int64()),
             "cycle_runs": column("runs", pa.int64()),
             "cycle_continued": column("continued", pa.bool_()),
+            "cycle_state": listed(lambda c: c["state"]),
             "cycle_multipliers_re": listed(lambda c: [m["re"] for m in c["multipliers"]]),
             "cycle_multipliers_im": listed(lambda c: [m["im"] for m in c["multipliers"]]),
             "cycle_modes_hz": listed(lambda c: _along(c, "frequency")),

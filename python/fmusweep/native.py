@@ -299,7 +299,9 @@ class NativeRunner:
 
 def failed_result(status: str, message: str, plan: Plan) -> PointResult:
     """The result of a point that ended without a reply of the runner's."""
-    return {"status": status, "message": message, "metrics": [None] * len(plan.get("metrics") or []),
+    cycle = plan.get("cycle")
+    metrics = cycle["metrics"] if cycle else plan.get("metrics") or []
+    return {"status": status, "message": message, "metrics": [None] * len(metrics),
             "t_end": None, "steps": None, "wall_s": None}
 
 

@@ -94,14 +94,18 @@ const MOST_MODE_POINTS: usize = 4096;
 impl CyclePlan {
     pub fn resolve(spec: CycleSpec, description: &Description) -> Result<CyclePlan, String> {
         if !description.has_model_exchange {
-            return Err("cycle: the steady cycle is found by integrating the FMU's Model \
+            return Err(
+                "cycle: the steady cycle is found by integrating the FMU's Model \
                         Exchange interface, which this FMU does not have"
-                .into());
+                    .into(),
+            );
         }
         if description.states.len() != description.continuous_states {
-            return Err("cycle: the FMU's description does not say which variable each of its \
+            return Err(
+                "cycle: the FMU's description does not say which variable each of its \
                         continuous states is (a derivative without its `derivative` attribute)"
-                .into());
+                    .into(),
+            );
         }
         let state = state_index(description, &spec.state, "cycle.state")?;
         if !(spec.period.is_finite() && spec.period > 0.0) {
@@ -126,9 +130,11 @@ impl CyclePlan {
                 Monodromy::Variational
             }
             Some("variational") => {
-                return Err("cycle.monodromy: \"variational\" needs the FMU's directional \
+                return Err(
+                    "cycle.monodromy: \"variational\" needs the FMU's directional \
                             derivatives under Model Exchange, which it does not give"
-                    .into())
+                        .into(),
+                )
             }
             Some(other) => {
                 return Err(format!(
@@ -157,7 +163,11 @@ impl CyclePlan {
                 .iter()
                 .map(|s| name_of(description, s.value_reference))
                 .collect(),
-            states: description.states.iter().map(|s| s.value_reference).collect(),
+            states: description
+                .states
+                .iter()
+                .map(|s| s.value_reference)
+                .collect(),
             derivatives: description.states.iter().map(|s| s.derivative).collect(),
             metrics: Vec::new(),
             reads: Vec::new(),
@@ -170,7 +180,11 @@ impl CyclePlan {
         for (k, m) in spec.metrics.iter().enumerate() {
             let slot = plan.read(description, &m.variable, &format!("cycle.metrics[{k}]"))?;
             let order = match (m.kind, m.order) {
-                (CycleKind::Harmonic, Some(order)) if order >= 1 && 2 * order as usize <= samples => order,
+                (CycleKind::Harmonic, Some(order))
+                    if order >= 1 && 2 * order as usize <= samples =>
+                {
+                    order
+                }
                 (CycleKind::Harmonic, order) => {
                     return Err(format!(
                         "cycle.metrics[{k}].order: a harmonic needs a whole order between 1 and \
@@ -195,7 +209,12 @@ impl CyclePlan {
     }
 
     /// The slot of a Real variable among those read at the samples.
-    fn read(&mut self, description: &Description, name: &str, field: &str) -> Result<usize, String> {
+    fn read(
+        &mut self,
+        description: &Description,
+        name: &str,
+        field: &str,
+    ) -> Result<usize, String> {
         let variable = description
             .variable(name)
             .map_err(|e| format!("{field}: {e}"))?;
@@ -260,14 +279,18 @@ pub struct LinearPlan {
 impl LinearPlan {
     pub fn of(description: &Description) -> Result<LinearPlan, String> {
         if !description.has_model_exchange || !description.exchange_directional_derivatives {
-            return Err("a linearisation reads the FMU's directional derivatives under Model \
+            return Err(
+                "a linearisation reads the FMU's directional derivatives under Model \
                         Exchange, which this FMU does not give"
-                .into());
+                    .into(),
+            );
         }
         if description.states.len() != description.continuous_states {
-            return Err("the FMU's description does not say which variable each of its \
+            return Err(
+                "the FMU's description does not say which variable each of its \
                         continuous states is"
-                .into());
+                    .into(),
+            );
         }
         let real = |causality: &str| -> (Vec<u32>, Vec<String>) {
             description
@@ -280,7 +303,11 @@ impl LinearPlan {
         let (inputs, input_names) = real("input");
         let (outputs, output_names) = real("output");
         Ok(LinearPlan {
-            states: description.states.iter().map(|s| s.value_reference).collect(),
+            states: description
+                .states
+                .iter()
+                .map(|s| s.value_reference)
+                .collect(),
             derivatives: description.states.iter().map(|s| s.derivative).collect(),
             state_names: description
                 .states

@@ -410,6 +410,7 @@ mod tests {
             declared_type: None,
             description: None,
             fmi_type: String::new(),
+            derivative_of: None,
             items: Default::default(),
         };
         let (i, r1, b, r2) = (

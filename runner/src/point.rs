@@ -423,7 +423,13 @@ impl Runner {
         };
         let tolerance = plan.tolerance.unwrap_or(crate::exchange::DEFAULT_TOLERANCE);
         let budget = plan.stop - plan.start;
-        match cycle::analyse(start, cycle_plan, tolerance, budget, self.last_cycle.as_ref()) {
+        match cycle::analyse(
+            start,
+            cycle_plan,
+            tolerance,
+            budget,
+            self.last_cycle.as_ref(),
+        ) {
             Ok((mut record, shot)) => {
                 result.metrics = record.metrics.iter().map(|&m| Some(m)).collect();
                 // The kept variables travel as the series do: rows of (t, values…).
@@ -431,7 +437,9 @@ impl Runner {
                 if let Some(times) = kept.first() {
                     for (j, t) in times.iter().enumerate() {
                         result.series.push(*t);
-                        result.series.extend(kept[1..].iter().map(|column| column[j]));
+                        result
+                            .series
+                            .extend(kept[1..].iter().map(|column| column[j]));
                     }
                 }
                 result.t_end = t + shot.period;
@@ -514,7 +522,11 @@ impl Runner {
                 } else {
                     format!("{what}: {said}")
                 };
-                result.metrics = vec![None; plan.metrics.len()];
+                let count = plan
+                    .cycle
+                    .as_ref()
+                    .map_or(plan.metrics.len(), |c| c.metrics.len());
+                result.metrics = vec![None; count];
                 // An instance that failed may be unusable; make a new one next time.
                 if outcome == Outcome::Error {
                     self.instance = None;

@@ -34,7 +34,7 @@ enum Request {
     /// The model description as JSON.
     Describe,
     /// The plan for the following requests.
-    Configure { plan: PlanSpec },
+    Configure { plan: Box<PlanSpec> },
     /// Run each row: `names` are the columns (parameters or inputs set at the start).
     Run {
         names: Vec<String>,
@@ -104,9 +104,7 @@ impl Session {
                      not {name:?}"
                 ))
             }
-            None if plan.cycle.is_some() && self.interface.is_some() => {
-                Interface::ModelExchange
-            }
+            None if plan.cycle.is_some() && self.interface.is_some() => Interface::ModelExchange,
             Some(name) => Interface::from_name(name)?,
             None if self.interface.is_none() => return Ok(()),
             None => Interface::default_for(&self.description),
@@ -149,7 +147,7 @@ impl Session {
             Request::Describe => reply(out, &json!({"description": self.description})),
             Request::Configure { plan } => match self
                 .choose_interface(&plan)
-                .and_then(|()| Plan::resolve(plan, &self.description))
+                .and_then(|()| Plan::resolve(*plan, &self.description))
             {
                 Ok(plan) => {
                     self.runner.forget_cycle();

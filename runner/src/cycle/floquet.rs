@@ -35,8 +35,7 @@ pub fn multipliers(
     for (a, &i) in others.iter().enumerate() {
         for (b, &j) in others.iter().enumerate() {
             // In the nominals' units, so that the eigenvectors compare states fairly.
-            p[(a, b)] =
-                (phi[i * n + j] - f[i] * phi[k * n + j] / f[k]) * nominals[j] / nominals[i];
+            p[(a, b)] = (phi[i * n + j] - f[i] * phi[k * n + j] / f[k]) * nominals[j] / nominals[i];
         }
     }
     let values = p.clone().complex_eigenvalues();

@@ -108,8 +108,8 @@ impl<const N: usize> OdeSystem<N> for Flow<'_, '_> {
             dy.fill(f64::NAN);
             return;
         }
-        for k in 0..n {
-            dy[k] /= p.nominals[k];
+        for (dy, nominal) in dy[..n].iter_mut().zip(p.nominals) {
+            *dy /= nominal;
         }
     }
 
@@ -187,7 +187,14 @@ fn sized_leg<const N: usize>(
     flow.rhs(t0, &y, &mut f0);
     let stats = &mut method.progress_mut().stats;
     stats.n_rhs += 1;
-    let h = initial_step(&flow, (t0, &y, &f0), limit - t0, problem_tolerances, 8, stats);
+    let h = initial_step(
+        &flow,
+        (t0, &y, &f0),
+        limit - t0,
+        problem_tolerances,
+        8,
+        stats,
+    );
     method.progress_mut().next_step = Some(h);
     let mut sampled = Vec::with_capacity(at.len());
     let mut t = t0;
@@ -224,7 +231,10 @@ fn sized_leg<const N: usize>(
         }
         if let End::Reaching { index, value, .. } = end {
             let nominal = flow.problem.borrow().nominals[index];
-            let (a, b) = (before.1[index] * nominal - value, y[index] * nominal - value);
+            let (a, b) = (
+                before.1[index] * nominal - value,
+                y[index] * nominal - value,
+            );
             if a == 0.0 || (a < 0.0) != (b < 0.0) {
                 let (tc, z) = reach(&mut method, &flow, (before.0, a), (t, b), index, value)?;
                 (t, y) = (tc, z);

@@ -4,8 +4,8 @@
 //! linearised along it ([`floquet`]), and metrics of outputs over one cycle ([`measure`]).
 //! docs/cycle.md explains the method.
 
-mod flow;
 mod floquet;
+mod flow;
 mod measure;
 mod shooting;
 
@@ -101,6 +101,16 @@ pub fn analyse(
         start.nominals,
     );
     let (stability, margin) = floquet::stability(&multipliers, marginal_band(tolerance));
+    if stability == "marginal" {
+        let on = &multipliers[0];
+        return Err(format!(
+            "no steady cycle: a periodic motion was found, but a Floquet multiplier lies on \
+             the unit circle (|μ| = {:.9}, mostly {}): an undamped mode, so transients do \
+             not settle onto it and it is one of a family of motions, not a steady state",
+            on.modulus,
+            on.states.first().map_or("?", |s| s.0.as_str())
+        ));
+    }
     let (metrics, kept) = along(&mut problem, plan, &shot)?;
     let modes = modes_along(&mut problem, plan, &shot)?;
     Ok((
@@ -134,8 +144,15 @@ fn states_along(
         .map(|j| shot.period * j as f64 / count as f64)
         .collect();
     let later: Vec<f64> = times[1..].to_vec();
-    let run = leg(problem, shot.t0, &shot.x0, End::After(shot.period), false, &later)
-        .map_err(|e| format!("the cycle's samples: {e:?}"))?;
+    let run = leg(
+        problem,
+        shot.t0,
+        &shot.x0,
+        End::After(shot.period),
+        false,
+        &later,
+    )
+    .map_err(|e| format!("the cycle's samples: {e:?}"))?;
     let mut states = vec![shot.x0.clone()];
     states.extend(run.sampled);
     Ok((times, states))
@@ -160,7 +177,9 @@ fn along(
             .max(fmu.set_continuous_states(x))
             .max(fmu.get_real(&plan.reads, &mut row));
         if !s.proceeds() {
-            return Err(format!("reading the outputs along the cycle returned {s:?}"));
+            return Err(format!(
+                "reading the outputs along the cycle returned {s:?}"
+            ));
         }
         if let Some(i) = row.iter().position(|v| !v.is_finite()) {
             return Err(format!(
@@ -269,7 +288,11 @@ pub fn linearise(
     let b = block(fmu, &plan.derivatives, &plan.inputs).map_err(|e| format!("B: {e}"))?;
     let c = block(fmu, &plan.outputs, &plan.states).map_err(|e| format!("C: {e}"))?;
     let d = block(fmu, &plan.outputs, &plan.inputs).map_err(|e| format!("D: {e}"))?;
-    if let Some(v) = [&a, &b, &c, &d].iter().flat_map(|m| m.iter()).find(|v| !v.is_finite()) {
+    if let Some(v) = [&a, &b, &c, &d]
+        .iter()
+        .flat_map(|m| m.iter())
+        .find(|v| !v.is_finite())
+    {
         return Err(format!("the FMU's directional derivatives hold {v}"));
     }
     let modes = floquet::modes(&a, x.len());

@@ -148,7 +148,16 @@ impl<'a, 'b> Shooting<'a, 'b> {
             let target = next(x[k], self.direction);
             let within = end_of_budget - t;
             let reached = self
-                .leg(t, &x, End::Reaching { index: k, value: target, within }, false)
+                .leg(
+                    t,
+                    &x,
+                    End::Reaching {
+                        index: k,
+                        value: target,
+                        within,
+                    },
+                    false,
+                )
                 .map_err(|e| stopped("the transient before the shooting", e, self.plan))?;
             let mut x_next = reached.x;
             x_next[k] = target;
@@ -196,7 +205,9 @@ impl<'a, 'b> Shooting<'a, 'b> {
     }
 
     fn norm(r: &[f64], scales: &[f64]) -> f64 {
-        r.iter().zip(scales).fold(0.0, |m, (r, s)| m.max(r.abs() / s))
+        r.iter()
+            .zip(scales)
+            .fold(0.0, |m, (r, s)| m.max(r.abs() / s))
     }
 
     /// One cycle's leg from (t0, x0) over `period`, with its monodromy.
@@ -286,7 +297,9 @@ impl<'a, 'b> Shooting<'a, 'b> {
                             break;
                         }
                         // Newton can go no further than the integration's own error.
-                        if lambda == 1.0 && Self::step_norm(&step, &scales, k, period) <= self.tolerance {
+                        if lambda == 1.0
+                            && Self::step_norm(&step, &scales, k, period) <= self.tolerance
+                        {
                             return Ok(self.shot(t0, x0, period, norm, leg, iteration + 1));
                         }
                     }
@@ -313,7 +326,15 @@ impl<'a, 'b> Shooting<'a, 'b> {
         states.max(step[n - 1].abs() / period)
     }
 
-    fn shot(&self, t0: f64, x0: Vec<f64>, period: f64, residual: f64, leg: Leg, iterations: usize) -> Shot {
+    fn shot(
+        &self,
+        t0: f64,
+        x0: Vec<f64>,
+        period: f64,
+        residual: f64,
+        leg: Leg,
+        iterations: usize,
+    ) -> Shot {
         Shot {
             t0,
             x0,
@@ -342,5 +363,7 @@ fn newton_step(leg: &Leg, r: &[f64], k: usize) -> Option<Vec<f64>> {
     let rhs = DVector::from_iterator(n, r.iter().map(|r| -r));
     let lu = jacobian.lu();
     let step = lu.solve(&rhs)?;
-    step.iter().all(|s| s.is_finite()).then(|| step.iter().copied().collect())
+    step.iter()
+        .all(|s| s.is_finite())
+        .then(|| step.iter().copied().collect())
 }

@@ -161,6 +161,9 @@ fn routes(
             variables.push(Variable {
                 name: format!("{}.{}", names[component], v.name),
                 value_reference: (routes.len() - 1) as u32,
+                // A component's state is not one of the system's, which has no Model
+                // Exchange interface.
+                derivative_of: None,
                 ..v.clone()
             });
         }
