@@ -11,6 +11,7 @@ interface (docs/cycle.md), and its metrics are taken over one cycle::
     samples = 2048                 # points along the cycle the metrics are read at
     modes = 8                      # points along the cycle its modes are computed at
     keep = ["rod_force"]           # variables kept over one cycle (series/, the pictures)
+    continuation = true            # start from the previous point's cycle (the default)
 
     [outputs.metrics]
     peak = { variable = "rod_force", kind = "max" }
@@ -61,6 +62,7 @@ class CyclePlan(TypedDict):
     monodromy: str | None
     modes: int
     keep: list[str]
+    continuation: bool
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,7 @@ class CycleSpec:
     samples: int | None = None
     modes: int = 0
     keep: list[str] = field(default_factory=list)
+    continuation: bool = True
 
     @staticmethod
     def of(raw: dict[str, Any]) -> CycleSpec | None:
@@ -81,7 +84,8 @@ class CycleSpec:
             return None
         errors = Collector()
         errors.run(lambda: only(cycle, "cycle", {"state", "period", "shifted", "monodromy",
-                                                 "samples", "modes", "keep"}))
+                                                 "samples", "modes", "keep",
+                                                 "continuation"}))
         state = errors.run(lambda: _name(cycle.get("state"), "cycle.state"))
         period = errors.run(lambda: _period(cycle.get("period")))
         shifted = errors.run(lambda: _names(cycle.get("shifted", []), "cycle.shifted"))
@@ -93,9 +97,14 @@ class CycleSpec:
         samples = errors.run(lambda: _whole(cycle.get("samples"), "cycle.samples", 8, MOST_SAMPLES))
         modes = errors.run(lambda: _whole(cycle.get("modes", 0), "cycle.modes", 0,
                                           MOST_MODE_POINTS))
+        continuation = cycle.get("continuation", True)
+        if not isinstance(continuation, bool):
+            errors.run(lambda: _refuse("cycle.continuation", f"must be true or false, got "
+                                                             f"{continuation!r}"))
         errors.raise_any()
         assert state is not None and period is not None
-        return CycleSpec(state, period, shifted or [], monodromy, samples, modes or 0, keep or [])
+        return CycleSpec(state, period, shifted or [], monodromy, samples, modes or 0, keep or [],
+                         bool(continuation))
 
     def check(self, description: dict[str, Any], errors: Collector) -> None:
         """Against the FMU: it has Model Exchange, the states named are its continuous
@@ -132,7 +141,7 @@ class CycleSpec:
         return {"state": self.state, "period": self.period, "shifted": self.shifted,
                 "metrics": [{"variable": v, "kind": k, "order": o} for v, k, o in metrics],
                 "samples": self.samples, "monodromy": self.monodromy, "modes": self.modes,
-                "keep": self.keep}
+                "keep": self.keep, "continuation": self.continuation}
 
 
 def _refuse(where: str, rule: str) -> None:

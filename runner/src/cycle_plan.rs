@@ -33,6 +33,9 @@ pub struct CycleSpec {
     /// Variables whose values at the samples are returned with the cycle.
     #[serde(default)]
     pub keep: Vec<String>,
+    /// Whether a point's shooting starts from the previous point's cycle (and from its
+    /// own transient only if that fails); by default it does.
+    pub continuation: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -78,10 +81,12 @@ pub struct CyclePlan {
     /// The variables read at the samples: the metrics', then those kept.
     pub reads: Vec<u32>,
     pub read_names: Vec<String>,
-    pub kept: usize,
+    /// The slots of the kept variables among those read, in the order asked.
+    pub kept: Vec<usize>,
     pub samples: usize,
     pub monodromy: Monodromy,
     pub modes: usize,
+    pub continuation: bool,
 }
 
 /// The samples along a cycle where none are asked for: enough that a peak found by a
@@ -172,10 +177,11 @@ impl CyclePlan {
             metrics: Vec::new(),
             reads: Vec::new(),
             read_names: Vec::new(),
-            kept: 0,
+            kept: Vec::new(),
             samples,
             monodromy,
             modes: spec.modes,
+            continuation: spec.continuation.unwrap_or(true),
         };
         for (k, m) in spec.metrics.iter().enumerate() {
             let slot = plan.read(description, &m.variable, &format!("cycle.metrics[{k}]"))?;
@@ -202,9 +208,9 @@ impl CyclePlan {
             plan.metrics.push((slot, m.kind, order));
         }
         for (k, name) in spec.keep.iter().enumerate() {
-            plan.read(description, name, &format!("cycle.keep[{k}]"))?;
+            let slot = plan.read(description, name, &format!("cycle.keep[{k}]"))?;
+            plan.kept.push(slot);
         }
-        plan.kept = spec.keep.len();
         Ok(plan)
     }
 

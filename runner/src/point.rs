@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use crate::coupling::CouplingRecord;
-use crate::cycle::{self, CycleRecord, Linearisation, Shot, Start};
+use crate::cycle::{self, Continuation, CycleRecord, Linearisation, Start};
 use crate::cycle_plan::LinearPlan;
 use crate::description::Description;
 use crate::fmi::Status;
@@ -173,8 +173,8 @@ pub struct Runner {
     integers: Vec<i32>,
     booleans: Vec<i32>,
     read: Vec<f64>,
-    /// The last steady cycle found: the next point's shooting starts from it.
-    last_cycle: Option<Shot>,
+    /// The last steady cycles found: the next point's shooting starts from them.
+    continuation: Continuation,
 }
 
 /// A failed FMI call: the outcome it maps to and what the FMU said.
@@ -204,13 +204,13 @@ impl Runner {
             integers: Vec::new(),
             booleans: Vec::new(),
             read: Vec::new(),
-            last_cycle: None,
+            continuation: Continuation::default(),
         }
     }
 
     /// A new plan: no cycle of the last one guides the next point's shooting.
     pub fn forget_cycle(&mut self) {
-        self.last_cycle = None;
+        self.continuation.forget();
     }
 
     /// A fresh instance for a new point: the kept one reset, or a new one.
@@ -423,12 +423,16 @@ impl Runner {
         };
         let tolerance = plan.tolerance.unwrap_or(crate::exchange::DEFAULT_TOLERANCE);
         let budget = plan.stop - plan.start;
+        let guess = cycle_plan
+            .continuation
+            .then(|| self.continuation.guess(row, cycle_plan))
+            .flatten();
         match cycle::analyse(
             start,
             cycle_plan,
             tolerance,
             budget,
-            self.last_cycle.as_ref(),
+            guess.as_ref(),
         ) {
             Ok((mut record, shot)) => {
                 result.metrics = record.metrics.iter().map(|&m| Some(m)).collect();
@@ -444,10 +448,13 @@ impl Runner {
                 }
                 result.t_end = t + shot.period;
                 result.cycle = Some(record);
-                self.last_cycle = Some(shot);
+                self.continuation.record(row, shot);
                 Ok(())
             }
-            Err(why) => Err(Stop(Outcome::NoCycle, why)),
+            Err(why) => {
+                self.continuation.broken();
+                Err(Stop(Outcome::NoCycle, why))
+            }
         }
     }
 

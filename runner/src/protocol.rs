@@ -216,7 +216,7 @@ impl Session {
             let r = runner.run_point(plan, &mut assignments, row);
             let width = match (&plan.series, &plan.cycle) {
                 (Some((slots, _)), _) => slots.len() + 1,
-                (None, Some(cycle)) => cycle.kept + 1,
+                (None, Some(cycle)) => cycle.kept.len() + 1,
                 (None, None) => 0,
             };
             reply(

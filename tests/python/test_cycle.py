@@ -121,12 +121,16 @@ def test_the_largest_multiplier_is_the_decay_of_a_perturbation_in_a_long_run(fmu
     complex pair μ, ρ = |μ|; Prony's fit of s[k+2] = p s[k+1] + q s[k] gives ρ² = −q,
     within 1 % of the cycle's largest multiplier."""
     parameters = {"d12": 0.1, "d34": 0.1}
-    spec = cycle_spec(parameters, listed(J1=[0.5]), metrics={}, keep=["phi3"])
+    spec = cycle_spec(parameters, listed(J1=[0.5]), metrics={"speed": METRICS["speed"]},
+                      keep=["omega2", "phi3"])
     results = sweep(spec, fmu_path, tmp_path / "cycle")
     point = results.points.iloc[0]
+    # A kept variable is kept whether or not a metric reads it too.
+    series = results.series()
+    kept = series[series["variable"] == "omega2"]["value"].to_numpy()
+    assert len(kept) == 2048 and kept.mean() == pytest.approx(point["speed"], rel=1e-14)
     x = dict(zip(["phi1", "loop_angle", "phi4", "omega1", "loop_speed", "omega4"],
                  point["cycle_state"]))
-    series = results.series()
     phi3 = series[series["variable"] == "phi3"].sort_values("time")["value"].iloc[0]
     start = {"phi2_0": 0.0, "twist12_0": x["phi1"] - x["loop_angle"],
              "twist34_0": phi3 - x["phi4"], "omega1_0": x["omega1"],

@@ -5,6 +5,7 @@
 //! docs/cycle.md explains the method.
 
 mod floquet;
+mod continuation;
 mod flow;
 mod measure;
 mod shooting;
@@ -16,6 +17,7 @@ use crate::cycle_plan::{CyclePlan, LinearPlan};
 use crate::fmi::Instance;
 pub use floquet::{Mode, Multiplier};
 use flow::{leg, End, Problem};
+pub use continuation::Continuation;
 pub use shooting::Shot;
 use shooting::{NoCycle, Shooting};
 
@@ -197,10 +199,9 @@ fn along(
         .map(|&(slot, kind, order)| measure::metric(&columns[slot], kind, order))
         .collect();
     let mut kept = Vec::new();
-    if plan.kept > 0 {
+    if !plan.kept.is_empty() {
         kept.push(times);
-        let first = plan.reads.len() - plan.kept;
-        kept.extend(columns.into_iter().skip(first));
+        kept.extend(plan.kept.iter().map(|&slot| columns[slot].clone()));
     }
     Ok((metrics, kept))
 }

@@ -14,7 +14,7 @@ use crate::cycle_plan::{CyclePlan, Monodromy};
 /// neighbour's cycle, fewer of each before the point's own transient is tried instead.
 const MOST_ITERATIONS: usize = 30;
 const MOST_HALVINGS: usize = 8;
-const GUESS_ITERATIONS: usize = 6;
+const GUESS_ITERATIONS: usize = 10;
 const GUESS_HALVINGS: usize = 2;
 /// Revolutions of the transient before Newton starts, at least, and until the period
 /// changes by less than this fraction from one to the next.
@@ -105,13 +105,14 @@ impl<'a, 'b> Shooting<'a, 'b> {
         self.direction = if f[k] < 0.0 { -1.0 } else { 1.0 };
         if let Some(guess) = guess {
             let patience = (GUESS_ITERATIONS, GUESS_HALVINGS);
-            if let Ok(shot) = self.newton(guess.t0, guess.x0.clone(), guess.period, patience) {
+            let start = (guess.t0, guess.x0.clone(), guess.period);
+            if let Ok(shot) = self.newton(start.0, start.1, start.2, patience, Some(guess)) {
                 self.continued = true;
                 return Ok(shot);
             }
         }
         let (t0, x0, period) = self.warm_up(t, x)?;
-        self.newton(t0, x0, period, (MOST_ITERATIONS, MOST_HALVINGS))
+        self.newton(t0, x0, period, (MOST_ITERATIONS, MOST_HALVINGS), None)
     }
 
     fn derivative(&mut self, t: f64, x: &[f64]) -> Result<Vec<f64>, NoCycle> {
@@ -251,28 +252,45 @@ impl<'a, 'b> Shooting<'a, 'b> {
     }
 
     /// Newton's method from (x0, period), x0 on the section, with at most `patience`
-    /// iterations and halvings of a step.
+    /// iterations and halvings of a step. Its Jacobian comes from a monodromy (the
+    /// neighbour's, `hint`, or the first run's) and is kept up to date by Broyden's
+    /// rank-one rule from the plain runs that follow, each a fraction of the cost of a run
+    /// with the monodromy; where the residual is small enough, a run with the monodromy is
+    /// made again, so that the multipliers are the solution's own.
     fn newton(
         &mut self,
         t0: f64,
         mut x0: Vec<f64>,
         mut period: f64,
         (most_iterations, most_halvings): (usize, usize),
+        hint: Option<&Shot>,
     ) -> Result<Shot, NoCycle> {
-        let n = x0.len();
         let k = self.plan.state;
         let scales = self.scales(&x0);
-        let mut leg = self.shoot(t0, &x0, period)?;
+        let mut jacobian = hint.map(|h| jacobian_of(&h.phi, &h.f, k));
+        let mut leg = self.run(t0, &x0, period, jacobian.is_none())?;
         let mut r = self.residual(&x0, &leg);
         let mut norm = Self::norm(&r, &scales);
         for iteration in 0..=most_iterations {
+            if let Some(phi) = &leg.phi {
+                jacobian = Some(jacobian_of(phi, &leg.f, k));
+            }
             if norm <= self.tolerance {
-                return Ok(self.shot(t0, x0, period, norm, leg, iteration));
+                if leg.phi.is_none() {
+                    leg = self.run(t0, &x0, period, true)?;
+                    r = self.residual(&x0, &leg);
+                    norm = Self::norm(&r, &scales);
+                }
+                if norm <= self.tolerance {
+                    return Ok(self.shot(t0, x0, period, norm, leg, iteration));
+                }
+                continue;
             }
             if iteration == most_iterations {
                 break;
             }
-            let step = newton_step(&leg, &r, k).ok_or_else(|| {
+            let matrix = jacobian.as_ref().expect("a Jacobian from a monodromy");
+            let step = solve(matrix, &r).ok_or_else(|| {
                 NoCycle(
                     "the shooting's Jacobian is singular: a Floquet multiplier other than the \
                      flow's own is 1 (an undamped mode, or a family of cycles), so the steady \
@@ -280,34 +298,31 @@ impl<'a, 'b> Shooting<'a, 'b> {
                         .into(),
                 )
             })?;
-            let mut lambda = 1.0;
-            let mut accepted = false;
-            for _ in 0..=most_halvings {
-                let (mut x, p) = (x0.clone(), period + lambda * step[n - 1]);
-                for (i, j) in (0..n).filter(|&i| i != k).enumerate() {
-                    x[j] += lambda * step[i];
+            if Self::step_norm(&step, &scales, k, period) <= self.tolerance {
+                // Newton can go no further than the integration's own error.
+                if leg.phi.is_none() {
+                    leg = self.run(t0, &x0, period, true)?;
+                    norm = Self::norm(&self.residual(&x0, &leg), &scales);
                 }
-                if p > 0.0 {
-                    if let Ok(trial) = self.shoot(t0, &x, p) {
-                        let r_trial = self.residual(&x, &trial);
-                        let trial_norm = Self::norm(&r_trial, &scales);
-                        if trial_norm < norm || trial_norm <= self.tolerance {
-                            (x0, period, leg, r, norm) = (x, p, trial, r_trial, trial_norm);
-                            accepted = true;
-                            break;
-                        }
-                        // Newton can go no further than the integration's own error.
-                        if lambda == 1.0
-                            && Self::step_norm(&step, &scales, k, period) <= self.tolerance
-                        {
-                            return Ok(self.shot(t0, x0, period, norm, leg, iteration + 1));
-                        }
-                    }
-                }
-                lambda *= 0.5;
+                return Ok(self.shot(t0, x0, period, norm, leg, iteration));
             }
-            if !accepted {
-                break;
+            match self.line_search(t0, (&x0, period, norm), &step, &scales, most_halvings) {
+                Some((x, p, trial, lambda)) => {
+                    let r_trial = self.residual(&x, &trial);
+                    let taken: Vec<f64> = step.iter().map(|s| lambda * s).collect();
+                    let matrix = jacobian.as_mut().expect("a Jacobian");
+                    broyden(matrix, &taken, &r, &r_trial);
+                    norm = Self::norm(&r_trial, &scales);
+                    (x0, period, leg, r) = (x, p, trial, r_trial);
+                }
+                // The Jacobian was the monodromy's own here: Newton is stuck.
+                None if leg.phi.is_some() => break,
+                // An approximate Jacobian led nowhere: the monodromy where Newton stands.
+                None => {
+                    leg = self.run(t0, &x0, period, true)?;
+                    r = self.residual(&x0, &leg);
+                    norm = Self::norm(&r, &scales);
+                }
             }
         }
         Err(NoCycle(format!(
@@ -315,6 +330,45 @@ impl<'a, 'b> Shooting<'a, 'b> {
              is {norm:.3e} (scaled), above the tolerance {:.3e}",
             self.tolerance
         )))
+    }
+
+    /// A run over the cycle, with its monodromy or without.
+    fn run(&mut self, t0: f64, x0: &[f64], period: f64, monodromy: bool) -> Result<Leg, NoCycle> {
+        if monodromy {
+            return self.shoot(t0, x0, period);
+        }
+        self.leg(t0, x0, End::After(period), false)
+            .map_err(|e| stopped("a run over the cycle", e, self.plan))
+    }
+
+    /// The first of the steps λ = 1, ½, ¼, … along `step` whose plain run lowers the
+    /// residual's norm: its state, period, run and λ.
+    fn line_search(
+        &mut self,
+        t0: f64,
+        (x0, period, norm): (&[f64], f64, f64),
+        step: &[f64],
+        scales: &[f64],
+        most_halvings: usize,
+    ) -> Option<(Vec<f64>, f64, Leg, f64)> {
+        let (n, k) = (x0.len(), self.plan.state);
+        let mut lambda = 1.0;
+        for _ in 0..=most_halvings {
+            let (mut x, p) = (x0.to_vec(), period + lambda * step[n - 1]);
+            for (i, j) in (0..n).filter(|&i| i != k).enumerate() {
+                x[j] += lambda * step[i];
+            }
+            if p > 0.0 {
+                if let Ok(trial) = self.run(t0, &x, p, false) {
+                    let trial_norm = Self::norm(&self.residual(&x, &trial), scales);
+                    if trial_norm < norm {
+                        return Some((x, p, trial, lambda));
+                    }
+                }
+            }
+            lambda *= 0.5;
+        }
+        None
     }
 
     fn step_norm(step: &[f64], scales: &[f64], k: usize, period: f64) -> f64 {
@@ -348,22 +402,37 @@ impl<'a, 'b> Shooting<'a, 'b> {
     }
 }
 
-/// The Newton step (Δx0 without the cyclic state k, ΔT) solving
-/// [Φ − I without column k | f(x(T))] Δ = −r; `None` when singular.
-fn newton_step(leg: &Leg, r: &[f64], k: usize) -> Option<Vec<f64>> {
-    let n = r.len();
-    let phi = leg.phi.as_ref()?;
+/// The shooting's Jacobian [Φ − I without column k | f(x(T))], from a monodromy.
+fn jacobian_of(phi: &[f64], f: &[f64], k: usize) -> DMatrix<f64> {
+    let n = f.len();
     let mut jacobian = DMatrix::<f64>::zeros(n, n);
     for i in 0..n {
         for (c, j) in (0..n).filter(|&j| j != k).enumerate() {
             jacobian[(i, c)] = phi[i * n + j] - if i == j { 1.0 } else { 0.0 };
         }
-        jacobian[(i, n - 1)] = leg.f[i];
+        jacobian[(i, n - 1)] = f[i];
     }
-    let rhs = DVector::from_iterator(n, r.iter().map(|r| -r));
-    let lu = jacobian.lu();
-    let step = lu.solve(&rhs)?;
+    jacobian
+}
+
+/// The Newton step (Δx0 without the cyclic state, ΔT) solving J Δ = −r; `None` when J is
+/// singular.
+fn solve(jacobian: &DMatrix<f64>, r: &[f64]) -> Option<Vec<f64>> {
+    let rhs = DVector::from_iterator(r.len(), r.iter().map(|r| -r));
+    let step = jacobian.clone().lu().solve(&rhs)?;
     step.iter()
         .all(|s| s.is_finite())
         .then(|| step.iter().copied().collect())
+}
+
+/// Broyden's update of J after the step `taken` changed the residual from `before` to
+/// `after`: J + (Δr − J Δz) Δzᵀ / Δzᵀ Δz, the least change that makes J Δz = Δr.
+fn broyden(jacobian: &mut DMatrix<f64>, taken: &[f64], before: &[f64], after: &[f64]) {
+    let dz = DVector::from_column_slice(taken);
+    let dr = DVector::from_iterator(after.len(), after.iter().zip(before).map(|(a, b)| a - b));
+    let size = dz.norm_squared();
+    if size > 0.0 {
+        let miss = dr - &*jacobian * &dz;
+        *jacobian += miss * dz.transpose() / size;
+    }
 }
