@@ -257,8 +257,10 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
     results.sensitivity = write_indices(design, lambda: results.points, meta["metrics"],
                                         meta.get("seed") or 0, results.out)
     if plots:
+        cyclic = [spec.cycle.state, *spec.cycle.shifted] if spec.cycle is not None else []
         results.plots, results.report_html = show_sweep(results.out, design, results.points,
-                                                        meta["metrics"], results.sensitivity)
+                                                        meta["metrics"], results.sensitivity,
+                                                        cyclic)
     return results
 
 

@@ -9,6 +9,8 @@ import pathlib
 from typing import TYPE_CHECKING, Any
 
 from ..indices import charts
+from .campbell import has_cycles
+from .cycle_pictures import cycle_pictures
 from .fit_pictures import fit_pictures
 from .report import first_series, fit_report, sweep_report
 from .sweep_pictures import sweep_pictures
@@ -24,11 +26,16 @@ __all__ = ["show_sweep", "show_fit"]
 
 
 def show_sweep(out: pathlib.Path, design: Design, points: pd.DataFrame, metrics: list[str],
-               indices: dict[str, Any]) -> tuple[list[pathlib.Path], pathlib.Path]:
-    """A sweep's pictures and report, beside its results in `out`."""
+               indices: dict[str, Any], cyclic: list[str] | None = None,
+               ) -> tuple[list[pathlib.Path], pathlib.Path]:
+    """A sweep's pictures and report, beside its results in `out`; `cyclic` names the
+    variables a sweep of steady cycles advances by a period each cycle (drawn from 0)."""
     drawn = charts(design.kind, indices)
     pictures = sweep_pictures(design, points, metrics, drawn, out / "plots")
-    report = sweep_report(out, design.names, points, metrics, drawn, first_series(out, points))
+    series = first_series(out, points)
+    if has_cycles(points):
+        pictures += cycle_pictures(points, series, cyclic or [], out / "plots")
+    report = sweep_report(out, design.names, points, metrics, drawn, series, cyclic=cyclic or [])
     return pictures, report
 
 

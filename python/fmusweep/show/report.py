@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
+from .campbell import campbell, cycles_of, has_cycles, multipliers
+
 if TYPE_CHECKING:
     from ..designs import IndexChart
     from ..fitting.problem import Evaluation
@@ -120,7 +122,7 @@ def _hover(points: pd.DataFrame, names: list[str]) -> list[str]:
 
 def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metrics: list[str],
                  charts: list[IndexChart], series: pd.DataFrame | None,
-                 eager: bool = False) -> pathlib.Path:
+                 eager: bool = False, cyclic: list[str] | None = None) -> pathlib.Path:
     """Write ``out/report.html`` for a sweep's points (parameters `names`), with the charts
     of its design's indices, and return it; `eager` draws every plot on opening instead of
     as it comes into view."""
@@ -142,6 +144,8 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
             sections.append(_heatmap_section(k, metric, points, varied, grid))
         sections.append(_metric_section(k, metric, points, varied, failed))
     sections += [_index_section(chart) for chart in charts]
+    if has_cycles(points):
+        sections += _cycle_sections(points, series, cyclic or [])
     sections.append(_failed_table(points, names))
     if kept:
         sections.append("<h2>Time series of the chosen point</h2><p id=\"series-note\" class=\"note\">"
@@ -151,6 +155,94 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
     path = out / "report.html"
     path.write_text(_page(f"Sweep {out.name}", intro, sections, script, eager))
     return path
+
+
+def _cycle_sections(points: pd.DataFrame, series: pd.DataFrame | None,
+                    cyclic: list[str]) -> list[str]:
+    """A sweep of steady cycles: the multipliers on the unit circle, the Campbell diagram
+    and one cycle of the kept variables of a few points, with a phase portrait."""
+    re, im, which = multipliers(points)
+    turn = np.linspace(0, 2 * np.pi, 361)
+    sections = ["<h2>Floquet multipliers</h2><p class=\"note\">Each cycle's multipliers "
+                "(the flow's own, 1, left out): inside the unit circle the cycle is stable; "
+                "the largest per point is the column cycle_multiplier.</p>" + _plot(
+                    "cycle-multipliers",
+                    [{"type": "scatter", "x": np.cos(turn), "y": np.sin(turn), "mode": "lines",
+                      "name": "unit circle", "line": {"color": "#999"}},
+                     {"type": _scatter(len(re)), "x": re, "y": im, "mode": "markers",
+                      "name": "multipliers", "customdata": which, "labelled": True,
+                      "hoverinfo": "text"}],
+                    {"xaxis": {"title": {"text": "Re μ"}, "range": [-1.1, 1.1]},
+                     "yaxis": {"title": {"text": "Im μ"}, "scaleanchor": "x"}}, 520)]
+    diagram = campbell(points)
+    if diagram is not None:
+        f = diagram.cycle_hz
+        top = float(np.nanmax(diagram.modes_hz)) * 1.1
+        span = [0.0, float(f.max()) * 1.05]
+        data: list[dict[str, Any]] = [
+            {"type": "scatter", "x": f, "y": diagram.modes_hz[:, m], "mode": "markers",
+             "name": f"mode {m + 1}", "customdata": diagram.points, "labelled": True,
+             "hoverinfo": "text"} for m in range(diagram.modes_hz.shape[1])]
+        data += [{"type": "scatter", "x": span, "y": [k * x for x in span], "mode": "lines",
+                  "name": f"order {k}", "line": {"dash": "dash", "width": 1, "color": "#999"},
+                  "showlegend": k == 1} for k in diagram.orders]
+        if diagram.crossings:
+            data.append({"type": "scatter", "x": [c[0] for c in diagram.crossings],
+                         "y": [c[1] for c in diagram.crossings], "mode": "markers",
+                         "name": "an order line meets a mode",
+                         "text": [f"order {c[2]}: {c[0]:.4g} Hz" for c in diagram.crossings],
+                         "marker": {"symbol": "x", "size": 11, "color": FAILED}})
+        sections.append("<h2>Campbell diagram</h2><p class=\"note\">The modes of the state "
+                        "equations linearised along each cycle (mean frequency), against the "
+                        "cycle's frequency; dashed, k times the cycle's frequency; crosses, "
+                        "where a harmonic of order k meets a mode (a resonance).</p>" + _plot(
+                            "campbell", data,
+                            {"xaxis": {"title": {"text": "cycle frequency 1/T (Hz)"},
+                                       "range": span},
+                             "yaxis": {"title": {"text": "mode frequency (Hz)"},
+                                       "range": [0, top]}}, 520))
+    drawn = cycles_of(points, series, cyclic)
+    if drawn:
+        sections.append(_cycle_section(drawn))
+    return sections
+
+
+def _cycle_section(drawn: dict[int, pd.DataFrame]) -> str:
+    variables = list(dict.fromkeys(v for rows in drawn.values() for v in rows["variable"]))
+    lines, portrait = [], []
+    for i, (point, rows) in enumerate(drawn.items()):
+        by = {v: rows[rows["variable"] == v].sort_values("time") for v in variables}
+        colour = _COLOURS[i % len(_COLOURS)]
+        for j, v in enumerate(variables):
+            t = by[v]["time"].to_numpy()
+            period = t[-1] + (t[1] - t[0]) if len(t) > 1 else 1.0
+            lines.append({"type": "scatter", "x": t / period, "y": by[v]["value"].to_numpy(),
+                          "mode": "lines", "name": f"point {point}", "legendgroup": str(point),
+                          "showlegend": j == 0, "line": {"color": colour},
+                          "yaxis": "y" if j == 0 else f"y{j + 1}"})
+        if len(variables) >= 2:
+            portrait.append({"type": "scatter", "x": by[variables[0]]["value"].to_numpy(),
+                             "y": by[variables[1]]["value"].to_numpy(), "mode": "lines",
+                             "name": f"point {point}", "line": {"color": colour}})
+    count = len(variables)
+    layout: dict[str, Any] = {"xaxis": {"title": {"text": "time into the cycle / period"}},
+                              "grid": {"rows": count, "columns": 1, "pattern": "coupled"}}
+    for j, v in enumerate(variables):
+        layout[f"yaxis{'' if j == 0 else j + 1}"] = {"title": {"text": v}}
+    html_ = ("<h2>One cycle</h2><p class=\"note\">The kept variables over one cycle of "
+             f"{len(drawn)} points spread over the sweep.</p>"
+             + _plot("cycle-kept", lines, layout, 260 * count))
+    if portrait:
+        html_ += _plot("cycle-portrait", portrait,
+                       {"title": {"text": "phase portrait"},
+                        "xaxis": {"title": {"text": variables[0]}},
+                        "yaxis": {"title": {"text": variables[1]}}}, 480)
+    return html_
+
+
+# Plotly's own colours, named so that a point keeps its colour over several plots.
+_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
+            "#7f7f7f", "#bcbd22", "#17becf"]
 
 
 def _count(n: int, what: str) -> str:

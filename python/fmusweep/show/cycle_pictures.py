@@ -1,0 +1,108 @@
+"""Pictures of a sweep of steady cycles: the Floquet multipliers on the unit circle, the
+Campbell diagram (mode frequencies against the cycle's frequency, the order lines of the
+cycle's frequency and where they cross a mode), and one cycle of the kept variables of a
+few points with the phase portrait of the first two."""
+
+from __future__ import annotations
+
+import pathlib
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .campbell import campbell, cycles_of, multipliers
+from .drawing import pyplot, save
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["cycle_pictures"]
+
+
+def cycle_pictures(points: pd.DataFrame, series: pd.DataFrame | None, cyclic: list[str],
+                   out: pathlib.Path) -> list[pathlib.Path]:
+    written = [_multipliers(points, out / "cycle_multipliers.png")]
+    diagram = campbell(points)
+    if diagram is not None:
+        written.append(_campbell(diagram, out / "campbell.png"))
+    drawn = cycles_of(points, series, cyclic)
+    if drawn:
+        written.append(_cycles(drawn, out / "cycle.png"))
+    return written
+
+
+def _multipliers(points: pd.DataFrame, path: pathlib.Path) -> pathlib.Path:
+    plt = pyplot()
+    re, im, _ = multipliers(points)
+    fig, ax = plt.subplots(figsize=(5.5, 5.5))
+    turn = np.linspace(0, 2 * np.pi, 400)
+    ax.plot(np.cos(turn), np.sin(turn), color="0.5", lw=1, label="unit circle")
+    ax.scatter(re, im, s=10, alpha=0.6, label="multipliers")
+    ax.set_aspect("equal")
+    ax.set_xlim(-1.1, 1.1)
+    ax.set_ylim(-1.1, 1.1)
+    ax.axhline(0, color="0.85", lw=0.8)
+    ax.axvline(0, color="0.85", lw=0.8)
+    ok = int(points["cycle_period"].notna().sum())
+    largest = float(np.nanmax(np.hypot(re, im))) if len(re) else float("nan")
+    ax.set_title(f"Floquet multipliers of {ok} cycles (largest |μ| = {largest:.4f})")
+    ax.set_xlabel("Re μ")
+    ax.set_ylabel("Im μ")
+    ax.legend(loc="lower left", fontsize=8)
+    return save(fig, path)
+
+
+def _campbell(diagram: object, path: pathlib.Path) -> pathlib.Path:
+    from .campbell import Campbell
+    assert isinstance(diagram, Campbell)
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    f = diagram.cycle_hz
+    order = np.argsort(f)
+    for m in range(diagram.modes_hz.shape[1]):
+        ax.plot(f[order], diagram.modes_hz[order, m], "o", ms=3, label=f"mode {m + 1}")
+    span = np.array([0.0, f.max() * 1.05])
+    top = float(np.nanmax(diagram.modes_hz)) * 1.1
+    for k in diagram.orders:
+        ax.plot(span, k * span, color="0.6", lw=0.8, ls="--")
+        end = min(span[1], top / k)
+        ax.annotate(f"{k}×", (end, k * end), fontsize=7, color="0.4")
+    if diagram.crossings:
+        x, y, _ = zip(*diagram.crossings)
+        ax.plot(x, y, "x", color="#d62728", ms=8, mew=2, label="order line meets a mode")
+    ax.set_xlim(0, span[1])
+    ax.set_ylim(0, top)
+    ax.set_xlabel("cycle frequency 1/T (Hz)")
+    ax.set_ylabel("mode frequency (Hz), mean along the cycle")
+    ax.set_title("Campbell diagram")
+    ax.legend(loc="upper left", fontsize=8)
+    return save(fig, path)
+
+
+def _cycles(drawn: dict[int, pd.DataFrame], path: pathlib.Path) -> pathlib.Path:
+    plt = pyplot()
+    variables = list(dict.fromkeys(v for rows in drawn.values() for v in rows["variable"]))
+    portrait = len(variables) >= 2
+    fig, axes = plt.subplots(len(variables), 2 if portrait else 1,
+                             figsize=(11 if portrait else 7, 2.4 * len(variables)),
+                             squeeze=False)
+    for point, rows in drawn.items():
+        by = {v: rows[rows["variable"] == v].sort_values("time") for v in variables}
+        for j, v in enumerate(variables):
+            t = by[v]["time"].to_numpy()
+            period = t[-1] + (t[1] - t[0]) if len(t) > 1 else 1.0
+            axes[j][0].plot(t / period, by[v]["value"], lw=1, label=f"point {point}")
+            axes[j][0].set_ylabel(v)
+        if portrait:
+            a, b = variables[:2]
+            axes[0][1].plot(by[a]["value"], by[b]["value"], lw=1)
+    axes[-1][0].set_xlabel("time into the cycle / period")
+    axes[0][0].set_title("one cycle of the kept variables")
+    axes[0][0].legend(fontsize=7, ncol=2)
+    if portrait:
+        axes[0][1].set_xlabel(variables[0])
+        axes[0][1].set_ylabel(variables[1])
+        axes[0][1].set_title("phase portrait")
+        for j in range(1, len(variables)):
+            axes[j][1].axis("off")
+    return save(fig, path)
