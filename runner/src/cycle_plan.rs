@@ -128,25 +128,7 @@ impl CyclePlan {
             }
             shifted.push(index);
         }
-        let monodromy = match spec.monodromy.as_deref() {
-            None if description.exchange_directional_derivatives => Monodromy::Variational,
-            None | Some("differences") => Monodromy::Differences,
-            Some("variational") if description.exchange_directional_derivatives => {
-                Monodromy::Variational
-            }
-            Some("variational") => {
-                return Err(
-                    "cycle.monodromy: \"variational\" needs the FMU's directional \
-                            derivatives under Model Exchange, which it does not give"
-                        .into(),
-                )
-            }
-            Some(other) => {
-                return Err(format!(
-                    "cycle.monodromy: must be \"variational\" or \"differences\", got {other:?}"
-                ))
-            }
-        };
+        let monodromy = monodromy_of(spec.monodromy.as_deref(), description)?;
         let samples = spec.samples.unwrap_or(DEFAULT_SAMPLES);
         if !(8..=MOST_SAMPLES).contains(&samples) {
             return Err(format!(
@@ -185,26 +167,7 @@ impl CyclePlan {
         };
         for (k, m) in spec.metrics.iter().enumerate() {
             let slot = plan.read(description, &m.variable, &format!("cycle.metrics[{k}]"))?;
-            let order = match (m.kind, m.order) {
-                (CycleKind::Harmonic, Some(order))
-                    if order >= 1 && 2 * order as usize <= samples =>
-                {
-                    order
-                }
-                (CycleKind::Harmonic, order) => {
-                    return Err(format!(
-                        "cycle.metrics[{k}].order: a harmonic needs a whole order between 1 and \
-                         half the samples ({}), got {order:?}",
-                        samples / 2
-                    ))
-                }
-                (_, None) => 0,
-                (_, Some(_)) => {
-                    return Err(format!(
-                        "cycle.metrics[{k}].order: only a harmonic has an order"
-                    ))
-                }
-            };
+            let order = order_of(m, k, samples)?;
             plan.metrics.push((slot, m.kind, order));
         }
         for (k, name) in spec.keep.iter().enumerate() {
@@ -226,7 +189,7 @@ impl CyclePlan {
             .map_err(|e| format!("{field}: {e}"))?;
         if variable.base_type != BaseType::Real {
             return Err(format!(
-                "{field}: {name:?} is a {} variable; a cycle's metrics read Real ones",
+                "{field}: {name:?} is of type {}; a cycle's metrics and kept variables are Real",
                 variable.fmi_type
             ));
         }
@@ -236,6 +199,43 @@ impl CyclePlan {
         self.reads.push(variable.value_reference);
         self.read_names.push(name.to_string());
         Ok(self.reads.len() - 1)
+    }
+}
+
+/// How the monodromy is found: as asked, or by the variational equations where the FMU
+/// gives directional derivatives.
+fn monodromy_of(asked: Option<&str>, description: &Description) -> Result<Monodromy, String> {
+    let exact = description.exchange_directional_derivatives;
+    match asked {
+        None if exact => Ok(Monodromy::Variational),
+        None | Some("differences") => Ok(Monodromy::Differences),
+        Some("variational") if exact => Ok(Monodromy::Variational),
+        Some("variational") => Err("cycle.monodromy: \"variational\" needs the FMU's \
+                                    directional derivatives under Model Exchange, which it \
+                                    does not give"
+            .into()),
+        Some(other) => Err(format!(
+            "cycle.monodromy: must be \"variational\" or \"differences\", got {other:?}"
+        )),
+    }
+}
+
+/// A metric's harmonic order: a harmonic's, between 1 and half the samples; 0 for the
+/// other kinds, which take none.
+fn order_of(metric: &CycleMetricSpec, k: usize, samples: usize) -> Result<u32, String> {
+    match (metric.kind, metric.order) {
+        (CycleKind::Harmonic, Some(order)) if order >= 1 && 2 * order as usize <= samples => {
+            Ok(order)
+        }
+        (CycleKind::Harmonic, order) => Err(format!(
+            "cycle.metrics[{k}].order: a harmonic needs a whole order between 1 and half the \
+             samples ({}), got {order:?}",
+            samples / 2
+        )),
+        (_, None) => Ok(0),
+        (_, Some(_)) => Err(format!(
+            "cycle.metrics[{k}].order: only a harmonic has an order"
+        )),
     }
 }
 
@@ -325,5 +325,99 @@ impl LinearPlan {
             input_names,
             output_names,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn mechanism() -> Description {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../modelDescription");
+        Description::read(&root).unwrap()
+    }
+
+    fn spec(json: &str) -> CycleSpec {
+        serde_json::from_str(json).unwrap()
+    }
+
+    #[test]
+    fn resolves_the_states_and_reads() {
+        let plan = CyclePlan::resolve(
+            spec(
+                r#"{"state": "loop_angle", "period": 6.283185307179586, "shifted": ["phi1"],
+                    "metrics": [{"variable": "rod_force", "kind": "harmonic", "order": 2},
+                                {"variable": "omega2", "kind": "mean"}],
+                    "keep": ["omega2", "phi3"]}"#,
+            ),
+            &mechanism(),
+        )
+        .unwrap();
+        assert_eq!((plan.state, plan.shifted.as_slice()), (1, &[0][..]));
+        assert_eq!(plan.monodromy, Monodromy::Variational);
+        assert_eq!(plan.read_names, ["rod_force", "omega2", "phi3"]);
+        // A kept variable read for a metric too is kept from the metric's slot.
+        assert_eq!(plan.kept, [1, 2]);
+        assert_eq!(plan.metrics[0].2, 2);
+    }
+
+    #[test]
+    fn refuses_each_mistake_by_its_field() {
+        let d = mechanism();
+        let refused = |json: &str| CyclePlan::resolve(spec(json), &d).unwrap_err();
+        let cases = [
+            (
+                r#"{"state": "phi2", "period": 1.0}"#,
+                "cycle.state: \"phi2\" is not a continuous state",
+            ),
+            (
+                r#"{"state": "nothing", "period": 1.0}"#,
+                "cycle.state: the FMU has no variable",
+            ),
+            (
+                r#"{"state": "loop_angle", "period": 0.0}"#,
+                "cycle.period: must be a finite number > 0",
+            ),
+            (
+                r#"{"state": "loop_angle", "period": 1.0, "shifted": ["loop_angle"]}"#,
+                "cycle.shifted[0]: \"loop_angle\" is named twice",
+            ),
+            (
+                r#"{"state": "loop_angle", "period": 1.0, "monodromy": "exact"}"#,
+                "cycle.monodromy: must be",
+            ),
+            (
+                r#"{"state": "loop_angle", "period": 1.0, "samples": 4}"#,
+                "cycle.samples: must be between 8",
+            ),
+            (
+                r#"{"state": "loop_angle", "period": 1.0, "metrics": [{"variable": "rod_force", "kind": "harmonic"}]}"#,
+                "cycle.metrics[0].order: a harmonic needs",
+            ),
+            (
+                r#"{"state": "loop_angle", "period": 1.0, "metrics": [{"variable": "rod_force", "kind": "max", "order": 1}]}"#,
+                "cycle.metrics[0].order: only a harmonic",
+            ),
+            (
+                r#"{"state": "loop_angle", "period": 1.0, "keep": ["linkage_class"]}"#,
+                "cycle.keep[0]: \"linkage_class\" is of type Enumeration",
+            ),
+        ];
+        for (json, said) in cases {
+            let message = refused(json);
+            assert!(message.starts_with(said), "{json}: {message}");
+        }
+        let mut without = d.clone();
+        without.has_model_exchange = false;
+        let message =
+            CyclePlan::resolve(spec(r#"{"state": "loop_angle", "period": 1.0}"#), &without)
+                .unwrap_err();
+        assert!(message.contains("Model Exchange"), "{message}");
+        without = d.clone();
+        without.exchange_directional_derivatives = false;
+        let plan = CyclePlan::resolve(spec(r#"{"state": "loop_angle", "period": 1.0}"#), &without)
+            .unwrap();
+        assert_eq!(plan.monodromy, Monodromy::Differences);
     }
 }

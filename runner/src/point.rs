@@ -427,13 +427,7 @@ impl Runner {
             .continuation
             .then(|| self.continuation.guess(row, cycle_plan))
             .flatten();
-        match cycle::analyse(
-            start,
-            cycle_plan,
-            tolerance,
-            budget,
-            guess.as_ref(),
-        ) {
+        match cycle::analyse(start, cycle_plan, tolerance, budget, guess.as_ref()) {
             Ok((mut record, shot)) => {
                 result.metrics = record.metrics.iter().map(|&m| Some(m)).collect();
                 // The kept variables travel as the series do: rows of (t, values…).

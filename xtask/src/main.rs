@@ -133,6 +133,13 @@ const JOBS: &[Job] = &[
         run: motor::job_bench,
     },
     Job {
+        name: "bench-cycle",
+        operands: &[],
+        about: "steady cycles by shooting against transient runs on a lightly damped grid, 2 workers, into target/bench-cycle and docs/bench/cycle.md",
+        flags: &[QUICK],
+        run: sweep::job_bench_cycle,
+    },
+    Job {
         name: "bench-fit",
         operands: &[],
         about: "the fit benchmark into target/bench-fit",

@@ -1,5 +1,6 @@
-//! `cargo xtask sweep`, `wheel`, `bench-sweep` and `bench-report`: the sweep package with its
-//! native runner, a sweep of a spec, and the sweep's and the reports' benchmarks.
+//! `cargo xtask sweep`, `wheel`, `bench-sweep`, `bench-cycle` and `bench-report`: the sweep
+//! package with its native runner, a sweep of a spec, and the sweep's, the steady cycles'
+//! and the reports' benchmarks.
 
 use std::fs;
 use std::process::Command;
@@ -40,6 +41,11 @@ pub(crate) fn run_fmusweep(subcommand: &[&str], parsed: &Parsed) -> Result {
 
 pub(crate) fn job_bench(parsed: &Parsed) -> Result {
     run_bench_script("bench/bench_sweep.py", "target/bench-sweep", parsed)
+}
+
+/// `cargo xtask bench-cycle`: steady cycles against transients (docs/bench/cycle.md).
+pub(crate) fn job_bench_cycle(parsed: &Parsed) -> Result {
+    run_bench_script("bench/bench_cycle.py", "target/bench-cycle", parsed)
 }
 
 /// `cargo xtask bench-report`: the reports opened in headless Chromium (installed if missing).

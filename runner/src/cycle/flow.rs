@@ -145,7 +145,7 @@ pub fn leg(
     sized!(2 4 6 8 12 16 24 32 48 64 96 128);
     Err(Stopped::Failed(format!(
         "{size} equations: the runner integrates a cycle's variational equations for at most \
-         11 states (ask for monodromy = \"differences\")"
+         10 states (ask for monodromy = \"differences\")"
     )))
 }
 
@@ -158,18 +158,22 @@ fn sized_leg<const N: usize>(
     at: &[f64],
 ) -> Result<Leg, Stopped> {
     let n = x0.len();
-    let problem_tolerances = problem.tolerances;
-    let mut method = Dop853::<N>::new(problem_tolerances);
-    let mut y = [0.0; N];
-    for k in 0..n {
-        y[k] = x0[k] / problem.nominals[k];
+    let mut walk = Walk::<N> {
+        method: Dop853::new(problem.tolerances),
+        t: t0,
+        y: [0.0; N],
+        indicators: vec![0.0; problem.indicators],
+        probe: vec![0.0; problem.indicators],
+        x: x0.to_vec(),
+        sampled: Vec::with_capacity(at.len()),
+    };
+    for (k, (x, nominal)) in x0.iter().zip(problem.nominals).enumerate() {
+        walk.y[k] = x / nominal;
         if variational {
-            y[n + k * n + k] = 1.0;
+            walk.y[n + k * n + k] = 1.0;
         }
     }
-    let mut indicators = vec![0.0; problem.indicators];
-    let mut probe = indicators.clone();
-    read_indicators(problem, t0, x0, &mut indicators)?;
+    read_indicators(problem, t0, x0, &mut walk.indicators)?;
     let limit = t0
         + match end {
             End::After(time) => time,
@@ -181,68 +185,130 @@ fn sized_leg<const N: usize>(
         variational,
         failure: Cell::new(None),
     };
-    // A step is asked to end just past t, so the first one's size must come from the
-    // leg's span.
-    let mut f0 = [0.0; N];
-    flow.rhs(t0, &y, &mut f0);
-    let stats = &mut method.progress_mut().stats;
-    stats.n_rhs += 1;
-    let h = initial_step(
-        &flow,
-        (t0, &y, &f0),
-        limit - t0,
-        problem_tolerances,
-        8,
-        stats,
-    );
-    method.progress_mut().next_step = Some(h);
-    let mut sampled = Vec::with_capacity(at.len());
-    let mut t = t0;
-    let mut x = x0.to_vec();
+    walk.size_first_step(&flow, limit);
     loop {
-        if t >= limit {
+        if walk.t >= limit {
             match end {
                 End::After(_) => break,
                 End::Reaching { .. } => return Err(Stopped::NotReached),
             }
         }
-        let before = (t, y);
-        let target = t.next_up().min(limit);
-        let result = method.integrate(&flow, &mut t, &mut y, target, limit);
+        if walk.step(&flow, (t0, limit), end, at)? {
+            break;
+        }
+    }
+    let Walk { t, y, sampled, .. } = walk;
+    finish(
+        flow.problem.into_inner(),
+        (t0, t),
+        &y[..],
+        n,
+        variational,
+        sampled,
+    )
+}
+
+/// A leg on its way: the method, where it stands, the event indicators at its start and
+/// the states sampled so far.
+struct Walk<const N: usize> {
+    method: Dop853<N>,
+    t: f64,
+    y: [f64; N],
+    indicators: Vec<f64>,
+    probe: Vec<f64>,
+    x: Vec<f64>,
+    sampled: Vec<Vec<f64>>,
+}
+
+impl<const N: usize> Walk<N> {
+    /// A step is asked to end just past t, so the first one's size must come from the
+    /// leg's span.
+    fn size_first_step(&mut self, flow: &Flow, limit: f64) {
+        let mut f0 = [0.0; N];
+        flow.rhs(self.t, &self.y, &mut f0);
+        let tolerances = flow.problem.borrow().tolerances;
+        let stats = &mut self.method.progress_mut().stats;
+        stats.n_rhs += 1;
+        let h = initial_step(
+            flow,
+            (self.t, &self.y, &f0),
+            limit - self.t,
+            tolerances,
+            8,
+            stats,
+        );
+        self.method.progress_mut().next_step = Some(h);
+    }
+
+    /// One accepted step: the samples within it taken, an event on it refused; whether
+    /// it reached the state's value (`End::Reaching`), the walk then standing there.
+    fn step(
+        &mut self,
+        flow: &Flow,
+        (t0, limit): (f64, f64),
+        end: End,
+        at: &[f64],
+    ) -> Result<bool, Stopped> {
+        let n = flow.n;
+        let before = (self.t, self.y);
+        let target = self.t.next_up().min(limit);
+        let result = self
+            .method
+            .integrate(flow, &mut self.t, &mut self.y, target, limit);
         if let Some(status) = flow.failure.get() {
             return Err(Stopped::Failed(format!(
-                "the FMU returned {status:?} on the way, at t = {t}"
+                "the FMU returned {status:?} on the way, at t = {}",
+                self.t
             )));
         }
         result.map_err(|e| Stopped::Failed(format!("integrating the cycle: {e}")))?;
-        for k in 0..n {
-            x[k] = y[k] * flow.problem.borrow().nominals[k];
+        let nominals = flow.problem.borrow().nominals;
+        for ((x, y), nominal) in self.x.iter_mut().zip(&self.y).zip(nominals) {
+            *x = y * nominal;
         }
-        read_indicators(&mut flow.problem.borrow_mut(), t, &x, &mut probe)?;
-        if let Some(k) = (0..probe.len()).find(|&k| (indicators[k] > 0.0) != (probe[k] > 0.0)) {
-            return Err(Stopped::Event(k, t - t0));
+        read_indicators(
+            &mut flow.problem.borrow_mut(),
+            self.t,
+            &self.x,
+            &mut self.probe,
+        )?;
+        let (old, new) = (&self.indicators, &self.probe);
+        if let Some(k) = (0..new.len()).find(|&k| (old[k] > 0.0) != (new[k] > 0.0)) {
+            return Err(Stopped::Event(k, self.t - t0));
         }
-        while let Some(&ts) = at.get(sampled.len()) {
-            if t0 + ts > t {
+        while let Some(&ts) = at.get(self.sampled.len()) {
+            if t0 + ts > self.t {
                 break;
             }
-            let z = dense(&mut method, &flow, t0 + ts, &y, t)?;
-            sampled.push(unscaled(&z[..n], flow.problem.borrow().nominals));
+            let z = dense(&mut self.method, flow, t0 + ts, &self.y, self.t)?;
+            self.sampled.push(unscaled(&z[..n], nominals));
         }
-        if let End::Reaching { index, value, .. } = end {
-            let nominal = flow.problem.borrow().nominals[index];
-            let (a, b) = (
-                before.1[index] * nominal - value,
-                y[index] * nominal - value,
-            );
-            if a == 0.0 || (a < 0.0) != (b < 0.0) {
-                let (tc, z) = reach(&mut method, &flow, (before.0, a), (t, b), index, value)?;
-                (t, y) = (tc, z);
-                break;
-            }
+        let End::Reaching { index, value, .. } = end else {
+            return Ok(false);
+        };
+        let (a, b) = (
+            before.1[index] * nominals[index] - value,
+            self.y[index] * nominals[index] - value,
+        );
+        if a == 0.0 || (a < 0.0) != (b < 0.0) {
+            let bracket = ((before.0, a), (self.t, b));
+            (self.t, self.y) = reach(&mut self.method, flow, bracket, index, value)?;
+            return Ok(true);
         }
+        Ok(false)
     }
-    let problem = flow.problem.into_inner();
+}
+
+/// The leg's end: the state and its derivative there, and the flow's derivative from
+/// the variational part of `y` (Ψ, back in the states' own units).
+fn finish(
+    problem: &mut Problem,
+    (t0, t): (f64, f64),
+    y: &[f64],
+    n: usize,
+    variational: bool,
+    sampled: Vec<Vec<f64>>,
+) -> Result<Leg, Stopped> {
     let x = unscaled(&y[..n], problem.nominals);
     let mut f = vec![0.0; n];
     let s = problem
@@ -299,8 +365,7 @@ fn dense<const N: usize>(
 fn reach<const N: usize>(
     method: &mut Dop853<N>,
     flow: &Flow,
-    (mut ta, mut a): (f64, f64),
-    (mut tb, mut b): (f64, f64),
+    ((mut ta, mut a), (mut tb, mut b)): ((f64, f64), (f64, f64)),
     index: usize,
     value: f64,
 ) -> Result<(f64, [f64; N]), Stopped> {

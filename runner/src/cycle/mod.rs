@@ -4,8 +4,8 @@
 //! linearised along it ([`floquet`]), and metrics of outputs over one cycle ([`measure`]).
 //! docs/cycle.md explains the method.
 
-mod floquet;
 mod continuation;
+mod floquet;
 mod flow;
 mod measure;
 mod shooting;
@@ -15,9 +15,9 @@ use serde::Serialize;
 
 use crate::cycle_plan::{CyclePlan, LinearPlan};
 use crate::fmi::Instance;
+pub use continuation::Continuation;
 pub use floquet::{Mode, Multiplier};
 use flow::{leg, End, Problem};
-pub use continuation::Continuation;
 pub use shooting::Shot;
 use shooting::{NoCycle, Shooting};
 
