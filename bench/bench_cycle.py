@@ -18,6 +18,7 @@ advance where that lies; the search itself is reported, not counted. Writes resu
 and results.md, and docs/bench/cycle.md (not with --quick).
 """
 
+import math
 import pathlib
 import shutil
 import tempfile
@@ -93,6 +94,8 @@ def main():
         r["multipliers"] = [float(multipliers.min()), float(multipliers.max())]
         r["revolutions_to_settle"] = [float(np.log(WANTED) / np.log(m))
                                       for m in r["multipliers"]]
+        r["cases"] = cases(fmu, work)
+        r["run_costs"] = run_costs(fmu)
         r["cycle"] = cycle_ladder(n, fmu, address, work, truth)
         r["transient"] = transient_ladder(n, fmu, address, work, truth)
     shutil.rmtree(work, ignore_errors=True)
@@ -103,6 +106,81 @@ def main():
     write_results(out, r, text)
     if not quick:
         (ROOT / "docs/bench/cycle.md").write_text(text)
+
+
+# The cases docs/cycle.md explains: the paper's, whose springs have no damper, and a
+# damped one.
+CASES = {"the paper's case (no dampers)": {},
+         "dampers d12 = d34 = 0.5": {"d12": 0.5, "d34": 0.5}}
+
+
+def cases(fmu, work) -> dict:
+    """Each case's cycle at tol 1e-10: period, multipliers, the modes along it, metrics."""
+    found = {}
+    for name, parameters in CASES.items():
+        spec = {"scenario": {"stop": 400.0, "step": 0.01, "tolerance": 1e-10,
+                             "parameters": parameters},
+                "design": {"kind": "list", "parameters": {"J1": {"values": [0.5]}}},
+                "cycle": {"state": "loop_angle", "period": TAU, "shifted": ["phi1"],
+                          "modes": 16},
+                "outputs": {"metrics": {**COMPARED, **ALSO}}}
+        out = work / f"case-{len(found)}"
+        point = run_sweep(spec, fmu=str(fmu), out=str(out), serial=True, progress=False,
+                          plots=False).points.iloc[0]
+        assert point["status"] == "ok", point["message"]
+        re, im = point["cycle_multipliers_re"], point["cycle_multipliers_im"]
+        found[name] = {"period": float(point["cycle_period"]),
+                       "multipliers": [[float(a), float(b)] for a, b in zip(re, im)],
+                       "largest": float(point["cycle_multiplier"]),
+                       "margin": float(point["cycle_margin"]),
+                       "modes_hz": [float(f) for f in point["cycle_modes_hz"]],
+                       "damping": [float(z) for z in point["cycle_modes_damping"]],
+                       "metrics": {k: float(point[k]) for k in {**COMPARED, **ALSO}}}
+    return found
+
+
+def run_costs(fmu) -> dict:
+    """What one run over the paper's cycle costs (tol 1e-8, this process's runner, the
+    fastest of several batches): through Model Exchange as the shooting makes it, plain
+    and with the monodromy (a point whose guess is its own cycle: one plain run, one with
+    the monodromy), and through the FMU's own co-simulation from the cycle's start values,
+    plain and with its five sensitivity slots on them (what a co-simulation shooting would
+    run; the reset and initialisation of each run included)."""
+    from fmusweep.fmu import Archive, local_runner
+    runner = local_runner(Archive.read(fmu))
+    base = {"start": 0.0, "stop": 400.0, "step": 0.01, "tolerance": 1e-8, "fixed": {},
+            "inputs": {}, "metrics": [], "series": None, "timeout_s": None}
+    cycle = {"state": "loop_angle", "period": TAU, "shifted": ["phi1"], "samples": 8}
+    runner.configure({**base, "cycle": cycle})
+    [found] = runner.run([], [[]])
+    x = dict(zip(found["cycle"]["state_names"], found["cycle"]["state"]))
+    period = found["cycle"]["period"]
+    start = {"phi2_0": 0.0, "twist12_0": x["phi1"] - x["loop_angle"], "omega1_0": x["omega1"],
+             "omega2_0": x["loop_speed"], "omega4_0": x["omega4"]}
+    one = {**base, "stop": period, "step": period, "interface": "co_simulation",
+           "metrics": [{"variable": "phi3", "kind": "final", "from": None, "to": 0.0}]}
+    runner.configure({**one, "fixed": start})
+    start["twist34_0"] = runner.run([], [[]])[0]["metrics"][0] - x["phi4"]
+    slots = {f"sensitivity_{k + 1}.parameter": float(item)
+             for k, item in enumerate((16, 17, 18, 19, 20))}
+
+    def best(plan, repeats=200) -> float:
+        runner.configure(plan)
+        fastest = float("inf")
+        for _ in range(5):
+            t0 = time.perf_counter()
+            done = runner.run([], [[]] * repeats)
+            fastest = min(fastest, (time.perf_counter() - t0) / repeats)
+            assert all(d["status"] == "ok" for d in done), done[0]["message"]
+        return fastest
+
+    final = [{"variable": "omega4", "kind": "final", "from": None, "to": None}]
+    return {"exchange": best({**one, "fixed": start, "interface": "model_exchange",
+                              "metrics": final}),
+            "exchange_with_monodromy": best({**base, "cycle": cycle}),
+            "co_simulation": best({**one, "fixed": start, "metrics": final}),
+            "co_simulation_with_slots": best({**one, "fixed": {**start, **slots},
+                                               "metrics": final})}
 
 
 def cycle_ladder(n, fmu, address, work, truth) -> dict:
@@ -204,6 +282,31 @@ def report(r: dict) -> str:
                          f"{x['seconds']:.2f} | {x['worst']:.1e} | {x['also']:.1e} | "
                          f"{x['runs']:.1f} | {x['iterations']:.1f} | {x['continued']} of "
                          f"{n * n} |")
+    lines += ["", "Two cases' cycles (tol 1e-10; modes: the state equations linearised at 16 "
+              "points along the cycle, mean frequency and damping ratio):", "",
+              "| case | period (s) | largest multiplier | margin | multipliers | modes (Hz) | "
+              "damping ratios | revolutions to 1e-6 | peak rod force (N) | swing (N) |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for name, case in r["cases"].items():
+        shown = ", ".join(f"{a:.4f}{b:+.4f}i" for a, b in case["multipliers"])
+        revolutions = math.log(WANTED) / math.log(case["largest"])
+        lines.append(f"| {name} | {case['period']:.6f} | {case['largest']:.4f} | "
+                     f"{case['margin']:.4f} | {shown} | "
+                     f"{', '.join(f'{f:.4f}' for f in case['modes_hz'])} | "
+                     f"{', '.join(f'{z:.4f}' for z in case['damping'])} | {revolutions:.0f} | "
+                     f"{case['metrics']['peak']:.6f} | {case['metrics']['swing']:.6f} |")
+    costs = r["run_costs"]
+    lines += ["", "One run over the paper's cycle, tol 1e-08 (one runner, the fastest of "
+              "several batches; a co-simulation run includes its reset and initialisation):", "",
+              "| run | ms | against a plain Model Exchange run |", "| --- | --- | --- |"]
+    for key, label in (("exchange", "Model Exchange, plain"),
+                       ("exchange_with_monodromy", "Model Exchange, a plain run and one with "
+                                                   "the monodromy"),
+                       ("co_simulation", "co-simulation from the cycle's start values, plain"),
+                       ("co_simulation_with_slots", "co-simulation with the five sensitivity "
+                                                    "slots on the start values")):
+        lines.append(f"| {label} | {costs[key] * 1e3:.3f} | "
+                     f"{costs[key] / costs['exchange']:.2f}× |")
     lines += ["", "The transient runs searched (tol 1e-08, the metrics over the last "
               f"{WINDOW:g} s):", "", "| stop (s) | step (s) | seconds | worst difference |",
               "| --- | --- | --- | --- |"]

@@ -260,7 +260,7 @@ class NativeRunner:
         assert plan is not None, "configure the runner before running points"
         series, cycle = plan.get("series"), plan.get("cycle")
         width = (len(series["variables"]) + 1 if series
-                 else len(cycle["keep"]) + 1 if cycle else 0)
+                 else len(cycle.get("keep", [])) + 1 if cycle else 0)
         results: list[PointResult] = []
         try:
             self._send({"op": "run", "names": names, "rows": rows.tolist(), "flush_each": careful})
