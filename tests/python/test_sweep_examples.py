@@ -144,3 +144,26 @@ def test_the_rod_force_grid_through_model_exchange(fmu_path, tmp_path):
     mine, theirs = points.sort_values("point"), cosimulation.sort_values("point")
     force = mine["peak_rod_force"].to_numpy() / theirs["peak_rod_force"].to_numpy()
     assert abs(force - 1).max() < 1e-6, abs(force - 1).max()
+
+
+def test_steady_cycles_over_the_motor_law(fmu_path, tmp_path):
+    """Every point's steady cycle found; the swing peaks where two, three (and faintly
+    four) times the crank's frequency meet the rocker spring's mode, as the Campbell
+    diagram marks."""
+    points, said = sweep("steady_cycle.toml", fmu_path, tmp_path)
+    assert len(points) == 181 and (points["status"] == "ok").all(), points["message"].unique()
+    assert (points["cycle_stability"] == "stable").all()
+    assert "181 points" in said
+    for picture in ("campbell", "cycle_multipliers", "cycle", "metrics"):
+        assert (tmp_path / "plots" / f"{picture}.png").stat().st_size > 10_000
+    crank = 1 / points["cycle_period"]
+    swing = points["rod_force_swing"].to_numpy()
+    peaks = [i for i in range(3, len(swing) - 3)
+             if swing[i] == swing[i - 3:i + 4].max() and swing[i] > 1.2 * swing[i - 3]]
+    orders = set()
+    for i in peaks:
+        mode = points["cycle_modes_hz"].iloc[i][0]
+        k = round(mode / crank[i])
+        assert abs(k * crank[i] / mode - 1) < 0.02, (i, k)
+        orders.add(k)
+    assert {2, 3} <= orders <= {2, 3, 4}, orders
