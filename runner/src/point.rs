@@ -404,6 +404,7 @@ impl Runner {
         assignments: &mut Assignments,
         row: &[f64],
         result: &mut PointResult,
+        started: Instant,
     ) -> Result<(), Stop> {
         self.prepare(plan, assignments, row, true)?;
         let cycle_plan = plan.cycle.as_ref().expect("a cycle plan");
@@ -427,7 +428,17 @@ impl Runner {
             .continuation
             .then(|| self.continuation.guess(row, cycle_plan))
             .flatten();
-        match cycle::analyse(start, cycle_plan, tolerance, budget, guess.as_ref()) {
+        let deadline = plan
+            .timeout_s
+            .map(|s| (started + std::time::Duration::from_secs_f64(s), s));
+        match cycle::analyse(
+            start,
+            cycle_plan,
+            tolerance,
+            budget,
+            guess.as_ref(),
+            deadline,
+        ) {
             Ok((mut record, shot)) => {
                 result.metrics = record.metrics.iter().map(|&m| Some(m)).collect();
                 // The kept variables travel as the series do: rows of (t, values…).
@@ -445,9 +456,14 @@ impl Runner {
                 self.continuation.record(row, shot);
                 Ok(())
             }
-            Err(why) => {
+            Err(failure) => {
                 self.continuation.broken();
-                Err(Stop(Outcome::NoCycle, why))
+                let outcome = if failure.timeout {
+                    Outcome::Timeout
+                } else {
+                    Outcome::NoCycle
+                };
+                Err(Stop(outcome, failure.why))
             }
         }
     }
@@ -503,7 +519,7 @@ impl Runner {
             cycle: None,
         };
         let ended = if plan.cycle.is_some() {
-            self.steady_cycle(plan, assignments, row, &mut result)
+            self.steady_cycle(plan, assignments, row, &mut result, started)
         } else {
             self.simulate(plan, assignments, row, &mut result, started)
         };

@@ -269,3 +269,14 @@ def test_a_cycle_needs_model_exchange(motor_path, fmu_path, tmp_path):
     with pytest.raises(SpecError) as raised:
         sweep(spec, fmu_path, tmp_path / "out")
     assert raised.value.field == "scenario.interface"
+
+
+def test_a_cycle_keeps_to_the_points_time_budget(fmu_path, tmp_path):
+    """scenario.timeout holds for a steady cycle's search as for a transient: over it, the
+    row says timeout and why, and the next point runs."""
+    spec = cycle_spec({}, listed(d34=[0.0, 0.5]), metrics={"swing": METRICS["swing"]})
+    spec["scenario"]["timeout"] = 1e-9
+    points = sweep(spec, fmu_path, tmp_path / "out").points
+    assert list(points["status"]) == ["timeout", "timeout"]
+    assert all(m.startswith("over the budget of") and "s per point" in m for m in points["message"])
+    assert points["swing"].isna().all()

@@ -57,6 +57,8 @@ pub enum Stopped {
     NotReached,
     /// The FMU or the integrator failed, saying why.
     Failed(String),
+    /// The point's wall-time budget (seconds) ran out before the leg began.
+    OverBudget(f64),
 }
 
 /// The FMU's right-hand side, states over their nominals; with `variational`, the

@@ -18,8 +18,9 @@ use crate::fmi::Instance;
 pub use continuation::Continuation;
 pub use floquet::{Mode, Multiplier};
 use flow::{leg, End, Problem};
+pub use shooting::NoCycle;
+use shooting::Shooting;
 pub use shooting::Shot;
-use shooting::{NoCycle, Shooting};
 
 /// The local error held by the cycle's integration, as a fraction of the plan's
 /// tolerance (the shooting converges to the tolerance itself, which the error of a whole
@@ -77,7 +78,8 @@ pub fn analyse(
     tolerance: f64,
     budget: f64,
     guess: Option<&Shot>,
-) -> Result<(CycleRecord, Shot), String> {
+    deadline: Option<(std::time::Instant, f64)>,
+) -> Result<(CycleRecord, Shot), NoCycle> {
     let internal = tolerance * TOLERANCE_SAFETY;
     let mut problem = Problem {
         fmu: start.fmu,
@@ -91,9 +93,8 @@ pub fn analyse(
         },
     };
     let mut shooting = Shooting::new(plan, &mut problem, budget, tolerance);
-    let shot = shooting
-        .solve(start.t, &start.x, guess)
-        .map_err(|NoCycle(why)| why)?;
+    shooting.deadline = deadline;
+    let shot = shooting.solve(start.t, &start.x, guess)?;
     let continued = shooting.continued;
     let multipliers = floquet::multipliers(
         &shot.phi,
@@ -105,16 +106,16 @@ pub fn analyse(
     let (stability, margin) = floquet::stability(&multipliers, marginal_band(tolerance));
     if stability == "marginal" {
         let on = &multipliers[0];
-        return Err(format!(
+        return Err(NoCycle::because(format!(
             "no steady cycle: a periodic motion was found, but a Floquet multiplier lies on \
              the unit circle (|μ| = {:.9}, mostly {}): an undamped mode, so transients do \
              not settle onto it and it is one of a family of motions, not a steady state",
             on.modulus,
             on.states.first().map_or("?", |s| s.0.as_str())
-        ));
+        )));
     }
-    let (metrics, kept) = along(&mut problem, plan, &shot)?;
-    let modes = modes_along(&mut problem, plan, &shot)?;
+    let (metrics, kept) = along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
+    let modes = modes_along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
     Ok((
         CycleRecord {
             period: shot.period,

@@ -5,6 +5,8 @@
 //! cyclic state, fixed on the section, and T): the Jacobian's columns are the monodromy's
 //! columns less the identity, and the state's derivative at the end for T.
 
+use std::time::Instant;
+
 use nalgebra::{DMatrix, DVector};
 
 use super::flow::{leg, End, Leg, Problem, Stopped};
@@ -40,8 +42,20 @@ pub struct Shot {
     pub runs: usize,
 }
 
-/// Why no cycle was found.
-pub struct NoCycle(pub String);
+/// Why no cycle was found; `timeout` when the point's wall-time budget ran out first.
+pub struct NoCycle {
+    pub why: String,
+    pub timeout: bool,
+}
+
+impl NoCycle {
+    pub fn because(why: String) -> NoCycle {
+        NoCycle {
+            why,
+            timeout: false,
+        }
+    }
+}
 
 /// The shooting of one point: its plan, the FMU, and the work spent.
 pub struct Shooting<'a, 'b> {
@@ -56,10 +70,18 @@ pub struct Shooting<'a, 'b> {
     pub runs: usize,
     /// Whether the cycle was found from the guess.
     pub continued: bool,
+    /// When the point's wall-time budget (in seconds) runs out.
+    pub deadline: Option<(Instant, f64)>,
 }
 
 fn stopped(what: &str, e: Stopped, plan: &CyclePlan) -> NoCycle {
-    NoCycle(match e {
+    if let Stopped::OverBudget(budget) = e {
+        return NoCycle {
+            why: format!("over the budget of {budget} s per point ({what})"),
+            timeout: true,
+        };
+    }
+    NoCycle::because(match e {
         Stopped::Event(k, t) => format!(
             "{what}: event indicator {k} changed sign {t:.6} s into the cycle (an event on the \
              way, such as a change point: the cycle is not smooth, and the shooting does not \
@@ -71,6 +93,7 @@ fn stopped(what: &str, e: Stopped, plan: &CyclePlan) -> NoCycle {
             plan.state_names[plan.state], plan.period
         ),
         Stopped::Failed(why) => format!("{what}: {why}"),
+        Stopped::OverBudget(_) => unreachable!("answered above"),
     })
 }
 
@@ -89,10 +112,16 @@ impl<'a, 'b> Shooting<'a, 'b> {
             tolerance,
             runs: 0,
             continued: false,
+            deadline: None,
         }
     }
 
     fn leg(&mut self, t0: f64, x0: &[f64], end: End, variational: bool) -> Result<Leg, Stopped> {
+        if let Some((deadline, budget)) = self.deadline {
+            if Instant::now() > deadline {
+                return Err(Stopped::OverBudget(budget));
+            }
+        }
         self.runs += 1;
         leg(self.problem, t0, x0, end, variational, &[])
     }
@@ -123,7 +152,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
             .max(fmu.set_continuous_states(x))
             .max(fmu.get_derivatives(&mut f));
         if !s.proceeds() {
-            return Err(NoCycle(format!(
+            return Err(NoCycle::because(format!(
                 "the state's derivative at the start: the FMU returned {s:?}"
             )));
         }
@@ -291,7 +320,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
             }
             let matrix = jacobian.as_ref().expect("a Jacobian from a monodromy");
             let step = solve(matrix, &r).ok_or_else(|| {
-                NoCycle(
+                NoCycle::because(
                     "the shooting's Jacobian is singular: a Floquet multiplier other than the \
                      flow's own is 1 (an undamped mode, or a family of cycles), so the steady \
                      cycle is not isolated"
@@ -325,7 +354,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
                 }
             }
         }
-        Err(NoCycle(format!(
+        Err(NoCycle::because(format!(
             "the shooting did not converge: after Newton's method the periodicity residual \
              is {norm:.3e} (scaled), above the tolerance {:.3e}",
             self.tolerance
