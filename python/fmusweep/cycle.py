@@ -43,7 +43,8 @@ __all__ = ["CycleSpec", "CYCLE_METRIC_KINDS", "CYCLE_COLUMNS", "cycle_columns",
 CYCLE_METRIC_KINDS = ("min", "max", "peak_abs", "peak_to_peak", "mean", "rms", "harmonic")
 MONODROMY = ("variational", "differences")
 # The columns a sweep of cycles writes of its own (the multipliers and modes as lists).
-CYCLE_COLUMNS = ("cycle_period", "cycle_multiplier", "cycle_stability", "cycle_margin",
+CYCLE_COLUMNS = ("cycle_period", "cycle_multiplier", "cycle_mode", "cycle_stability",
+                 "cycle_margin",
                  "cycle_residual", "cycle_iterations", "cycle_runs", "cycle_continued",
                  "cycle_state",
                  "cycle_multipliers_re", "cycle_multipliers_im", "cycle_modes_hz",
@@ -186,8 +187,8 @@ def _a_state(name: str, where: str, states: list[str], by_name: dict[str, Any]) 
 
 
 def cycle_columns(results: list[PointResult]) -> dict[str, pa.Array]:
-    """Each point's cycle: its period, its largest Floquet multiplier's modulus, the
-    verdict and the margin to the unit circle, the periodicity residual, the Newton
+    """Each point's cycle: its period, its largest Floquet multiplier's modulus and the
+    states its mode moves most (``omega4 94%, loop_speed 5%``), the verdict and the margin to the unit circle, the periodicity residual, the Newton
     iterations and runs spent, whether it continued from its neighbour's cycle; its
     state on the section (in the order of the FMU's Model Exchange states), its
     multipliers, and its modes' frequencies and damping ratios averaged along the cycle
@@ -203,6 +204,8 @@ def cycle_columns(results: list[PointResult]) -> dict[str, pa.Array]:
 
     return {"cycle_period": column("period", pa.float64()),
             "cycle_multiplier": column("largest_multiplier", pa.float64()),
+            "cycle_mode": pa.array([None if c is None else _leading(c) for c in cycles],
+                                   pa.string()),
             "cycle_stability": column("stability", pa.string()),
             "cycle_margin": column("margin", pa.float64()),
             "cycle_residual": column("residual", pa.float64()),
@@ -214,6 +217,14 @@ def cycle_columns(results: list[PointResult]) -> dict[str, pa.Array]:
             "cycle_multipliers_im": listed(lambda c: [m["im"] for m in c["multipliers"]]),
             "cycle_modes_hz": listed(lambda c: _along(c, "frequency")),
             "cycle_modes_damping": listed(lambda c: _along(c, "damping"))}
+
+
+def _leading(cycle: dict[str, Any]) -> str:
+    """The states the largest multiplier's eigenvector moves most, with their shares."""
+    multipliers = cycle["multipliers"]
+    if not multipliers:
+        return ""
+    return ", ".join(f"{name} {share:.0%}" for name, share in multipliers[0]["states"])
 
 
 def _along(cycle: dict[str, Any], key: str) -> list[float]:

@@ -110,8 +110,10 @@ def test_the_multipliers_agree_with_a_difference_monodromy(fmu_path, tmp_path):
         a = np.asarray(exact[f"cycle_multipliers_{part}"])
         b = np.asarray(differences[f"cycle_multipliers_{part}"])
         assert len(a) == 5 and np.abs(a - b).max() <= 1e-6, (a, b)
-    # A lightly damped spring: a complex pair inside the unit circle leads.
+    # A lightly damped spring: a complex pair inside the unit circle leads, the rocker
+    # spring's mode (its eigenvector mostly the load's speed).
     assert 0.5 < exact["cycle_multiplier"] < 1 and exact["cycle_multipliers_im"][0] != 0
+    assert exact["cycle_mode"].startswith("omega4 9"), exact["cycle_mode"]
 
 
 def test_the_largest_multiplier_is_the_decay_of_a_perturbation_in_a_long_run(fmu_path,
