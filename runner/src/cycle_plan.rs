@@ -141,21 +141,14 @@ impl CyclePlan {
                 spec.modes
             ));
         }
+        let (states, derivatives, state_names) = states_of(description);
         let mut plan = CyclePlan {
             state,
             period: spec.period,
             shifted,
-            state_names: description
-                .states
-                .iter()
-                .map(|s| name_of(description, s.value_reference))
-                .collect(),
-            states: description
-                .states
-                .iter()
-                .map(|s| s.value_reference)
-                .collect(),
-            derivatives: description.states.iter().map(|s| s.derivative).collect(),
+            state_names,
+            states,
+            derivatives,
             metrics: Vec::new(),
             reads: Vec::new(),
             read_names: Vec::new(),
@@ -261,6 +254,19 @@ fn state_index(description: &Description, name: &str, field: &str) -> Result<usi
         })
 }
 
+/// The continuous states' and their derivatives' value references, and the states' names.
+fn states_of(description: &Description) -> (Vec<u32>, Vec<u32>, Vec<String>) {
+    let states = &description.states;
+    (
+        states.iter().map(|s| s.value_reference).collect(),
+        states.iter().map(|s| s.derivative).collect(),
+        states
+            .iter()
+            .map(|s| name_of(description, s.value_reference))
+            .collect(),
+    )
+}
+
 fn name_of(description: &Description, value_reference: u32) -> String {
     description
         .variables
@@ -308,18 +314,11 @@ impl LinearPlan {
         };
         let (inputs, input_names) = real("input");
         let (outputs, output_names) = real("output");
+        let (states, derivatives, state_names) = states_of(description);
         Ok(LinearPlan {
-            states: description
-                .states
-                .iter()
-                .map(|s| s.value_reference)
-                .collect(),
-            derivatives: description.states.iter().map(|s| s.derivative).collect(),
-            state_names: description
-                .states
-                .iter()
-                .map(|s| name_of(description, s.value_reference))
-                .collect(),
+            states,
+            derivatives,
+            state_names,
             inputs,
             outputs,
             input_names,
