@@ -9,6 +9,10 @@ a coupled system of them, at the FMU's own speed.
     result = fit("examples/fit/fit.toml", fmu="Model.fmu")
     result.summary            # estimates, intervals, correlations: what fit.json holds
 
+A sweep whose spec has a ``[cycle]`` table finds each point's steady cycle instead of
+running a transient (``fmusweep.cycle``); ``linearise(fmu, parameters)`` gives an FMU's
+A, B, C, D and modes at a point's initial state.
+
 The per-point work runs in the native runner (``fmu-runner``), one process per worker,
 so no Python runs per communication step; Dask spreads batches of points over the cores
 of this machine or over an existing cluster; results land in Parquet as batches finish.
