@@ -22,6 +22,9 @@ const GUESS_HALVINGS: usize = 2;
 /// changes by less than this fraction from one to the next.
 const LEAST_WARM_UP: usize = 2;
 const WARM_UP_SETTLED: f64 = 1e-2;
+/// A cyclic state at rest at the start: its way is read this fraction of the transient's
+/// time budget later.
+const START_PROBE: f64 = 1e-3;
 /// A central difference's step, as a fraction of a state's scale.
 const DIFFERENCE_STEP: f64 = 1e-5;
 
@@ -129,9 +132,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
     /// The cycle, from the point's initial state `(t, x)`, or first from `guess` (a
     /// neighbouring point's cycle: its state on the section and period) where given.
     pub fn solve(&mut self, t: f64, x: &[f64], guess: Option<&Shot>) -> Result<Shot, NoCycle> {
-        let f = self.derivative(t, x)?;
-        let k = self.plan.state;
-        self.direction = if f[k] < 0.0 { -1.0 } else { 1.0 };
+        let (t, x) = self.set_direction(t, x)?;
         if let Some(guess) = guess {
             let patience = (GUESS_ITERATIONS, GUESS_HALVINGS);
             let start = (guess.t0, guess.x0.clone(), guess.period);
@@ -140,8 +141,25 @@ impl<'a, 'b> Shooting<'a, 'b> {
                 return Ok(shot);
             }
         }
-        let (t0, x0, period) = self.warm_up(t, x)?;
+        let (t0, x0, period) = self.warm_up(t, &x)?;
         self.newton(t0, x0, period, (MOST_ITERATIONS, MOST_HALVINGS), None)
+    }
+
+    /// The way the cyclic state turns, from its derivative at the start, or, starting at
+    /// rest, a moment later (a mechanism may start backwards): where the transient goes on.
+    fn set_direction(&mut self, t: f64, x: &[f64]) -> Result<(f64, Vec<f64>), NoCycle> {
+        let k = self.plan.state;
+        let (mut t, mut x) = (t, x.to_vec());
+        let mut f = self.derivative(t, &x)?;
+        if f[k] == 0.0 {
+            let moment = START_PROBE * self.budget;
+            let moved = self
+                .leg(t, &x, End::After(moment), false)
+                .map_err(|e| stopped("the start of the transient", e, self.plan))?;
+            (t, x, f) = (t + moved.time, moved.x, moved.f);
+        }
+        self.direction = if f[k] < 0.0 { -1.0 } else { 1.0 };
+        Ok((t, x))
     }
 
     fn derivative(&mut self, t: f64, x: &[f64]) -> Result<Vec<f64>, NoCycle> {
