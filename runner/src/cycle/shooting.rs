@@ -43,6 +43,8 @@ pub struct Shot {
     pub iterations: usize,
     /// Legs integrated (a leg is one run over a cycle or part of one), warm-up included.
     pub runs: usize,
+    /// The way the cyclic state turns: +1 or −1.
+    pub direction: f64,
 }
 
 /// Why no cycle was found; `timeout` when the point's wall-time budget ran out first.
@@ -132,8 +134,8 @@ impl<'a, 'b> Shooting<'a, 'b> {
     /// The cycle, from the point's initial state `(t, x)`, or first from `guess` (a
     /// neighbouring point's cycle: its state on the section and period) where given.
     pub fn solve(&mut self, t: f64, x: &[f64], guess: Option<&Shot>) -> Result<Shot, NoCycle> {
-        let (t, x) = self.set_direction(t, x)?;
         if let Some(guess) = guess {
+            self.direction = guess.direction;
             let patience = (GUESS_ITERATIONS, GUESS_HALVINGS);
             let start = (guess.t0, guess.x0.clone(), guess.period);
             if let Ok(shot) = self.newton(start.0, start.1, start.2, patience, Some(guess)) {
@@ -141,6 +143,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
                 return Ok(shot);
             }
         }
+        let (t, x) = self.set_direction(t, x)?;
         let (t0, x0, period) = self.warm_up(t, &x)?;
         self.newton(t0, x0, period, (MOST_ITERATIONS, MOST_HALVINGS), None)
     }
@@ -445,6 +448,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
             f: leg.f,
             iterations,
             runs: self.runs,
+            direction: self.direction,
         }
     }
 }
