@@ -31,8 +31,8 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
-from .errors import Collector, SpecError, did_you_mean
-from .fields import number, only, table
+from .errors import Collector, SpecError, did_you_mean, refuse
+from .fields import number, only, table, whole
 from .native import RunnerError
 from .records import PointResult
 
@@ -93,14 +93,15 @@ class CycleSpec:
         keep = errors.run(lambda: _names(cycle.get("keep", []), "cycle.keep"))
         monodromy = cycle.get("monodromy")
         if monodromy is not None and monodromy not in MONODROMY:
-            errors.run(lambda: _refuse("cycle.monodromy", f"must be one of "
+            errors.run(lambda: refuse("cycle.monodromy", f"must be one of "
                                        f"{', '.join(map(repr, MONODROMY))}, got {monodromy!r}"))
-        samples = errors.run(lambda: _whole(cycle.get("samples"), "cycle.samples", 8, MOST_SAMPLES))
-        modes = errors.run(lambda: _whole(cycle.get("modes", 0), "cycle.modes", 0,
-                                          MOST_MODE_POINTS))
+        samples = errors.run(lambda: None if cycle.get("samples") is None else
+                             whole(cycle["samples"], "cycle.samples", 8, MOST_SAMPLES))
+        modes = errors.run(lambda: whole(cycle.get("modes", 0), "cycle.modes", 0,
+                                         MOST_MODE_POINTS))
         continuation = cycle.get("continuation", True)
         if not isinstance(continuation, bool):
-            errors.run(lambda: _refuse("cycle.continuation", f"must be true or false, got "
+            errors.run(lambda: refuse("cycle.continuation", f"must be true or false, got "
                                                              f"{continuation!r}"))
         errors.raise_any()
         assert state is not None and period is not None
@@ -111,7 +112,7 @@ class CycleSpec:
         """Against the FMU: it has Model Exchange, the states named are its continuous
         states, directional derivatives where the variational monodromy is asked for."""
         if not description.get("has_model_exchange"):
-            errors.run(lambda: _refuse("cycle", "the steady cycle is found by integrating the "
+            errors.run(lambda: refuse("cycle", "the steady cycle is found by integrating the "
                                                 "FMU's Model Exchange interface, which this FMU "
                                                 "does not have"))
             return
@@ -123,17 +124,17 @@ class CycleSpec:
             errors.run(lambda: _a_state(name, where, states, by_name))
         for k, name in enumerate(self.shifted):
             if name == self.state or name in self.shifted[:k]:
-                errors.run(lambda: _refuse(f"cycle.shifted[{k}]", f"{name!r} is named twice"))
+                errors.run(lambda: refuse(f"cycle.shifted[{k}]", f"{name!r} is named twice"))
         for k, name in enumerate(self.keep):
             v = by_name.get(name)
             if v is None or v["type"] != "real":
                 rule = (f"the FMU has no variable {name!r}{did_you_mean(name, by_name)}"
                         if v is None else f"{name} is of type {v['type']}; a cycle keeps Real "
                                           "variables")
-                errors.run(lambda: _refuse(f"cycle.keep[{k}]", rule))
+                errors.run(lambda: refuse(f"cycle.keep[{k}]", rule))
         if self.monodromy == "variational" and not description.get(
                 "exchange_directional_derivatives"):
-            errors.run(lambda: _refuse("cycle.monodromy", "\"variational\" needs the FMU's "
+            errors.run(lambda: refuse("cycle.monodromy", "\"variational\" needs the FMU's "
                                        "directional derivatives under Model Exchange, which it "
                                        "does not give"))
 
@@ -143,10 +144,6 @@ class CycleSpec:
                 "metrics": [{"variable": v, "kind": k, "order": o} for v, k, o in metrics],
                 "samples": self.samples, "monodromy": self.monodromy, "modes": self.modes,
                 "keep": self.keep, "continuation": self.continuation}
-
-
-def _refuse(where: str, rule: str) -> None:
-    raise SpecError(where, rule)
 
 
 def _name(value: object, where: str) -> str:
@@ -168,14 +165,6 @@ def _period(value: object) -> float:
         raise SpecError("cycle.period", f"must be > 0 (the cyclic state's advance over one "
                                         f"cycle, such as 2π for a revolution), got {period}")
     return period
-
-
-def _whole(value: object, where: str, low: int, high: int) -> int | None:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise SpecError(where, f"must be a whole number from {low} to {high}, got {value!r}")
-    return value
 
 
 def _a_state(name: str, where: str, states: list[str], by_name: dict[str, Any]) -> None:

@@ -244,12 +244,14 @@ def test_mistakes_in_a_cycle_are_refused_by_field_in_one_run(fmu_path, tmp_path)
         "a": {"variable": "rod_force", "kind": "final"},
         "b": {"variable": "rod_force", "kind": "max", "from": 2.0},
         "c": {"variable": "rod_force", "kind": "harmonic"}},
-        state="phi2", period=-1.0, shifted=["phi9"], monodromy="guess")
+        state="phi2", period=-1.0, shifted=["phi9"], monodromy="guess", samples=4)
     with pytest.raises(SpecError) as raised:
         sweep(spec, fmu_path, tmp_path / "out")
     fields = {e.field: e.rule for e in raised.value.errors}
-    assert set(fields) == {"cycle.period", "cycle.monodromy", "outputs.metrics.a.kind",
-                           "outputs.metrics.b.from", "outputs.metrics.c.order"}, fields
+    assert set(fields) == {"cycle.period", "cycle.monodromy", "cycle.samples",
+                           "outputs.metrics.a.kind", "outputs.metrics.b.from",
+                           "outputs.metrics.c.order"}, fields
+    assert "whole number in [8, " in fields["cycle.samples"]
     # Against the FMU: a variable that is not a state, one that does not exist.
     spec = cycle_spec({}, listed(J1=[0.5]), state="phi2", shifted=["phi9"], keep=["n_steps"])
     with pytest.raises(SpecError) as raised:
