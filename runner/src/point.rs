@@ -457,7 +457,7 @@ impl Runner {
                 Ok(())
             }
             Err(failure) => {
-                self.continuation.broken();
+                self.continuation.forget();
                 let outcome = if failure.timeout {
                     Outcome::Timeout
                 } else {

@@ -17,12 +17,9 @@ pub struct Continuation {
 const EVEN: f64 = 1e-9;
 
 impl Continuation {
+    /// A new plan, or a point without a cycle (the next one cannot extend a line through
+    /// it): no history.
     pub fn forget(&mut self) {
-        self.history.clear();
-    }
-
-    /// A point's row gave no cycle: the next one cannot extend a line through it.
-    pub fn broken(&mut self) {
         self.history.clear();
     }
 

@@ -372,7 +372,6 @@ fn reach<const N: usize>(
     value: f64,
 ) -> Result<(f64, [f64; N]), Stopped> {
     let nominal = flow.problem.borrow().nominals[index];
-    let end = tb;
     let mut best = (tb, b.abs());
     for _ in 0..200 {
         if a == 0.0 {
@@ -405,15 +404,9 @@ fn reach<const N: usize>(
             (tb, b) = (t, g);
         }
     }
-    let y = if best.0 == end {
-        method
-            .dense_output(flow, end)
-            .ok_or_else(|| Stopped::Failed("no dense output at the step's end".into()))?
-    } else {
-        method
-            .dense_output(flow, best.0)
-            .ok_or_else(|| Stopped::Failed(format!("no dense output at t = {}", best.0)))?
-    };
+    let y = method
+        .dense_output(flow, best.0)
+        .ok_or_else(|| Stopped::Failed(format!("no dense output at t = {}", best.0)))?;
     Ok((best.0, y))
 }
 

@@ -80,13 +80,13 @@ pub struct Shooting<'a, 'b> {
 }
 
 fn stopped(what: &str, e: Stopped, plan: &CyclePlan) -> NoCycle {
-    if let Stopped::OverBudget(budget) = e {
-        return NoCycle {
-            why: format!("over the budget of {budget} s per point ({what})"),
-            timeout: true,
-        };
-    }
-    NoCycle::because(match e {
+    let why = match e {
+        Stopped::OverBudget(budget) => {
+            return NoCycle {
+                why: format!("over the budget of {budget} s per point ({what})"),
+                timeout: true,
+            }
+        }
         Stopped::Event(k, t) => format!(
             "{what}: event indicator {k} changed sign {t:.6} s into the cycle (an event on the \
              way, such as a change point: the cycle is not smooth, and the shooting does not \
@@ -98,8 +98,8 @@ fn stopped(what: &str, e: Stopped, plan: &CyclePlan) -> NoCycle {
             plan.state_names[plan.state], plan.period
         ),
         Stopped::Failed(why) => format!("{what}: {why}"),
-        Stopped::OverBudget(_) => unreachable!("answered above"),
-    })
+    };
+    NoCycle::because(why)
 }
 
 impl<'a, 'b> Shooting<'a, 'b> {
@@ -279,7 +279,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
     }
 
     /// ∂x(T)/∂x0 by central differences, a pair of runs per state.
-    pub fn differences(&mut self, t0: f64, x0: &[f64], period: f64) -> Result<Vec<f64>, NoCycle> {
+    fn differences(&mut self, t0: f64, x0: &[f64], period: f64) -> Result<Vec<f64>, NoCycle> {
         let n = x0.len();
         let scales = self.scales(x0);
         let mut phi = vec![0.0; n * n];
