@@ -316,6 +316,23 @@ impl Plan {
         })
     }
 
+    /// How many metrics a point's result holds: the cycle's where the plan has one.
+    pub fn metric_count(&self) -> usize {
+        self.cycle
+            .as_ref()
+            .map_or(self.metrics.len(), |c| c.metrics.len())
+    }
+
+    /// The numbers in a row of a point's series (t and the variables), 0 without one: the
+    /// series' variables, or the cycle's kept ones.
+    pub fn series_width(&self) -> usize {
+        match (&self.series, &self.cycle) {
+            (Some((slots, _)), _) => slots.len() + 1,
+            (None, Some(cycle)) if !cycle.kept.is_empty() => cycle.kept.len() + 1,
+            _ => 0,
+        }
+    }
+
     /// The communication point k: start + k·step, and exactly `stop` for the last.
     #[inline]
     pub fn time(&self, k: u64) -> f64 {

@@ -539,11 +539,7 @@ impl Runner {
                 } else {
                     format!("{what}: {said}")
                 };
-                let count = plan
-                    .cycle
-                    .as_ref()
-                    .map_or(plan.metrics.len(), |c| c.metrics.len());
-                result.metrics = vec![None; count];
+                result.metrics = vec![None; plan.metric_count()];
                 // An instance that failed may be unusable; make a new one next time.
                 if outcome == Outcome::Error {
                     self.instance = None;

@@ -214,11 +214,7 @@ impl Session {
         let mut flushed = Instant::now();
         for (i, row) in rows.iter().enumerate() {
             let r = runner.run_point(plan, &mut assignments, row);
-            let width = match (&plan.series, &plan.cycle) {
-                (Some((slots, _)), _) => slots.len() + 1,
-                (None, Some(cycle)) => cycle.kept.len() + 1,
-                (None, None) => 0,
-            };
+            let width = plan.series_width();
             reply(
                 out,
                 &json!({
