@@ -117,7 +117,7 @@ def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
     columns = [design.column_values(j) for j in range(len(design.names))]
     errors.run(lambda: variables.check_columns(design.names, columns, "design.parameters"))
     first = design.rows_at(np.zeros(1, dtype=np.int64))
-    plan, good = values_to_ask(spec.plan(), design.names, "design.parameters", errors)
+    plan, good = values_to_ask(spec.plan(description), design.names, "design.parameters", errors)
     if plan is not None:
         errors.run(lambda: ask_the_fmu(plan, [design.names[j] for j in good], first[:, good],
                                        [columns[j] for j in good], runner, "design.parameters",

@@ -18,6 +18,16 @@ interface (docs/cycle.md), and its metrics are taken over one cycle::
     first = { variable = "rod_force", kind = "harmonic", order = 1 }
 
 ``scenario.stop − scenario.start`` bounds the transient the search may start from.
+
+Or through the FMU's Co-Simulation interface, where it offers sensitivities to start values
+(docs/sensitivities.md): ``starts`` names the start values that set the state on the
+section, and ``state`` and ``shifted`` name variables whose sensitivities it gives::
+
+    [cycle]
+    state = "phi2"
+    period = 6.283185307179586
+    shifted = ["phi1"]
+    starts = ["twist12_0", "twist34_0", "omega1_0", "omega2_0", "omega4_0"]
 """
 
 from __future__ import annotations
@@ -33,6 +43,7 @@ import pyarrow as pa
 
 from .errors import Collector, SpecError, did_you_mean, refuse
 from .fields import number, only, table, whole
+from .sensitivity_slots import Offer, read_offer, slot_parameter, slot_variable
 from .native import RunnerError
 from .records import PointResult
 
@@ -64,6 +75,7 @@ class CyclePlan(TypedDict):
     modes: int
     keep: list[str]
     continuation: bool
+    starts: dict[str, Any] | None
 
 
 @dataclass(frozen=True)
@@ -76,6 +88,8 @@ class CycleSpec:
     modes: int = 0
     keep: list[str] = field(default_factory=list)
     continuation: bool = True
+    # The start values the Co-Simulation path varies (none: Model Exchange).
+    starts: list[str] = field(default_factory=list)
 
     @staticmethod
     def of(raw: dict[str, Any]) -> CycleSpec | None:
@@ -86,11 +100,12 @@ class CycleSpec:
         errors = Collector()
         errors.run(lambda: only(cycle, "cycle", {"state", "period", "shifted", "monodromy",
                                                  "samples", "modes", "keep",
-                                                 "continuation"}))
+                                                 "continuation", "starts"}))
         state = errors.run(lambda: _name(cycle.get("state"), "cycle.state"))
         period = errors.run(lambda: _period(cycle.get("period")))
         shifted = errors.run(lambda: _names(cycle.get("shifted", []), "cycle.shifted"))
         keep = errors.run(lambda: _names(cycle.get("keep", []), "cycle.keep"))
+        starts = errors.run(lambda: _names(cycle.get("starts", []), "cycle.starts"))
         monodromy = cycle.get("monodromy")
         if monodromy is not None and monodromy not in MONODROMY:
             errors.run(lambda: refuse("cycle.monodromy", f"must be one of "
@@ -106,22 +121,26 @@ class CycleSpec:
         errors.raise_any()
         assert state is not None and period is not None
         return CycleSpec(state, period, shifted or [], monodromy, samples, modes or 0, keep or [],
-                         bool(continuation))
+                         bool(continuation), starts or [])
 
     def check(self, description: dict[str, Any], errors: Collector) -> None:
-        """Against the FMU: it has Model Exchange, the states named are its continuous
-        states, directional derivatives where the variational monodromy is asked for."""
-        if not description.get("has_model_exchange"):
+        """Against the FMU: through Model Exchange, the states named are its continuous
+        states, directional derivatives where the variational monodromy is asked for;
+        through the start values, the FMU's sensitivities cover them and the closing
+        variables named."""
+        by_name = {v["name"]: v for v in description["variables"]}
+        if self.starts:
+            self._check_starts(description, errors)
+        elif not description.get("has_model_exchange"):
             errors.run(lambda: refuse("cycle", "the steady cycle is found by integrating the "
                                                 "FMU's Model Exchange interface, which this FMU "
                                                 "does not have"))
             return
-        names = {v["value_reference"]: v["name"] for v in reversed(description["variables"])}
-        states = [names.get(s["value_reference"], "?") for s in description.get("states", [])]
-        by_name = {v["name"]: v for v in description["variables"]}
-        for where, name in [("cycle.state", self.state)] + [
-                (f"cycle.shifted[{k}]", n) for k, n in enumerate(self.shifted)]:
-            errors.run(lambda: _a_state(name, where, states, by_name))
+        else:
+            states = _states(description)
+            for where, name in [("cycle.state", self.state)] + [
+                    (f"cycle.shifted[{k}]", n) for k, n in enumerate(self.shifted)]:
+                errors.run(lambda: _a_state(name, where, states, by_name))
         for k, name in enumerate(self.shifted):
             if name == self.state or name in self.shifted[:k]:
                 errors.run(lambda: refuse(f"cycle.shifted[{k}]", f"{name!r} is named twice"))
@@ -138,12 +157,100 @@ class CycleSpec:
                                        "directional derivatives under Model Exchange, which it "
                                        "does not give"))
 
-    def plan(self, metrics: list[tuple[str, str, int | None]]) -> CyclePlan:
-        """The runner's plan, with the metrics (variable, kind, order) over one cycle."""
+    def _check_starts(self, description: dict[str, Any], errors: Collector) -> None:
+        """The Co-Simulation path's fields against the FMU's offer of sensitivities."""
+        offer = read_offer(description)
+        if description.get("model_identifier") is None:
+            errors.run(lambda: refuse("cycle.starts", "the cycle through the start values runs "
+                                                       "the FMU's Co-Simulation interface, which "
+                                                       "this FMU does not have"))
+            return
+        if offer is None:
+            errors.run(lambda: refuse("cycle.starts", "the FMU offers no sensitivities "
+                                                       "(sensitivity_<k>.parameter slots): the "
+                                                       "cycle through the start values needs "
+                                                       "them; leave `starts` out to shoot on "
+                                                       "Model Exchange"))
+            return
+        if not description.get("max_output_derivative_order"):
+            errors.run(lambda: refuse("cycle.starts", "the cycle through the start values reads "
+                                                       "the closing outputs' rates at its end "
+                                                       "(output derivatives), which this FMU does "
+                                                       "not give"))
+        if self.monodromy is not None:
+            errors.run(lambda: refuse("cycle.monodromy", "through the start values the "
+                                                          "monodromy comes from the FMU's own "
+                                                          "sensitivities"))
+        for k, name in enumerate(self.starts):
+            if name not in offer.items:
+                errors.run(lambda: refuse(f"cycle.starts[{k}]", f"the FMU offers no sensitivity "
+                                          f"to {name!r}{did_you_mean(name, offer.items)} (it "
+                                          f"offers: {', '.join(sorted(offer.items))})"))
+            elif name in self.starts[:k]:
+                errors.run(lambda: refuse(f"cycle.starts[{k}]", f"{name!r} is named twice"))
+        if len(self.starts) > offer.slots:
+            errors.run(lambda: refuse("cycle.starts", f"{len(self.starts)} start values, but "
+                                                       f"the FMU has {offer.slots} sensitivity "
+                                                       f"slots"))
+        states = _states(description) if description.get("has_model_exchange") else []
+        if states and len(self.starts) != len(states) - 1:
+            errors.run(lambda: refuse("cycle.starts", f"the state on the section has "
+                                                       f"{len(states) - 1} free coordinates (the "
+                                                       f"FMU's {len(states)} continuous states "
+                                                       f"less the cyclic one): name as many "
+                                                       f"start values, not {len(self.starts)}"))
+        closing = _closing(description, offer)
+        by_name = {v["name"]: v for v in description["variables"]}
+        for where, name in [("cycle.state", self.state)] + [
+                (f"cycle.shifted[{k}]", n) for k, n in enumerate(self.shifted)]:
+            if name not in by_name:
+                errors.run(lambda: refuse(where, f"the FMU has no variable {name!r}"
+                                                 f"{did_you_mean(name, by_name)}"))
+            elif name not in closing:
+                errors.run(lambda: refuse(where, f"{name} is not among the outputs whose "
+                                                 f"sensitivities the FMU gives (those that close "
+                                                 f"the cycle: {', '.join(closing) or 'none'})"))
+        if self.modes and not (description.get("has_model_exchange")
+                               and description.get("exchange_directional_derivatives")):
+            errors.run(lambda: refuse("cycle.modes", "the modes along the cycle linearise the "
+                                                      "state equations on the FMU's Model "
+                                                      "Exchange interface, whose directional "
+                                                      "derivatives this FMU does not give"))
+
+    def plan(self, metrics: list[tuple[str, str, int | None]],
+             description: dict[str, Any] | None) -> CyclePlan:
+        """The runner's plan, with the metrics (variable, kind, order) over one cycle; the
+        Co-Simulation path's start values, slots and closing variables from the FMU's
+        offer of sensitivities (its `description`)."""
+        starts = None
+        offer = read_offer(description) if self.starts and description is not None else None
+        if offer is not None:
+            closing = _closing(description or {}, offer)
+            # A name the FMU does not offer is refused by check(), which reports it with the
+            # other mistakes; its slot stays `none` meanwhile.
+            starts = {"parameters": self.starts,
+                      "slots": [(slot_parameter(k + 1), offer.items.get(name, 0))
+                                for k, name in enumerate(self.starts)],
+                      "closing": closing,
+                      "columns": [[slot_variable(k + 1, c) for c in closing]
+                                  for k in range(len(self.starts))]}
         return {"state": self.state, "period": self.period, "shifted": self.shifted,
                 "metrics": [{"variable": v, "kind": k, "order": o} for v, k, o in metrics],
                 "samples": self.samples, "monodromy": self.monodromy, "modes": self.modes,
-                "keep": self.keep, "continuation": self.continuation}
+                "keep": self.keep, "continuation": self.continuation, "starts": starts}
+
+
+def _states(description: dict[str, Any]) -> list[str]:
+    """The FMU's continuous states' names, in Model Exchange's order."""
+    names = {v["value_reference"]: v["name"] for v in reversed(description["variables"])}
+    return [names.get(s["value_reference"], "?") for s in description.get("states", [])]
+
+
+def _closing(description: dict[str, Any], offer: Offer) -> list[str]:
+    """The Real outputs every sensitivity slot covers: the variables whose return closes a
+    cycle through the start values, in the description's order."""
+    return [v["name"] for v in description["variables"]
+            if v["causality"] == "output" and v["type"] == "real" and offer.covers(v["name"])]
 
 
 def _name(value: object, where: str) -> str:

@@ -344,8 +344,9 @@ class Spec:
             own = SWEEP_COLUMNS + SERIES_COLUMNS + (CYCLE_COLUMNS if on_cycle else ())
             refuse_collisions(_column_names(header[0], outputs), own, errors)
         if on_cycle and runs is not None and scenario is not None:
+            through = cycle is not None and bool(cycle.starts)
             errors.run(lambda: _cycle_runs_alone(runs[2] is not None or runs[1] is not None,
-                                                 scenario))
+                                                 scenario, through))
         errors.raise_any()
         assert runs and scenario and header and outputs
         fmu, ssp, system = runs
@@ -363,12 +364,15 @@ class Spec:
                     series_variables=series_variables, series_every=every, cycle=cycle)
 
     # --- derived ---------------------------------------------------------------------
-    def plan(self) -> Plan:
-        """The native runner's plan: everything every point shares."""
+    def plan(self, description: dict[str, Any] | None = None) -> Plan:
+        """The native runner's plan: everything every point shares (a steady cycle through
+        start values reads the FMU's offer of sensitivities in its `description`)."""
         if self.cycle is not None:
-            cycle = self.cycle.plan([(m.variable, m.kind, m.order) for m in self.metrics])
+            cycle = self.cycle.plan([(m.variable, m.kind, m.order) for m in self.metrics],
+                                    description)
             plan = self.scenario.plan([], None, self.system, cycle)
-            return {**plan, "interface": "model_exchange"}
+            interface = "co_simulation" if self.cycle.starts else "model_exchange"
+            return {**plan, "interface": interface}
         metrics = [MetricPlan({"variable": m.variable, "kind": m.kind, "from": m.start,
                                 "to": m.end}) for m in self.metrics]
         series = (SeriesPlan(variables=self.series_variables, every=self.series_every)
@@ -588,18 +592,20 @@ def _cycle_metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec
     return MetricSpec(name, m["variable"], str(kind), None, None, order)
 
 
-def _cycle_runs_alone(system: bool, scenario: Scenario) -> None:
-    """A steady cycle is found on one FMU's Model Exchange interface, integrated by the
-    runner's DOP853."""
+def _cycle_runs_alone(system: bool, scenario: Scenario, through: bool) -> None:
+    """A steady cycle is found on one FMU: on its Model Exchange interface, integrated by
+    the runner's DOP853, or `through` its start values on its Co-Simulation interface."""
     errors = Collector()
     if system:
         errors.run(lambda: refuse("cycle", "a coupled system has no Model Exchange interface: "
                                            "a steady cycle is found on one FMU"))
-    if scenario.interface == "co_simulation":
-        errors.run(lambda: refuse("scenario.interface", "a steady cycle is found through the "
-                                                        "FMU's Model Exchange interface, not "
-                                                        "co_simulation"))
-    if scenario.integrator == "radau5":
+    wrong = "model_exchange" if through else "co_simulation"
+    if scenario.interface == wrong:
+        way = ("through the start values (cycle.starts) on the FMU's Co-Simulation interface"
+               if through else "on the FMU's Model Exchange interface")
+        errors.run(lambda: refuse("scenario.interface", f"this steady cycle is found {way}, "
+                                                        f"not {wrong}"))
+    if scenario.integrator == "radau5" and not through:
         errors.run(lambda: refuse("scenario.integrator", "a steady cycle is integrated with "
                                                          "its variational equations by DOP853"))
     for name, table in scenario.inputs.items():

@@ -168,7 +168,7 @@ def open_sweep(spec: Spec, design: Design, fmu: str | None) -> Target:
         check_ssp(spec, design, target.description)
     else:
         check_against_fmu(spec, design, target.description, target.local)
-        target.local.configure(spec.plan())
+        target.local.configure(spec.plan(target.description))
     return target
 
 
@@ -202,7 +202,7 @@ def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | No
     target = open_sweep(spec, design, fmu)
     record = {"design": {"kind": design.kind, "names": design.names, "points": len(design)},
               "metrics": [m.name for m in spec.metrics]}
-    study = Study("sweep", spec, target, spec.plan(), out=out, resume=resume, record=record,
+    study = Study("sweep", spec, target, spec.plan(target.description), out=out, resume=resume, record=record,
                   workers=workers, scheduler=scheduler, serial=serial,
                   name=spec_name(given, "sweep"))
     try:

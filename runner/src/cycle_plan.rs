@@ -36,6 +36,23 @@ pub struct CycleSpec {
     /// Whether a point's shooting starts from the previous point's cycle (and from its
     /// own transient only if that fails); by default it does.
     pub continuation: Option<bool>,
+    /// The cycle through the Co-Simulation interface instead: the start values that set
+    /// the state on the section, and the FMU's own sensitivities to them. `state` and
+    /// `shifted` then name closing variables.
+    pub starts: Option<StartsSpec>,
+}
+
+/// What the Co-Simulation path varies and reads: start values (parameters that set the
+/// initial state), the value each one's sensitivity slot is set to, the closing variables
+/// (outputs whose return after one cycle closes it) and, per start value, the variables
+/// that hold ∂closing/∂it.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartsSpec {
+    pub parameters: Vec<String>,
+    pub slots: Vec<(String, i32)>,
+    pub closing: Vec<String>,
+    pub columns: Vec<Vec<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -87,6 +104,24 @@ pub struct CyclePlan {
     pub monodromy: Monodromy,
     pub modes: usize,
     pub continuation: bool,
+    /// The Co-Simulation path's start values and sensitivities (`None`: Model Exchange).
+    /// On it `state`, `shifted` and `state_names` are the closing variables', while
+    /// `states` and `derivatives` stay Model Exchange's (for the modes, read along the
+    /// cycle and linearised on a Model Exchange instance).
+    pub through: Option<StartsPlan>,
+}
+
+/// [`StartsSpec`] resolved to value references.
+#[derive(Clone, Debug)]
+pub struct StartsPlan {
+    pub parameters: Vec<u32>,
+    pub parameter_names: Vec<String>,
+    pub slots: Vec<u32>,
+    pub items: Vec<i32>,
+    pub closing: Vec<u32>,
+    pub closing_names: Vec<String>,
+    /// Per start value, ∂closing/∂it, a variable per closing variable.
+    pub columns: Vec<Vec<u32>>,
 }
 
 /// The samples along a cycle where none are asked for: enough that a peak found by a
@@ -97,51 +132,44 @@ const MOST_SAMPLES: usize = 1 << 20;
 const MOST_MODE_POINTS: usize = 4096;
 
 impl CyclePlan {
-    pub fn resolve(spec: CycleSpec, description: &Description) -> Result<CyclePlan, String> {
-        if !description.has_model_exchange {
+    pub fn resolve(mut spec: CycleSpec, description: &Description) -> Result<CyclePlan, String> {
+        let through = match spec.starts.take() {
+            Some(starts) => Some(StartsPlan::resolve(starts, description)?),
+            None => None,
+        };
+        if through.is_none() && !description.has_model_exchange {
             return Err(
                 "cycle: the steady cycle is found by integrating the FMU's Model \
                         Exchange interface, which this FMU does not have"
                     .into(),
             );
         }
-        if description.states.len() != description.continuous_states {
+        if description.has_model_exchange
+            && description.states.len() != description.continuous_states
+        {
             return Err(
                 "cycle: the FMU's description does not say which variable each of its \
                         continuous states is (a derivative without its `derivative` attribute)"
                     .into(),
             );
         }
-        let state = state_index(description, &spec.state, "cycle.state")?;
-        if !(spec.period.is_finite() && spec.period > 0.0) {
-            return Err(format!(
-                "cycle.period: must be a finite number > 0 (the cyclic state's advance over \
-                 one cycle), got {}",
-                spec.period
-            ));
-        }
-        let mut shifted = Vec::new();
-        for (k, name) in spec.shifted.iter().enumerate() {
-            let index = state_index(description, name, &format!("cycle.shifted[{k}]"))?;
-            if index == state || shifted.contains(&index) {
-                return Err(format!("cycle.shifted[{k}]: {name:?} is named twice"));
+        let (state, shifted) = closed_by(&spec, description, through.as_ref())?;
+        let monodromy = match &through {
+            None => monodromy_of(spec.monodromy.as_deref(), description)?,
+            Some(_) if spec.monodromy.is_some() => {
+                return Err(
+                    "cycle.monodromy: through the start values the monodromy comes \
+                            from the FMU's own sensitivities"
+                        .into(),
+                )
             }
-            shifted.push(index);
+            Some(_) => Monodromy::Differences,
+        };
+        let samples = counts(&spec, description, through.is_some())?;
+        let (states, derivatives, mut state_names) = states_of(description);
+        if let Some(t) = &through {
+            state_names.clone_from(&t.closing_names);
         }
-        let monodromy = monodromy_of(spec.monodromy.as_deref(), description)?;
-        let samples = spec.samples.unwrap_or(DEFAULT_SAMPLES);
-        if !(8..=MOST_SAMPLES).contains(&samples) {
-            return Err(format!(
-                "cycle.samples: must be between 8 and {MOST_SAMPLES}, got {samples}"
-            ));
-        }
-        if spec.modes > MOST_MODE_POINTS {
-            return Err(format!(
-                "cycle.modes: at most {MOST_MODE_POINTS} points along the cycle, got {}",
-                spec.modes
-            ));
-        }
-        let (states, derivatives, state_names) = states_of(description);
         let mut plan = CyclePlan {
             state,
             period: spec.period,
@@ -157,6 +185,7 @@ impl CyclePlan {
             monodromy,
             modes: spec.modes,
             continuation: spec.continuation.unwrap_or(true),
+            through,
         };
         for (k, m) in spec.metrics.iter().enumerate() {
             let slot = plan.read(description, &m.variable, &format!("cycle.metrics[{k}]"))?;
@@ -193,6 +222,205 @@ impl CyclePlan {
         self.read_names.push(name.to_string());
         Ok(self.reads.len() - 1)
     }
+}
+
+impl StartsPlan {
+    /// The Co-Simulation path's variables, each refusal naming its field: the start values
+    /// are Real parameters, the closing variables Real outputs, each slot's sensitivities
+    /// Real variables, one per closing variable.
+    fn resolve(starts: StartsSpec, description: &Description) -> Result<StartsPlan, String> {
+        can_run_through(&starts, description)?;
+        let n = starts.parameters.len();
+        let mut plan = StartsPlan {
+            parameters: Vec::with_capacity(n),
+            parameter_names: starts.parameters.clone(),
+            slots: Vec::with_capacity(n),
+            items: Vec::with_capacity(n),
+            closing: Vec::new(),
+            closing_names: starts.closing.clone(),
+            columns: Vec::with_capacity(n),
+        };
+        for (k, name) in starts.parameters.iter().enumerate() {
+            let field = format!("cycle.starts[{k}]");
+            if starts.parameters[..k].contains(name) {
+                return Err(format!("{field}: {name:?} is named twice"));
+            }
+            plan.parameters
+                .push(real_variable(description, name, &field, Some("parameter"))?);
+        }
+        for (k, (name, item)) in starts.slots.iter().enumerate() {
+            let v = description
+                .variable(name)
+                .map_err(|e| format!("cycle.starts[{k}]: its slot: {e}"))?;
+            plan.slots.push(v.value_reference);
+            plan.items.push(*item);
+        }
+        for (k, name) in starts.closing.iter().enumerate() {
+            let field = format!("cycle.closing[{k}]");
+            plan.closing
+                .push(real_variable(description, name, &field, Some("output"))?);
+        }
+        for (k, column) in starts.columns.iter().enumerate() {
+            let field = format!("cycle.starts[{k}]");
+            if column.len() != starts.closing.len() {
+                return Err(format!(
+                    "{field}: {} sensitivities for {} closing variables",
+                    column.len(),
+                    starts.closing.len()
+                ));
+            }
+            let vrs = column
+                .iter()
+                .map(|name| real_variable(description, name, &field, None))
+                .collect::<Result<Vec<_>, _>>()?;
+            plan.columns.push(vrs);
+        }
+        Ok(plan)
+    }
+}
+
+/// Whether a cycle through start values can run on this FMU: it has Co-Simulation with
+/// output derivatives (the closing variables' rates at the cycle's end), a slot and a
+/// column of sensitivities for each start value, and as many start values as the state
+/// on the section has free coordinates, where Model Exchange says how many that is.
+fn can_run_through(starts: &StartsSpec, description: &Description) -> Result<(), String> {
+    if description.model_identifier.is_none() {
+        return Err(
+            "cycle.starts: the cycle through the start values runs the FMU's \
+                    Co-Simulation interface, which this FMU does not have"
+                .into(),
+        );
+    }
+    if description.max_output_derivative_order < 1 {
+        return Err(
+            "cycle.starts: the cycle through the start values reads the closing \
+                    variables' rates at its end (fmi2GetRealOutputDerivatives), which this \
+                    FMU does not give"
+                .into(),
+        );
+    }
+    let n = starts.parameters.len();
+    if n == 0 || starts.slots.len() != n || starts.columns.len() != n {
+        return Err(format!(
+            "cycle.starts: {n} start values need as many sensitivity slots and columns, got \
+             {} and {}",
+            starts.slots.len(),
+            starts.columns.len()
+        ));
+    }
+    let states = description.states.len();
+    if description.has_model_exchange && states != n + 1 {
+        return Err(format!(
+            "cycle.starts: the state on the section has {} free coordinates (the FMU's \
+             {states} continuous states less the cyclic one), which {n} start values cannot \
+             set",
+            states.saturating_sub(1)
+        ));
+    }
+    Ok(())
+}
+
+/// The value reference of the Real variable `name`, of `causality` where one is asked.
+fn real_variable(
+    description: &Description,
+    name: &str,
+    field: &str,
+    causality: Option<&str>,
+) -> Result<u32, String> {
+    let v = description
+        .variable(name)
+        .map_err(|e| format!("{field}: {e}"))?;
+    if v.base_type != BaseType::Real {
+        return Err(format!(
+            "{field}: {name:?} is of type {}, not Real",
+            v.fmi_type
+        ));
+    }
+    match causality {
+        Some(c) if v.causality != c => Err(format!(
+            "{field}: {name:?} has causality {}, not {c}",
+            v.causality
+        )),
+        _ => Ok(v.value_reference),
+    }
+}
+
+/// The position of `name` among the closing variables.
+fn closing_index(
+    description: &Description,
+    names: &[String],
+    name: &str,
+    field: &str,
+) -> Result<usize, String> {
+    description
+        .variable(name)
+        .map_err(|e| format!("{field}: {e}"))?;
+    names.iter().position(|n| n == name).ok_or_else(|| {
+        format!(
+            "{field}: {name:?} is not among the variables whose sensitivities to the start \
+             values the FMU gives (those that close the cycle: {})",
+            names.join(", ")
+        )
+    })
+}
+
+/// Where the cycle is closed: the cyclic state and those shifted with it, as positions in
+/// Model Exchange's states, or among the closing variables `through` start values.
+fn closed_by(
+    spec: &CycleSpec,
+    description: &Description,
+    through: Option<&StartsPlan>,
+) -> Result<(usize, Vec<usize>), String> {
+    let closing_names = through.map(|t| t.closing_names.as_slice());
+    let locate = |name: &str, field: &str| match closing_names {
+        Some(names) => closing_index(description, names, name, field),
+        None => state_index(description, name, field),
+    };
+    let state = locate(&spec.state, "cycle.state")?;
+    if !(spec.period.is_finite() && spec.period > 0.0) {
+        return Err(format!(
+            "cycle.period: must be a finite number > 0 (the cyclic state's advance over \
+             one cycle), got {}",
+            spec.period
+        ));
+    }
+    let mut shifted = Vec::new();
+    for (k, name) in spec.shifted.iter().enumerate() {
+        let index = locate(name, &format!("cycle.shifted[{k}]"))?;
+        if index == state || shifted.contains(&index) {
+            return Err(format!("cycle.shifted[{k}]: {name:?} is named twice"));
+        }
+        shifted.push(index);
+    }
+    Ok((state, shifted))
+}
+
+/// The samples along the cycle, and the bounds of the samples and the modes' points.
+fn counts(spec: &CycleSpec, description: &Description, through: bool) -> Result<usize, String> {
+    let samples = spec.samples.unwrap_or(DEFAULT_SAMPLES);
+    if !(8..=MOST_SAMPLES).contains(&samples) {
+        return Err(format!(
+            "cycle.samples: must be between 8 and {MOST_SAMPLES}, got {samples}"
+        ));
+    }
+    if spec.modes > MOST_MODE_POINTS {
+        return Err(format!(
+            "cycle.modes: at most {MOST_MODE_POINTS} points along the cycle, got {}",
+            spec.modes
+        ));
+    }
+    if through
+        && spec.modes > 0
+        && !(description.has_model_exchange && description.exchange_directional_derivatives)
+    {
+        return Err(
+            "cycle.modes: the modes along the cycle linearise the state equations \
+                        on the FMU's Model Exchange interface, whose directional derivatives \
+                        this FMU does not give"
+                .into(),
+        );
+    }
+    Ok(samples)
 }
 
 /// How the monodromy is found: as asked, or by the variational equations where the FMU
@@ -418,5 +646,102 @@ mod tests {
         let plan = CyclePlan::resolve(spec(r#"{"state": "loop_angle", "period": 1.0}"#), &without)
             .unwrap();
         assert_eq!(plan.monodromy, Monodromy::Differences);
+    }
+
+    /// The Co-Simulation path's spec, as fmusweep writes it from the FMU's offer.
+    fn through(starts: &[&str], extra: &str) -> CycleSpec {
+        let closing = [
+            "phi1", "phi2", "phi3", "phi4", "omega1", "omega2", "omega3", "omega4",
+        ];
+        let slots: Vec<String> = (1..=starts.len())
+            .map(|k| format!(r#"["sensitivity_{k}.parameter", 7]"#))
+            .collect();
+        let columns: Vec<String> = (1..=starts.len())
+            .map(|k| {
+                let names: Vec<String> = closing
+                    .iter()
+                    .map(|c| format!(r#""sensitivity_{k}.{c}""#))
+                    .collect();
+                format!("[{}]", names.join(", "))
+            })
+            .collect();
+        spec(&format!(
+            r#"{{"state": "phi2", "period": 6.283185307179586, "shifted": ["phi1"], {extra}
+                "starts": {{"parameters": {starts:?}, "slots": [{}], "closing": {closing:?},
+                            "columns": [{}]}}}}"#,
+            slots.join(", "),
+            columns.join(", ")
+        ))
+    }
+
+    const STARTS: [&str; 5] = ["twist12_0", "twist34_0", "omega1_0", "omega2_0", "omega4_0"];
+
+    #[test]
+    fn resolves_the_start_values_and_the_closing_variables() {
+        let d = mechanism();
+        let plan = CyclePlan::resolve(through(&STARTS, r#""modes": 4,"#), &d).unwrap();
+        let starts = plan.through.as_ref().unwrap();
+        assert_eq!((plan.state, plan.shifted.as_slice()), (1, &[0][..]));
+        assert_eq!(plan.state_names[1], "phi2");
+        let vr = |name: &str| d.variable(name).unwrap().value_reference;
+        assert_eq!(starts.parameters[0], vr("twist12_0"));
+        assert_eq!(starts.closing[7], vr("omega4"));
+        assert_eq!(starts.columns[4][1], vr("sensitivity_5.phi2"));
+        assert_eq!(starts.slots[2], vr("sensitivity_3.parameter"));
+        // The modes are Model Exchange's, read along the cycle.
+        assert_eq!(plan.states.len(), 6);
+    }
+
+    #[test]
+    fn refuses_each_mistake_of_the_start_values_by_its_field() {
+        let d = mechanism();
+        let refused = |spec: CycleSpec| CyclePlan::resolve(spec, &d).unwrap_err();
+        let message = refused(through(&STARTS[..4], ""));
+        assert!(
+            message.starts_with("cycle.starts: the state on the section has 5 free"),
+            "{message}"
+        );
+        let message = refused(through(&STARTS, r#""monodromy": "variational","#));
+        assert!(
+            message.starts_with("cycle.monodromy: through the start values"),
+            "{message}"
+        );
+        let message = refused(through(
+            &["twist12_0", "twist34_0", "J9", "omega2_0", "omega4_0"],
+            "",
+        ));
+        assert!(
+            message.starts_with("cycle.starts[2]: the FMU has no variable"),
+            "{message}"
+        );
+        let message = refused(through(
+            &["twist12_0", "twist12_0", "omega1_0", "omega2_0", "omega4_0"],
+            "",
+        ));
+        assert!(
+            message.starts_with("cycle.starts[1]: \"twist12_0\" is named twice"),
+            "{message}"
+        );
+        let mut wrong = through(&STARTS, "");
+        wrong.state = "loop_angle".into();
+        let message = refused(wrong);
+        assert!(
+            message.starts_with("cycle.state: \"loop_angle\" is not among the variables"),
+            "{message}"
+        );
+        let mut without = d.clone();
+        without.model_identifier = None;
+        let message = CyclePlan::resolve(through(&STARTS, ""), &without).unwrap_err();
+        assert!(
+            message.starts_with("cycle.starts: the cycle through the start values runs"),
+            "{message}"
+        );
+        without = d.clone();
+        without.exchange_directional_derivatives = false;
+        let message = CyclePlan::resolve(through(&STARTS, r#""modes": 2,"#), &without).unwrap_err();
+        assert!(
+            message.starts_with("cycle.modes: the modes along the cycle"),
+            "{message}"
+        );
     }
 }

@@ -97,13 +97,24 @@ impl Session {
     /// have run others.
     fn choose_interface(&mut self, plan: &PlanSpec) -> Result<(), String> {
         let method = method_named(plan.integrator.as_deref())?;
+        let through = plan.cycle.as_ref().is_some_and(|c| c.starts.is_some());
+        let cycle_interface = if through {
+            "co_simulation"
+        } else {
+            "model_exchange"
+        };
         let wanted = match plan.interface.as_deref() {
-            Some(name) if plan.cycle.is_some() && name != "model_exchange" => {
+            Some(name) if plan.cycle.is_some() && name != cycle_interface => {
                 return Err(format!(
-                    "cycle: a steady cycle is found through the Model Exchange interface, \
-                     not {name:?}"
+                    "cycle: this steady cycle is found through the {} interface, not {name:?}",
+                    if through {
+                        "Co-Simulation"
+                    } else {
+                        "Model Exchange"
+                    }
                 ))
             }
+            None if through && self.interface.is_some() => Interface::CoSimulation,
             None if plan.cycle.is_some() && self.interface.is_some() => Interface::ModelExchange,
             Some(name) => Interface::from_name(name)?,
             None if self.interface.is_none() => return Ok(()),
@@ -120,10 +131,35 @@ impl Session {
                 self.runner = Runner::new(target);
                 self.interface = Some(wanted);
                 self.method = method;
-                Ok(())
+                self.modes_through_exchange(plan)
             }
+            Some(_) => self.modes_through_exchange(plan),
             _ => Ok(()),
         }
+    }
+
+    /// A cycle through start values finds its modes on the FMU's Model Exchange
+    /// interface: loaded beside the Co-Simulation one where the plan asks for modes.
+    fn modes_through_exchange(&mut self, plan: &PlanSpec) -> Result<(), String> {
+        let wanted = plan
+            .cycle
+            .as_ref()
+            .is_some_and(|c| c.starts.is_some() && c.modes > 0)
+            && self.description.has_model_exchange;
+        if !wanted {
+            self.runner.set_exchange(None);
+            return Ok(());
+        }
+        if !self.runner.has_exchange() {
+            let target = fmu_target(
+                &self.dir,
+                &self.description,
+                Interface::ModelExchange,
+                Method::Dop853,
+            )?;
+            self.runner.set_exchange(Some(target));
+        }
+        Ok(())
     }
 
     /// Serve requests until standard input closes.

@@ -21,7 +21,7 @@ from ..native import NativeRunner
 from ..records import PointResult, Points, Rows
 from ..store import ResultStore, coupling_columns
 from .data import Data
-from .sensitivities import read_offer, slot_parameter, slot_variable
+from ..sensitivity_slots import read_offer, slot_parameter, slot_variable
 from .spec import SINGLE_EXPERIMENT
 
 if TYPE_CHECKING:

@@ -49,8 +49,24 @@ impl Continuation {
 }
 
 /// 2·last − first, in coordinates where the cyclic state's value on the section does not
-/// count: the shifted states relative to it, which stays the last cycle's.
+/// count: the shifted states relative to it, which stays the last cycle's. Through start
+/// values the unknowns hold no cyclic state, and each is extended as it is.
 fn extended(first: &Shot, last: &Shot, plan: &CyclePlan) -> Shot {
+    let period = 2.0 * last.period - first.period;
+    let period = if period > 0.0 { period } else { last.period };
+    if plan.through.is_some() {
+        let x0 = last
+            .x0
+            .iter()
+            .zip(&first.x0)
+            .map(|(b, a)| 2.0 * b - a)
+            .collect();
+        return Shot {
+            x0,
+            period,
+            ..last.clone()
+        };
+    }
     let k = plan.state;
     let relative = |x: &[f64], i: usize| {
         if plan.shifted.contains(&i) {
@@ -68,10 +84,9 @@ fn extended(first: &Shot, last: &Shot, plan: &CyclePlan) -> Shot {
             line
         };
     }
-    let period = 2.0 * last.period - first.period;
     Shot {
         x0,
-        period: if period > 0.0 { period } else { last.period },
+        period,
         ..last.clone()
     }
 }

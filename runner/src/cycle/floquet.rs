@@ -38,24 +38,28 @@ pub fn multipliers(
             p[(a, b)] = (phi[i * n + j] - f[i] * phi[k * n + j] / f[k]) * nominals[j] / nominals[i];
         }
     }
+    multipliers_of(&p, |u, v| {
+        let squares: Vec<f64> = u.iter().zip(v).map(|(a, b)| a * a + b * b).collect();
+        shares(others.iter().map(|&i| names[i].as_str()), &squares)
+    })
+}
+
+/// The eigenvalues of a section map's derivative `p`, largest modulus first, each with
+/// the states `named` says its eigenvector (real and imaginary parts) moves most.
+pub fn multipliers_of(
+    p: &DMatrix<f64>,
+    named: impl Fn(&[f64], &[f64]) -> Vec<(String, f64)>,
+) -> Vec<Multiplier> {
     let values = p.clone().complex_eigenvalues();
     let mut found: Vec<Multiplier> = values
         .iter()
         .map(|z| {
-            let vector = eigenvector(&p, z.re, z.im);
-            let total: f64 = vector.iter().sum::<f64>().max(f64::MIN_POSITIVE);
-            let mut states: Vec<(String, f64)> = others
-                .iter()
-                .zip(&vector)
-                .map(|(&i, &w)| (names[i].clone(), w / total))
-                .collect();
-            states.sort_by(|a, b| b.1.total_cmp(&a.1));
-            states.truncate(2);
+            let (u, v) = eigenvector(p, z.re, z.im);
             Multiplier {
                 re: z.re,
                 im: z.im,
                 modulus: z.re.hypot(z.im),
-                states,
+                states: named(&u, &v),
             }
         })
         .collect();
@@ -63,9 +67,22 @@ pub fn multipliers(
     found
 }
 
-/// The squared moduli of the components of an eigenvector of `p` for λ = re + i·im, by
-/// inverse iteration on (P − λ I) in real form.
-fn eigenvector(p: &DMatrix<f64>, re: f64, im: f64) -> Vec<f64> {
+/// The two largest of `squares` (an eigenvector's components' squared moduli, each
+/// state's), with their shares of the total.
+pub fn shares<'a>(names: impl Iterator<Item = &'a str>, squares: &[f64]) -> Vec<(String, f64)> {
+    let total: f64 = squares.iter().sum::<f64>().max(f64::MIN_POSITIVE);
+    let mut states: Vec<(String, f64)> = names
+        .zip(squares)
+        .map(|(name, &w)| (name.to_string(), w / total))
+        .collect();
+    states.sort_by(|a, b| b.1.total_cmp(&a.1));
+    states.truncate(2);
+    states
+}
+
+/// An eigenvector u + i·v of `p` for λ = re + i·im, by inverse iteration on (P − λ I) in
+/// real form.
+fn eigenvector(p: &DMatrix<f64>, re: f64, im: f64) -> (Vec<f64>, Vec<f64>) {
     let m = p.nrows();
     // [[P − re I, im I], [−im I, P − re I]] acting on (u, v), z = u + i v.
     let shift = 1e-10 * (1.0 + re.hypot(im));
@@ -94,7 +111,10 @@ fn eigenvector(p: &DMatrix<f64>, re: f64, im: f64) -> Vec<f64> {
             _ => break,
         }
     }
-    (0..m).map(|a| z[a] * z[a] + z[m + a] * z[m + a]).collect()
+    (
+        (0..m).map(|a| z[a]).collect(),
+        (0..m).map(|a| z[m + a]).collect(),
+    )
 }
 
 /// What the multipliers say: stable when every one lies inside the unit circle by more

@@ -9,6 +9,7 @@ mod floquet;
 mod flow;
 mod measure;
 mod shooting;
+mod through_starts;
 
 use integrators::Tolerances;
 use serde::Serialize;
@@ -21,6 +22,8 @@ use flow::{leg, End, Problem};
 pub use shooting::NoCycle;
 use shooting::Shooting;
 pub use shooting::Shot;
+pub use through_starts::Restart;
+use through_starts::{scales_of, ThroughStarts};
 
 /// The local error held by the cycle's integration, as a fraction of the plan's
 /// tolerance (the shooting converges to the tolerance itself, which the error of a whole
@@ -70,6 +73,23 @@ fn marginal_band(tolerance: f64) -> f64 {
     (1e3 * tolerance).clamp(1e-9, 1e-3)
 }
 
+/// What the multipliers say of the cycle, or why it is not a steady one: a multiplier on
+/// the unit circle (within what the tolerance can tell) is an undamped mode.
+fn judged(multipliers: &[Multiplier], tolerance: f64) -> Result<(&'static str, f64), NoCycle> {
+    let (stability, margin) = floquet::stability(multipliers, marginal_band(tolerance));
+    if stability == "marginal" {
+        let on = &multipliers[0];
+        return Err(NoCycle::because(format!(
+            "no steady cycle: a periodic motion was found, but a Floquet multiplier lies on \
+             the unit circle (|μ| = {:.9}, mostly {}): an undamped mode, so transients do \
+             not settle onto it and it is one of a family of motions, not a steady state",
+            on.modulus,
+            on.states.first().map_or("?", |s| s.0.as_str())
+        )));
+    }
+    Ok((stability, margin))
+}
+
 /// The steady cycle from `start`: from `guess` (a neighbour's cycle) first where given;
 /// the transient may take `budget` of time to complete a cycle.
 pub fn analyse(
@@ -103,17 +123,7 @@ pub fn analyse(
         &plan.state_names,
         start.nominals,
     );
-    let (stability, margin) = floquet::stability(&multipliers, marginal_band(tolerance));
-    if stability == "marginal" {
-        let on = &multipliers[0];
-        return Err(NoCycle::because(format!(
-            "no steady cycle: a periodic motion was found, but a Floquet multiplier lies on \
-             the unit circle (|μ| = {:.9}, mostly {}): an undamped mode, so transients do \
-             not settle onto it and it is one of a family of motions, not a steady state",
-            on.modulus,
-            on.states.first().map_or("?", |s| s.0.as_str())
-        )));
-    }
+    let (stability, margin) = judged(&multipliers, tolerance)?;
     let (metrics, kept) = along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
     let modes = modes_along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
     Ok((
@@ -143,9 +153,7 @@ fn states_along(
     shot: &Shot,
     count: usize,
 ) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
-    let times: Vec<f64> = (0..count)
-        .map(|j| shot.period * j as f64 / count as f64)
-        .collect();
+    let times = times_along(shot.period, count);
     let later: Vec<f64> = times[1..].to_vec();
     let run = leg(
         problem,
@@ -171,7 +179,7 @@ fn along(
         return Ok((Vec::new(), Vec::new()));
     }
     let (times, states) = states_along(problem, shot, plan.samples)?;
-    let mut columns = vec![Vec::with_capacity(times.len()); plan.reads.len()];
+    let mut rows = Vec::with_capacity(times.len());
     let mut row = vec![0.0; plan.reads.len()];
     for (t, x) in times.iter().zip(&states) {
         let fmu = &mut problem.fmu;
@@ -190,10 +198,17 @@ fn along(
                 plan.read_names[i], row[i]
             ));
         }
-        for (column, v) in columns.iter_mut().zip(&row) {
-            column.push(*v);
-        }
+        rows.push(row.clone());
     }
+    Ok(measured(plan, times, &rows))
+}
+
+/// The metrics over the cycle from the variables read at its samples (a row per sample
+/// time), and the kept variables (the times first).
+fn measured(plan: &CyclePlan, times: Vec<f64>, rows: &[Vec<f64>]) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let columns: Vec<Vec<f64>> = (0..plan.reads.len())
+        .map(|j| rows.iter().map(|row| row[j]).collect())
+        .collect();
     let metrics = plan
         .metrics
         .iter()
@@ -204,7 +219,14 @@ fn along(
         kept.push(times);
         kept.extend(plan.kept.iter().map(|&slot| columns[slot].clone()));
     }
-    Ok((metrics, kept))
+    (metrics, kept)
+}
+
+/// The times of `count` evenly spaced points of a cycle of `period`, from its section.
+fn times_along(period: f64, count: usize) -> Vec<f64> {
+    (0..count)
+        .map(|j| period * j as f64 / count as f64)
+        .collect()
 }
 
 /// The modes of A = ∂f/∂x (the FMU's directional derivatives) at `plan.modes` evenly
@@ -217,24 +239,104 @@ fn modes_along(
     if plan.modes == 0 {
         return Ok(Vec::new());
     }
-    let n = shot.x0.len();
     let (times, states) = states_along(problem, shot, plan.modes)?;
-    let mut found = Vec::with_capacity(times.len());
-    for (t, x) in times.iter().zip(&states) {
-        let a = jacobian(problem, shot.t0 + t, x)?;
-        found.push((*t, floquet::modes(&a, n)));
-    }
-    Ok(found)
+    let points: Vec<(f64, Vec<f64>)> = times.into_iter().zip(states).collect();
+    modes_at(problem.fmu, plan, shot.t0, &points)
 }
 
 /// A = ∂f/∂x at (t, x), row-major, a column per directional derivative.
-fn jacobian(problem: &mut Problem, t: f64, x: &[f64]) -> Result<Vec<f64>, String> {
-    let fmu = &mut problem.fmu;
+fn jacobian_at(
+    fmu: &mut Instance,
+    (states, derivatives): (&[u32], &[u32]),
+    t: f64,
+    x: &[f64],
+) -> Result<Vec<f64>, String> {
     let s = fmu.set_time(t).max(fmu.set_continuous_states(x));
     if !s.proceeds() {
         return Err(format!("setting the state along the cycle returned {s:?}"));
     }
-    block(fmu, problem.derivatives, problem.states).map_err(|e| format!("along the cycle: {e}"))
+    block(fmu, derivatives, states).map_err(|e| format!("along the cycle: {e}"))
+}
+
+/// The modes at Model Exchange states read along a cycle (each with its time into the
+/// cycle, which starts at `t0`), on a Model Exchange instance in continuous-time mode.
+pub fn modes_at(
+    fmu: &mut Instance,
+    plan: &CyclePlan,
+    t0: f64,
+    points: &[(f64, Vec<f64>)],
+) -> Result<Vec<(f64, Vec<Mode>)>, String> {
+    let mut found = Vec::with_capacity(points.len());
+    for (t, x) in points {
+        let a = jacobian_at(fmu, (&plan.states, &plan.derivatives), t0 + t, x)?;
+        found.push((*t, floquet::modes(&a, x.len())));
+    }
+    Ok(found)
+}
+
+/// Model Exchange's states at times into a cycle.
+pub type StatesAlong = Vec<(f64, Vec<f64>)>;
+
+/// The steady cycle through the FMU's Co-Simulation interface, its start values and its
+/// sensitivities (`plan.through`): the record (its modes still to find), the shot for
+/// the next point, and Model Exchange's states read at the modes' points along the cycle.
+pub fn analyse_through_starts(
+    restart: &mut dyn Restart,
+    plan: &CyclePlan,
+    run: (f64, f64, f64),
+    tolerance: f64,
+    guess: Option<&Shot>,
+    deadline: Option<(std::time::Instant, f64)>,
+) -> Result<(CycleRecord, Shot, StatesAlong), NoCycle> {
+    let starts = plan.through.as_ref().expect("a cycle through start values");
+    let mut shooting = ThroughStarts::new(plan, starts, restart, run, tolerance);
+    shooting.deadline = deadline;
+    let (shot, ends) = shooting.solve(guess)?;
+    let scales = scales_of(plan, &ends.y0);
+    let multipliers = through_starts::multipliers(&ends, plan.state, &plan.state_names, &scales)
+        .ok_or_else(|| {
+            NoCycle::because(
+                "the FMU's sensitivities at the start have dependent columns: the start \
+                 values do not move the state on the section independently"
+                    .into(),
+            )
+        })?;
+    let (stability, margin) = judged(&multipliers, tolerance)?;
+    let (metrics, kept) = if plan.reads.is_empty() {
+        (Vec::new(), Vec::new())
+    } else {
+        let times = times_along(shot.period, plan.samples);
+        let rows = shooting
+            .along(&shot.x0, &times, &plan.reads)
+            .map_err(NoCycle::because)?;
+        measured(plan, times, &rows)
+    };
+    let mode_states = if plan.modes == 0 {
+        Vec::new()
+    } else {
+        let times = times_along(shot.period, plan.modes);
+        let rows = shooting
+            .along(&shot.x0, &times, &plan.states)
+            .map_err(NoCycle::because)?;
+        times.into_iter().zip(rows).collect()
+    };
+    let record = CycleRecord {
+        period: shot.period,
+        state: ends.y0,
+        state_names: plan.state_names.clone(),
+        residual: shot.residual,
+        iterations: shot.iterations,
+        runs: shooting.runs,
+        continued: shooting.continued,
+        largest_multiplier: multipliers.first().map_or(0.0, |m| m.modulus),
+        multipliers,
+        stability,
+        margin,
+        metrics,
+        modes: Vec::new(),
+        kept,
+    };
+    Ok((record, shot, mode_states))
 }
 
 /// ∂unknowns/∂knowns where the FMU stands, row-major, a column per directional

@@ -13,15 +13,16 @@ use super::flow::{leg, End, Leg, Problem, Stopped};
 use crate::cycle_plan::{CyclePlan, Monodromy};
 
 /// The most Newton iterations, and the most halvings of one Newton step; from a
-/// neighbour's cycle, fewer of each before the point's own transient is tried instead.
-const MOST_ITERATIONS: usize = 30;
-const MOST_HALVINGS: usize = 8;
-const GUESS_ITERATIONS: usize = 10;
-const GUESS_HALVINGS: usize = 2;
+/// neighbour's cycle, fewer of each before the point's own transient is tried instead
+/// (the shooting through start values keeps the same counts).
+pub(super) const MOST_ITERATIONS: usize = 30;
+pub(super) const MOST_HALVINGS: usize = 8;
+pub(super) const GUESS_ITERATIONS: usize = 10;
+pub(super) const GUESS_HALVINGS: usize = 2;
 /// Revolutions of the transient before Newton starts, at least, and until the period
 /// changes by less than this fraction from one to the next.
-const LEAST_WARM_UP: usize = 2;
-const WARM_UP_SETTLED: f64 = 1e-2;
+pub(super) const LEAST_WARM_UP: usize = 2;
+pub(super) const WARM_UP_SETTLED: f64 = 1e-2;
 /// A cyclic state at rest at the start: its way is read this fraction of the transient's
 /// time budget later.
 const START_PROBE: f64 = 1e-3;

@@ -4,9 +4,10 @@
 
 use std::time::Instant;
 
+mod cycle;
+
 use crate::coupling::CouplingRecord;
-use crate::cycle::{self, Continuation, CycleRecord, Linearisation, Start};
-use crate::cycle_plan::LinearPlan;
+use crate::cycle::{Continuation, CycleRecord};
 use crate::description::Description;
 use crate::fmi::Status;
 use crate::messages;
@@ -175,6 +176,10 @@ pub struct Runner {
     read: Vec<f64>,
     /// The last steady cycles found: the next point's shooting starts from them.
     continuation: Continuation,
+    /// The FMU's Model Exchange interface beside its Co-Simulation one, where a cycle
+    /// through the start values finds its modes, and its instance.
+    exchange: Option<Target>,
+    exchange_instance: Option<Running>,
 }
 
 /// A failed FMI call: the outcome it maps to and what the FMU said.
@@ -195,6 +200,49 @@ fn failed(call: &str, status: Status) -> Stop {
     Stop(outcome, format!("{call} returned {status:?}"))
 }
 
+/// A fresh instance of `target` for a new point: the one kept in `slot` reset, or a new
+/// one.
+fn fresh_instance<'a>(
+    target: &Target,
+    slot: &'a mut Option<Running>,
+) -> Result<&'a mut Running, Stop> {
+    if slot.as_mut().is_some_and(|i| i.reset().proceeds()) {
+        return Ok(slot.as_mut().expect("kept above"));
+    }
+    *slot = None;
+    let instance = target.instantiate().map_err(|m| Stop(Outcome::Error, m))?;
+    Ok(slot.insert(instance))
+}
+
+/// Set up the experiment at `tolerance`, enter initialisation and set the point's values
+/// (filled) and inputs at the start.
+fn set_up(
+    instance: &mut Running,
+    plan: &Plan,
+    assignments: &mut Assignments,
+    tolerance: Option<f64>,
+) -> Result<(), Stop> {
+    let s = instance.setup_experiment(tolerance, plan.start, plan.stop);
+    if !s.proceeds() {
+        return Err(failed_in(instance, "fmi2SetupExperiment", "", s));
+    }
+    let s = instance.enter_initialization_mode();
+    if !s.proceeds() {
+        return Err(failed_in(instance, "fmi2EnterInitializationMode", "", s));
+    }
+    let s = assignments.apply(instance);
+    if !s.proceeds() {
+        return Err(failed("setting the point's values", s));
+    }
+    for input in &plan.inputs {
+        let s = instance.set_real(&[input.value_reference], &[input.at(plan.start)]);
+        if !s.proceeds() {
+            return Err(failed("setting an input", s));
+        }
+    }
+    Ok(())
+}
+
 impl Runner {
     pub fn new(target: Target) -> Self {
         Runner {
@@ -205,27 +253,24 @@ impl Runner {
             booleans: Vec::new(),
             read: Vec::new(),
             continuation: Continuation::default(),
+            exchange: None,
+            exchange_instance: None,
         }
+    }
+
+    pub fn has_exchange(&self) -> bool {
+        self.exchange.is_some()
+    }
+
+    /// The Model Exchange target a cycle through start values finds its modes on.
+    pub fn set_exchange(&mut self, target: Option<Target>) {
+        self.exchange = target;
+        self.exchange_instance = None;
     }
 
     /// A new plan: no cycle of the last one guides the next point's shooting.
     pub fn forget_cycle(&mut self) {
         self.continuation.forget();
-    }
-
-    /// A fresh instance for a new point: the kept one reset, or a new one.
-    fn fresh_instance(&mut self) -> Result<&mut Running, Stop> {
-        if let Some(instance) = self.instance.as_mut() {
-            if instance.reset().proceeds() {
-                return Ok(self.instance.as_mut().expect("kept above"));
-            }
-            self.instance = None;
-        }
-        let instance = self
-            .target
-            .instantiate()
-            .map_err(|m| Stop(Outcome::Error, m))?;
-        Ok(self.instance.insert(instance))
     }
 
     /// Reset, set up, set the point's values and inputs at the start; with `initialise`,
@@ -238,25 +283,8 @@ impl Runner {
         initialise: bool,
     ) -> Result<(), Stop> {
         assignments.fill(row).map_err(|m| Stop(Outcome::Error, m))?;
-        let instance = self.fresh_instance()?;
-        let s = instance.setup_experiment(plan.tolerance, plan.start, plan.stop);
-        if !s.proceeds() {
-            return Err(failed_in(instance, "fmi2SetupExperiment", "", s));
-        }
-        let s = instance.enter_initialization_mode();
-        if !s.proceeds() {
-            return Err(failed_in(instance, "fmi2EnterInitializationMode", "", s));
-        }
-        let s = assignments.apply(instance);
-        if !s.proceeds() {
-            return Err(failed("setting the point's values", s));
-        }
-        for input in &plan.inputs {
-            let s = instance.set_real(&[input.value_reference], &[input.at(plan.start)]);
-            if !s.proceeds() {
-                return Err(failed("setting an input", s));
-            }
-        }
+        let instance = fresh_instance(&self.target, &mut self.instance)?;
+        set_up(instance, plan, assignments, plan.tolerance)?;
         if initialise {
             let s = instance.exit_initialization_mode();
             if !s.proceeds() {
@@ -394,105 +422,6 @@ impl Runner {
             }
         }
         Ok(())
-    }
-
-    /// The point's steady cycle, by shooting from its initial state (or from the last
-    /// point's cycle): its metrics are the cycle's.
-    fn steady_cycle(
-        &mut self,
-        plan: &Plan,
-        assignments: &mut Assignments,
-        row: &[f64],
-        result: &mut PointResult,
-        started: Instant,
-    ) -> Result<(), Stop> {
-        self.prepare(plan, assignments, row, true)?;
-        let cycle_plan = plan.cycle.as_ref().expect("a cycle plan");
-        let Some(Running::Exchange(run)) = self.instance.as_mut() else {
-            return Err(Stop(
-                Outcome::Error,
-                "a steady cycle is found through the Model Exchange interface".into(),
-            ));
-        };
-        let (fmu, t, x, nominals, indicators) = run.parts();
-        let start = Start {
-            fmu,
-            t,
-            x,
-            nominals,
-            indicators,
-        };
-        let tolerance = plan.tolerance.unwrap_or(crate::exchange::DEFAULT_TOLERANCE);
-        let budget = plan.stop - plan.start;
-        let guess = cycle_plan
-            .continuation
-            .then(|| self.continuation.guess(row, cycle_plan))
-            .flatten();
-        let deadline = plan
-            .timeout_s
-            .map(|s| (started + std::time::Duration::from_secs_f64(s), s));
-        match cycle::analyse(
-            start,
-            cycle_plan,
-            tolerance,
-            budget,
-            guess.as_ref(),
-            deadline,
-        ) {
-            Ok((mut record, shot)) => {
-                result.metrics = record.metrics.iter().map(|&m| Some(m)).collect();
-                // The kept variables travel as the series do: rows of (t, values…).
-                let kept = std::mem::take(&mut record.kept);
-                if let Some(times) = kept.first() {
-                    for (j, t) in times.iter().enumerate() {
-                        result.series.push(*t);
-                        result
-                            .series
-                            .extend(kept[1..].iter().map(|column| column[j]));
-                    }
-                }
-                result.t_end = t + shot.period;
-                result.cycle = Some(record);
-                self.continuation.record(row, shot);
-                Ok(())
-            }
-            Err(failure) => {
-                self.continuation.forget();
-                let outcome = if failure.timeout {
-                    Outcome::Timeout
-                } else {
-                    Outcome::NoCycle
-                };
-                Err(Stop(outcome, failure.why))
-            }
-        }
-    }
-
-    /// The point's state equations and outputs linearised at its initial state, on the
-    /// Model Exchange interface.
-    pub fn linearise_point(
-        &mut self,
-        plan: &Plan,
-        linear: &LinearPlan,
-        assignments: &mut Assignments,
-        row: &[f64],
-    ) -> Result<Linearisation, String> {
-        messages::take();
-        let prepared = self.prepare(plan, assignments, row, true);
-        let said = messages::take();
-        if let Err(Stop(_, what)) = prepared {
-            self.instance = None;
-            return Err(if said.is_empty() {
-                what
-            } else {
-                format!("{what}: {said}")
-            });
-        }
-        let Some(Running::Exchange(run)) = self.instance.as_mut() else {
-            return Err("a linearisation reads the Model Exchange interface".into());
-        };
-        let (fmu, t, x, _, _) = run.parts();
-        cycle::linearise(fmu, t, x, linear)
     }
 
     pub fn run_point(
