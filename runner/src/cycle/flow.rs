@@ -20,6 +20,9 @@ pub struct Problem<'a> {
     pub derivatives: &'a [u32],
     pub indicators: usize,
     pub tolerances: Tolerances,
+    /// The cyclic state, fixed on the section: its column of the flow's derivative is
+    /// never read, so a variational leg does not integrate it.
+    pub cyclic: usize,
 }
 
 /// Where a leg ends.
@@ -42,7 +45,8 @@ pub struct Leg {
     pub x: Vec<f64>,
     /// The state's derivative at the end.
     pub f: Vec<f64>,
-    /// ∂x(end)/∂x(start), row-major n × n (variational legs only).
+    /// ∂x(end)/∂x(start), row-major n × n (variational legs only), the cyclic state's
+    /// column left 0.
     pub phi: Option<Vec<f64>>,
     /// The states at the times asked for, in order.
     pub sampled: Vec<Vec<f64>>,
@@ -62,12 +66,19 @@ pub enum Stopped {
 }
 
 /// The FMU's right-hand side, states over their nominals; with `variational`, the
-/// columns of Ψ = D⁻¹ Φ D after the state (D the nominals), Ψ' = D⁻¹ J D Ψ.
+/// columns of Ψ = D⁻¹ Φ D after the state (D the nominals), Ψ' = D⁻¹ J D Ψ, but the
+/// cyclic state's.
 struct Flow<'a, 'b> {
     problem: RefCell<&'a mut Problem<'b>>,
     n: usize,
     variational: bool,
     failure: Cell<Option<Status>>,
+}
+
+/// The states whose columns of Ψ a variational leg integrates, in the order they follow
+/// the state in its vector: all but the cyclic one.
+fn columns(n: usize, cyclic: usize) -> impl Iterator<Item = (usize, usize)> {
+    (0..n).filter(move |&j| j != cyclic).enumerate()
 }
 
 impl<const N: usize> OdeSystem<N> for Flow<'_, '_> {
@@ -90,9 +101,9 @@ impl<const N: usize> OdeSystem<N> for Flow<'_, '_> {
         }
         if s.proceeds() && self.variational {
             let (mut seed, mut column) = ([0.0; N], [0.0; N]);
-            for j in 0..n {
+            for (c, _) in columns(n, p.cyclic) {
                 for i in 0..n {
-                    seed[i] = y[n + j * n + i] * p.nominals[i];
+                    seed[i] = y[n + c * n + i] * p.nominals[i];
                 }
                 s = s.max(p.fmu.get_directional_derivative(
                     p.derivatives,
@@ -101,7 +112,7 @@ impl<const N: usize> OdeSystem<N> for Flow<'_, '_> {
                     &mut column[..n],
                 ));
                 for i in 0..n {
-                    dy[n + j * n + i] = column[i] / p.nominals[i];
+                    dy[n + c * n + i] = column[i] / p.nominals[i];
                 }
             }
         }
@@ -116,13 +127,18 @@ impl<const N: usize> OdeSystem<N> for Flow<'_, '_> {
     }
 
     fn dimension(&self) -> usize {
-        self.n + if self.variational { self.n * self.n } else { 0 }
+        size(self.n, self.variational)
     }
 
     /// The steps are the state's own: the derivative is that of the numerical flow.
     fn controlled(&self) -> usize {
         self.n
     }
+}
+
+/// The equations of a leg of `n` states: with `variational`, n − 1 columns of Ψ too.
+fn size(n: usize, variational: bool) -> usize {
+    n + if variational { n * (n - 1) } else { 0 }
 }
 
 /// Integrate from `x0` at time `t0` to `end`; the states at `at` (times after `t0`,
@@ -135,8 +151,7 @@ pub fn leg(
     variational: bool,
     at: &[f64],
 ) -> Result<Leg, Stopped> {
-    let n = x0.len();
-    let size = n + if variational { n * n } else { 0 };
+    let size = size(x0.len(), variational);
     macro_rules! sized {
         ($($size:literal)*) => {
             $(if size <= $size {
@@ -144,10 +159,10 @@ pub fn leg(
             })*
         };
     }
-    sized!(2 4 6 8 12 16 24 32 48 64 96 128);
+    sized!(2 4 6 8 12 16 24 30 36 48 64 96 128);
     Err(Stopped::Failed(format!(
         "{size} equations: the runner integrates a cycle's variational equations for at most \
-         10 states (ask for monodromy = \"differences\")"
+         11 states (ask for monodromy = \"differences\")"
     )))
 }
 
@@ -171,8 +186,10 @@ fn sized_leg<const N: usize>(
     };
     for (k, (x, nominal)) in x0.iter().zip(problem.nominals).enumerate() {
         walk.y[k] = x / nominal;
-        if variational {
-            walk.y[n + k * n + k] = 1.0;
+    }
+    if variational {
+        for (c, j) in columns(n, problem.cyclic) {
+            walk.y[n + c * n + j] = 1.0;
         }
     }
     read_indicators(problem, t0, x0, &mut walk.indicators)?;
@@ -326,9 +343,9 @@ fn finish(
     let phi = variational.then(|| {
         let nom = problem.nominals;
         let mut phi = vec![0.0; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                phi[i * n + j] = nom[i] * y[n + j * n + i] / nom[j];
+        for (c, j) in columns(n, problem.cyclic) {
+            for i in 0..n {
+                phi[i * n + j] = nom[i] * y[n + c * n + i] / nom[j];
             }
         }
         phi

@@ -111,6 +111,7 @@ pub fn analyse(
             rtol: internal,
             atol: internal,
         },
+        cyclic: plan.state,
     };
     let mut shooting = Shooting::new(plan, &mut problem, budget, tolerance);
     shooting.deadline = deadline;

@@ -279,12 +279,13 @@ impl<'a, 'b> Shooting<'a, 'b> {
         }
     }
 
-    /// ∂x(T)/∂x0 by central differences, a pair of runs per state.
+    /// ∂x(T)/∂x0 by central differences, a pair of runs per state but the cyclic one,
+    /// whose column nothing reads (left 0).
     fn differences(&mut self, t0: f64, x0: &[f64], period: f64) -> Result<Vec<f64>, NoCycle> {
         let n = x0.len();
         let scales = self.scales(x0);
         let mut phi = vec![0.0; n * n];
-        for j in 0..n {
+        for j in (0..n).filter(|&j| j != self.plan.state) {
             let h = DIFFERENCE_STEP * scales[j];
             let mut ends = [Vec::new(), Vec::new()];
             for (side, sign) in [1.0, -1.0].into_iter().enumerate() {
