@@ -35,7 +35,7 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass, field
-from typing import Any, TypedDict
+from typing import Any, TypedDict, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -45,7 +45,7 @@ from .errors import Collector, SpecError, did_you_mean, refuse
 from .fields import number, only, table, whole
 from .sensitivity_slots import Offer, read_offer, slot_parameter, slot_variable
 from .native import RunnerError
-from .records import PointResult
+from .records import Plan, PointResult
 
 __all__ = ["CycleSpec", "CYCLE_METRIC_KINDS", "CYCLE_COLUMNS", "cycle_columns",
            "Linearisation", "linearise"]
@@ -335,10 +335,11 @@ def _along(cycle: dict[str, Any], key: str) -> list[float]:
 
 @dataclass(frozen=True)
 class Linearisation:
-    """The FMU's state equations and outputs linearised at a point's initial state:
-    x' ≈ A x + B u, y ≈ C x + D u, with u its Real inputs and y its Real outputs (their
-    names in ``states``, ``inputs``, ``outputs``), from its directional derivatives; and
-    the oscillating modes of A (frequency in Hz, damping ratio), by frequency."""
+    """The FMU's state equations and outputs linearised at a state: x' ≈ A x + B u,
+    y ≈ C x + D u, with u its Real inputs and y its Real outputs (their names in
+    ``states``, ``inputs``, ``outputs``), from its directional derivatives; and the
+    oscillating modes of A (frequency in Hz, damping ratio), by frequency. ``t`` and ``x``:
+    where it was made (the time into the cycle along a cycle)."""
     states: list[str]
     inputs: list[str]
     outputs: list[str]
@@ -348,22 +349,69 @@ class Linearisation:
     d: npt.NDArray[np.float64]
     frequencies: list[float]
     dampings: list[float]
+    t: float = 0.0
+    x: list[float] = field(default_factory=list)
 
 
-def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None = None,
-              ) -> Linearisation:
+@overload
+def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None = None, *,
+              along: None = None) -> Linearisation: ...
+
+
+@overload
+def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None = None, *,
+              along: dict[str, Any]) -> list[Linearisation]: ...
+
+
+def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None = None, *,
+              along: dict[str, Any] | None = None) -> Linearisation | list[Linearisation]:
     """The FMU's Model Exchange interface linearised at the initial state that
-    `parameters` (start values among them) give it."""
+    `parameters` (start values among them) give it; or, `along` a steady cycle (a
+    ``[cycle]`` table, its ``modes`` the number of points), at that many points evenly
+    spaced in time along the point's steady cycle, in order."""
     from .fmu import Archive, local_runner
     runner = local_runner(Archive.read(fmu))
     names = list(parameters or {})
-    runner.configure({"start": 0.0, "stop": 1.0, "step": 1.0, "tolerance": None, "fixed": {},
-                      "inputs": {}, "metrics": [], "series": None, "timeout_s": None,
-                      "interface": "model_exchange"})
-    found = runner.linearise(names, [[float((parameters or {})[n]) for n in names]])[0]
-    if found["status"] != "ok":
-        raise RunnerError(found["message"])
-    lin = found["linearisation"]
+    row = [[float((parameters or {})[n]) for n in names]]
+    plan: Plan = {"start": 0.0, "stop": 1.0, "step": 1.0, "tolerance": None, "fixed": {},
+                  "inputs": {}, "metrics": [], "series": None, "timeout_s": None,
+                  "interface": "model_exchange"}
+    if along is None:
+        runner.configure(plan)
+        found = runner.linearise(names, row)[0]
+        if found["status"] != "ok":
+            raise RunnerError(found["message"])
+        return _linearisation(found["linearisation"])
+    cycle = _cycle_to_linearise(along, runner.describe())
+    plan["stop"], plan["step"] = float(along.get("stop", 400.0)), float(along.get("step", 0.01))
+    plan["tolerance"] = float(along.get("tolerance", 1e-9))
+    plan["cycle"] = cycle
+    plan["interface"] = "co_simulation" if cycle["starts"] else "model_exchange"
+    runner.configure(plan)
+    result = runner.run(names, row)[0]
+    found_cycle = result.get("cycle")
+    if result["status"] != "ok" or found_cycle is None:
+        raise RunnerError(f"{result['status']}: {result['message']}")
+    return [_linearisation(lin) for lin in found_cycle["linearisations"]]
+
+
+def _cycle_to_linearise(along: dict[str, Any], description: dict[str, Any]) -> dict[str, Any]:
+    """The runner's cycle plan for linearisations along a steady cycle: `along` is a
+    ``[cycle]`` table (with ``stop``, ``step`` and ``tolerance`` of the search beside it),
+    every mistake refused at once."""
+    table = {k: v for k, v in along.items() if k not in ("stop", "step", "tolerance")}
+    spec = CycleSpec.of({"cycle": table})
+    assert spec is not None
+    errors = Collector()
+    if spec.modes < 1:
+        errors.run(lambda: refuse("cycle.modes", "the number of points along the cycle to "
+                                                  "linearise at, at least 1"))
+    spec.check(description, errors)
+    errors.raise_any()
+    return {**spec.plan([], description), "linearise": True}
+
+
+def _linearisation(lin: dict[str, Any]) -> Linearisation:
     n, m, p = len(lin["states"]), len(lin["inputs"]), len(lin["outputs"])
 
     def matrix(key: str, rows: int, columns: int) -> npt.NDArray[np.float64]:
@@ -372,4 +420,5 @@ def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None =
     return Linearisation(lin["states"], lin["inputs"], lin["outputs"], matrix("a", n, n),
                          matrix("b", n, m), matrix("c", p, n), matrix("d", p, m),
                          [mode["frequency"] for mode in lin["modes"]],
-                         [mode["damping"] for mode in lin["modes"]])
+                         [mode["damping"] for mode in lin["modes"]], float(lin["t"]),
+                         [float(v) for v in lin["x"]])

@@ -36,6 +36,10 @@ pub struct CycleSpec {
     /// Whether a point's shooting starts from the previous point's cycle (and from its
     /// own transient only if that fails); by default it does.
     pub continuation: Option<bool>,
+    /// Whether each of the `modes` points along the cycle also gets its whole
+    /// linearisation (A, B, C and D over the Real inputs and outputs).
+    #[serde(default)]
+    pub linearise: bool,
     /// The cycle through the Co-Simulation interface instead: the start values that set
     /// the state on the section, and the FMU's own sensitivities to them. `state` and
     /// `shifted` then name closing variables.
@@ -109,6 +113,8 @@ pub struct CyclePlan {
     /// `states` and `derivatives` stay Model Exchange's (for the modes, read along the
     /// cycle and linearised on a Model Exchange instance).
     pub through: Option<StartsPlan>,
+    /// What the whole linearisation at the modes' points reads (`None`: the modes alone).
+    pub linear: Option<LinearPlan>,
 }
 
 /// [`StartsSpec`] resolved to value references.
@@ -186,7 +192,19 @@ impl CyclePlan {
             modes: spec.modes,
             continuation: spec.continuation.unwrap_or(true),
             through,
+            linear: None,
         };
+        if spec.linearise {
+            if spec.modes == 0 {
+                return Err(
+                    "cycle.linearise: the linearisations are made at the modes' \
+                            points: ask for cycle.modes > 0"
+                        .into(),
+                );
+            }
+            plan.linear =
+                Some(LinearPlan::of(description).map_err(|e| format!("cycle.linearise: {e}"))?);
+        }
         for (k, m) in spec.metrics.iter().enumerate() {
             let slot = plan.read(description, &m.variable, &format!("cycle.metrics[{k}]"))?;
             let order = order_of(m, k, samples)?;
@@ -629,6 +647,10 @@ mod tests {
             (
                 r#"{"state": "loop_angle", "period": 1.0, "keep": ["linkage_class"]}"#,
                 "cycle.keep[0]: \"linkage_class\" is of type Enumeration",
+            ),
+            (
+                r#"{"state": "loop_angle", "period": 1.0, "linearise": true}"#,
+                "cycle.linearise: the linearisations are made at the modes' points",
             ),
         ];
         for (json, said) in cases {

@@ -5,6 +5,7 @@ small free oscillations computed from its geometry alone, and the resonances a s
 crank speed shows where the Campbell diagram's order lines cross a mode. Mistakes are
 refused by field, all in one run; points without a steady cycle say why."""
 
+import ctypes
 import math
 
 import numpy as np
@@ -284,3 +285,69 @@ def test_a_cycle_keeps_to_the_points_time_budget(fmu_path, tmp_path):
     assert list(points["status"]) == ["timeout", "timeout"]
     assert all(m.startswith("over the budget of") and "s per point" in m for m in points["message"])
     assert points["swing"].isna().all()
+
+
+@pytest.mark.parametrize("through_starts", [False, True])
+def test_the_linearisation_along_the_cycle_is_the_fmus_own(fmu_path, tmp_path, through_starts):
+    """A, B, C and D at points along the steady cycle (``linearise(..., along=…)``, on
+    Model Exchange or through the start values) against central differences of the FMU's
+    derivatives and outputs at the same states and inputs, driven by FMPy: within 1e-8 of
+    each matrix's size; the points evenly spaced over the cycle's period, the modes those
+    of the sweep's row."""
+    import fmpy
+    from fmpy.fmi2 import FMU2Model
+    parameters = {"d12": 0.1, "d34": 0.1}
+    along = {**CYCLE, "modes": 4}
+    if through_starts:
+        along = {"state": "phi2", "period": TAU, "shifted": ["phi1"], "modes": 4,
+                 "starts": ["twist12_0", "twist34_0", "omega1_0", "omega2_0", "omega4_0"]}
+    found = linearise(fmu_path, parameters, along=along)
+    point = cycle_of(fmu_path, tmp_path / "cycle", dict(parameters), modes=4)
+    assert [lin.t for lin in found] == pytest.approx(
+        [k * point["cycle_period"] / 4 for k in range(4)], rel=1e-9, abs=1e-12)
+    mean = np.mean([lin.frequencies for lin in found], axis=0)
+    assert mean == pytest.approx(point["cycle_modes_hz"], rel=1e-6)
+    md = fmpy.read_model_description(fmu_path)
+    unzipped = fmpy.extract(fmu_path, unzipdir=tmp_path / "unzipped")
+    fmu = FMU2Model(guid=md.guid, unzipDirectory=unzipped,
+                    modelIdentifier=md.modelExchange.modelIdentifier, instanceName="lin")
+    fmu.instantiate()
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu.setupExperiment(tolerance=1e-10)
+    fmu.enterInitializationMode()
+    fmu.setReal([vr[k] for k in parameters], list(parameters.values()))
+    fmu.exitInitializationMode()
+    fmu.newDiscreteStates()
+    fmu.enterContinuousTimeMode()
+    lin = found[0]
+    inputs, outputs = [vr[u] for u in lin.inputs], [vr[y] for y in lin.outputs]
+
+    def rates(x, u):
+        states, derivatives = (ctypes.c_double * len(x))(*x), (ctypes.c_double * len(x))()
+        fmu.setContinuousStates(states, len(x))
+        fmu.setReal(inputs, list(u))
+        fmu.getDerivatives(derivatives, len(x))
+        return np.asarray(derivatives[:]), np.asarray(fmu.getReal(outputs))
+
+    for lin in found:
+        fmu.setTime(lin.t)
+        x, u = np.asarray(lin.x), np.zeros(len(inputs))
+        columns = {"x": [], "u": []}
+        for name, base in (("x", x), ("u", u)):
+            for j in range(len(base)):
+                h = 1e-6 * max(1.0, abs(base[j]))
+                up, down = base.copy(), base.copy()
+                up[j] += h
+                down[j] -= h
+                (f1, y1), (f0, y0) = (rates(up, u) if name == "x" else rates(x, up),
+                                      rates(down, u) if name == "x" else rates(x, down))
+                columns[name].append((np.concatenate([f1, y1]) - np.concatenate([f0, y0]))
+                                     / (2 * h))
+        n = len(x)
+        by_x, by_u = np.column_stack(columns["x"]), np.column_stack(columns["u"])
+        for mine, theirs in ((lin.a, by_x[:n]), (lin.c, by_x[n:]), (lin.b, by_u[:n]),
+                             (lin.d, by_u[n:])):
+            assert np.abs(mine - theirs).max() <= 1e-8 * max(1.0, np.abs(theirs).max()), \
+                (lin.t, mine, theirs)
+    fmu.terminate()
+    fmu.freeInstance()

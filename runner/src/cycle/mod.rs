@@ -51,6 +51,10 @@ pub struct CycleRecord {
     pub metrics: Vec<f64>,
     /// The modes at points along the cycle: the time into the cycle and the modes there.
     pub modes: Vec<(f64, Vec<Mode>)>,
+    /// Where the plan asks, the whole linearisation at each of those points (its `t` the
+    /// time into the cycle).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub linearisations: Vec<Linearisation>,
     /// The kept variables at the samples: the times into the cycle, then a row each
     /// (replied as a series).
     #[serde(skip)]
@@ -126,7 +130,8 @@ pub fn analyse(
     );
     let (stability, margin) = judged(&multipliers, tolerance)?;
     let (metrics, kept) = along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
-    let modes = modes_along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
+    let (modes, linearisations) =
+        modes_along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
     Ok((
         CycleRecord {
             period: shot.period,
@@ -142,6 +147,7 @@ pub fn analyse(
             margin,
             metrics,
             modes,
+            linearisations,
             kept,
         },
         shot,
@@ -232,13 +238,9 @@ fn times_along(period: f64, count: usize) -> Vec<f64> {
 
 /// The modes of A = ∂f/∂x (the FMU's directional derivatives) at `plan.modes` evenly
 /// spaced times of the cycle.
-fn modes_along(
-    problem: &mut Problem,
-    plan: &CyclePlan,
-    shot: &Shot,
-) -> Result<Vec<(f64, Vec<Mode>)>, String> {
+fn modes_along(problem: &mut Problem, plan: &CyclePlan, shot: &Shot) -> Result<Along, String> {
     if plan.modes == 0 {
-        return Ok(Vec::new());
+        return Ok((Vec::new(), Vec::new()));
     }
     let (times, states) = states_along(problem, shot, plan.modes)?;
     let points: Vec<(f64, Vec<f64>)> = times.into_iter().zip(states).collect();
@@ -259,20 +261,33 @@ fn jacobian_at(
     block(fmu, derivatives, states).map_err(|e| format!("along the cycle: {e}"))
 }
 
+/// What the state equations linearised along a cycle give: each point's time into the
+/// cycle and modes, and, where the plan asks, each point's whole linearisation.
+pub type Along = (Vec<(f64, Vec<Mode>)>, Vec<Linearisation>);
+
 /// The modes at Model Exchange states read along a cycle (each with its time into the
-/// cycle, which starts at `t0`), on a Model Exchange instance in continuous-time mode.
+/// cycle, which starts at `t0`), on a Model Exchange instance in continuous-time mode;
+/// with the plan's `linear`, A, B, C and D there too.
 pub fn modes_at(
     fmu: &mut Instance,
     plan: &CyclePlan,
     t0: f64,
     points: &[(f64, Vec<f64>)],
-) -> Result<Vec<(f64, Vec<Mode>)>, String> {
-    let mut found = Vec::with_capacity(points.len());
+) -> Result<Along, String> {
+    let (mut modes, mut whole) = (Vec::with_capacity(points.len()), Vec::new());
     for (t, x) in points {
-        let a = jacobian_at(fmu, (&plan.states, &plan.derivatives), t0 + t, x)?;
-        found.push((*t, floquet::modes(&a, x.len())));
+        if let Some(linear) = &plan.linear {
+            let mut found = linearise(fmu, t0 + t, x.clone(), linear)
+                .map_err(|e| format!("along the cycle: {e}"))?;
+            found.t = *t;
+            modes.push((*t, found.modes.clone()));
+            whole.push(found);
+        } else {
+            let a = jacobian_at(fmu, (&plan.states, &plan.derivatives), t0 + t, x)?;
+            modes.push((*t, floquet::modes(&a, x.len())));
+        }
     }
-    Ok(found)
+    Ok((modes, whole))
 }
 
 /// Model Exchange's states at times into a cycle.
@@ -335,6 +350,7 @@ pub fn analyse_through_starts(
         margin,
         metrics,
         modes: Vec::new(),
+        linearisations: Vec::new(),
         kept,
     };
     Ok((record, shot, mode_states))

@@ -146,7 +146,7 @@ impl Runner {
         )
         .map_err(|failure| (failure.timeout, failure.why))?;
         if !states.is_empty() {
-            record.modes = self
+            (record.modes, record.linearisations) = self
                 .modes_on_exchange(plan, assignments, &shot, &states)
                 .map_err(|why| (false, format!("the modes along the cycle: {why}")))?;
         }
@@ -161,7 +161,7 @@ impl Runner {
         assignments: &mut Assignments,
         shot: &Shot,
         states: &[(f64, Vec<f64>)],
-    ) -> Result<Vec<(f64, Vec<cycle::Mode>)>, String> {
+    ) -> Result<cycle::Along, String> {
         let cycle_plan = plan.cycle.as_ref().expect("a cycle plan");
         let starts = cycle_plan.through.as_ref().expect("through start values");
         let target = self
