@@ -258,9 +258,10 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
                                         meta.get("seed") or 0, results.out)
     if plots:
         cyclic = [spec.cycle.state, *spec.cycle.shifted] if spec.cycle is not None else []
+        kept = spec.cycle.keep if spec.cycle is not None else []
         results.plots, results.report_html = show_sweep(results.out, design, results.points,
                                                         meta["metrics"], results.sensitivity,
-                                                        cyclic)
+                                                        cyclic, kept)
     return results
 
 

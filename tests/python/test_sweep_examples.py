@@ -156,6 +156,11 @@ def test_steady_cycles_over_the_motor_law(fmu_path, tmp_path):
     assert "181 points" in said
     for picture in ("campbell", "cycle_multipliers", "cycle", "metrics"):
         assert (tmp_path / "plots" / f"{picture}.png").stat().st_size > 10_000
+    # The phase portrait is of the first two kept variables, in the order kept.
+    report = (tmp_path / "report.html").read_text()
+    portrait = report[report.index('"cycle-portrait"'):]
+    assert '"xaxis": {"title": {"text": "phi2"}}' in portrait
+    assert '"yaxis": {"title": {"text": "omega2"}}' in portrait
     crank = 1 / points["cycle_period"]
     swing = points["rod_force_swing"].to_numpy()
     peaks = [i for i in range(3, len(swing) - 3)

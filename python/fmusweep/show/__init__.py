@@ -27,15 +27,18 @@ __all__ = ["show_sweep", "show_fit"]
 
 def show_sweep(out: pathlib.Path, design: Design, points: pd.DataFrame, metrics: list[str],
                indices: dict[str, Any], cyclic: list[str] | None = None,
-               ) -> tuple[list[pathlib.Path], pathlib.Path]:
+               kept: list[str] | None = None) -> tuple[list[pathlib.Path], pathlib.Path]:
     """A sweep's pictures and report, beside its results in `out`; `cyclic` names the
-    variables a sweep of steady cycles advances by a period each cycle (drawn from 0)."""
+    variables a sweep of steady cycles advances by a period each cycle (drawn from 0),
+    `kept` the variables it keeps over one cycle, in the order drawn (the first two make
+    the phase portrait)."""
     drawn = charts(design.kind, indices)
     pictures = sweep_pictures(design, points, metrics, drawn, out / "plots")
     series = first_series(out, points)
     if has_cycles(points):
-        pictures += cycle_pictures(points, series, cyclic or [], out / "plots")
-    report = sweep_report(out, design.names, points, metrics, drawn, series, cyclic=cyclic or [])
+        pictures += cycle_pictures(points, series, cyclic or [], kept or [], out / "plots")
+    report = sweep_report(out, design.names, points, metrics, drawn, series, cyclic=cyclic or [],
+                          cycle_kept=kept or [])
     return pictures, report
 
 

@@ -79,19 +79,22 @@ def campbell(points: pd.DataFrame) -> Campbell | None:
 
 
 def cycles_of(points: pd.DataFrame, series: pd.DataFrame | None,
-              cyclic: list[str]) -> dict[int, pd.DataFrame]:
+              cyclic: list[str], kept: list[str]) -> dict[int, pd.DataFrame]:
     """One cycle of the kept variables for up to DRAWN_CYCLES points spread over the
-    sweep: {point: its rows (variable, time into the cycle, value)}, the `cyclic`
-    variables (which advance by a period each cycle, from a whole number of periods) from
-    their value at the cycle's start."""
+    sweep: {point: its rows (variable, time into the cycle, value)}, the variables in the
+    order `kept` names them, the `cyclic` ones (which advance by a period each cycle, from
+    a whole number of periods) from their value at the cycle's start."""
     if series is None or series.empty:
         return {}
-    kept = np.sort(series["point"].unique())
-    chosen = kept[np.unique(np.linspace(0, len(kept) - 1, min(DRAWN_CYCLES, len(kept)))
-                            .round().astype(int))]
+    order = {name: k for k, name in enumerate(kept)}
+    with_series = np.sort(series["point"].unique())
+    spread = np.linspace(0, len(with_series) - 1, min(DRAWN_CYCLES, len(with_series)))
+    chosen = with_series[np.unique(spread.round().astype(int))]
     drawn = {}
     for p in chosen:
-        rows = series[series["point"] == p].sort_values(["variable", "time"]).copy()
+        rows = series[series["point"] == p].copy()
+        rows["order"] = rows["variable"].map(lambda v: order.get(v, len(order)))
+        rows = rows.sort_values(["order", "variable", "time"]).drop(columns="order")
         for name in cyclic:
             at = rows["variable"] == name
             if at.any():

@@ -20,12 +20,12 @@ __all__ = ["cycle_pictures"]
 
 
 def cycle_pictures(points: pd.DataFrame, series: pd.DataFrame | None, cyclic: list[str],
-                   out: pathlib.Path) -> list[pathlib.Path]:
+                   kept: list[str], out: pathlib.Path) -> list[pathlib.Path]:
     written = [_multipliers(points, out / "cycle_multipliers.png")]
     diagram = campbell(points)
     if diagram is not None:
         written.append(_campbell(diagram, out / "campbell.png"))
-    drawn = cycles_of(points, series, cyclic)
+    drawn = cycles_of(points, series, cyclic, kept)
     if drawn:
         written.append(_cycles(drawn, out / "cycle.png"))
     return written

@@ -122,10 +122,12 @@ def _hover(points: pd.DataFrame, names: list[str]) -> list[str]:
 
 def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metrics: list[str],
                  charts: list[IndexChart], series: pd.DataFrame | None,
-                 eager: bool = False, cyclic: list[str] | None = None) -> pathlib.Path:
+                 eager: bool = False, cyclic: list[str] | None = None,
+                 cycle_kept: list[str] | None = None) -> pathlib.Path:
     """Write ``out/report.html`` for a sweep's points (parameters `names`), with the charts
     of its design's indices, and return it; `eager` draws every plot on opening instead of
-    as it comes into view."""
+    as it comes into view; a sweep of steady cycles draws its `cycle_kept` variables in
+    that order."""
     points = points.sort_values("point").reset_index(drop=True)
     varied = [n for n in names if points[n].nunique() > 1] or names[:1]
     labels = _hover(points, names)
@@ -145,7 +147,7 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
         sections.append(_metric_section(k, metric, points, varied, failed))
     sections += [_index_section(chart) for chart in charts]
     if has_cycles(points):
-        sections += _cycle_sections(points, series, cyclic or [])
+        sections += _cycle_sections(points, series, cyclic or [], cycle_kept or [])
     sections.append(_failed_table(points, names))
     if kept:
         sections.append("<h2>Time series of the chosen point</h2><p id=\"series-note\" class=\"note\">"
@@ -158,7 +160,7 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
 
 
 def _cycle_sections(points: pd.DataFrame, series: pd.DataFrame | None,
-                    cyclic: list[str]) -> list[str]:
+                    cyclic: list[str], kept: list[str]) -> list[str]:
     """A sweep of steady cycles: the multipliers on the unit circle, the Campbell diagram
     and one cycle of the kept variables of a few points, with a phase portrait."""
     re, im, which = multipliers(points)
@@ -201,7 +203,7 @@ def _cycle_sections(points: pd.DataFrame, series: pd.DataFrame | None,
                                        "range": span},
                              "yaxis": {"title": {"text": "mode frequency (Hz)"},
                                        "range": [0, top]}}, 520))
-    drawn = cycles_of(points, series, cyclic)
+    drawn = cycles_of(points, series, cyclic, kept)
     if drawn:
         sections.append(_cycle_section(drawn))
     return sections
