@@ -125,7 +125,6 @@ pub struct StartsPlan {
     pub slots: Vec<u32>,
     pub items: Vec<i32>,
     pub closing: Vec<u32>,
-    pub closing_names: Vec<String>,
     /// Per start value, ∂closing/∂it, a variable per closing variable.
     pub columns: Vec<Vec<u32>>,
 }
@@ -139,9 +138,17 @@ const MOST_MODE_POINTS: usize = 4096;
 
 impl CyclePlan {
     pub fn resolve(mut spec: CycleSpec, description: &Description) -> Result<CyclePlan, String> {
-        let through = match spec.starts.take() {
-            Some(starts) => Some(StartsPlan::resolve(starts, description)?),
-            None => None,
+        // Through start values the cycle is closed by their closing variables, whose names
+        // the plan's `state_names` then hold.
+        let (through, closing) = match spec.starts.take() {
+            Some(starts) => {
+                let closing = starts.closing.clone();
+                (
+                    Some(StartsPlan::resolve(starts, description)?),
+                    Some(closing),
+                )
+            }
+            None => (None, None),
         };
         if through.is_none() && !description.has_model_exchange {
             return Err(
@@ -159,22 +166,12 @@ impl CyclePlan {
                     .into(),
             );
         }
-        let (state, shifted) = closed_by(&spec, description, through.as_ref())?;
-        let monodromy = match &through {
-            None => monodromy_of(spec.monodromy.as_deref(), description)?,
-            Some(_) if spec.monodromy.is_some() => {
-                return Err(
-                    "cycle.monodromy: through the start values the monodromy comes \
-                            from the FMU's own sensitivities"
-                        .into(),
-                )
-            }
-            Some(_) => Monodromy::Differences,
-        };
+        let (state, shifted) = closed_by(&spec, description, closing.as_deref())?;
+        let monodromy = monodromy_of(spec.monodromy.as_deref(), description, through.is_some())?;
         let samples = counts(&spec, description, through.is_some())?;
         let (states, derivatives, mut state_names) = states_of(description);
-        if let Some(t) = &through {
-            state_names.clone_from(&t.closing_names);
+        if let Some(names) = closing {
+            state_names = names;
         }
         let mut plan = CyclePlan {
             state,
@@ -192,19 +189,8 @@ impl CyclePlan {
             modes: spec.modes,
             continuation: spec.continuation.unwrap_or(true),
             through,
-            linear: None,
+            linear: linear_of(&spec, description)?,
         };
-        if spec.linearise {
-            if spec.modes == 0 {
-                return Err(
-                    "cycle.linearise: the linearisations are made at the modes' \
-                            points: ask for cycle.modes > 0"
-                        .into(),
-                );
-            }
-            plan.linear =
-                Some(LinearPlan::of(description).map_err(|e| format!("cycle.linearise: {e}"))?);
-        }
         for (k, m) in spec.metrics.iter().enumerate() {
             let slot = plan.read(description, &m.variable, &format!("cycle.metrics[{k}]"))?;
             let order = order_of(m, k, samples)?;
@@ -255,7 +241,6 @@ impl StartsPlan {
             slots: Vec::with_capacity(n),
             items: Vec::with_capacity(n),
             closing: Vec::new(),
-            closing_names: starts.closing.clone(),
             columns: Vec::with_capacity(n),
         };
         for (k, name) in starts.parameters.iter().enumerate() {
@@ -382,15 +367,31 @@ fn closing_index(
     })
 }
 
+/// What the whole linearisation at the modes' points reads, where the spec asks for it.
+fn linear_of(spec: &CycleSpec, description: &Description) -> Result<Option<LinearPlan>, String> {
+    if !spec.linearise {
+        return Ok(None);
+    }
+    if spec.modes == 0 {
+        return Err(
+            "cycle.linearise: the linearisations are made at the modes' points: ask \
+                    for cycle.modes > 0"
+                .into(),
+        );
+    }
+    LinearPlan::of(description)
+        .map(Some)
+        .map_err(|e| format!("cycle.linearise: {e}"))
+}
+
 /// Where the cycle is closed: the cyclic state and those shifted with it, as positions in
-/// Model Exchange's states, or among the closing variables `through` start values.
+/// Model Exchange's states, or among the `closing` variables through start values.
 fn closed_by(
     spec: &CycleSpec,
     description: &Description,
-    through: Option<&StartsPlan>,
+    closing: Option<&[String]>,
 ) -> Result<(usize, Vec<usize>), String> {
-    let closing_names = through.map(|t| t.closing_names.as_slice());
-    let locate = |name: &str, field: &str| match closing_names {
+    let locate = |name: &str, field: &str| match closing {
         Some(names) => closing_index(description, names, name, field),
         None => state_index(description, name, field),
     };
@@ -442,9 +443,24 @@ fn counts(spec: &CycleSpec, description: &Description, through: bool) -> Result<
 }
 
 /// How the monodromy is found: as asked, or by the variational equations where the FMU
-/// gives directional derivatives.
-fn monodromy_of(asked: Option<&str>, description: &Description) -> Result<Monodromy, String> {
+/// gives directional derivatives; `through` start values, from the sensitivities (the
+/// value is then unread).
+fn monodromy_of(
+    asked: Option<&str>,
+    description: &Description,
+    through: bool,
+) -> Result<Monodromy, String> {
     let exact = description.exchange_directional_derivatives;
+    if through {
+        return match asked {
+            None => Ok(Monodromy::Differences),
+            Some(_) => Err(
+                "cycle.monodromy: through the start values the monodromy comes \
+                            from the FMU's own sensitivities"
+                    .into(),
+            ),
+        };
+    }
     match asked {
         None if exact => Ok(Monodromy::Variational),
         None | Some("differences") => Ok(Monodromy::Differences),

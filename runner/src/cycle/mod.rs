@@ -23,7 +23,7 @@ pub use shooting::NoCycle;
 use shooting::Shooting;
 pub use shooting::Shot;
 pub use through_starts::Restart;
-use through_starts::{scales_of, ThroughStarts};
+use through_starts::ThroughStarts;
 
 /// The local error held by the cycle's integration, as a fraction of the plan's
 /// tolerance (the shooting converges to the tolerance itself, which the error of a whole
@@ -77,10 +77,18 @@ fn marginal_band(tolerance: f64) -> f64 {
     (1e3 * tolerance).clamp(1e-9, 1e-3)
 }
 
-/// What the multipliers say of the cycle, or why it is not a steady one: a multiplier on
-/// the unit circle (within what the tolerance can tell) is an undamped mode.
-fn judged(multipliers: &[Multiplier], tolerance: f64) -> Result<(&'static str, f64), NoCycle> {
-    let (stability, margin) = floquet::stability(multipliers, marginal_band(tolerance));
+/// The record of a cycle found, its multipliers judged: a multiplier on the unit circle
+/// (within what the tolerance can tell) is an undamped mode, not a steady cycle. The
+/// metrics, modes and kept variables are the caller's to fill.
+fn record_of(
+    plan: &CyclePlan,
+    shot: &Shot,
+    state: Vec<f64>,
+    continued: bool,
+    multipliers: Vec<Multiplier>,
+    tolerance: f64,
+) -> Result<CycleRecord, NoCycle> {
+    let (stability, margin) = floquet::stability(&multipliers, marginal_band(tolerance));
     if stability == "marginal" {
         let on = &multipliers[0];
         return Err(NoCycle::because(format!(
@@ -91,7 +99,23 @@ fn judged(multipliers: &[Multiplier], tolerance: f64) -> Result<(&'static str, f
             on.states.first().map_or("?", |s| s.0.as_str())
         )));
     }
-    Ok((stability, margin))
+    Ok(CycleRecord {
+        period: shot.period,
+        state,
+        state_names: plan.state_names.clone(),
+        residual: shot.residual,
+        iterations: shot.iterations,
+        runs: shot.runs,
+        continued,
+        largest_multiplier: multipliers.first().map_or(0.0, |m| m.modulus),
+        multipliers,
+        stability,
+        margin,
+        metrics: Vec::new(),
+        modes: Vec::new(),
+        linearisations: Vec::new(),
+        kept: Vec::new(),
+    })
 }
 
 /// The steady cycle from `start`: from `guess` (a neighbour's cycle) first where given;
@@ -128,30 +152,18 @@ pub fn analyse(
         &plan.state_names,
         start.nominals,
     );
-    let (stability, margin) = judged(&multipliers, tolerance)?;
-    let (metrics, kept) = along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
-    let (modes, linearisations) =
+    let mut record = record_of(
+        plan,
+        &shot,
+        shot.x0.clone(),
+        continued,
+        multipliers,
+        tolerance,
+    )?;
+    (record.metrics, record.kept) = along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
+    (record.modes, record.linearisations) =
         modes_along(&mut problem, plan, &shot).map_err(NoCycle::because)?;
-    Ok((
-        CycleRecord {
-            period: shot.period,
-            state: shot.x0.clone(),
-            state_names: plan.state_names.clone(),
-            residual: shot.residual,
-            iterations: shot.iterations,
-            runs: shot.runs,
-            continued,
-            largest_multiplier: multipliers.first().map_or(0.0, |m| m.modulus),
-            multipliers,
-            stability,
-            margin,
-            metrics,
-            modes,
-            linearisations,
-            kept,
-        },
-        shot,
-    ))
+    Ok((record, shot))
 }
 
 /// The states at `count` evenly spaced times of the cycle (from its section).
@@ -308,25 +320,22 @@ pub fn analyse_through_starts(
     let mut shooting = ThroughStarts::new(plan, starts, restart, run, tolerance);
     shooting.deadline = deadline;
     let (shot, ends) = shooting.solve(guess)?;
-    let scales = scales_of(plan, &ends.y0);
-    let multipliers = through_starts::multipliers(&ends, plan.state, &plan.state_names, &scales)
-        .ok_or_else(|| {
-            NoCycle::because(
-                "the FMU's sensitivities at the start have dependent columns: the start \
-                 values do not move the state on the section independently"
-                    .into(),
-            )
-        })?;
-    let (stability, margin) = judged(&multipliers, tolerance)?;
-    let (metrics, kept) = if plan.reads.is_empty() {
-        (Vec::new(), Vec::new())
-    } else {
+    let multipliers = through_starts::multipliers(&ends, plan, starts)?;
+    let mut record = record_of(
+        plan,
+        &shot,
+        ends.y0,
+        shooting.continued,
+        multipliers,
+        tolerance,
+    )?;
+    if !plan.reads.is_empty() {
         let times = times_along(shot.period, plan.samples);
         let rows = shooting
             .along(&shot.x0, &times, &plan.reads)
             .map_err(NoCycle::because)?;
-        measured(plan, times, &rows)
-    };
+        (record.metrics, record.kept) = measured(plan, times, &rows);
+    }
     let mode_states = if plan.modes == 0 {
         Vec::new()
     } else {
@@ -335,23 +344,6 @@ pub fn analyse_through_starts(
             .along(&shot.x0, &times, &plan.states)
             .map_err(NoCycle::because)?;
         times.into_iter().zip(rows).collect()
-    };
-    let record = CycleRecord {
-        period: shot.period,
-        state: ends.y0,
-        state_names: plan.state_names.clone(),
-        residual: shot.residual,
-        iterations: shot.iterations,
-        runs: shooting.runs,
-        continued: shooting.continued,
-        largest_multiplier: multipliers.first().map_or(0.0, |m| m.modulus),
-        multipliers,
-        stability,
-        margin,
-        metrics,
-        modes: Vec::new(),
-        linearisations: Vec::new(),
-        kept,
     };
     Ok((record, shot, mode_states))
 }

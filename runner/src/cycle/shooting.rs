@@ -229,37 +229,12 @@ impl<'a, 'b> Shooting<'a, 'b> {
         }
     }
 
-    /// The scale of each state's residual: its nominal, or its size on the cycle (a
-    /// period for the cyclic states).
     fn scales(&self, x0: &[f64]) -> Vec<f64> {
-        let plan = self.plan;
-        (0..x0.len())
-            .map(|i| {
-                let size = if i == plan.state || plan.shifted.contains(&i) {
-                    plan.period
-                } else {
-                    x0[i].abs()
-                };
-                self.problem.nominals[i].max(size)
-            })
-            .collect()
+        scales(self.plan, x0, |i| self.problem.nominals[i])
     }
 
-    /// x(T) − x0 − s: the cyclic state and those shifted with it advanced by a period.
     fn residual(&self, x0: &[f64], leg: &Leg) -> Vec<f64> {
-        let shift = self.direction * self.plan.period;
-        (0..x0.len())
-            .map(|i| {
-                let advanced = i == self.plan.state || self.plan.shifted.contains(&i);
-                leg.x[i] - x0[i] - if advanced { shift } else { 0.0 }
-            })
-            .collect()
-    }
-
-    fn norm(r: &[f64], scales: &[f64]) -> f64 {
-        r.iter()
-            .zip(scales)
-            .fold(0.0, |m, (r, s)| m.max(r.abs() / s))
+        residual(self.plan, self.direction, x0, &leg.x)
     }
 
     /// One cycle's leg from (t0, x0) over `period`, with its monodromy.
@@ -322,19 +297,19 @@ impl<'a, 'b> Shooting<'a, 'b> {
         let mut jacobian = hint.map(|h| jacobian_of(&h.phi, &h.f, k));
         let mut leg = self.run(t0, &x0, period, jacobian.is_none())?;
         let mut r = self.residual(&x0, &leg);
-        let mut norm = Self::norm(&r, &scales);
+        let mut size = norm(&r, &scales);
         for iteration in 0..=most_iterations {
             if let Some(phi) = &leg.phi {
                 jacobian = Some(jacobian_of(phi, &leg.f, k));
             }
-            if norm <= self.tolerance {
+            if size <= self.tolerance {
                 if leg.phi.is_none() {
                     leg = self.run(t0, &x0, period, true)?;
                     r = self.residual(&x0, &leg);
-                    norm = Self::norm(&r, &scales);
+                    size = norm(&r, &scales);
                 }
-                if norm <= self.tolerance {
-                    return Ok(self.shot(t0, x0, period, norm, leg, iteration));
+                if size <= self.tolerance {
+                    return Ok(self.shot(t0, x0, period, size, leg, iteration));
                 }
                 continue;
             }
@@ -354,17 +329,17 @@ impl<'a, 'b> Shooting<'a, 'b> {
                 // Newton can go no further than the integration's own error.
                 if leg.phi.is_none() {
                     leg = self.run(t0, &x0, period, true)?;
-                    norm = Self::norm(&self.residual(&x0, &leg), &scales);
+                    size = norm(&self.residual(&x0, &leg), &scales);
                 }
-                return Ok(self.shot(t0, x0, period, norm, leg, iteration));
+                return Ok(self.shot(t0, x0, period, size, leg, iteration));
             }
-            match self.line_search(t0, (&x0, period, norm), &step, &scales, most_halvings) {
+            match self.line_search(t0, (&x0, period, size), &step, &scales, most_halvings) {
                 Some((x, p, trial, lambda)) => {
                     let r_trial = self.residual(&x, &trial);
                     let taken: Vec<f64> = step.iter().map(|s| lambda * s).collect();
                     let matrix = jacobian.as_mut().expect("a Jacobian");
                     broyden(matrix, &taken, &r, &r_trial);
-                    norm = Self::norm(&r_trial, &scales);
+                    size = norm(&r_trial, &scales);
                     (x0, period, leg, r) = (x, p, trial, r_trial);
                 }
                 // The Jacobian was the monodromy's own here: Newton is stuck.
@@ -373,13 +348,13 @@ impl<'a, 'b> Shooting<'a, 'b> {
                 None => {
                     leg = self.run(t0, &x0, period, true)?;
                     r = self.residual(&x0, &leg);
-                    norm = Self::norm(&r, &scales);
+                    size = norm(&r, &scales);
                 }
             }
         }
         Err(NoCycle::because(format!(
             "the shooting did not converge: after Newton's method the periodicity residual \
-             is {norm:.3e} (scaled), above the tolerance {:.3e}",
+             is {size:.3e} (scaled), above the tolerance {:.3e}",
             self.tolerance
         )))
     }
@@ -398,7 +373,7 @@ impl<'a, 'b> Shooting<'a, 'b> {
     fn line_search(
         &mut self,
         t0: f64,
-        (x0, period, norm): (&[f64], f64, f64),
+        (x0, period, size): (&[f64], f64, f64),
         step: &[f64],
         scales: &[f64],
         most_halvings: usize,
@@ -412,8 +387,8 @@ impl<'a, 'b> Shooting<'a, 'b> {
             }
             if p > 0.0 {
                 if let Ok(trial) = self.run(t0, &x, p, false) {
-                    let trial_norm = Self::norm(&self.residual(&x, &trial), scales);
-                    if trial_norm < norm {
+                    let trial_norm = norm(&self.residual(&x, &trial), scales);
+                    if trial_norm < size {
                         return Some((x, p, trial, lambda));
                     }
                 }
@@ -453,6 +428,43 @@ impl<'a, 'b> Shooting<'a, 'b> {
             direction: self.direction,
         }
     }
+}
+
+/// Whether state `i` advances by a period over the cycle: the cyclic state and those
+/// shifted with it.
+pub(super) fn advances(plan: &CyclePlan, i: usize) -> bool {
+    i == plan.state || plan.shifted.contains(&i)
+}
+
+/// The scale of each state's residual: its nominal, or its size on the cycle (a period
+/// for the states that advance), whichever is larger.
+pub(super) fn scales(plan: &CyclePlan, x0: &[f64], nominal: impl Fn(usize) -> f64) -> Vec<f64> {
+    (0..x0.len())
+        .map(|i| {
+            let size = if advances(plan, i) {
+                plan.period
+            } else {
+                x0[i].abs()
+            };
+            nominal(i).max(size)
+        })
+        .collect()
+}
+
+/// x(T) − x0 − s: the states that advance brought back by a period the way the cyclic
+/// state turns (`direction`).
+pub(super) fn residual(plan: &CyclePlan, direction: f64, x0: &[f64], end: &[f64]) -> Vec<f64> {
+    let shift = direction * plan.period;
+    (0..x0.len())
+        .map(|i| end[i] - x0[i] - if advances(plan, i) { shift } else { 0.0 })
+        .collect()
+}
+
+/// The largest component of `r` over its scale.
+pub(super) fn norm(r: &[f64], scales: &[f64]) -> f64 {
+    r.iter()
+        .zip(scales)
+        .fold(0.0, |m, (r, s)| m.max(r.abs() / s))
 }
 
 /// The shooting's Jacobian [Φ − I without column k | f(x(T))], from a monodromy.

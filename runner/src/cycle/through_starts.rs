@@ -13,8 +13,8 @@ use nalgebra::{DMatrix, DVector};
 
 use super::floquet::{self, Multiplier};
 use super::shooting::{
-    NoCycle, Shot, GUESS_HALVINGS, GUESS_ITERATIONS, LEAST_WARM_UP, MOST_HALVINGS, MOST_ITERATIONS,
-    WARM_UP_SETTLED,
+    advances, norm, residual, scales, NoCycle, Shot, GUESS_HALVINGS, GUESS_ITERATIONS,
+    LEAST_WARM_UP, MOST_HALVINGS, MOST_ITERATIONS, WARM_UP_SETTLED,
 };
 use crate::cycle_plan::{CyclePlan, StartsPlan};
 use crate::fmi::{Instance, Status};
@@ -113,18 +113,22 @@ fn independent(a: DMatrix<f64>) -> Option<nalgebra::SVD<f64, nalgebra::Dyn, nalg
     (largest > 0.0 && svd.singular_values.min() > RANK_FLOOR * largest).then_some(svd)
 }
 
+/// Why no cycle: the start values' columns of the sensitivities at the start are not
+/// independent (one of them sets no part of the initial state, say).
+fn dependent(starts: &StartsPlan) -> NoCycle {
+    NoCycle::because(format!(
+        "the start values ({}) do not move the state on the section independently: the \
+         FMU's sensitivities to them have dependent columns",
+        starts.parameter_names.join(", ")
+    ))
+}
+
 /// The least-squares solution of A x = b; `None` when A's columns are not independent.
 fn least_squares(a: DMatrix<f64>, b: DVector<f64>) -> Option<Vec<f64>> {
     let x = independent(a)?.solve(&b, 0.0).ok()?;
     x.iter()
         .all(|v| v.is_finite())
         .then(|| x.iter().copied().collect())
-}
-
-fn norm(r: &[f64], scales: &[f64]) -> f64 {
-    r.iter()
-        .zip(scales)
-        .fold(0.0, |m, (r, s)| m.max(r.abs() / s))
 }
 
 /// The value at w ∈ [0, 1] of the cubic Hermite interpolant over a step of
@@ -308,8 +312,7 @@ impl<'a> ThroughStarts<'a> {
                         let on_section: Vec<f64> = (0..y.len())
                             .map(|i| {
                                 let at = hermite(y[i], dy[i], y1[i], dy1[i], hh, w);
-                                let advances = i == k || plan.shifted.contains(&i);
-                                if advances {
+                                if advances(plan, i) {
                                     at - shift
                                 } else {
                                     at
@@ -350,7 +353,7 @@ impl<'a> ThroughStarts<'a> {
             let p = q.len();
             let a = DMatrix::from_fn(r.len(), p, |i, j| s0[i * p + j] / scales[i]);
             let b = DVector::from_iterator(r.len(), r.iter().zip(&scales).map(|(r, s)| -r / s));
-            let step = least_squares(a, b).ok_or_else(|| self.dependent())?;
+            let step = least_squares(a, b).ok_or_else(|| dependent(starts))?;
             for (q, d) in q.iter_mut().zip(&step) {
                 *q += d;
             }
@@ -365,26 +368,12 @@ impl<'a> ThroughStarts<'a> {
         Ok(q)
     }
 
-    fn dependent(&self) -> NoCycle {
-        NoCycle::because(format!(
-            "the start values ({}) do not move the state on the section independently: the \
-             FMU's sensitivities to them have dependent columns",
-            self.starts.parameter_names.join(", ")
-        ))
-    }
-
     fn scales(&self, y0: &[f64]) -> Vec<f64> {
         scales_of(self.plan, y0)
     }
 
     fn residual(&self, ends: &Ends) -> Vec<f64> {
-        let shift = self.direction * self.plan.period;
-        (0..ends.y.len())
-            .map(|i| {
-                let advances = i == self.plan.state || self.plan.shifted.contains(&i);
-                ends.y[i] - ends.y0[i] - if advances { shift } else { 0.0 }
-            })
-            .collect()
+        residual(self.plan, self.direction, &ends.y0, &ends.y)
     }
 
     /// Newton's step (Δq, ΔT) from one run's ends, in least squares.
@@ -508,41 +497,31 @@ impl<'a> ThroughStarts<'a> {
 /// with the closing variables its eigenvector moves most (S(0) maps it to them).
 pub fn multipliers(
     ends: &Ends,
-    k: usize,
-    names: &[String],
-    scales: &[f64],
-) -> Option<Vec<Multiplier>> {
+    plan: &CyclePlan,
+    starts: &StartsPlan,
+) -> Result<Vec<Multiplier>, NoCycle> {
+    let (k, scales) = (plan.state, scales_of(plan, &ends.y0));
     let m = ends.y0.len();
     let p = ends.s0.len() / m.max(1);
     let s0 = DMatrix::from_fn(m, p, |i, j| ends.s0[i * p + j] / scales[i]);
     let moved = DMatrix::from_fn(m, p, |i, j| {
         (ends.s[i * p + j] - ends.dy[i] * ends.s[k * p + j] / ends.dy[k]) / scales[i]
     });
-    let svd = independent(s0.clone())?;
-    let map = svd.solve(&moved, 0.0).ok()?;
-    if map.iter().any(|v| !v.is_finite()) {
-        return None;
-    }
-    Some(floquet::multipliers_of(&map, |u, v| {
+    let map = independent(s0.clone())
+        .and_then(|svd| svd.solve(&moved, 0.0).ok())
+        .filter(|map| map.iter().all(|v| v.is_finite()))
+        .ok_or_else(|| dependent(starts))?;
+    Ok(floquet::multipliers_of(&map, |u, v| {
         let (a, b) = (
             &s0 * DVector::from_column_slice(u),
             &s0 * DVector::from_column_slice(v),
         );
         let squares: Vec<f64> = a.iter().zip(b.iter()).map(|(a, b)| a * a + b * b).collect();
-        floquet::shares(names.iter().map(String::as_str), &squares)
+        floquet::shares(plan.state_names.iter().map(String::as_str), &squares)
     }))
 }
 
-/// Each closing variable's residual scale: a period for those that advance, else its size
-/// on the cycle, at least 1.
-pub fn scales_of(plan: &CyclePlan, y0: &[f64]) -> Vec<f64> {
-    (0..y0.len())
-        .map(|i| {
-            if i == plan.state || plan.shifted.contains(&i) {
-                plan.period
-            } else {
-                y0[i].abs().max(1.0)
-            }
-        })
-        .collect()
+/// Each closing variable's residual scale: as on Model Exchange, with nominals of 1.
+fn scales_of(plan: &CyclePlan, y0: &[f64]) -> Vec<f64> {
+    scales(plan, y0, |_| 1.0)
 }
