@@ -130,7 +130,7 @@ class CycleSpec:
         variables named."""
         by_name = {v["name"]: v for v in description["variables"]}
         if self.starts:
-            self._check_starts(description, errors)
+            self._check_starts(description, by_name, errors)
         elif not description.get("has_model_exchange"):
             errors.run(lambda: refuse("cycle", "the steady cycle is found by integrating the "
                                                 "FMU's Model Exchange interface, which this FMU "
@@ -151,13 +151,14 @@ class CycleSpec:
                         if v is None else f"{name} is of type {v['type']}; a cycle keeps Real "
                                           "variables")
                 errors.run(lambda: refuse(f"cycle.keep[{k}]", rule))
-        if self.monodromy == "variational" and not description.get(
+        if self.monodromy == "variational" and not self.starts and not description.get(
                 "exchange_directional_derivatives"):
             errors.run(lambda: refuse("cycle.monodromy", "\"variational\" needs the FMU's "
                                        "directional derivatives under Model Exchange, which it "
                                        "does not give"))
 
-    def _check_starts(self, description: dict[str, Any], errors: Collector) -> None:
+    def _check_starts(self, description: dict[str, Any], by_name: dict[str, Any],
+                      errors: Collector) -> None:
         """The Co-Simulation path's fields against the FMU's offer of sensitivities."""
         offer = read_offer(description)
         if description.get("model_identifier") is None:
@@ -200,7 +201,6 @@ class CycleSpec:
                                                        f"less the cyclic one): name as many "
                                                        f"start values, not {len(self.starts)}"))
         closing = _closing(description, offer)
-        by_name = {v["name"]: v for v in description["variables"]}
         for where, name in [("cycle.state", self.state)] + [
                 (f"cycle.shifted[{k}]", n) for k, n in enumerate(self.shifted)]:
             if name not in by_name:
@@ -218,14 +218,14 @@ class CycleSpec:
                                                       "derivatives this FMU does not give"))
 
     def plan(self, metrics: list[tuple[str, str, int | None]],
-             description: dict[str, Any] | None) -> CyclePlan:
+             description: dict[str, Any]) -> CyclePlan:
         """The runner's plan, with the metrics (variable, kind, order) over one cycle; the
         Co-Simulation path's start values, slots and closing variables from the FMU's
         offer of sensitivities (its `description`)."""
         starts = None
-        offer = read_offer(description) if self.starts and description is not None else None
+        offer = read_offer(description) if self.starts else None
         if offer is not None:
-            closing = _closing(description or {}, offer)
+            closing = _closing(description, offer)
             # A name the FMU does not offer is refused by check(), which reports it with the
             # other mistakes; its slot stays `none` meanwhile.
             starts = {"parameters": self.starts,

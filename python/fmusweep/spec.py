@@ -365,9 +365,10 @@ class Spec:
 
     # --- derived ---------------------------------------------------------------------
     def plan(self, description: dict[str, Any] | None = None) -> Plan:
-        """The native runner's plan: everything every point shares (a steady cycle through
-        start values reads the FMU's offer of sensitivities in its `description`)."""
+        """The native runner's plan: everything every point shares (a steady cycle's reads
+        the FMU's offer of sensitivities in its `description`)."""
         if self.cycle is not None:
+            assert description is not None, "a steady cycle's plan reads the FMU's description"
             cycle = self.cycle.plan([(m.variable, m.kind, m.order) for m in self.metrics],
                                     description)
             plan = self.scenario.plan([], None, self.system, cycle)
