@@ -29,6 +29,7 @@ import numpy as np
 
 from bench_sweep import arguments, write_results
 from fmusweep import run_sweep
+from fmusweep.sensitivity_slots import read_offer, slot_parameter
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 TAU = 6.283185307179586
@@ -172,8 +173,10 @@ def run_costs(fmu) -> dict:
            "metrics": [{"variable": "phi3", "kind": "final", "from": None, "to": 0.0}]}
     runner.configure({**one, "fixed": start})
     start["twist34_0"] = runner.run([], [[]])[0]["metrics"][0] - x["phi4"]
-    slots = {f"sensitivity_{k + 1}.parameter": float(item)
-             for k, item in enumerate((16, 17, 18, 19, 20))}
+    offer = read_offer(runner.describe())
+    assert offer is not None, "the FMU offers no sensitivities"
+    slots = {slot_parameter(k + 1): float(offer.items[name])
+             for k, name in enumerate(THROUGH_STARTS["starts"])}
 
     def best(plan, repeats=200) -> float:
         runner.configure(plan)

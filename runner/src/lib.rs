@@ -5,7 +5,8 @@
 //! co-simulation unit ([`exchange`]); a coupled system of such FMUs
 //! is stepped as one unit ([`system`], [`unit`]), its communication steps chosen by an
 //! error estimate when it has a coupling tolerance ([`coupling`]). A point may ask instead
-//! for its steady cycle, found by shooting on a Model Exchange instance, with its Floquet
+//! for its steady cycle, found by shooting on a Model Exchange instance or through a
+//! co-simulation FMU's start values and its own sensitivities, with its Floquet
 //! multipliers and modes ([`cycle`], planned by [`cycle_plan`]). The `fmu-runner` binary
 //! serves sweep points over it ([`protocol`], [`plan`], [`point`], [`metrics`]); the
 //! benchmark harness drives the packed FMU through the same types.

@@ -1,7 +1,9 @@
 //! The steady cycle of a point, found directly instead of waited for: the periodic
 //! steady state by shooting on the Model Exchange interface ([`shooting`], over legs of
-//! the flow in [`flow`]), its Floquet multipliers and the modes of the state equations
-//! linearised along it ([`floquet`]), and metrics of outputs over one cycle ([`measure`]).
+//! the flow in [`flow`]) or through a co-simulation FMU's start values and its own
+//! sensitivities ([`through_starts`]), its Floquet multipliers and the modes of the state
+//! equations linearised along it ([`floquet`]), and metrics of outputs over one cycle
+//! ([`measure`]).
 //! docs/cycle.md explains the method.
 
 mod continuation;
