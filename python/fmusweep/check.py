@@ -114,6 +114,7 @@ def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
         spec.cycle.check(description, errors)
     for name in spec.series_variables if spec.cycle is None else []:
         errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
+    refused_by_runner(runner, spec.plan(description), errors)
     columns = [design.column_values(j) for j in range(len(design.names))]
     errors.run(lambda: variables.check_columns(design.names, columns, "design.parameters"))
     first = design.rows_at(np.zeros(1, dtype=np.int64))
@@ -123,6 +124,16 @@ def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
                                        [columns[j] for j in good], runner, "design.parameters",
                                        "scenario.parameters"))
     errors.raise_any()
+
+
+def refused_by_runner(runner: NativeRunner, plan: Plan, errors: Collector) -> None:
+    """The runner's own rules of the whole plan (a steady cycle's among them), every
+    refusal at once, beside those already found here (a field refused here is not
+    refused twice)."""
+    found = Collector()
+    found.run(lambda: runner.configure(plan))
+    refused = {e.field for e in errors.errors}
+    errors.errors.extend(e for e in found.errors if e.field not in refused)
 
 
 def values_to_ask(plan: Plan, names: list[str], field: str,

@@ -27,6 +27,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from .errors import SpecError, SpecErrors
 from .records import Plan, PointResult
 
 __all__ = ["RunnerError", "NativeRunner", "runner_path", "failed_result"]
@@ -123,6 +124,7 @@ class NativeRunner:
     def __init__(self, fmu_dir: str | os.PathLike[str]):
         self.fmu_dir = pathlib.Path(fmu_dir)
         self.plan: Plan | None = None
+        self.series_width = 0
         self.restarts = 0
         self._start()
 
@@ -193,6 +195,9 @@ class NativeRunner:
             reply = None
         if reply is None:
             raise RunnerError(self._died())
+        if reply.get("refusals"):
+            refused = [SpecError(r["field"], r["rule"]) for r in reply["refusals"]]
+            raise refused[0] if len(refused) == 1 else SpecErrors(refused)
         if "error" in reply:
             raise RunnerError(reply["error"])
         return reply
@@ -202,7 +207,10 @@ class NativeRunner:
         return description
 
     def _configure(self, plan: Plan) -> list[str]:
-        reads: list[str] = self._request({"op": "configure", "plan": plan})["reads"]
+        answer = self._request({"op": "configure", "plan": plan})
+        # The numbers in a row of a point's series (its time first): the runner's count.
+        self.series_width = int(answer["series_width"])
+        reads: list[str] = answer["reads"]
         return reads
 
     def configure(self, plan: Plan) -> list[str]:
@@ -258,9 +266,7 @@ class NativeRunner:
         ends the results; without, the results stop at the last reply received."""
         plan = self.plan
         assert plan is not None, "configure the runner before running points"
-        series, cycle = plan.get("series"), plan.get("cycle")
-        width = (len(series["variables"]) + 1 if series
-                 else len(cycle.get("keep", [])) + 1 if cycle else 0)
+        width = self.series_width
         results: list[PointResult] = []
         try:
             self._send({"op": "run", "names": names, "rows": rows.tolist(), "flush_each": careful})

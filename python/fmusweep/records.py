@@ -9,8 +9,8 @@ from typing import Any, Callable, NotRequired, TypedDict
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["InputTable", "MetricPlan", "SeriesPlan", "Plan", "CouplingRecord", "PointResult",
-           "Batch",
+__all__ = ["InputTable", "MetricPlan", "SeriesPlan", "Plan", "new_plan", "CouplingRecord",
+           "PointResult", "Batch",
            "BatchFunction", "PrepareFunction", "Rows", "Points"]
 
 # A batch's parameter values, one row per point (float64), and the points' indices.
@@ -24,9 +24,11 @@ class InputTable(TypedDict):
     values: list[float]
 
 
-# "from" is a keyword: the functional form.
+# "from" is a keyword: the functional form. `field` is what the runner's refusals of it
+# name; `extremes`, "refined" (the runner's default) or "sampled".
 MetricPlan = TypedDict("MetricPlan", {"variable": str, "kind": str, "from": float | None,
-                                      "to": float | None})
+                                      "to": float | None, "field": NotRequired[str],
+                                      "extremes": NotRequired[str | None]})
 
 
 class SeriesPlan(TypedDict):
@@ -48,6 +50,15 @@ class Plan(TypedDict):
     interface: NotRequired[str | None]  # "co_simulation" or "model_exchange"
     integrator: NotRequired[str | None]  # "dop853" or "radau5" (Model Exchange)
     cycle: NotRequired[Any]  # the steady cycle's plan (fmusweep.cycle.CyclePlan)
+
+
+def new_plan(start: float, stop: float, step: float, *, tolerance: float | None = None,
+             interface: str | None = None, cycle: Any = None) -> Plan:
+    """A plan that sets nothing and measures nothing: a run over (start, stop) at `step`,
+    through `interface` (None: the runner's choice), with a steady `cycle` where given."""
+    return {"start": start, "stop": stop, "step": step, "tolerance": tolerance, "fixed": {},
+            "inputs": {}, "metrics": [], "series": None, "timeout_s": None,
+            "interface": interface, "integrator": None, "cycle": cycle}
 
 
 class CouplingRecord(TypedDict):

@@ -36,7 +36,7 @@ A specification is a TOML file or the equivalent dict::
 
     [cycle]                            # optional: each point's steady cycle instead of a
     state = "loop_angle"               # transient (fmusweep.cycle); the metrics are then
-    period = 6.283185307179586         # over one cycle
+    advance = 6.283185307179586        # over one cycle
 
 Everything here is checked before anything runs: each mistake is a SpecError that names
 the field (``design.parameters.k34.linspace``) and the rule it breaks. Checks that need
@@ -57,7 +57,7 @@ import tomllib
 from dataclasses import dataclass, field
 from typing import Any, Callable, TypeVar
 
-from .cycle import CYCLE_COLUMNS, CYCLE_METRIC_KINDS, CycleSpec
+from .cycle import CYCLE_COLUMNS, CycleSpec
 from .designs import KINDS, Design, generate, kind_of
 from .columns import SERIES_COLUMNS, SWEEP_COLUMNS, refuse_collisions
 from .errors import Collector, SpecError, refuse
@@ -90,6 +90,11 @@ class MetricSpec:
     end: float | None
     # A harmonic's order (a metric over a steady cycle).
     order: int | None = None
+    # How its extremes are found: "refined" (between the samples, the runner's default)
+    # or "sampled"; the runner holds the rule.
+    extremes: str | None = None
+    # The entry as written (a metric over a steady cycle, whose rules are the runner's).
+    entry: dict[str, Any] = field(default_factory=dict)
 
 
 # The interfaces a single FMU may run through (``[scenario] interface``): a Model Exchange
@@ -343,10 +348,6 @@ class Spec:
         if header is not None and outputs is not None:
             own = SWEEP_COLUMNS + SERIES_COLUMNS + (CYCLE_COLUMNS if on_cycle else ())
             refuse_collisions(_column_names(header[0], outputs), own, errors)
-        if on_cycle and runs is not None and scenario is not None:
-            through = cycle is not None and bool(cycle.starts)
-            errors.run(lambda: _cycle_runs_alone(runs[2] is not None or runs[1] is not None,
-                                                 scenario, through))
         errors.raise_any()
         assert runs and scenario and header and outputs
         fmu, ssp, system = runs
@@ -369,13 +370,12 @@ class Spec:
         the FMU's offer of sensitivities in its `description`)."""
         if self.cycle is not None:
             assert description is not None, "a steady cycle's plan reads the FMU's description"
-            cycle = self.cycle.plan([(m.variable, m.kind, m.order) for m in self.metrics],
-                                    description)
-            plan = self.scenario.plan([], None, self.system, cycle)
-            interface = "co_simulation" if self.cycle.starts else "model_exchange"
-            return {**plan, "interface": interface}
+            cycle = self.cycle.plan([{"field": f"outputs.metrics.{m.name}", **m.entry}
+                                     for m in self.metrics], description)
+            return self.scenario.plan([], None, self.system, cycle)
         metrics = [MetricPlan({"variable": m.variable, "kind": m.kind, "from": m.start,
-                                "to": m.end}) for m in self.metrics]
+                                "to": m.end, "field": f"outputs.metrics.{m.name}",
+                                "extremes": m.extremes}) for m in self.metrics]
         series = (SeriesPlan(variables=self.series_variables, every=self.series_every)
                   if self.series_variables else None)
         return self.scenario.plan(metrics, series, self.system)
@@ -548,9 +548,13 @@ def _metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec:
     where = f"outputs.metrics.{name}"
     if not isinstance(m, dict):
         raise SpecError(where, "must be a table with variable and kind")
-    _only(m, where, {"variable", "kind", "from", "to"})
+    _only(m, where, {"variable", "kind", "from", "to", "extremes"})
     if not isinstance(m.get("variable"), str):
         raise SpecError(f"{where}.variable", "must name a variable")
+    extremes = m.get("extremes")
+    if extremes is not None and not isinstance(extremes, str):
+        raise SpecError(f"{where}.extremes", f"must be \"refined\" or \"sampled\", got "
+                                             f"{extremes!r}")
     if m.get("kind") not in METRIC_KINDS:
         raise SpecError(f"{where}.kind", f"must be one of {', '.join(METRIC_KINDS)}, got {m.get('kind')!r}")
     start = _number(m["from"], f"{where}.from") if "from" in m else None
@@ -559,61 +563,17 @@ def _metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec:
         raise SpecError(f"{where}.to", f"must be ≥ from ({start}), got {end}")
     if scenario is not None:
         _window_holds_a_point(scenario, start, end, where)
-    return MetricSpec(name, m["variable"], m["kind"], start, end)
+    return MetricSpec(name, m["variable"], m["kind"], start, end, extremes=extremes)
 
 
 def _cycle_metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec:
-    """A metric over one steady cycle: no window, a kind the cycle has, and an order
-    for a harmonic."""
-    where = f"outputs.metrics.{name}"
+    """A metric over one steady cycle, as written: the runner holds its rules (no window,
+    a kind the cycle has, an order for a harmonic)."""
     if not isinstance(m, dict):
-        raise SpecError(where, "must be a table with variable and kind")
-    _only(m, where, {"variable", "kind", "order", "from", "to"})
-    errors = Collector()
-    for key in ("from", "to"):
-        if key in m:
-            errors.run(lambda: refuse(f"{where}.{key}", "a metric of a steady cycle is taken "
-                                                        "over one cycle: it has no window"))
-    if not isinstance(m.get("variable"), str):
-        errors.run(lambda: refuse(f"{where}.variable", "must name a variable"))
-    kind = m.get("kind")
-    if kind not in CYCLE_METRIC_KINDS:
-        errors.run(lambda: refuse(f"{where}.kind", f"must be one of "
-                                                   f"{', '.join(CYCLE_METRIC_KINDS)} over a "
-                                                   f"steady cycle, got {kind!r}"))
-    order = m.get("order")
-    if kind == "harmonic" and (isinstance(order, bool) or not isinstance(order, int)
-                               or order < 1):
-        errors.run(lambda: refuse(f"{where}.order", f"a harmonic needs its order, a whole "
-                                                    f"number ≥ 1 (times the cycle's "
-                                                    f"frequency), got {order!r}"))
-    elif kind != "harmonic" and order is not None:
-        errors.run(lambda: refuse(f"{where}.order", "only a harmonic has an order"))
-    errors.raise_any()
-    return MetricSpec(name, m["variable"], str(kind), None, None, order)
-
-
-def _cycle_runs_alone(system: bool, scenario: Scenario, through: bool) -> None:
-    """A steady cycle is found on one FMU: on its Model Exchange interface, integrated by
-    the runner's DOP853, or `through` its start values on its Co-Simulation interface."""
-    errors = Collector()
-    if system:
-        errors.run(lambda: refuse("cycle", "a coupled system has no Model Exchange interface: "
-                                           "a steady cycle is found on one FMU"))
-    wrong = "model_exchange" if through else "co_simulation"
-    if scenario.interface == wrong:
-        way = ("through the start values (cycle.starts) on the FMU's Co-Simulation interface"
-               if through else "on the FMU's Model Exchange interface")
-        errors.run(lambda: refuse("scenario.interface", f"this steady cycle is found {way}, "
-                                                        f"not {wrong}"))
-    if scenario.integrator == "radau5" and not through:
-        errors.run(lambda: refuse("scenario.integrator", "a steady cycle is integrated with "
-                                                         "its variational equations by DOP853"))
-    for name, table in scenario.inputs.items():
-        if len(table["times"]) > 1:
-            errors.run(lambda: refuse(f"scenario.inputs.{name}", "a steady cycle needs "
-                                                                 "constant inputs, not a table"))
-    errors.raise_any()
+        raise SpecError(f"outputs.metrics.{name}", "must be a table with variable and kind")
+    variable, kind = m.get("variable"), m.get("kind")
+    return MetricSpec(name, variable if isinstance(variable, str) else "",
+                      kind if isinstance(kind, str) else "", None, None, entry=dict(m))
 
 
 # A communication point this close to a window's end, in steps, belongs to the window (the

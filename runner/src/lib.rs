@@ -23,6 +23,7 @@ pub mod metrics;
 pub mod plan;
 pub mod point;
 pub mod protocol;
+pub mod refusals;
 pub mod stdio;
 pub mod system;
 pub mod target;

@@ -1,5 +1,11 @@
 //! Metrics of one variable over a time window, accumulated at communication points so
-//! that a sweep that asks for metrics never ships a time series.
+//! that a sweep that asks for metrics never ships a time series; and the extremes of a
+//! sampled variable found between its samples, which a steady cycle's metrics share.
+//!
+//! A sampled extreme misses the true one by up to the variable's curvature times the
+//! squared distance to the nearest sample. Refined, it is the extreme of the cubic through
+//! the values and rates at the two samples around it, where the rates are known (an FMU's
+//! output derivatives), else of the parabola through the three samples around it.
 
 use serde::Deserialize;
 
@@ -20,6 +26,177 @@ pub enum Kind {
     PeakToPeak,
 }
 
+impl Kind {
+    /// Whether the metric is made of the window's extremes.
+    pub fn is_extreme(self) -> bool {
+        matches!(
+            self,
+            Kind::Min | Kind::Max | Kind::PeakAbs | Kind::PeakToPeak
+        )
+    }
+}
+
+/// How a metric's extremes are found: between the samples (the default), or at them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Extremes {
+    #[default]
+    Refined,
+    Sampled,
+}
+
+impl Extremes {
+    pub fn named(name: &str) -> Result<Extremes, String> {
+        match name {
+            "refined" => Ok(Extremes::Refined),
+            "sampled" => Ok(Extremes::Sampled),
+            other => Err(format!(
+                "must be \"refined\" (between the samples, the default) or \"sampled\", got \
+                 {other:?}"
+            )),
+        }
+    }
+}
+
+/// A variable at one time: its value and, where known, its rate of change.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub t: f64,
+    pub x: f64,
+    pub rate: Option<f64>,
+}
+
+/// The largest of sign·x (sign ±1) near the sampled extreme `at`, from the samples either
+/// side of it (`None` at an end of the samples): the cubic through values and rates on
+/// each side whose rates are known, else the parabola through the three, else `at`
+/// itself. Never below the sampled value.
+pub fn refined(sign: f64, left: Option<Sample>, at: Sample, right: Option<Sample>) -> f64 {
+    let with_rates = |s: &Option<Sample>| s.is_some_and(|s| s.rate.is_some());
+    let best = if at.rate.is_some() && (with_rates(&left) || with_rates(&right)) {
+        [
+            left.filter(|_| with_rates(&left)),
+            right.filter(|_| with_rates(&right)),
+        ]
+        .into_iter()
+        .flatten()
+        .map(|side| {
+            let (a, b) = if side.t < at.t {
+                (side, at)
+            } else {
+                (at, side)
+            };
+            cubic_top(sign, a, b)
+        })
+        .fold(sign * at.x, f64::max)
+    } else if let (Some(a), Some(c)) = (left, right) {
+        parabola_top(sign, a, at, c)
+    } else {
+        sign * at.x
+    };
+    sign * best.max(sign * at.x)
+}
+
+/// The largest of sign·p over [a.t, b.t], p the cubic through the values and rates at both
+/// ends.
+fn cubic_top(sign: f64, a: Sample, b: Sample) -> f64 {
+    let h = b.t - a.t;
+    let (y0, y1) = (sign * a.x, sign * b.x);
+    let (d0, d1) = (sign * a.rate.unwrap_or(0.0), sign * b.rate.unwrap_or(0.0));
+    let value = |w: f64| {
+        let (w2, w3) = (w * w, w * w * w);
+        (2.0 * w3 - 3.0 * w2 + 1.0) * y0
+            + (w3 - 2.0 * w2 + w) * h * d0
+            + (-2.0 * w3 + 3.0 * w2) * y1
+            + (w3 - w2) * h * d1
+    };
+    // p′(w) = A w² + B w + C over the step's fraction w.
+    let a2 = 6.0 * (y0 - y1) + 3.0 * h * (d0 + d1);
+    let b1 = -6.0 * (y0 - y1) - h * (4.0 * d0 + 2.0 * d1);
+    let c0 = h * d0;
+    let mut best = y0.max(y1);
+    for w in quadratic_roots(a2, b1, c0) {
+        if w > 0.0 && w < 1.0 {
+            best = best.max(value(w));
+        }
+    }
+    best
+}
+
+/// The real roots of A w² + B w + C (of B w + C where A vanishes beside B and C).
+fn quadratic_roots(a: f64, b: f64, c: f64) -> Vec<f64> {
+    if a.abs() <= 1e-12 * (b.abs() + c.abs()) {
+        return if b != 0.0 { vec![-c / b] } else { Vec::new() };
+    }
+    let discriminant = b * b - 4.0 * a * c;
+    if discriminant < 0.0 {
+        return Vec::new();
+    }
+    // The root of larger size first, the other from the product: no cancellation.
+    let q = -0.5 * (b + b.signum() * discriminant.sqrt());
+    if q == 0.0 {
+        return vec![0.0];
+    }
+    vec![q / a, c / q]
+}
+
+/// The largest of sign·p, p the parabola through three samples, where it bends down
+/// (sign·p concave); else the middle sample's.
+fn parabola_top(sign: f64, a: Sample, b: Sample, c: Sample) -> f64 {
+    let (h0, h1) = (b.t - a.t, c.t - b.t);
+    let (y0, y1, y2) = (sign * a.x, sign * b.x, sign * c.x);
+    let s0 = (y1 - y0) / h0;
+    let s1 = (y2 - y1) / h1;
+    let curvature = (s1 - s0) / (h0 + h1);
+    if curvature.is_nan() || curvature >= 0.0 {
+        return y1;
+    }
+    // p(t) = y1 + slope (t − b.t) + curvature (t − b.t)², slope the parabola's at b.t.
+    let slope = s0 + curvature * h0;
+    y1 - slope * slope / (4.0 * curvature)
+}
+
+/// The extreme of sign·x over a window's samples so far, with its neighbours.
+#[derive(Clone, Debug)]
+struct Extreme {
+    sign: f64,
+    left: Option<Sample>,
+    at: Option<Sample>,
+    right: Option<Sample>,
+    /// Whether the extreme is the last sample pushed (its right neighbour comes next).
+    latest: bool,
+}
+
+impl Extreme {
+    fn new(sign: f64) -> Self {
+        Extreme {
+            sign,
+            left: None,
+            at: None,
+            right: None,
+            latest: false,
+        }
+    }
+
+    fn push(&mut self, previous: Option<Sample>, sample: Sample) {
+        let beyond = self
+            .at
+            .is_none_or(|at| self.sign * sample.x > self.sign * at.x);
+        if beyond {
+            (self.left, self.at, self.right) = (previous, Some(sample), None);
+        } else if self.latest {
+            self.right = Some(sample);
+        }
+        self.latest = beyond;
+    }
+
+    fn value(&self, extremes: Extremes) -> Option<f64> {
+        let at = self.at?;
+        Some(match extremes {
+            Extremes::Sampled => at.x,
+            Extremes::Refined => refined(self.sign, self.left, at, self.right),
+        })
+    }
+}
+
 /// Points within this fraction of a communication step of a window's end belong to it,
 /// so that `from = 2` includes the point computed as 200 × 0.01.
 pub const WINDOW_SLACK: f64 = 1e-9;
@@ -27,29 +204,29 @@ pub const WINDOW_SLACK: f64 = 1e-9;
 #[derive(Clone, Debug)]
 pub struct Accumulator {
     kind: Kind,
+    extremes: Extremes,
     from: f64,
     to: f64,
     count: u64,
-    min: f64,
-    max: f64,
-    last_t: f64,
-    last_x: f64,
+    top: Extreme,
+    bottom: Extreme,
+    previous: Option<Sample>,
     first_t: f64,
     integral: f64,
 }
 
 impl Accumulator {
     /// `slack` is the absolute time by which a point may lie outside [from, to].
-    pub fn new(kind: Kind, from: f64, to: f64, slack: f64) -> Self {
+    pub fn new(kind: Kind, extremes: Extremes, from: f64, to: f64, slack: f64) -> Self {
         Self {
             kind,
+            extremes,
             from: from - slack,
             to: to + slack,
             count: 0,
-            min: f64::INFINITY,
-            max: f64::NEG_INFINITY,
-            last_t: f64::NAN,
-            last_x: f64::NAN,
+            top: Extreme::new(1.0),
+            bottom: Extreme::new(-1.0),
+            previous: None,
             first_t: f64::NAN,
             integral: 0.0,
         }
@@ -57,51 +234,76 @@ impl Accumulator {
 
     pub fn clear(&mut self) {
         *self = Self {
-            kind: self.kind,
             from: self.from,
             to: self.to,
-            ..Self::new(self.kind, 0.0, 0.0, 0.0)
+            ..Self::new(self.kind, self.extremes, 0.0, 0.0, 0.0)
         };
     }
 
+    /// Whether a point at `t` falls in the window (where its rate, if wanted, is read).
     #[inline]
-    pub fn push(&mut self, t: f64, x: f64) {
-        if t < self.from || t > self.to {
+    pub fn within(&self, t: f64) -> bool {
+        t >= self.from && t <= self.to
+    }
+
+    /// Whether the metric refines its extremes (and so wants the variable's rate).
+    pub fn refines(&self) -> bool {
+        self.kind.is_extreme() && self.extremes == Extremes::Refined
+    }
+
+    #[inline]
+    pub fn push(&mut self, t: f64, x: f64, rate: Option<f64>) {
+        if !self.within(t) {
             return;
         }
+        let sample = Sample { t, x, rate };
         let y = match self.kind {
             Kind::Rms => x * x,
             _ => x,
         };
-        if self.count == 0 {
-            self.first_t = t;
-        } else {
-            self.integral += 0.5 * (t - self.last_t) * (y + self.last_x);
+        match self.previous {
+            None => self.first_t = t,
+            Some(before) => {
+                let before_y = if self.kind == Kind::Rms {
+                    before.x * before.x
+                } else {
+                    before.x
+                };
+                self.integral += 0.5 * (t - before.t) * (y + before_y);
+            }
         }
         self.count += 1;
-        self.min = self.min.min(x);
-        self.max = self.max.max(x);
-        self.last_t = t;
-        self.last_x = y;
+        if self.kind.is_extreme() {
+            self.top.push(self.previous, sample);
+            self.bottom.push(self.previous, sample);
+        }
+        self.previous = Some(sample);
     }
 
     /// None when no communication point fell in the window.
     pub fn value(&self) -> Option<f64> {
-        if self.count == 0 {
-            return None;
-        }
-        let span = self.last_t - self.first_t;
+        let last = self.previous?;
+        let last_y = if self.kind == Kind::Rms {
+            last.x * last.x
+        } else {
+            last.x
+        };
+        let span = last.t - self.first_t;
         let average = if self.count == 1 || span <= 0.0 {
-            self.last_x
+            last_y
         } else {
             self.integral / span
         };
+        let (max, min) = (
+            || self.top.value(self.extremes).unwrap_or(last.x),
+            || self.bottom.value(self.extremes).unwrap_or(last.x),
+        );
         Some(match self.kind {
-            Kind::Final => self.last_x,
-            Kind::Min => self.min,
-            Kind::Max => self.max,
-            Kind::PeakAbs => self.max.abs().max(self.min.abs()),
-            Kind::PeakToPeak => self.max - self.min,
+            Kind::Final => last.x,
+            Kind::Min => min(),
+            Kind::Max => max(),
+            Kind::PeakAbs => max().abs().max(min().abs()),
+            Kind::PeakToPeak => max() - min(),
             Kind::Mean => average,
             Kind::Rms => average.sqrt(),
         })
@@ -113,9 +315,9 @@ mod tests {
     use super::*;
 
     fn over(kind: Kind, from: f64, to: f64, samples: &[(f64, f64)]) -> Option<f64> {
-        let mut a = Accumulator::new(kind, from, to, 1e-12);
+        let mut a = Accumulator::new(kind, Extremes::Sampled, from, to, 1e-12);
         for &(t, x) in samples {
-            a.push(t, x);
+            a.push(t, x, None);
         }
         a.value()
     }
@@ -145,12 +347,91 @@ mod tests {
 
     #[test]
     fn clear_forgets_samples_but_keeps_the_window() {
-        let mut a = Accumulator::new(Kind::Max, 1.0, 3.0, 0.0);
-        a.push(2.0, 7.0);
+        let mut a = Accumulator::new(Kind::Max, Extremes::Refined, 1.0, 3.0, 0.0);
+        a.push(2.0, 7.0, None);
         a.clear();
         assert_eq!(a.value(), None);
-        a.push(0.0, 9.0);
-        a.push(3.0, 1.0);
+        a.push(0.0, 9.0, None);
+        a.push(3.0, 1.0, None);
         assert_eq!(a.value(), Some(1.0));
+    }
+
+    /// A signal's extremes over a window sampled every `h`, with its rates or without.
+    fn extremes_of(h: f64, rates: bool, kind: Kind) -> f64 {
+        let signal = |t: f64| (2.0 * t + 0.3).sin() + 0.2 * (5.0 * t).cos();
+        let rate = |t: f64| 2.0 * (2.0 * t + 0.3).cos() - (5.0 * t).sin();
+        let mut a = Accumulator::new(kind, Extremes::Refined, 0.0, 3.0, 1e-12);
+        let steps = (3.0 / h).round() as usize;
+        for k in 0..=steps {
+            let t = k as f64 * h;
+            a.push(t, signal(t), rates.then(|| rate(t)));
+        }
+        a.value().unwrap()
+    }
+
+    #[test]
+    fn extremes_are_found_between_the_samples() {
+        let signal = |t: f64| (2.0 * t + 0.3).sin() + 0.2 * (5.0 * t).cos();
+        let fine: Vec<f64> = (0..=3_000_000).map(|k| signal(k as f64 * 1e-6)).collect();
+        let max = fine.iter().copied().fold(f64::MIN, f64::max);
+        let min = fine.iter().copied().fold(f64::MAX, f64::min);
+        let errors = |h: f64| {
+            let mut sampled = Accumulator::new(Kind::Max, Extremes::Sampled, 0.0, 3.0, 1e-12);
+            for k in 0..=(3.0 / h).round() as usize {
+                sampled.push(k as f64 * h, signal(k as f64 * h), None);
+            }
+            let swing = extremes_of(h, true, Kind::PeakToPeak);
+            assert!(
+                (swing - (max - min)).abs() < 1e-5,
+                "{h}: {swing} vs {}",
+                max - min
+            );
+            [
+                max - sampled.value().unwrap(),
+                (extremes_of(h, false, Kind::Max) - max).abs(),
+                (extremes_of(h, true, Kind::Max) - max).abs(),
+            ]
+        };
+        let (coarse, fine) = (errors(0.05), errors(0.02));
+        // The cubic through values and rates is far closer than the samples.
+        assert!(
+            coarse[2] < 1e-2 * coarse[0] && fine[2] < 1e-2 * fine[0],
+            "{coarse:?} {fine:?}"
+        );
+        // The samples' error falls as h², the parabola's as h³ (h 2.5 times shorter).
+        assert!(coarse[0] / fine[0] < 8.0, "{coarse:?} {fine:?}");
+        assert!(coarse[1] / fine[1] > 12.0, "{coarse:?} {fine:?}");
+    }
+
+    #[test]
+    fn a_refined_extreme_stays_within_the_window() {
+        // Rising through the window's end: its largest value is the last sample's.
+        let mut a = Accumulator::new(Kind::Max, Extremes::Refined, 0.0, 1.0, 1e-12);
+        for k in 0..=10 {
+            let t = k as f64 * 0.1;
+            a.push(t, t * t, Some(2.0 * t));
+        }
+        assert_eq!(a.value(), Some(1.0));
+    }
+
+    #[test]
+    fn the_cubic_and_the_parabola_are_exact_for_their_own_shapes() {
+        let s = |t: f64, x: f64, rate: Option<f64>| Sample { t, x, rate };
+        // A parabola, uneven spacing: its vertex exactly.
+        let p = |t: f64| 3.0 - 2.0 * (t - 0.37) * (t - 0.37);
+        let top = refined(
+            1.0,
+            Some(s(0.1, p(0.1), None)),
+            s(0.3, p(0.3), None),
+            Some(s(0.8, p(0.8), None)),
+        );
+        assert!((top - 3.0).abs() < 1e-14, "{top}");
+        // A cubic with its rates: its minimum between the samples exactly.
+        let c = |t: f64| t * t * t - t;
+        let dc = |t: f64| 3.0 * t * t - 1.0;
+        let at = |t: f64| s(t, c(t), Some(dc(t)));
+        let low = refined(-1.0, Some(at(0.4)), at(0.6), Some(at(0.8)));
+        let exact = c(1.0 / 3f64.sqrt());
+        assert!((low - exact).abs() < 1e-14, "{low} vs {exact}");
     }
 }

@@ -1,6 +1,7 @@
 //! The run plan that every point of a sweep shares: the time grid, the fixed settings,
-//! the input signals, and what to measure. Names are resolved against the model
-//! description once, so that the per-point loop works on value references only.
+//! the input signals, what to measure, and the interface it runs through. Names are
+//! resolved against the model description once, so that the per-point loop works on value
+//! references only; every mistake of a plan is refused at once, by its field.
 
 use std::collections::BTreeMap;
 
@@ -8,7 +9,9 @@ use serde::Deserialize;
 
 use crate::cycle_plan::{CyclePlan, CycleSpec};
 use crate::description::{BaseType, Description, Variable};
-use crate::metrics::{Accumulator, Kind, WINDOW_SLACK};
+use crate::fmi::Interface;
+use crate::metrics::{Accumulator, Extremes, Kind, WINDOW_SLACK};
+use crate::refusals::Refusals;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -30,8 +33,8 @@ pub struct PlanSpec {
     pub interface: Option<String>,
     /// `dop853` (the default) or `radau5`: what integrates a Model Exchange FMU.
     pub integrator: Option<String>,
-    /// The steady cycle: found by shooting instead of run to `stop` (which bounds the
-    /// transient it starts from), its metrics over one cycle.
+    /// The steady cycle: found instead of run to `stop` (which bounds the transient it
+    /// starts from), its metrics over one cycle.
     pub cycle: Option<CycleSpec>,
 }
 
@@ -46,10 +49,14 @@ pub struct TableSpec {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct MetricSpec {
+    /// The field the metric's refusals name (the client's own).
+    pub field: Option<String>,
     pub variable: String,
     pub kind: Kind,
     pub from: Option<f64>,
     pub to: Option<f64>,
+    /// `refined` (the default) or `sampled`: how its extremes are found.
+    pub extremes: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -150,14 +157,30 @@ pub struct Plan {
     pub tolerance: Option<f64>,
     pub fixed: Vec<(String, f64)>,
     pub inputs: Vec<Input>,
+    /// The interface a single FMU runs through (`None` for a system).
+    pub interface: Option<Interface>,
     /// Read at every communication point: the variables of the metrics and the series.
     pub reads: ByType,
     pub read_names: Vec<String>,
-    /// Per metric: its position in the read buffer (reals, then integers, then booleans).
-    pub metrics: Vec<(usize, Accumulator)>,
+    /// The Real variables whose rates (first time derivatives) are read where a metric
+    /// that refines its extremes is in its window: the FMU's output derivatives under
+    /// co-simulation, its directional derivatives along the flow of these continuous
+    /// states under Model Exchange.
+    pub rated: Vec<u32>,
+    pub rate_states: Vec<u32>,
+    pub metrics: Vec<Metric>,
     pub series: Option<(Vec<usize>, u64)>,
     pub timeout_s: Option<f64>,
     pub cycle: Option<CyclePlan>,
+}
+
+/// A metric of a run: its position in the read buffer (reals, then integers, then
+/// booleans), its variable's among those rated where its extremes are refined from rates,
+/// and what it has gathered.
+pub struct Metric {
+    pub slot: usize,
+    pub rate: Option<usize>,
+    pub accumulator: Accumulator,
 }
 
 /// Start, stop, step and the number of communication steps, each checked.
@@ -188,71 +211,125 @@ fn time_grid(spec: &PlanSpec) -> Result<(f64, f64, f64, u64), String> {
 struct Reads {
     by_type: ByType,
     names: Vec<String>,
-    metrics: Vec<(usize, Accumulator)>,
+    rated: Vec<u32>,
+    metrics: Vec<Metric>,
     series: Option<(Vec<usize>, u64)>,
+}
+
+/// The variables read at every communication point, a slot each in first-use order.
+struct Slots<'d> {
+    description: &'d Description,
+    by_type: ByType,
+    variables: Vec<&'d Variable>,
+}
+
+impl Slots<'_> {
+    /// The slot of variable `name`, a new one where it is not read yet.
+    fn of(&mut self, name: &str) -> Result<usize, String> {
+        let variable = self.description.variable(name)?;
+        if let Some(i) = self.variables.iter().position(|v| v.name == name) {
+            return Ok(i);
+        }
+        self.by_type.push(variable)?;
+        self.variables.push(variable);
+        Ok(self.variables.len() - 1)
+    }
+}
+
+/// A metric of the plan (its refusals under its field, `metrics[k]` by default), its
+/// window checked against the run's (start, stop); its variable's rate read where `rated`
+/// holds it (a metric that refines its extremes, where the unit gives rates).
+fn metric_of(
+    (k, m): (usize, &MetricSpec),
+    (start, stop, slack): (f64, f64, f64),
+    slots: &mut Slots,
+    rated: Option<&mut Vec<u32>>,
+    refusals: &mut Refusals,
+) -> Option<Metric> {
+    let field = m.field.clone().unwrap_or_else(|| format!("metrics[{k}]"));
+    let (from, to) = (m.from.unwrap_or(start), m.to.unwrap_or(stop));
+    if !(from.is_finite() && to.is_finite() && from <= to) {
+        let rule = format!("the window [{from}, {to}] is not an interval");
+        refusals.refuse(format!("{field}.from"), rule);
+    }
+    let extremes = match &m.extremes {
+        None => Some(Extremes::default()),
+        Some(e) => refusals.note(&format!("{field}.extremes"), Extremes::named(e)),
+    };
+    let slot = refusals.note(&format!("{field}.variable"), slots.of(&m.variable))?;
+    let accumulator = Accumulator::new(m.kind, extremes?, from, to, slack);
+    let variable = slots.variables[slot];
+    let rate = rated
+        .filter(|_| accumulator.refines() && variable.base_type == BaseType::Real)
+        .map(|rated| {
+            let vr = variable.value_reference;
+            rated.iter().position(|&r| r == vr).unwrap_or_else(|| {
+                rated.push(vr);
+                rated.len() - 1
+            })
+        });
+    Some(Metric {
+        slot,
+        rate,
+        accumulator,
+    })
 }
 
 impl Reads {
     /// One read slot per distinct variable of the metrics and the series, by type, the
-    /// metrics' windows checked against the run's (start, stop, step).
+    /// metrics' windows checked against the run's (start, stop, step); the rates of the
+    /// refined metrics' variables read where `rates` says the unit gives them.
     fn resolve(
         spec: &PlanSpec,
         description: &Description,
         (start, stop, step): (f64, f64, f64),
-    ) -> Result<Self, String> {
-        let mut by_type = ByType::default();
-        let mut read_vars: Vec<&Variable> = Vec::new();
-        let mut slot_of = |name: &str| -> Result<usize, String> {
-            let variable = description.variable(name)?;
-            if let Some(i) = read_vars.iter().position(|v| v.name == name) {
-                return Ok(i);
-            }
-            by_type.push(variable)?;
-            read_vars.push(variable);
-            Ok(read_vars.len() - 1)
+        rates: bool,
+        refusals: &mut Refusals,
+    ) -> Reads {
+        let mut slots = Slots {
+            description,
+            by_type: ByType::default(),
+            variables: Vec::new(),
         };
-        let slack = WINDOW_SLACK * step;
-        let mut metrics = Vec::new();
-        for m in &spec.metrics {
-            let (from, to) = (m.from.unwrap_or(start), m.to.unwrap_or(stop));
-            if !(from.is_finite() && to.is_finite() && from <= to) {
-                return Err(format!(
-                    "metric of {}: the window [{from}, {to}] is not an interval",
-                    m.variable
-                ));
-            }
-            metrics.push((
-                slot_of(&m.variable)?,
-                Accumulator::new(m.kind, from, to, slack),
-            ));
-        }
+        let window = (start, stop, WINDOW_SLACK * step);
+        let mut rated: Vec<u32> = Vec::new();
+        let mut metrics: Vec<Metric> = (spec.metrics.iter().enumerate())
+            .filter_map(|m| {
+                let rated = rates.then_some(&mut rated);
+                metric_of(m, window, &mut slots, rated, refusals)
+            })
+            .collect();
         let series = match &spec.series {
             None => None,
-            Some(s) if s.every == 0 => return Err("series.every must be ≥ 1".into()),
-            Some(s) => Some((
-                s.variables
-                    .iter()
-                    .map(|n| slot_of(n))
-                    .collect::<Result<Vec<_>, _>>()?,
-                s.every,
-            )),
+            Some(s) if s.every == 0 => {
+                refusals.refuse("series.every", "must be ≥ 1");
+                None
+            }
+            Some(s) => {
+                let found: Vec<Option<usize>> = (s.variables.iter())
+                    .map(|n| refusals.note("series.variables", slots.of(n)))
+                    .collect();
+                let found: Option<Vec<usize>> = found.into_iter().collect();
+                found.map(|v| (v, s.every))
+            }
         };
         // Slots were numbered in first-use order; the buffer is laid out by type.
-        let layout = buffer_layout(&read_vars);
-        let mut names = vec![String::new(); read_vars.len()];
-        for (slot, v) in read_vars.iter().enumerate() {
+        let layout = buffer_layout(&slots.variables);
+        let mut names = vec![String::new(); slots.variables.len()];
+        for (slot, v) in slots.variables.iter().enumerate() {
             names[layout[slot]] = v.name.clone();
         }
-        Ok(Reads {
-            by_type,
+        for metric in &mut metrics {
+            metric.slot = layout[metric.slot];
+        }
+        Reads {
+            by_type: slots.by_type,
             names,
-            metrics: metrics
-                .into_iter()
-                .map(|(slot, acc)| (layout[slot], acc))
-                .collect(),
+            rated,
+            metrics,
             series: series
                 .map(|(slots, every)| (slots.iter().map(|&s| layout[s]).collect(), every)),
-        })
+        }
     }
 }
 
@@ -264,41 +341,92 @@ fn finite(what: &str, x: f64) -> Result<f64, String> {
     }
 }
 
+/// The interface a plan runs a single FMU through (`loaded`, the session's default, is
+/// `None` for a system): a steady cycle's own, else the one asked, else the default; a
+/// cycle's interface and the one asked must agree.
+fn interface_of(
+    asked: Option<&str>,
+    cycle: Option<&CyclePlan>,
+    loaded: Option<Interface>,
+    refusals: &mut Refusals,
+) -> Option<Interface> {
+    let asked =
+        asked.and_then(|name| refusals.note("scenario.interface", Interface::from_name(name)));
+    let Some(default) = loaded else {
+        if asked == Some(Interface::ModelExchange) {
+            refusals.refuse(
+                "scenario.interface",
+                "a coupled system runs its components' co-simulation interfaces",
+            );
+        }
+        return None;
+    };
+    let Some(cycle) = cycle else {
+        return Some(asked.unwrap_or(default));
+    };
+    let wanted = cycle.way.interface();
+    if asked.is_some_and(|a| a != wanted) {
+        refusals.refuse(
+            "scenario.interface",
+            format!(
+                "this steady cycle is found through the {} interface",
+                wanted.name()
+            ),
+        );
+    }
+    Some(wanted)
+}
+
 impl Plan {
-    pub fn resolve(mut spec: PlanSpec, description: &Description) -> Result<Plan, String> {
-        let (start, stop, step, n_steps) = time_grid(&spec)?;
+    /// The plan of `spec` against `description`, run through the interface it asks for
+    /// or the one `loaded` (a single FMU's default; `None` for a system); or every
+    /// mistake of it.
+    pub fn resolve(
+        mut spec: PlanSpec,
+        description: &Description,
+        loaded: Option<Interface>,
+    ) -> Result<Plan, Refusals> {
+        let mut refusals = Refusals::default();
+        let grid = refusals.note("scenario", time_grid(&spec));
         if let Some(tol) = spec.tolerance {
             if !(tol.is_finite() && tol > 0.0) {
-                return Err(format!("tolerance must be finite and > 0, got {tol}"));
+                let rule = format!("must be finite and > 0, got {tol}");
+                refusals.refuse("scenario.tolerance", rule);
             }
         }
         for (name, value) in &spec.fixed {
-            description.variable(name)?;
-            finite(name, *value)?;
+            let field = format!("scenario.parameters.{name}");
+            let checked = description
+                .variable(name)
+                .and_then(|_| finite(name, *value));
+            refusals.note(&field, checked);
         }
-        let inputs = std::mem::take(&mut spec.inputs)
+        let inputs: Vec<Input> = std::mem::take(&mut spec.inputs)
             .into_iter()
-            .map(|(name, table)| resolve_input(description, &name, table))
-            .collect::<Result<Vec<_>, _>>()?;
-        let reads = Reads::resolve(&spec, description, (start, stop, step))?;
-        let cycle = match spec.cycle.take() {
-            None => None,
-            Some(cycle) => {
-                if let Some(input) = inputs.iter().find(|i| i.table.times.len() > 1) {
-                    return Err(format!(
-                        "cycle: a steady cycle needs constant inputs; input {:?} is a table \
-                         of {} points",
-                        description
-                            .variables
-                            .iter()
-                            .find(|v| v.value_reference == input.value_reference)
-                            .map_or("?", |v| v.name.as_str()),
-                        input.table.times.len()
-                    ));
-                }
-                Some(CyclePlan::resolve(cycle, description)?)
-            }
-        };
+            .filter_map(|(name, table)| {
+                let field = format!("scenario.inputs.{name}");
+                refusals.note(&field, resolve_input(description, &name, table))
+            })
+            .collect();
+        let cycle = cycle_of(&mut spec, description, (&inputs, loaded), &mut refusals);
+        let interface = interface_of(
+            spec.interface.as_deref(),
+            cycle.as_ref(),
+            loaded,
+            &mut refusals,
+        );
+        let (rates, rate_states) = rates_of(interface, description);
+        let (start, stop, step, n_steps) = grid.unwrap_or((0.0, 1.0, 1.0, 1));
+        let reads = Reads::resolve(
+            &spec,
+            description,
+            (start, stop, step),
+            rates,
+            &mut refusals,
+        );
+        if !refusals.is_empty() {
+            return Err(refusals);
+        }
         Ok(Plan {
             start,
             stop,
@@ -307,8 +435,11 @@ impl Plan {
             tolerance: spec.tolerance,
             fixed: spec.fixed.into_iter().collect(),
             inputs,
+            interface,
             reads: reads.by_type,
             read_names: reads.names,
+            rated: reads.rated,
+            rate_states,
             metrics: reads.metrics,
             series: reads.series,
             timeout_s: spec.timeout_s,
@@ -341,6 +472,75 @@ impl Plan {
         } else {
             self.start + k as f64 * self.step
         }
+    }
+}
+
+/// The plan's steady cycle, where it asks for one: found on one FMU (`loaded` is its
+/// default interface; `None` for a system), with constant inputs, on Model Exchange by
+/// DOP853 (which integrates its variational equations).
+fn cycle_of(
+    spec: &mut PlanSpec,
+    description: &Description,
+    (inputs, loaded): (&[Input], Option<Interface>),
+    refusals: &mut Refusals,
+) -> Option<CyclePlan> {
+    let asked = spec.cycle.take()?;
+    constant_inputs(inputs, description, refusals);
+    if loaded.is_none() {
+        refusals.refuse(
+            "cycle",
+            "a coupled system has no Model Exchange interface: a steady cycle is found on \
+             one FMU",
+        );
+        return None;
+    }
+    let cycle = CyclePlan::resolve(&asked, description, refusals)?;
+    let on_exchange = cycle.way.interface() == Interface::ModelExchange;
+    if on_exchange && spec.integrator.as_deref() == Some("radau5") {
+        refusals.refuse(
+            "scenario.integrator",
+            "a steady cycle on Model Exchange is integrated with its variational equations \
+             by DOP853",
+        );
+    }
+    Some(cycle)
+}
+
+/// Whether the unit gives its outputs' rates, and where they come from Model Exchange's
+/// directional derivatives, the continuous states they are taken along.
+fn rates_of(interface: Option<Interface>, description: &Description) -> (bool, Vec<u32>) {
+    match interface {
+        Some(Interface::CoSimulation) => (description.max_output_derivative_order >= 1, vec![]),
+        Some(Interface::ModelExchange)
+            if description.exchange_directional_derivatives
+                && description.states.len() == description.continuous_states =>
+        {
+            let states = description
+                .states
+                .iter()
+                .map(|s| s.value_reference)
+                .collect();
+            (true, states)
+        }
+        _ => (false, Vec::new()),
+    }
+}
+
+/// A steady cycle needs constant inputs: a table of several points is refused.
+fn constant_inputs(inputs: &[Input], description: &Description, refusals: &mut Refusals) {
+    for input in inputs.iter().filter(|i| i.table.times.len() > 1) {
+        let name = description
+            .variables
+            .iter()
+            .find(|v| v.value_reference == input.value_reference)
+            .map_or("?", |v| v.name.as_str());
+        refusals.refuse(
+            format!("scenario.inputs.{name}"),
+            format!(
+                "a steady cycle needs constant inputs; this is a table of {} points",
+                input.table.times.len()
+            ),
+        );
     }
 }
 

@@ -5,7 +5,8 @@
 //! per point off the hot path; with `flush_each` every point's reply is flushed as soon
 //! as the point ends, so that if the FMU kills the process, the caller knows exactly which
 //! point did it: the first one without a reply. The caller reruns the unanswered points
-//! of a batch that crashed that way.
+//! of a batch that crashed that way. A plan's refusals come back all at once, each naming
+//! its field.
 
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -21,6 +22,7 @@ use crate::exchange::{method_named, Shape};
 use crate::fmi::{Interface, Library};
 use crate::plan::{Plan, PlanSpec};
 use crate::point::{Assignments, Runner};
+use crate::refusals::Refusals;
 use crate::system::{is_system, SystemLibrary};
 use crate::target::Target;
 use integrators::Method;
@@ -92,59 +94,57 @@ impl Session {
         })
     }
 
-    /// Run the FMU through the interface and the method a plan names (or, naming none,
-    /// the defaults), if they are not the ones loaded: a runner kept between studies may
-    /// have run others.
-    fn choose_interface(&mut self, plan: &PlanSpec) -> Result<(), String> {
-        let method = method_named(plan.integrator.as_deref())?;
-        let through = plan.cycle.as_ref().is_some_and(|c| c.starts.is_some());
-        let cycle_interface = if through {
-            "co_simulation"
-        } else {
-            "model_exchange"
+    /// The plan a request sends, resolved against the description, with the FMU loaded
+    /// through the interface and the method it runs with (a runner kept between studies
+    /// may have run others); or every refusal of it.
+    fn configure(&mut self, spec: PlanSpec) -> Result<Plan, Refusals> {
+        let mut refusals = Refusals::default();
+        let method = refusals.note(
+            "scenario.integrator",
+            method_named(spec.integrator.as_deref()),
+        );
+        let default = self
+            .interface
+            .map(|_| Interface::default_for(&self.description));
+        let plan = Plan::resolve(spec, &self.description, default);
+        let (plan, method) = match (plan, method) {
+            (Ok(plan), Some(method)) => (plan, method),
+            (Err(mut more), _) => {
+                refusals.0.append(&mut more.0);
+                return Err(refusals);
+            }
+            (Ok(_), None) => return Err(refusals),
         };
-        let wanted = match plan.interface.as_deref() {
-            Some(name) if plan.cycle.is_some() && name != cycle_interface => {
-                return Err(format!(
-                    "cycle: this steady cycle is found through the {} interface, not {name:?}",
-                    if through {
-                        "Co-Simulation"
-                    } else {
-                        "Model Exchange"
+        match (self.interface, plan.interface) {
+            (Some(current), Some(wanted)) if current != wanted || method != self.method => {
+                match fmu_target(&self.dir, &self.description, wanted, method) {
+                    Ok(target) => {
+                        self.runner = Runner::new(target);
+                        self.interface = Some(wanted);
+                        self.method = method;
                     }
-                ))
+                    Err(e) => {
+                        refusals.refuse("scenario.interface", e);
+                        return Err(refusals);
+                    }
+                }
             }
-            None if through && self.interface.is_some() => Interface::CoSimulation,
-            None if plan.cycle.is_some() && self.interface.is_some() => Interface::ModelExchange,
-            Some(name) => Interface::from_name(name)?,
-            None if self.interface.is_none() => return Ok(()),
-            None => Interface::default_for(&self.description),
-        };
-        match self.interface {
-            None if wanted == Interface::ModelExchange => Err(
-                "interface \"model_exchange\": a coupled system runs its components' \
-                 co-simulation interfaces"
-                    .into(),
-            ),
-            Some(current) if current != wanted || method != self.method => {
-                let target = fmu_target(&self.dir, &self.description, wanted, method)?;
-                self.runner = Runner::new(target);
-                self.interface = Some(wanted);
-                self.method = method;
-                self.modes_through_exchange(plan)
-            }
-            Some(_) => self.modes_through_exchange(plan),
-            _ => Ok(()),
+            _ => {}
         }
+        if let Err(e) = self.modes_through_exchange(&plan) {
+            refusals.refuse("cycle.modes", e);
+            return Err(refusals);
+        }
+        Ok(plan)
     }
 
     /// A cycle through start values finds its modes on the FMU's Model Exchange
     /// interface: loaded beside the Co-Simulation one where the plan asks for modes.
-    fn modes_through_exchange(&mut self, plan: &PlanSpec) -> Result<(), String> {
+    fn modes_through_exchange(&mut self, plan: &Plan) -> Result<(), String> {
         let wanted = plan
             .cycle
             .as_ref()
-            .is_some_and(|c| c.starts.is_some() && c.modes > 0)
+            .is_some_and(|c| matches!(c.way, crate::cycle_plan::Way::Starts(_)) && c.modes > 0)
             && self.description.has_model_exchange;
         if !wanted {
             self.runner.set_exchange(None);
@@ -181,19 +181,19 @@ impl Session {
     fn answer(&mut self, request: Request, out: &mut impl Write) -> std::io::Result<()> {
         match request {
             Request::Describe => reply(out, &json!({"description": self.description})),
-            Request::Configure { plan } => match self
-                .choose_interface(&plan)
-                .and_then(|()| Plan::resolve(*plan, &self.description))
-            {
+            Request::Configure { plan } => match self.configure(*plan) {
                 Ok(plan) => {
-                    self.runner.forget_cycle();
-                    let columns: Vec<_> = plan.read_names.clone();
+                    let answer = json!({"configured": true, "reads": plan.read_names,
+                                        "series_width": plan.series_width()});
                     self.plan = Some(plan);
-                    reply(out, &json!({"configured": true, "reads": columns}))
+                    reply(out, &answer)
                 }
-                Err(e) => {
+                Err(refusals) => {
                     self.plan = None;
-                    reply(out, &json!({"error": e}))
+                    reply(
+                        out,
+                        &json!({"error": refusals.said(), "refusals": refusals.0}),
+                    )
                 }
             },
             Request::Run {
@@ -247,6 +247,9 @@ impl Session {
             Ok(p) => p,
             Err(e) => return reply(out, &json!({"error": e})),
         };
+        // A request's points continue each other's steady cycles, and nothing before
+        // them: the same rows give the same answers however a sweep deals them out.
+        runner.forget_cycle();
         let mut flushed = Instant::now();
         for (i, row) in rows.iter().enumerate() {
             let r = runner.run_point(plan, &mut assignments, row);

@@ -72,6 +72,28 @@ impl Running {
     }
 }
 
+impl Running {
+    /// The first time derivatives of the outputs `vrs` into `rates`: a single FMU's
+    /// output derivatives under co-simulation, or its directional derivatives along the
+    /// flow under Model Exchange (`states` its continuous states); a system gives none
+    /// (the plan asks for none there).
+    pub fn get_rates(&mut self, vrs: &[u32], states: &[u32], rates: &mut [f64]) -> Status {
+        match self {
+            Running::Fmu(instance) => {
+                for (vr, rate) in vrs.iter().zip(rates.chunks_mut(1)) {
+                    let s = instance.get_output_derivatives(*vr, rate);
+                    if !s.proceeds() {
+                        return s;
+                    }
+                }
+                Status::Ok
+            }
+            Running::Exchange(run) => run.rates(vrs, states, rates),
+            Running::System(_) => Status::Error,
+        }
+    }
+}
+
 impl Unit for Running {
     each_call!(dispatch);
 

@@ -52,6 +52,35 @@ def faulty_fmu(directory: pathlib.Path) -> pathlib.Path:
     return fmu
 
 
+def faulty_rotor(directory: pathlib.Path) -> pathlib.Path:
+    """Compile tests/python/faulty_fmu/rotor.c, a Model Exchange FMU with a steady cycle
+    whose chosen function fails on purpose, and pack it as FaultyRotor.fmu."""
+    headers = pathlib.Path(fmpy.__file__).parent / "c-code"
+    library = directory / "FaultyRotor.so"
+    subprocess.run(["cc", "-shared", "-fPIC", "-O1", "-o", str(library), "-I", str(headers),
+                    str(HERE / "faulty_fmu/rotor.c"), "-lm"], check=True)
+    fmu = directory / "FaultyRotor.fmu"
+    with zipfile.ZipFile(fmu, "w") as z:
+        z.write(HERE / "faulty_fmu/rotorDescription.xml", "modelDescription.xml")
+        z.write(library, "binaries/linux64/FaultyRotor.so")
+    return fmu
+
+
+def stopped_mid_way(spec, fmu, out):
+    """A point's steady cycle searched once without a budget, then with a third of the time
+    it took: the search stops there, with status timeout, before it would have ended."""
+    from fmusweep import run_sweep
+    spec = {**spec, "cycle": {**spec["cycle"], "continuation": False}}
+    free = run_sweep(spec, fmu=fmu, out=out / "free", serial=True, progress=False,
+                     plots=False).points.iloc[0]
+    assert free["status"] == "ok", free["message"]
+    budget = free["wall_s"] / 3
+    spec = {**spec, "scenario": {**spec["scenario"], "timeout": budget}}
+    row = run_sweep(spec, fmu=fmu, out=out / "cut", serial=True, progress=False,
+                    plots=False).points.iloc[0]
+    return free, budget, row
+
+
 def environment_for_workers():
     """The test's environment for worker processes; the package comes from the wheel
     that `cargo xtask test` installs in the venv."""

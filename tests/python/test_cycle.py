@@ -9,15 +9,17 @@ import ctypes
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.interpolate import CubicSpline
 from scipy.linalg import eigh
 from scipy.optimize import brentq
 
 from fmusweep import SpecError, linearise, run_sweep
+from sweep_helpers import faulty_rotor, stopped_mid_way
 
 TAU = 2 * math.pi
-CYCLE = {"state": "loop_angle", "period": TAU, "shifted": ["phi1"]}
+CYCLE = {"state": "loop_angle", "advance": TAU, "shifted": ["phi1"]}
 METRICS = {"peak": {"variable": "rod_force", "kind": "max"},
            "low": {"variable": "rod_force", "kind": "min"},
            "swing": {"variable": "rod_force", "kind": "peak_to_peak"},
@@ -72,7 +74,7 @@ def test_the_steady_cycle_is_the_long_transients_last_revolution(fmu_path, fmu3_
     point = sweep(cycle_spec(parameters, listed(J1=[0.5])), fmu,
                   tmp_path / "cycle").points.iloc[0]
     assert point["status"] == "ok", point["message"]
-    assert point["cycle_stability"] == "stable" and point["cycle_residual"] <= 1e-10
+    assert point["cycle_margin"] > 0 and point["cycle_residual"] <= 1e-10
     period, samples = point["cycle_period"], 2048
     revolutions = math.ceil(math.log(1e-12) / math.log(point["cycle_multiplier"])) + 5
     step = period / samples
@@ -241,27 +243,33 @@ def test_points_without_a_steady_cycle_say_why(fmu_path, tmp_path):
 
 
 def test_mistakes_in_a_cycle_are_refused_by_field_in_one_run(fmu_path, tmp_path):
+    """Every mistake of a [cycle] table, of its metrics and of its names against the FMU,
+    in one run: the runner holds the table's rules and answers them all at once."""
     spec = cycle_spec({}, listed(J1=[0.5]), {
         "a": {"variable": "rod_force", "kind": "final"},
         "b": {"variable": "rod_force", "kind": "max", "from": 2.0},
-        "c": {"variable": "rod_force", "kind": "harmonic"}},
-        state="phi2", period=-1.0, shifted=["phi9"], monodromy="guess", samples=4)
+        "c": {"variable": "rod_force", "kind": "harmonic"},
+        "d": {"variable": "rod_force", "kind": "max", "extremes": "between"}},
+        state="phi2", advance=-1.0, shifted=["phi9"], monodromy="guess", samples=4,
+        keep=["n_steps"], sampels=8)
     with pytest.raises(SpecError) as raised:
         sweep(spec, fmu_path, tmp_path / "out")
     fields = {e.field: e.rule for e in raised.value.errors}
-    assert set(fields) == {"cycle.period", "cycle.monodromy", "cycle.samples",
+    assert set(fields) == {"cycle.advance", "cycle.monodromy", "cycle.samples", "cycle.sampels",
+                           "cycle.state", "cycle.shifted[0]", "cycle.keep[0]",
                            "outputs.metrics.a.kind", "outputs.metrics.b.from",
-                           "outputs.metrics.c.order"}, fields
+                           "outputs.metrics.c.order", "outputs.metrics.d.extremes"}, fields
     assert "whole number in [8, " in fields["cycle.samples"]
-    # Against the FMU: a variable that is not a state, one that does not exist.
-    spec = cycle_spec({}, listed(J1=[0.5]), state="phi2", shifted=["phi9"], keep=["n_steps"])
+    assert "did you mean samples" in fields["cycle.sampels"]
+    assert "not a continuous state" in fields["cycle.state"] and "loop_angle" in fields["cycle.state"]
+    assert "no variable named \"phi9\"" in fields["cycle.shifted[0]"]
+    assert not (tmp_path / "out").exists()
+    # The old name of the advance is told its new one.
+    spec = cycle_spec({}, listed(J1=[0.5]), metrics={})
+    spec["cycle"]["period"] = spec["cycle"].pop("advance")
     with pytest.raises(SpecError) as raised:
         sweep(spec, fmu_path, tmp_path / "out")
-    fields = {e.field: e.rule for e in raised.value.errors}
-    assert set(fields) == {"cycle.state", "cycle.shifted[0]", "cycle.keep[0]"}, fields
-    assert "not a continuous state" in fields["cycle.state"] and "loop_angle" in fields["cycle.state"]
-    assert "no variable 'phi9'" in fields["cycle.shifted[0]"]
-    assert not (tmp_path / "out").exists()
+    assert raised.value.field == "cycle.period" and "advance" in raised.value.rule
 
 
 def test_a_cycle_needs_model_exchange(motor_path, fmu_path, tmp_path):
@@ -276,15 +284,64 @@ def test_a_cycle_needs_model_exchange(motor_path, fmu_path, tmp_path):
     assert raised.value.field == "scenario.interface"
 
 
+def test_a_cycle_grid_gives_the_same_table_on_any_number_of_workers(fmu_path, tmp_path):
+    """Each point of a grid of steady cycles starts from its neighbours' cycles along its
+    row, or from its own transient at a row's start, whatever ran where: serially and on
+    2 and 3 workers the table is the same bit for bit (the times and workers aside), every
+    point with its cycle."""
+    spec = cycle_spec({"d12": 0.05, "d34": 0.05},
+                      {"parameters": {"Mm_a0": {"linspace": [60, 200, 15]},
+                                      "k34": {"linspace": [60, 160, 6]}}},
+                      metrics={"peak": METRICS["peak"], "swing": METRICS["swing"]},
+                      tolerance=1e-8, modes=2)
+    spec["scenario"]["stop"] = 400.0
+    tables = []
+    for engine in ({"serial": True}, {"workers": 2}, {"workers": 3}):
+        out = tmp_path / str(len(tables))
+        points = run_sweep(spec, fmu=fmu_path, out=out, progress=False, plots=False,
+                           **engine).points
+        tables.append(points.drop(columns=["wall_s", "worker"]).sort_values("point"))
+    assert (tables[0]["status"] == "ok").all(), tables[0]["message"].unique()
+    assert tables[0]["cycle_continued"].sum() > 60
+    for other in tables[1:]:
+        pd.testing.assert_frame_equal(other.reset_index(drop=True),
+                                      tables[0].reset_index(drop=True), check_exact=True)
+
+
+@pytest.mark.parametrize("call", ["fmi2SetTime", "fmi2SetContinuousStates",
+                                  "fmi2GetDerivatives", "fmi2GetReal",
+                                  "fmi2GetDirectionalDerivative"])
+def test_nothing_is_called_after_an_fmu_returns_error(tmp_path, call):
+    """A rotor whose `call` returns Error at its n-th call: the cycle's search stops there
+    (the row says the FMU's error; the rotor says so of any call after it, and none
+    comes), and a rotor that never fails turns round its steady cycle."""
+    calls = ["fmi2SetTime", "fmi2SetContinuousStates", "fmi2GetDerivatives", "fmi2GetReal",
+             "fmi2GetDirectionalDerivative"]
+    rotor = faulty_rotor(tmp_path)
+    spec = {"scenario": {"stop": 200.0, "step": 0.01, "tolerance": 1e-8,
+                         "parameters": {"fail_call": calls.index(call) + 1}},
+            "design": listed(fail_after=[1, 2, 5, 40, 300, 3000, 30000, 2 ** 30]),
+            "cycle": {"state": "theta", "advance": TAU, "modes": 2, "samples": 64},
+            "outputs": {"metrics": {"top": {"variable": "omega", "kind": "max"}}}}
+    points = sweep(spec, rotor, tmp_path / "out").points
+    said = list(points["message"])
+    assert not any("called after" in m for m in said), said
+    failed = points[points["status"] != "ok"]
+    assert len(failed) >= 3, said
+    assert (failed["status"] == "error").all() and all("fails on purpose" in m
+                                                       for m in failed["message"]), said
+    assert points["status"].iloc[-1] == "ok" and points["top"].iloc[-1] > 1.0
+
+
 def test_a_cycle_keeps_to_the_points_time_budget(fmu_path, tmp_path):
-    """scenario.timeout holds for a steady cycle's search as for a transient: over it, the
-    row says timeout and why, and the next point runs."""
-    spec = cycle_spec({}, listed(d34=[0.0, 0.5]), metrics={"swing": METRICS["swing"]})
-    spec["scenario"]["timeout"] = 1e-9
-    points = sweep(spec, fmu_path, tmp_path / "out").points
-    assert list(points["status"]) == ["timeout", "timeout"]
-    assert all(m.startswith("over the budget of") and "s per point" in m for m in points["message"])
-    assert points["swing"].isna().all()
+    """scenario.timeout holds for a steady cycle's search as for a transient: a budget the
+    search reaches mid-way stops it there, the row saying timeout and why."""
+    spec = cycle_spec({"d34": 0.05}, listed(J1=[0.5]), metrics={"swing": METRICS["swing"]})
+    free, budget, row = stopped_mid_way(spec, fmu_path, tmp_path)
+    assert row["status"] == "timeout"
+    assert row["message"].startswith("over the budget of") and "s per point" in row["message"]
+    assert budget <= row["wall_s"] < 0.9 * free["wall_s"], (budget, row["wall_s"], free["wall_s"])
+    assert np.isnan(row["swing"])
 
 
 @pytest.mark.parametrize("through_starts", [False, True])
@@ -299,7 +356,7 @@ def test_the_linearisation_along_the_cycle_is_the_fmus_own(fmu_path, tmp_path, t
     parameters = {"d12": 0.1, "d34": 0.1}
     along = {**CYCLE, "modes": 4}
     if through_starts:
-        along = {"state": "phi2", "period": TAU, "shifted": ["phi1"], "modes": 4,
+        along = {"state": "phi2", "advance": TAU, "shifted": ["phi1"], "modes": 4,
                  "starts": ["twist12_0", "twist34_0", "omega1_0", "omega2_0", "omega4_0"]}
     found = linearise(fmu_path, parameters, along=along)
     point = cycle_of(fmu_path, tmp_path / "cycle", dict(parameters), modes=4)

@@ -152,7 +152,7 @@ def test_steady_cycles_over_the_motor_law(fmu_path, tmp_path):
     diagram marks."""
     points, said = sweep("steady_cycle.toml", fmu_path, tmp_path)
     assert len(points) == 181 and (points["status"] == "ok").all(), points["message"].unique()
-    assert (points["cycle_stability"] == "stable").all()
+    assert (points["cycle_margin"] > 0).all()
     assert "181 points" in said
     for picture in ("campbell", "cycle_multipliers", "cycle", "metrics"):
         assert (tmp_path / "plots" / f"{picture}.png").stat().st_size > 10_000

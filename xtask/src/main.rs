@@ -14,6 +14,7 @@ mod cli;
 mod demo;
 mod fit;
 mod fmu;
+mod folders;
 mod instructions;
 mod layers;
 mod master;

@@ -114,10 +114,26 @@ fn layer_problems(architecture: &str) -> Result<Vec<String>> {
         crate::layers::from_architecture(architecture)?,
     )];
     let mut problems = Vec::new();
+    let mut folders = Vec::new();
     for (folder, layers) in crate::layers::other_crates(architecture)? {
-        match folder.starts_with("python/") {
-            true => problems.extend(package_shape(&folder, &layers)?),
-            false => crates.push((format!("{folder}/src"), layers)),
+        if folder.starts_with("python/") {
+            problems.extend(package_shape(&folder, &layers)?);
+        } else if crate::folders::is_folder(&folder) {
+            folders.push(format!("{folder}/"));
+            let code = |text: &str| code_lines(text).map(|(n, l)| (n, l.to_string())).collect();
+            problems.extend(crate::folders::problems(&root(), &folder, &layers, code)?);
+        } else {
+            crates.push((format!("{folder}/src"), layers));
+        }
+    }
+    for dir in PRODUCT {
+        for folder in crate::folders::folders_below(&root(), dir)? {
+            if !folders.contains(&folder) {
+                problems.push(format!(
+                    "{folder}: a folder of several modules without its row in \
+                     ARCHITECTURE.md's table of layers"
+                ));
+            }
         }
     }
     for (dir, layers) in &crates {

@@ -58,6 +58,20 @@ class Design:
         sensitivity estimators and small designs, should ask)."""
         return self.rows_at(np.arange(len(self), dtype=np.int64))
 
+    def chains(self, points: Points, most: int) -> list[Points]:
+        """`points` (ascending) cut into chains, each of consecutive points of the design
+        along one row of a grid (its last parameter varying; a design of listed rows is one
+        row), at most `most` long: a chain starts at a row's start, every `most` points
+        along a row, and where the points skip one. Where a chain starts depends on the
+        design alone."""
+        points = np.asarray(points, dtype=np.int64)
+        if not len(points):
+            return []
+        row = len(self.axes[-1]) if self.axes is not None else len(self)
+        starts = np.ones(len(points), dtype=bool)
+        starts[1:] = (np.diff(points) != 1) | ((points[1:] % row) % most == 0)
+        return np.split(points, np.flatnonzero(starts)[1:])
+
     def column_values(self, j: int) -> Rows:
         """Every value column j takes (a grid's axis: each value once)."""
         if self.axes is not None:

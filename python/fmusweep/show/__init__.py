@@ -36,7 +36,8 @@ def show_sweep(out: pathlib.Path, design: Design, points: pd.DataFrame, metrics:
     pictures = sweep_pictures(design, points, metrics, drawn, out / "plots")
     series = first_series(out, points)
     if has_cycles(points):
-        pictures += cycle_pictures(points, series, cyclic or [], kept or [], out / "plots")
+        pictures += cycle_pictures(points, series, design.names, cyclic or [], kept or [],
+                                   out / "plots")
     report = sweep_report(out, design.names, points, metrics, drawn, series, cyclic=cyclic or [],
                           cycle_kept=kept or [])
     return pictures, report

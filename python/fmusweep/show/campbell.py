@@ -13,7 +13,7 @@ import numpy as np
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["Campbell", "campbell", "multipliers", "cycles_of", "has_cycles"]
+__all__ = ["Campbell", "Slice", "campbell", "multipliers", "cycles_of", "has_cycles"]
 
 # The most order lines drawn, and the points whose kept cycle is drawn.
 MOST_ORDERS = 12
@@ -37,45 +37,124 @@ def multipliers(points: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 @dataclass(frozen=True)
-class Campbell:
-    """Mode frequencies (Hz) against the cycle's frequency (Hz), a column per mode, the
-    order lines' orders, and their crossings: (cycle frequency, mode frequency, order)."""
+class Slice:
+    """One curve of a Campbell diagram: the points whose other design parameters take one
+    set of values (`label` names them; empty where nothing else varies), their cycles'
+    frequencies and mode frequencies (Hz, a column per mode), and where an order line
+    meets a mode: (cycle frequency, mode frequency, order)."""
+    label: str
     cycle_hz: np.ndarray
     modes_hz: np.ndarray
     points: np.ndarray
-    orders: list[int]
     crossings: list[tuple[float, float, int]]
 
 
-def campbell(points: pd.DataFrame) -> Campbell | None:
-    """The Campbell diagram of the points whose cycles have modes (None without any):
-    where a mode's frequency, fitted as a smooth function of the cycle's frequency (a
+@dataclass(frozen=True)
+class Campbell:
+    """Mode frequencies against the cycle's frequency along one design parameter (`along`,
+    None where the design varies none), a slice per set of values of the others (at most
+    MOST_SLICES of them drawn), the order lines' orders, and what the caption says: which
+    slices are drawn, or why there is no diagram (then no slice)."""
+    along: str | None
+    slices: list[Slice]
+    orders: list[int]
+    caption: str
+
+
+# The most slices one diagram draws (spread over them where there are more).
+MOST_SLICES = 8
+
+
+def _ordered_by(ok: pd.DataFrame, name: str, others: list[str]) -> float | None:
+    """How far the cycle's frequency moves along `name` within each slice of the `others`
+    (its relative span, the smallest over the slices), where it moves one way along it in
+    every slice of two points or more; None where it does not."""
+    spans = []
+    groups = ok.groupby(others, sort=True) if others else [((), ok)]
+    for _, group in groups:
+        if len(group) < 2:
+            continue
+        ordered = group.sort_values(name)
+        if ordered[name].duplicated().any():
+            return None
+        hz = ordered["cycle_hz"].to_numpy()
+        steps = np.diff(hz)
+        if not (np.all(steps > 0) or np.all(steps < 0)):
+            return None
+        spans.append(float(np.ptp(hz) / np.mean(np.abs(hz))))
+    return min(spans) if spans else None
+
+
+def _crossings(cycle_hz: np.ndarray, table: np.ndarray,
+               orders: list[int]) -> list[tuple[float, float, int]]:
+    """Where each mode's frequency, fitted as a smooth function of the cycle's frequency (a
     polynomial of degree up to 2), meets k times the cycle's frequency."""
-    ok = points[points["cycle_period"].notna()]
-    if "cycle_modes_hz" not in ok.columns:
+    low, high = float(cycle_hz.min()), float(cycle_hz.max())
+    if not high > low:
+        return []
+    degree = min(2, len(np.unique(cycle_hz)) - 1)
+    found = []
+    for m in range(table.shape[1]):
+        fit = np.polyfit(cycle_hz, table[:, m], degree)
+        for k in orders:
+            gap = fit.copy()
+            gap[-2] -= k  # the mode's fit less k times the cycle's frequency
+            for root in np.roots(gap):
+                if abs(root.imag) < 1e-9 and low <= root.real <= high:
+                    found.append((float(root.real), float(np.polyval(fit, root.real)), k))
+    return sorted(found)
+
+
+def campbell(points: pd.DataFrame, names: list[str]) -> Campbell | None:
+    """The Campbell diagram of the points whose cycles have modes (None without any): a
+    function of one speed-like parameter, so one curve per slice of the design's other
+    parameters, along the one that orders the cycles' frequencies in every slice (of the
+    several that do, the one that moves them most); no slice where none does."""
+    ok = points[points["cycle_period"].notna()].copy()
+    if "cycle_modes_hz" not in ok.columns or ok.empty:
         return None
     modes = [np.asarray(m, dtype=float) for m in ok["cycle_modes_hz"] if m is not None]
     count = min((len(m) for m in modes), default=0)
     if count == 0:
         return None
-    cycle_hz = 1.0 / ok["cycle_period"].to_numpy(dtype=float)
+    ok["cycle_hz"] = 1.0 / ok["cycle_period"].to_numpy(dtype=float)
     table = np.array([np.asarray(m, dtype=float)[:count] for m in ok["cycle_modes_hz"]])
-    top = float(np.nanmax(table))
-    lowest = float(cycle_hz.min())
+    top, lowest = float(np.nanmax(table)), float(ok["cycle_hz"].min())
     orders = list(range(1, min(MOST_ORDERS, int(top / lowest) + 1) + 1))
-    crossings = []
-    low, high = float(cycle_hz.min()), float(cycle_hz.max())
-    if high > low:
-        degree = min(2, len(np.unique(cycle_hz)) - 1)
-        for m in range(count):
-            fit = np.polyfit(cycle_hz, table[:, m], degree)
-            for k in orders:
-                gap = fit.copy()
-                gap[-2] -= k  # the mode's fit less k times the cycle's frequency
-                for root in np.roots(gap):
-                    if abs(root.imag) < 1e-9 and low <= root.real <= high:
-                        crossings.append((float(root.real), float(np.polyval(fit, root.real)), k))
-    return Campbell(cycle_hz, table, ok["point"].to_numpy(), orders, sorted(crossings))
+    varying = [n for n in names if n in ok.columns and ok[n].nunique() > 1]
+    if not varying:
+        return Campbell(None, [Slice("", ok["cycle_hz"].to_numpy(), table,
+                                     ok["point"].to_numpy(),
+                                     _crossings(ok["cycle_hz"].to_numpy(), table, orders))],
+                        orders, "one design point")
+    spans = {n: _ordered_by(ok, n, [o for o in varying if o != n]) for n in varying}
+    ordering = {n: span for n, span in spans.items() if span is not None}
+    if not ordering:
+        return Campbell(None, [], orders,
+                        f"no design parameter ({', '.join(varying)}) moves the cycle's "
+                        "frequency one way in every slice of the others: a Campbell diagram "
+                        "needs one, so none is drawn")
+    along = max(ordering, key=lambda n: ordering[n])
+    others = [o for o in varying if o != along]
+    slices = []
+    groups = ok.groupby(others, sort=True) if others else [((), ok)]
+    for key, group in groups:
+        values = key if isinstance(key, tuple) else (key,)
+        label = ", ".join(f"{o} = {v:g}" for o, v in zip(others, values))
+        rows = group.sort_values("cycle_hz")
+        at = ok.index.get_indexer(rows.index)
+        hz = rows["cycle_hz"].to_numpy()
+        slices.append(Slice(label, hz, table[at], rows["point"].to_numpy(),
+                            _crossings(hz, table[at], orders)))
+    drawn = slices
+    if len(slices) > MOST_SLICES:
+        picks = np.unique(np.linspace(0, len(slices) - 1, MOST_SLICES).round().astype(int))
+        drawn = [slices[i] for i in picks]
+    caption = (f"along {along}" if not others else
+               f"along {along}, one curve per {', '.join(others)}"
+               + (f" ({len(drawn)} of {len(slices)} slices, spread over them)"
+                  if len(drawn) < len(slices) else ""))
+    return Campbell(along, drawn, orders, caption)
 
 
 def cycles_of(points: pd.DataFrame, series: pd.DataFrame | None,

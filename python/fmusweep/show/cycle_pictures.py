@@ -6,6 +6,7 @@ few points with the phase portrait of the first two."""
 from __future__ import annotations
 
 import pathlib
+import warnings
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,12 +20,16 @@ if TYPE_CHECKING:
 __all__ = ["cycle_pictures"]
 
 
-def cycle_pictures(points: pd.DataFrame, series: pd.DataFrame | None, cyclic: list[str],
-                   kept: list[str], out: pathlib.Path) -> list[pathlib.Path]:
+def cycle_pictures(points: pd.DataFrame, series: pd.DataFrame | None, names: list[str],
+                   cyclic: list[str], kept: list[str],
+                   out: pathlib.Path) -> list[pathlib.Path]:
+    """The pictures of a sweep of steady cycles over the design parameters `names`."""
     written = [_multipliers(points, out / "cycle_multipliers.png")]
-    diagram = campbell(points)
-    if diagram is not None:
+    diagram = campbell(points, names)
+    if diagram is not None and diagram.slices:
         written.append(_campbell(diagram, out / "campbell.png"))
+    elif diagram is not None:
+        warnings.warn(f"campbell.png: {diagram.caption}", stacklevel=2)
     drawn = cycles_of(points, series, cyclic, kept)
     if drawn:
         written.append(_cycles(drawn, out / "cycle.png"))
@@ -52,31 +57,54 @@ def _multipliers(points: pd.DataFrame, path: pathlib.Path) -> pathlib.Path:
     return save(fig, path)
 
 
+# The markers of a diagram's modes, in order.
+MODE_MARKERS = "os^Dv"
+
+
 def _campbell(diagram: object, path: pathlib.Path) -> pathlib.Path:
     from .campbell import Campbell
     assert isinstance(diagram, Campbell)
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 5))
-    f = diagram.cycle_hz
-    order = np.argsort(f)
-    for m in range(diagram.modes_hz.shape[1]):
-        ax.plot(f[order], diagram.modes_hz[order, m], "o", ms=3, label=f"mode {m + 1}")
-    span = np.array([0.0, f.max() * 1.05])
-    top = float(np.nanmax(diagram.modes_hz)) * 1.1
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    right = max(float(s.cycle_hz.max()) for s in diagram.slices) * 1.05
+    top = max(float(np.nanmax(s.modes_hz)) for s in diagram.slices) * 1.1
+    for i, piece in enumerate(diagram.slices):
+        colour = colours[i % len(colours)]
+        for m in range(piece.modes_hz.shape[1]):
+            ax.plot(piece.cycle_hz, piece.modes_hz[:, m], marker=MODE_MARKERS[m % 5], ms=3,
+                    lw=0.8, color=colour, label=(piece.label or "modes") if m == 0 else None)
+        if piece.crossings:
+            x, y, _ = zip(*piece.crossings)
+            ax.plot(x, y, "x", color=colour, ms=8, mew=2)
+    span = np.array([0.0, right])
     for k in diagram.orders:
         ax.plot(span, k * span, color="0.6", lw=0.8, ls="--")
-        end = min(span[1], top / k)
-        ax.annotate(f"{k}×", (end, k * end), fontsize=7, color="0.4")
-    if diagram.crossings:
-        x, y, _ = zip(*diagram.crossings)
-        ax.plot(x, y, "x", color="#d62728", ms=8, mew=2, label="order line meets a mode")
-    ax.set_xlim(0, span[1])
+    _label_orders(ax, diagram.orders, right, top)
+    ax.plot([], [], "x", color="0.3", ms=8, mew=2, label="an order line meets a mode")
+    ax.set_xlim(0, right)
     ax.set_ylim(0, top)
-    ax.set_xlabel("cycle frequency 1/T (Hz)")
+    ax.set_xlabel("cycle frequency 1/T (Hz)" + (f", along {diagram.along}" if diagram.along
+                                                 else ""))
     ax.set_ylabel("mode frequency (Hz), mean along the cycle")
-    ax.set_title("Campbell diagram")
-    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(f"Campbell diagram, {diagram.caption}", fontsize=10)
+    ax.legend(loc="upper left", fontsize=7, ncol=2 if len(diagram.slices) > 4 else 1)
     return save(fig, path)
+
+
+def _label_orders(ax: object, orders: list[int], right: float, top: float) -> None:
+    """Each order line's label where it leaves the plot (the right edge, or the top), the
+    labels along the top kept apart."""
+    placed: list[float] = []
+    for k in orders:
+        end = min(right, top / k)
+        at_top = end < right
+        if at_top and placed and end - placed[-1] < 0.035 * right:
+            continue
+        if at_top:
+            placed.append(end)
+        ax.annotate(f"{k}×", (end, k * end), fontsize=7, color="0.4",  # type: ignore[attr-defined]
+                    xytext=(2, -9) if at_top else (-14, 2), textcoords="offset points")
 
 
 def _cycles(drawn: dict[int, pd.DataFrame], path: pathlib.Path) -> pathlib.Path:

@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from .campbell import campbell, cycles_of, has_cycles, multipliers
+from .campbell import Campbell, campbell, cycles_of, has_cycles, multipliers
 
 if TYPE_CHECKING:
     from ..designs import IndexChart
@@ -147,7 +147,7 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
         sections.append(_metric_section(k, metric, points, varied, failed))
     sections += [_index_section(chart) for chart in charts]
     if has_cycles(points):
-        sections += _cycle_sections(points, series, cyclic or [], cycle_kept or [])
+        sections += _cycle_sections(points, series, names, cyclic or [], cycle_kept or [])
     sections.append(_failed_table(points, names))
     if kept:
         sections.append("<h2>Time series of the chosen point</h2><p id=\"series-note\" class=\"note\">"
@@ -159,7 +159,7 @@ def sweep_report(out: pathlib.Path, names: list[str], points: pd.DataFrame, metr
     return path
 
 
-def _cycle_sections(points: pd.DataFrame, series: pd.DataFrame | None,
+def _cycle_sections(points: pd.DataFrame, series: pd.DataFrame | None, names: list[str],
                     cyclic: list[str], kept: list[str]) -> list[str]:
     """A sweep of steady cycles: the multipliers on the unit circle, the Campbell diagram
     and one cycle of the kept variables of a few points, with a phase portrait."""
@@ -176,37 +176,54 @@ def _cycle_sections(points: pd.DataFrame, series: pd.DataFrame | None,
                       "hoverinfo": "text"}],
                     {"xaxis": {"title": {"text": "Re μ"}, "range": [-1.1, 1.1]},
                      "yaxis": {"title": {"text": "Im μ"}, "scaleanchor": "x"}}, 520)]
-    diagram = campbell(points)
+    diagram = campbell(points, names)
     if diagram is not None:
-        f = diagram.cycle_hz
-        top = float(np.nanmax(diagram.modes_hz)) * 1.1
-        span = [0.0, float(f.max()) * 1.05]
-        data: list[dict[str, Any]] = [
-            {"type": "scatter", "x": f, "y": diagram.modes_hz[:, m], "mode": "markers",
-             "name": f"mode {m + 1}", "customdata": diagram.points, "labelled": True,
-             "hoverinfo": "text"} for m in range(diagram.modes_hz.shape[1])]
-        data += [{"type": "scatter", "x": span, "y": [k * x for x in span], "mode": "lines",
-                  "name": f"order {k}", "line": {"dash": "dash", "width": 1, "color": "#999"},
-                  "showlegend": k == 1} for k in diagram.orders]
-        if diagram.crossings:
-            data.append({"type": "scatter", "x": [c[0] for c in diagram.crossings],
-                         "y": [c[1] for c in diagram.crossings], "mode": "markers",
-                         "name": "an order line meets a mode",
-                         "text": [f"order {c[2]}: {c[0]:.4g} Hz" for c in diagram.crossings],
-                         "marker": {"symbol": "x", "size": 11, "color": FAILED}})
-        sections.append("<h2>Campbell diagram</h2><p class=\"note\">The modes of the state "
-                        "equations linearised along each cycle (mean frequency), against the "
-                        "cycle's frequency; dashed, k times the cycle's frequency; crosses, "
-                        "where a harmonic of order k meets a mode (a resonance).</p>" + _plot(
-                            "campbell", data,
-                            {"xaxis": {"title": {"text": "cycle frequency 1/T (Hz)"},
-                                       "range": span},
-                             "yaxis": {"title": {"text": "mode frequency (Hz)"},
-                                       "range": [0, top]}}, 520))
+        sections.append(_campbell_section(diagram))
     drawn = cycles_of(points, series, cyclic, kept)
     if drawn:
         sections.append(_cycle_section(drawn))
     return sections
+
+
+def _campbell_section(diagram: Campbell) -> str:
+    """The Campbell diagram: a curve per slice of the design, each with its crossings; or,
+    where no design parameter orders the cycles, why there is none."""
+    head = "<h2>Campbell diagram</h2>"
+    if not diagram.slices:
+        return f"{head}<p class=\"note\">{html.escape(diagram.caption)}.</p>"
+    right = max(float(s.cycle_hz.max()) for s in diagram.slices) * 1.05
+    top = max(float(np.nanmax(s.modes_hz)) for s in diagram.slices) * 1.1
+    data: list[dict[str, Any]] = []
+    for i, piece in enumerate(diagram.slices):
+        colour = _COLOURS[i % len(_COLOURS)]
+        name = piece.label or "modes"
+        for m in range(piece.modes_hz.shape[1]):
+            data.append({"type": "scatter", "x": piece.cycle_hz, "y": piece.modes_hz[:, m],
+                         "mode": "lines+markers", "name": name, "legendgroup": name,
+                         "showlegend": m == 0, "line": {"color": colour, "width": 1},
+                         "marker": {"size": 5}, "customdata": piece.points,
+                         "labelled": True, "hoverinfo": "text"})
+        if piece.crossings:
+            data.append({"type": "scatter", "x": [c[0] for c in piece.crossings],
+                         "y": [c[1] for c in piece.crossings], "mode": "markers",
+                         "name": name, "legendgroup": name, "showlegend": False,
+                         "text": [f"{name}: order {c[2]} meets a mode at {c[0]:.4g} Hz"
+                                  for c in piece.crossings],
+                         "marker": {"symbol": "x", "size": 11, "color": colour}})
+    span = [0.0, right]
+    data += [{"type": "scatter", "x": span, "y": [k * x for x in span], "mode": "lines",
+              "name": "k × the cycle's frequency",
+              "line": {"dash": "dash", "width": 1, "color": "#999"},
+              "showlegend": k == 1, "hoverinfo": "skip"} for k in diagram.orders]
+    axis = "cycle frequency 1/T (Hz)" + (f", along {diagram.along}" if diagram.along else "")
+    return (f"{head}<p class=\"note\">{html.escape(diagram.caption.capitalize())}: the "
+            "modes of the state equations linearised along each cycle (mean frequency), "
+            "against the cycle's frequency; dashed, k times the cycle's frequency; crosses, "
+            "where a harmonic of order k meets a mode in that slice (a resonance).</p>"
+            + _plot("campbell", data,
+                    {"xaxis": {"title": {"text": axis}, "range": span},
+                     "yaxis": {"title": {"text": "mode frequency (Hz)"}, "range": [0, top]}},
+                    520))
 
 
 def _cycle_section(drawn: dict[int, pd.DataFrame]) -> str:

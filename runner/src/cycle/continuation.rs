@@ -4,8 +4,8 @@
 //! cycles extended to this point, whose error is second order in the spacing instead of
 //! first.
 
-use super::shooting::Shot;
-use crate::cycle_plan::CyclePlan;
+use super::periodic::Shot;
+use crate::cycle_plan::{CyclePlan, Way};
 
 /// The last two points' rows and cycles, the latest last.
 #[derive(Default)]
@@ -52,9 +52,10 @@ impl Continuation {
 /// count: the shifted states relative to it, which stays the last cycle's. Through start
 /// values the unknowns hold no cyclic state, and each is extended as it is.
 fn extended(first: &Shot, last: &Shot, plan: &CyclePlan) -> Shot {
-    let period = 2.0 * last.period - first.period;
-    let period = if period > 0.0 { period } else { last.period };
-    if plan.through.is_some() {
+    let (a, b) = (first.search.period, last.search.period);
+    let mut search = last.search.clone();
+    search.period = if 2.0 * b - a > 0.0 { 2.0 * b - a } else { b };
+    if matches!(plan.way, Way::Starts(_)) {
         let x0 = last
             .x0
             .iter()
@@ -63,7 +64,7 @@ fn extended(first: &Shot, last: &Shot, plan: &CyclePlan) -> Shot {
             .collect();
         return Shot {
             x0,
-            period,
+            search,
             ..last.clone()
         };
     }
@@ -86,7 +87,7 @@ fn extended(first: &Shot, last: &Shot, plan: &CyclePlan) -> Shot {
     }
     Shot {
         x0,
-        period,
+        search,
         ..last.clone()
     }
 }

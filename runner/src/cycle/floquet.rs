@@ -117,20 +117,11 @@ fn eigenvector(p: &DMatrix<f64>, re: f64, im: f64) -> (Vec<f64>, Vec<f64>) {
     )
 }
 
-/// What the multipliers say: stable when every one lies inside the unit circle by more
-/// than `band`, unstable when one lies outside by more, marginal between; and the margin,
-/// 1 − the largest modulus.
-pub fn stability(multipliers: &[Multiplier], band: f64) -> (&'static str, f64) {
+/// Whether the largest multiplier lies on the unit circle, to within `band`: an undamped
+/// mode, not a steady cycle.
+pub fn marginal(multipliers: &[Multiplier], band: f64) -> bool {
     let largest = multipliers.first().map_or(0.0, |m| m.modulus);
-    let margin = 1.0 - largest;
-    let verdict = if margin > band {
-        "stable"
-    } else if margin < -band {
-        "unstable"
-    } else {
-        "marginal"
-    };
-    (verdict, margin)
+    (1.0 - largest).abs() <= band
 }
 
 /// A mode of the state equations linearised at one point: an eigenvalue of A.
@@ -197,7 +188,7 @@ mod tests {
             assert!((m.modulus - decay).abs() < 1e-12, "{m:?}");
             assert!((m.im.abs() - decay * turn.sin()).abs() < 1e-12);
         }
-        assert_eq!(stability(&found, 1e-6).0, "stable");
+        assert!(!marginal(&found, 1e-6) && marginal(&found, 1.0 - decay + 1e-9));
         let modes = modes(&[0.0, 1.0, -omega * omega, -2.0 * zeta * omega], 2);
         assert_eq!(modes.len(), 1);
         let expected = omega * (1.0 - zeta * zeta).sqrt() / std::f64::consts::TAU;

@@ -1,15 +1,15 @@
-//! One leg of a Model Exchange FMU's flow, integrated by DOP853 from a given state: for a
-//! given time, or until a state reaches a value; with the flow's derivative with respect
-//! to the starting state (the variational equations, from the FMU's directional
-//! derivatives) when asked, and the states at given times on the way. An event indicator
-//! that changes sign on the way ends the leg: a cycle through an event is not one this
-//! analysis handles.
-
-use std::cell::{Cell, RefCell};
+//! One leg of a Model Exchange FMU's flow, integrated by DOP853 from a given state on the
+//! runner's own right-hand side of the FMU ([`Scaled`]): for a given time, or until a
+//! state reaches a value; with the flow's derivative with respect to the starting state
+//! (the variational equations) when asked, and the states at given times on the way. An
+//! event indicator that changes sign on the way ends the leg: a cycle through an event is
+//! not one this analysis handles.
 
 use integrators::{initial_step, Dop853, OdeSystem, Stepper, Tolerances};
 
-use crate::fmi::{Instance, Status};
+use super::periodic::{check, NoCycle};
+use crate::exchange::{at_size, AtSize, Scaled, Variational};
+use crate::fmi::Instance;
 
 /// What a leg runs on: the FMU in continuous-time mode, its states' nominals and value
 /// references.
@@ -57,88 +57,35 @@ pub struct Leg {
 pub enum Stopped {
     /// Event indicator `k` changed sign near time `t` after the leg's start.
     Event(usize, f64),
-    /// The state did not reach its value in the time given.
-    NotReached,
-    /// The FMU or the integrator failed, saying why.
-    Failed(String),
-    /// The point's wall-time budget (seconds) ran out before the leg began.
-    OverBudget(f64),
+    /// The state did not reach its value in the time given; `moving` where it still
+    /// moved toward it at the end.
+    NotReached { moving: bool },
+    /// The FMU or the integrator failed.
+    Failed(NoCycle),
 }
 
-/// The FMU's right-hand side, states over their nominals; with `variational`, the
-/// columns of Ψ = D⁻¹ Φ D after the state (D the nominals), Ψ' = D⁻¹ J D Ψ, but the
-/// cyclic state's.
-struct Flow<'a, 'b> {
-    problem: RefCell<&'a mut Problem<'b>>,
-    n: usize,
+impl From<NoCycle> for Stopped {
+    fn from(failed: NoCycle) -> Stopped {
+        Stopped::Failed(failed)
+    }
+}
+
+/// A leg at the size it is compiled for.
+struct SizedLeg<'p, 'a, 'r> {
+    problem: &'p mut Problem<'a>,
+    t0: f64,
+    x0: &'r [f64],
+    end: End,
     variational: bool,
-    failure: Cell<Option<Status>>,
+    at: &'r [f64],
 }
 
-/// The states whose columns of Ψ a variational leg integrates, in the order they follow
-/// the state in its vector: all but the cyclic one.
-fn columns(n: usize, cyclic: usize) -> impl Iterator<Item = (usize, usize)> {
-    (0..n).filter(move |&j| j != cyclic).enumerate()
-}
+impl AtSize for SizedLeg<'_, '_, '_> {
+    type Made = Result<Leg, Stopped>;
 
-impl<const N: usize> OdeSystem<N> for Flow<'_, '_> {
-    fn rhs(&self, t: f64, y: &[f64; N], dy: &mut [f64; N]) {
-        *dy = [0.0; N];
-        if self.failure.get().is_some() {
-            dy.fill(f64::NAN);
-            return;
-        }
-        let n = self.n;
-        let mut p = self.problem.borrow_mut();
-        let p = &mut **p;
-        let mut x = [0.0; N];
-        for k in 0..n {
-            x[k] = y[k] * p.nominals[k];
-        }
-        let mut s = p.fmu.set_time(t).max(p.fmu.set_continuous_states(&x[..n]));
-        if s.proceeds() {
-            s = s.max(p.fmu.get_derivatives(&mut dy[..n]));
-        }
-        if s.proceeds() && self.variational {
-            let (mut seed, mut column) = ([0.0; N], [0.0; N]);
-            for (c, _) in columns(n, p.cyclic) {
-                for i in 0..n {
-                    seed[i] = y[n + c * n + i] * p.nominals[i];
-                }
-                s = s.max(p.fmu.get_directional_derivative(
-                    p.derivatives,
-                    p.states,
-                    &seed[..n],
-                    &mut column[..n],
-                ));
-                for i in 0..n {
-                    dy[n + c * n + i] = column[i] / p.nominals[i];
-                }
-            }
-        }
-        if !s.proceeds() {
-            self.failure.set(Some(s));
-            dy.fill(f64::NAN);
-            return;
-        }
-        for (dy, nominal) in dy[..n].iter_mut().zip(p.nominals) {
-            *dy /= nominal;
-        }
+    fn at<const N: usize>(self) -> Self::Made {
+        sized_leg::<N>(self)
     }
-
-    fn dimension(&self) -> usize {
-        size(self.n, self.variational)
-    }
-
-    /// The steps are the state's own: the derivative is that of the numerical flow.
-    fn controlled(&self) -> usize {
-        self.n
-    }
-}
-
-/// The equations of a leg of `n` states: with `variational`, n − 1 columns of Ψ too.
-fn size(n: usize, variational: bool) -> usize {
-    n + if variational { n * (n - 1) } else { 0 }
 }
 
 /// Integrate from `x0` at time `t0` to `end`; the states at `at` (times after `t0`,
@@ -151,29 +98,27 @@ pub fn leg(
     variational: bool,
     at: &[f64],
 ) -> Result<Leg, Stopped> {
-    let size = size(x0.len(), variational);
-    macro_rules! sized {
-        ($($size:literal)*) => {
-            $(if size <= $size {
-                return sized_leg::<$size>(problem, t0, x0, end, variational, at);
-            })*
-        };
-    }
-    sized!(2 4 6 8 12 16 24 30 36 48 64 96 128);
-    Err(Stopped::Failed(format!(
-        "{size} equations: the runner integrates a cycle's variational equations for at most \
-         11 states (ask for monodromy = \"differences\")"
-    )))
+    let n = x0.len();
+    let size = if variational { Variational::size(n) } else { n };
+    let sized = SizedLeg {
+        problem,
+        t0,
+        x0,
+        end,
+        variational,
+        at,
+    };
+    at_size(size, sized).unwrap_or_else(|| {
+        Err(Stopped::Failed(NoCycle::because(format!(
+            "{size} equations: the runner integrates a cycle's variational equations for at \
+             most 11 states (ask for monodromy = \"differences\")"
+        ))))
+    })
 }
 
-fn sized_leg<const N: usize>(
-    problem: &mut Problem,
-    t0: f64,
-    x0: &[f64],
-    end: End,
-    variational: bool,
-    at: &[f64],
-) -> Result<Leg, Stopped> {
+fn sized_leg<const N: usize>(leg: SizedLeg) -> Result<Leg, Stopped> {
+    let (problem, (t0, x0), end) = (leg.problem, (leg.t0, leg.x0), leg.end);
+    let (variational, at) = (leg.variational, leg.at);
     let n = x0.len();
     let mut walk = Walk::<N> {
         method: Dop853::new(problem.tolerances),
@@ -187,42 +132,47 @@ fn sized_leg<const N: usize>(
     for (k, (x, nominal)) in x0.iter().zip(problem.nominals).enumerate() {
         walk.y[k] = x / nominal;
     }
-    if variational {
-        for (c, j) in columns(n, problem.cyclic) {
+    let columns = variational.then_some(Variational {
+        states: problem.states,
+        derivatives: problem.derivatives,
+        skipped: problem.cyclic,
+    });
+    if let Some(columns) = &columns {
+        for (c, j) in columns.columns() {
             walk.y[n + c * n + j] = 1.0;
         }
     }
-    read_indicators(problem, t0, x0, &mut walk.indicators)?;
+    read_indicators(&mut *problem.fmu, t0, x0, &mut walk.indicators)?;
     let limit = t0
         + match end {
             End::After(time) => time,
             End::Reaching { within, .. } => within,
         };
-    let flow = Flow {
-        problem: RefCell::new(problem),
-        n,
-        variational,
-        failure: Cell::new(None),
-    };
-    walk.size_first_step(&flow, limit);
+    let flow = Scaled::new(&mut *problem.fmu, problem.nominals, columns);
+    walk.size_first_step(&flow, limit, problem.tolerances);
     loop {
         if walk.t >= limit {
-            match end {
-                End::After(_) => break,
-                End::Reaching { .. } => return Err(Stopped::NotReached),
+            if let End::Reaching { index, value, .. } = end {
+                let x = unscaled(&walk.y[..n], flow.nominals);
+                let f = derivative(&mut flow.fmu.borrow_mut(), walk.t, &x)?;
+                let moving = f[index] * (value - x[index]) > 0.0;
+                return Err(Stopped::NotReached { moving });
             }
+            break;
         }
         if walk.step(&flow, (t0, limit), end, at)? {
             break;
         }
     }
     let Walk { t, y, sampled, .. } = walk;
+    let columns = variational.then_some(problem.cyclic);
+    let nominals = flow.nominals;
     finish(
-        flow.problem.into_inner(),
+        flow.fmu.into_inner(),
+        nominals,
         (t0, t),
-        &y[..],
-        n,
-        variational,
+        &y,
+        (n, columns),
         sampled,
     )
 }
@@ -242,10 +192,9 @@ struct Walk<const N: usize> {
 impl<const N: usize> Walk<N> {
     /// A step is asked to end just past t, so the first one's size must come from the
     /// leg's span.
-    fn size_first_step(&mut self, flow: &Flow, limit: f64) {
+    fn size_first_step(&mut self, flow: &Scaled, limit: f64, tolerances: Tolerances) {
         let mut f0 = [0.0; N];
         flow.rhs(self.t, &self.y, &mut f0);
-        let tolerances = flow.problem.borrow().tolerances;
         let stats = &mut self.method.progress_mut().stats;
         stats.n_rhs += 1;
         let h = initial_step(
@@ -263,34 +212,27 @@ impl<const N: usize> Walk<N> {
     /// it reached the state's value (`End::Reaching`), the walk then standing there.
     fn step(
         &mut self,
-        flow: &Flow,
+        flow: &Scaled,
         (t0, limit): (f64, f64),
         end: End,
         at: &[f64],
     ) -> Result<bool, Stopped> {
-        let n = flow.n;
+        let n = self.x.len();
         let before = (self.t, self.y);
         let target = self.t.next_up().min(limit);
         let result = self
             .method
             .integrate(flow, &mut self.t, &mut self.y, target, limit);
-        if let Some(status) = flow.failure.get() {
-            return Err(Stopped::Failed(format!(
-                "the FMU returned {status:?} on the way, at t = {}",
-                self.t
-            )));
+        if let Some(status) = flow.failure() {
+            let at = format!("integrating the cycle at t = {}", self.t);
+            return Err(NoCycle::returned(&at, status).into());
         }
-        result.map_err(|e| Stopped::Failed(format!("integrating the cycle: {e}")))?;
-        let nominals = flow.problem.borrow().nominals;
+        result.map_err(|e| NoCycle::because(format!("integrating the cycle: {e}")))?;
+        let nominals = flow.nominals;
         for ((x, y), nominal) in self.x.iter_mut().zip(&self.y).zip(nominals) {
             *x = y * nominal;
         }
-        read_indicators(
-            &mut flow.problem.borrow_mut(),
-            self.t,
-            &self.x,
-            &mut self.probe,
-        )?;
+        read_indicators(&mut flow.fmu.borrow_mut(), self.t, &self.x, &mut self.probe)?;
         let (old, new) = (&self.indicators, &self.probe);
         if let Some(k) = (0..new.len()).find(|&k| (old[k] > 0.0) != (new[k] > 0.0)) {
             return Err(Stopped::Event(k, self.t - t0));
@@ -318,34 +260,32 @@ impl<const N: usize> Walk<N> {
     }
 }
 
+/// The state's derivative at (t, x).
+pub fn derivative(fmu: &mut Instance, t: f64, x: &[f64]) -> Result<Vec<f64>, NoCycle> {
+    let mut f = vec![0.0; x.len()];
+    let s = fmu.set_state(t, x).then(|| fmu.get_derivatives(&mut f));
+    check(s, &format!("the state's derivative at t = {t}"))?;
+    Ok(f)
+}
+
 /// The leg's end: the state and its derivative there, and the flow's derivative from
-/// the variational part of `y` (Ψ, back in the states' own units).
+/// the variational part of `y` (Ψ, back in the states' own units) where `columns` names
+/// the state whose column was skipped.
 fn finish(
-    problem: &mut Problem,
+    fmu: &mut Instance,
+    nominals: &[f64],
     (t0, t): (f64, f64),
     y: &[f64],
-    n: usize,
-    variational: bool,
+    (n, columns): (usize, Option<usize>),
     sampled: Vec<Vec<f64>>,
 ) -> Result<Leg, Stopped> {
-    let x = unscaled(&y[..n], problem.nominals);
-    let mut f = vec![0.0; n];
-    let s = problem
-        .fmu
-        .set_time(t)
-        .max(problem.fmu.set_continuous_states(&x))
-        .max(problem.fmu.get_derivatives(&mut f));
-    if !s.proceeds() {
-        return Err(Stopped::Failed(format!(
-            "fmi2GetDerivatives returned {s:?} at the leg's end"
-        )));
-    }
-    let phi = variational.then(|| {
-        let nom = problem.nominals;
+    let x = unscaled(&y[..n], nominals);
+    let f = derivative(fmu, t, &x)?;
+    let phi = columns.map(|skipped| {
         let mut phi = vec![0.0; n * n];
-        for (c, j) in columns(n, problem.cyclic) {
+        for (c, j) in (0..n).filter(|&j| j != skipped).enumerate() {
             for i in 0..n {
-                phi[i * n + j] = nom[i] * y[n + c * n + i] / nom[j];
+                phi[i * n + j] = nominals[i] * y[n + c * n + i] / nominals[j];
             }
         }
         phi
@@ -366,29 +306,38 @@ fn unscaled(y: &[f64], nominals: &[f64]) -> Vec<f64> {
 /// The solution at `t` within the last step (ending at `end`, where it is `y`).
 fn dense<const N: usize>(
     method: &mut Dop853<N>,
-    flow: &Flow,
+    flow: &Scaled,
     t: f64,
     y: &[f64; N],
     end: f64,
-) -> Result<[f64; N], Stopped> {
+) -> Result<[f64; N], NoCycle> {
     if t == end {
         return Ok(*y);
     }
+    dense_at(method, flow, t)
+}
+
+/// The solution at `t` within the last step, from its dense output.
+fn dense_at<const N: usize>(
+    method: &mut Dop853<N>,
+    flow: &Scaled,
+    t: f64,
+) -> Result<[f64; N], NoCycle> {
     method
         .dense_output(flow, t)
-        .ok_or_else(|| Stopped::Failed(format!("no dense output at t = {t}")))
+        .ok_or_else(|| NoCycle::because(format!("no dense output at t = {t}")))
 }
 
 /// Where, within the last step, state `index` reaches `value`: the secant method on the
 /// step's dense output, kept inside the bracket by bisection, to a few ulps of time.
 fn reach<const N: usize>(
     method: &mut Dop853<N>,
-    flow: &Flow,
+    flow: &Scaled,
     ((mut ta, mut a), (mut tb, mut b)): ((f64, f64), (f64, f64)),
     index: usize,
     value: f64,
-) -> Result<(f64, [f64; N]), Stopped> {
-    let nominal = flow.problem.borrow().nominals[index];
+) -> Result<(f64, [f64; N]), NoCycle> {
+    let nominal = flow.nominals[index];
     let mut best = (tb, b.abs());
     for _ in 0..200 {
         if a == 0.0 {
@@ -404,11 +353,7 @@ fn reach<const N: usize>(
         } else {
             0.5 * (ta + tb)
         };
-        let g = method
-            .dense_output(flow, t)
-            .ok_or_else(|| Stopped::Failed(format!("no dense output at t = {t}")))?[index]
-            * nominal
-            - value;
+        let g = dense_at(method, flow, t)?[index] * nominal - value;
         if g.abs() < best.1 {
             best = (t, g.abs());
         }
@@ -421,31 +366,15 @@ fn reach<const N: usize>(
             (tb, b) = (t, g);
         }
     }
-    let y = method
-        .dense_output(flow, best.0)
-        .ok_or_else(|| Stopped::Failed(format!("no dense output at t = {}", best.0)))?;
+    let y = dense_at(method, flow, best.0)?;
     Ok((best.0, y))
 }
 
-fn read_indicators(
-    problem: &mut Problem,
-    t: f64,
-    x: &[f64],
-    into: &mut [f64],
-) -> Result<(), Stopped> {
+/// The event indicators at (t, x), into `into`.
+fn read_indicators(fmu: &mut Instance, t: f64, x: &[f64], into: &mut [f64]) -> Result<(), NoCycle> {
     if into.is_empty() {
         return Ok(());
     }
-    let s = problem
-        .fmu
-        .set_time(t)
-        .max(problem.fmu.set_continuous_states(x))
-        .max(problem.fmu.get_event_indicators(into));
-    if s.proceeds() {
-        Ok(())
-    } else {
-        Err(Stopped::Failed(format!(
-            "reading the event indicators returned {s:?} at t = {t}"
-        )))
-    }
+    let s = fmu.set_state(t, x).then(|| fmu.get_event_indicators(into));
+    check(s, &format!("reading the event indicators at t = {t}"))
 }

@@ -7,17 +7,13 @@
 //! sensitivities S = ∂y/∂q at both ends and its output derivatives ẏ at the end, so that
 //! every iteration is Newton's own.
 
-use std::time::Instant;
-
 use nalgebra::{DMatrix, DVector};
 
 use super::floquet::{self, Multiplier};
-use super::shooting::{
-    advances, norm, residual, scales, NoCycle, Shot, GUESS_HALVINGS, GUESS_ITERATIONS,
-    LEAST_WARM_UP, MOST_HALVINGS, MOST_ITERATIONS, WARM_UP_SETTLED,
-};
+use super::periodic::{self, check, norm, Budget, Found, NoCycle, Search, Settling, Shooter, Shot};
 use crate::cycle_plan::{CyclePlan, StartsPlan};
-use crate::fmi::{Instance, Status};
+use crate::fmi::Instance;
+use crate::metrics::Sample;
 
 /// The most Gauss-Newton steps that find the start values of the transient's state.
 const MOST_INVERSIONS: usize = 12;
@@ -27,17 +23,21 @@ const RANK_FLOOR: f64 = 1e-10;
 /// What puts the FMU back at the point's start: the runner's part.
 pub trait Restart {
     /// The instance reset and in initialisation mode, with the point's own values set.
-    fn restart(&mut self) -> Result<&mut Instance, String>;
+    fn restart(&mut self) -> Result<&mut Instance, NoCycle>;
 }
 
-/// What a run over the cycle read: the closing variables at both ends, their
-/// sensitivities there (row-major, a row per closing variable, a column per start value)
-/// and their rates at the end.
-pub struct Ends {
-    pub y0: Vec<f64>,
-    pub s0: Vec<f64>,
+/// The closing variables where the FMU stands, and their sensitivities there (row-major,
+/// a row per closing variable, a column per start value).
+pub struct Reading {
     pub y: Vec<f64>,
     pub s: Vec<f64>,
+}
+
+/// What a run over the cycle read: the closing variables at its start and its end, and
+/// their rates at the end.
+pub struct Ends {
+    pub start: Reading,
+    pub end: Reading,
     pub dy: Vec<f64>,
 }
 
@@ -50,38 +50,38 @@ pub struct ThroughStarts<'a> {
     /// take to settle.
     t0: f64,
     step: f64,
-    budget: f64,
+    transient: f64,
+    /// The periodicity's tolerance, which the inversion of the transient's state aims at.
     tolerance: f64,
-    pub deadline: Option<(Instant, f64)>,
+    budget: Budget,
     /// Runs over a cycle (the transient counts one per cycle it ran).
     pub runs: usize,
-    pub continued: bool,
     direction: f64,
 }
 
-fn check(status: Status, what: &str) -> Result<(), String> {
-    if status.proceeds() {
-        Ok(())
-    } else {
-        Err(format!("{what} returned {status:?}"))
-    }
-}
-
-fn read(fmu: &mut Instance, vrs: &[u32], what: &str) -> Result<Vec<f64>, String> {
+fn read(fmu: &mut Instance, vrs: &[u32], what: &str) -> Result<Vec<f64>, NoCycle> {
     let mut values = vec![0.0; vrs.len()];
     check(fmu.get_real(vrs, &mut values), what)?;
     match values.iter().find(|v| !v.is_finite()) {
-        Some(v) => Err(format!(
+        Some(v) => Err(NoCycle::because(format!(
             "{what}: the FMU reported {v} with a successful status"
-        )),
+        ))),
         None => Ok(values),
     }
 }
 
+/// The closing variables and their sensitivities where the FMU stands.
+fn reading(fmu: &mut Instance, starts: &StartsPlan) -> Result<Reading, NoCycle> {
+    Ok(Reading {
+        y: read(fmu, &starts.closing.vrs, "reading the closing variables")?,
+        s: sensitivities(fmu, starts)?,
+    })
+}
+
 /// S = ∂closing/∂q where the FMU stands, a row per closing variable.
-fn sensitivities(fmu: &mut Instance, starts: &StartsPlan) -> Result<Vec<f64>, String> {
+fn sensitivities(fmu: &mut Instance, starts: &StartsPlan) -> Result<Vec<f64>, NoCycle> {
     let p = starts.columns.len();
-    let mut s = vec![0.0; starts.closing.len() * p];
+    let mut s = vec![0.0; starts.closing.vrs.len() * p];
     for (j, column) in starts.columns.iter().enumerate() {
         let values = read(fmu, column, "reading the sensitivities")?;
         for (i, v) in values.into_iter().enumerate() {
@@ -91,16 +91,14 @@ fn sensitivities(fmu: &mut Instance, starts: &StartsPlan) -> Result<Vec<f64>, St
     Ok(s)
 }
 
-/// The closing variables' first time derivatives where the FMU stands.
-fn rates(fmu: &mut Instance, closing: &[u32]) -> Result<Vec<f64>, String> {
-    let mut rates = Vec::with_capacity(closing.len());
-    for &vr in closing {
-        let mut rate = [0.0];
+/// The first time derivatives of the Real variables `vrs` where the FMU stands.
+fn rates(fmu: &mut Instance, vrs: &[u32]) -> Result<Vec<f64>, NoCycle> {
+    let mut rates = vec![0.0; vrs.len()];
+    for (&vr, rate) in vrs.iter().zip(rates.chunks_mut(1)) {
         check(
-            fmu.get_output_derivatives(vr, &mut rate),
+            fmu.get_output_derivatives(vr, rate),
             "reading an output's derivative",
         )?;
-        rates.push(rate[0]);
     }
     Ok(rates)
 }
@@ -119,7 +117,7 @@ fn dependent(starts: &StartsPlan) -> NoCycle {
     NoCycle::because(format!(
         "the start values ({}) do not move the state on the section independently: the \
          FMU's sensitivities to them have dependent columns",
-        starts.parameter_names.join(", ")
+        starts.parameters.names.join(", ")
     ))
 }
 
@@ -159,13 +157,33 @@ fn crossing(y0: f64, d0: f64, y1: f64, d1: f64, h: f64, target: f64) -> f64 {
     w
 }
 
+/// The transient's state where it crosses the section within a step of `h` ending at
+/// (y1, dy1): the closing variables there, those that advance brought back by `shift`.
+fn on_section(
+    plan: &CyclePlan,
+    (y, dy): (&[f64], &[f64]),
+    (y1, dy1): (&[f64], &[f64]),
+    (h, w, shift): (f64, f64, f64),
+) -> Vec<f64> {
+    (0..y.len())
+        .map(|i| {
+            let at = hermite(y[i], dy[i], y1[i], dy1[i], h, w);
+            if periodic::advances(plan, i) {
+                at - shift
+            } else {
+                at
+            }
+        })
+        .collect()
+}
+
 impl<'a> ThroughStarts<'a> {
     pub fn new(
         plan: &'a CyclePlan,
         starts: &'a StartsPlan,
         restart: &'a mut dyn Restart,
-        (t0, step, budget): (f64, f64, f64),
-        tolerance: f64,
+        (t0, step, transient): (f64, f64, f64),
+        (tolerance, budget): (f64, Budget),
     ) -> Self {
         ThroughStarts {
             plan,
@@ -173,22 +191,11 @@ impl<'a> ThroughStarts<'a> {
             restart,
             t0,
             step,
-            budget,
+            transient,
             tolerance,
-            deadline: None,
+            budget,
             runs: 0,
-            continued: false,
             direction: 1.0,
-        }
-    }
-
-    fn over_budget(deadline: Option<(Instant, f64)>) -> Result<(), NoCycle> {
-        match deadline {
-            Some((at, budget)) if Instant::now() > at => Err(NoCycle {
-                why: format!("over the budget of {budget} s per point"),
-                timeout: true,
-            }),
-            _ => Ok(()),
         }
     }
 
@@ -198,12 +205,12 @@ impl<'a> ThroughStarts<'a> {
         &mut self,
         q: Option<&[f64]>,
         with_sensitivities: bool,
-    ) -> Result<&mut Instance, String> {
+    ) -> Result<&mut Instance, NoCycle> {
         let starts = self.starts;
         let fmu = self.restart.restart()?;
         if let Some(q) = q {
             check(
-                fmu.set_real(&starts.parameters, q),
+                fmu.set_real(&starts.parameters.vrs, q),
                 "setting the start values",
             )?;
         }
@@ -217,120 +224,68 @@ impl<'a> ThroughStarts<'a> {
         Ok(fmu)
     }
 
-    /// A run over `period` from `q`, with the sensitivities.
-    fn run(&mut self, q: &[f64], period: f64) -> Result<Ends, NoCycle> {
-        Self::over_budget(self.deadline)?;
-        self.runs += 1;
-        self.ends(q, period)
-            .map_err(|e| NoCycle::because(format!("a run over the cycle: {e}")))
-    }
-
-    fn ends(&mut self, q: &[f64], period: f64) -> Result<Ends, String> {
+    fn ends(&mut self, q: &[f64], period: f64) -> Result<Ends, NoCycle> {
         let (starts, t0) = (self.starts, self.t0);
         let fmu = self.started(Some(q), true)?;
-        let y0 = read(fmu, &starts.closing, "reading the closing variables")?;
-        let s0 = sensitivities(fmu, starts)?;
+        let start = reading(fmu, starts)?;
         check(fmu.do_step(t0, period), "the step over the cycle")?;
         Ok(Ends {
-            y0,
-            s0,
-            y: read(fmu, &starts.closing, "reading the closing variables")?,
-            s: sensitivities(fmu, starts)?,
-            dy: rates(fmu, &starts.closing)?,
+            start,
+            end: reading(fmu, starts)?,
+            dy: rates(fmu, &starts.closing.vrs)?,
         })
-    }
-
-    /// The cycle, first from `guess` (a neighbour's: its start values and period) where
-    /// given, else from the point's own transient; with the last run's ends.
-    pub fn solve(&mut self, guess: Option<&Shot>) -> Result<(Shot, Ends), NoCycle> {
-        if let Some(guess) = guess {
-            self.direction = guess.direction;
-            let patience = (GUESS_ITERATIONS, GUESS_HALVINGS);
-            if let Ok(found) = self.newton(guess.x0.clone(), guess.period, patience) {
-                self.continued = true;
-                return Ok(found);
-            }
-        }
-        let (target, period, own) = self.warm_up()?;
-        let q = self.invert(&target, own)?;
-        self.newton(q, period, (MOST_ITERATIONS, MOST_HALVINGS))
-    }
-
-    fn not_cyclic(&self) -> NoCycle {
-        NoCycle::because(format!(
-            "the transient before the shooting: {} did not advance by its period ({}) in \
-             the time allowed: the motion is not cyclic (it stopped or turned back)",
-            self.plan.state_names[self.plan.state], self.plan.period
-        ))
     }
 
     /// The point's own transient, in communication steps, until the period from one
     /// crossing of the section to the next settles: the closing variables at the last
-    /// crossing (those that advance brought back by whole periods), the last period, and
+    /// crossing (those that advance brought back by whole advances), the last period, and
     /// the point's own start values.
-    fn warm_up(&mut self) -> Result<(Vec<f64>, f64, Vec<f64>), NoCycle> {
+    fn transient(&mut self) -> Result<(Vec<f64>, f64, Vec<f64>), NoCycle> {
         let (plan, starts) = (self.plan, self.starts);
-        let (h, end, deadline) = (self.step, self.t0 + self.budget, self.deadline);
-        let failed =
-            |e: String| NoCycle::because(format!("the transient before the shooting: {e}"));
+        let (h, end, budget) = (self.step, self.t0 + self.transient, self.budget);
         let mut t = self.t0;
-        let fmu = self.started(None, false).map_err(failed)?;
-        let own = read(fmu, &starts.parameters, "reading the start values").map_err(failed)?;
+        let fmu = self.started(None, false)?;
+        let own = read(fmu, &starts.parameters.vrs, "reading the start values")?;
         let k = plan.state;
-        let mut y = read(fmu, &starts.closing, "reading the closing variables").map_err(failed)?;
-        let mut dy = rates(fmu, &starts.closing).map_err(failed)?;
+        let mut y = read(fmu, &starts.closing.vrs, "reading the closing variables")?;
+        let mut dy = rates(fmu, &starts.closing.vrs)?;
         let theta0 = y[k];
-        let (mut direction, mut cycles, mut last, mut previous) = (0.0, 0.0, None, f64::NAN);
-        let mut runs = 0;
+        let (mut direction, mut cycles, mut settling) = (0.0, 0.0, Settling::default());
+        let mut crossings = 0;
         while t < end {
-            Self::over_budget(deadline)?;
+            budget.check("the transient before the shooting")?;
             let hh = h.min(end - t);
-            check(fmu.do_step(t, hh), "a step of the transient").map_err(failed)?;
+            check(fmu.do_step(t, hh), "a step of the transient")?;
             t += hh;
-            let y1 = read(fmu, &starts.closing, "reading the closing variables").map_err(failed)?;
-            let dy1 = rates(fmu, &starts.closing).map_err(failed)?;
+            let y1 = read(fmu, &starts.closing.vrs, "reading the closing variables")?;
+            let dy1 = rates(fmu, &starts.closing.vrs)?;
             if direction == 0.0 && y1[k] != theta0 {
                 direction = (y1[k] - theta0).signum();
             }
-            let target = theta0 + direction * (cycles + 1.0) * plan.period;
+            let target = theta0 + direction * (cycles + 1.0) * plan.advance;
             if direction != 0.0 && (y1[k] - target) * direction >= 0.0 {
-                if (y1[k] - target - direction * plan.period) * direction >= 0.0 {
-                    return Err(failed(format!(
-                        "the cyclic variable advanced by more than its period in one \
+                if (y1[k] - target - direction * plan.advance) * direction >= 0.0 {
+                    return Err(NoCycle::because(format!(
+                        "the cyclic variable advanced by more than one cycle's advance in one \
                          communication step ({hh} s): take a shorter scenario step"
                     )));
                 }
                 let w = crossing(y[k], dy[k], y1[k], dy1[k], hh, target);
-                let tc = t - hh + w * hh;
                 cycles += 1.0;
-                runs += 1;
-                if let Some(before) = last {
-                    let period: f64 = tc - before;
-                    if runs > LEAST_WARM_UP && (period - previous).abs() <= WARM_UP_SETTLED * period
-                    {
-                        let shift = direction * cycles * plan.period;
-                        let on_section: Vec<f64> = (0..y.len())
-                            .map(|i| {
-                                let at = hermite(y[i], dy[i], y1[i], dy1[i], hh, w);
-                                if advances(plan, i) {
-                                    at - shift
-                                } else {
-                                    at
-                                }
-                            })
-                            .collect();
-                        self.runs += runs;
-                        self.direction = direction;
-                        return Ok((on_section, period, own));
-                    }
-                    previous = period;
+                crossings += 1;
+                if let Some(period) = settling.crossed(t - hh + w * hh) {
+                    let shift = direction * cycles * plan.advance;
+                    let section = on_section(plan, (&y, &dy), (&y1, &dy1), (hh, w, shift));
+                    self.runs += crossings;
+                    self.direction = direction;
+                    return Ok((section, period, own));
                 }
-                last = Some(tc);
             }
             (y, dy) = (y1, dy1);
         }
-        self.runs += runs;
-        Err(self.not_cyclic())
+        self.runs += crossings;
+        let moving = direction != 0.0 && dy[k] * direction > 0.0;
+        Err(settling.unsettled(plan, self.transient, moving))
     }
 
     /// The start values whose initial state is `target`: Gauss-Newton on y(0; q) − target
@@ -338,16 +293,15 @@ impl<'a> ThroughStarts<'a> {
     /// cycle). The target, read off a transient, is only near the section's states; the
     /// shooting corrects what is left.
     fn invert(&mut self, target: &[f64], mut q: Vec<f64>) -> Result<Vec<f64>, NoCycle> {
-        let scales = self.scales(target);
+        let scales = scales_of(self.plan, target);
         let starts = self.starts;
-        let failed =
-            |e: String| NoCycle::because(format!("the start values of the transient's state: {e}"));
+        let tolerance = self.tolerance;
         for _ in 0..MOST_INVERSIONS {
-            let fmu = self.started(Some(&q), true).map_err(failed)?;
-            let y0 = read(fmu, &starts.closing, "reading the closing variables").map_err(failed)?;
-            let s0 = sensitivities(fmu, starts).map_err(failed)?;
+            let fmu = self.started(Some(&q), true)?;
+            let y0 = read(fmu, &starts.closing.vrs, "reading the closing variables")?;
+            let s0 = sensitivities(fmu, starts)?;
             let r: Vec<f64> = y0.iter().zip(target).map(|(a, b)| a - b).collect();
-            if norm(&r, &scales) <= self.tolerance {
+            if norm(&r, &scales) <= tolerance {
                 break;
             }
             let p = q.len();
@@ -360,7 +314,7 @@ impl<'a> ThroughStarts<'a> {
             if step
                 .iter()
                 .zip(&q)
-                .all(|(d, q)| d.abs() <= self.tolerance * q.abs().max(1.0))
+                .all(|(d, q)| d.abs() <= tolerance * q.abs().max(1.0))
             {
                 break;
             }
@@ -368,116 +322,41 @@ impl<'a> ThroughStarts<'a> {
         Ok(q)
     }
 
-    fn scales(&self, y0: &[f64]) -> Vec<f64> {
-        scales_of(self.plan, y0)
-    }
-
-    fn residual(&self, ends: &Ends) -> Vec<f64> {
-        residual(self.plan, self.direction, &ends.y0, &ends.y)
-    }
-
-    /// Newton's step (Δq, ΔT) from one run's ends, in least squares.
-    fn newton_step(&self, ends: &Ends, r: &[f64], scales: &[f64]) -> Result<Vec<f64>, NoCycle> {
-        let (m, p) = (r.len(), self.starts.parameters.len());
-        let a = DMatrix::from_fn(m, p + 1, |i, j| {
-            let entry = if j < p {
-                ends.s[i * p + j] - ends.s0[i * p + j]
-            } else {
-                ends.dy[i]
-            };
-            entry / scales[i]
-        });
-        let b = DVector::from_iterator(m, r.iter().zip(scales).map(|(r, s)| -r / s));
-        least_squares(a, b).ok_or_else(|| {
-            NoCycle::because(
-                "the shooting's Jacobian is singular: a Floquet multiplier other than the \
-                 flow's own is 1 (an undamped mode, or a family of cycles), or the start \
-                 values do not move the state on the section independently"
-                    .into(),
-            )
-        })
-    }
-
-    /// Newton's method from (q, period) with at most `patience` iterations and halvings.
-    fn newton(
-        &mut self,
-        mut q: Vec<f64>,
-        mut period: f64,
-        (most_iterations, most_halvings): (usize, usize),
-    ) -> Result<(Shot, Ends), NoCycle> {
-        let mut ends = self.run(&q, period)?;
-        let scales = self.scales(&ends.y0);
-        let mut r = self.residual(&ends);
-        let mut size = norm(&r, &scales);
-        for iteration in 0..=most_iterations {
-            if size <= self.tolerance {
-                return Ok((self.shot(q, period, size, iteration), ends));
-            }
-            if iteration == most_iterations {
-                break;
-            }
-            let step = self.newton_step(&ends, &r, &scales)?;
-            let p = q.len();
-            let small = step[..p]
-                .iter()
-                .zip(&q)
-                .all(|(d, q)| d.abs() <= self.tolerance * q.abs().max(1.0))
-                && step[p].abs() <= self.tolerance * period;
-            if small {
-                // Newton can go no further than the integration's own error.
-                return Ok((self.shot(q, period, size, iteration), ends));
-            }
-            let mut lambda = 1.0;
-            let mut taken = None;
-            for _ in 0..=most_halvings {
-                let trial_period = period + lambda * step[p];
-                let trial: Vec<f64> = q.iter().zip(&step).map(|(q, d)| q + lambda * d).collect();
-                if trial_period > 0.0 {
-                    if let Ok(trial_ends) = self.run(&trial, trial_period) {
-                        let trial_r = self.residual(&trial_ends);
-                        let trial_size = norm(&trial_r, &scales);
-                        if trial_size < size {
-                            taken = Some((trial, trial_period, trial_ends, trial_r, trial_size));
-                            break;
-                        }
-                    }
-                }
-                lambda *= 0.5;
-            }
-            let Some(next) = taken else { break };
-            (q, period, ends, r, size) = next;
-        }
-        Err(NoCycle::because(format!(
-            "the shooting did not converge: after Newton's method the periodicity residual \
-             is {size:.3e} (scaled), above the tolerance {:.3e}",
-            self.tolerance
-        )))
-    }
-
-    fn shot(&self, q: Vec<f64>, period: f64, residual: f64, iterations: usize) -> Shot {
+    /// The cycle found, as the next point's guess: its start values and period.
+    pub fn shot(&self, found: &Found<Ends>) -> Shot {
         Shot {
             t0: self.t0,
-            x0: q,
-            period,
-            residual,
+            x0: found.z.clone(),
+            search: Search {
+                period: found.period,
+                residual: found.residual,
+                iterations: found.iterations,
+                runs: self.runs,
+            },
             phi: Vec::new(),
             f: Vec::new(),
-            iterations,
-            runs: self.runs,
             direction: self.direction,
         }
     }
 
     /// A run from the cycle's start values `q` over its period, `vrs` read at `times` into
-    /// it (ascending, from 0): a row per time.
+    /// it (ascending, from 0), with the rates of those `rated` (indices into `vrs`): a row
+    /// of samples per time.
     pub fn along(
         &mut self,
         q: &[f64],
         times: &[f64],
         vrs: &[u32],
-    ) -> Result<Vec<Vec<f64>>, String> {
+        rated: &[bool],
+    ) -> Result<Vec<Vec<Sample>>, NoCycle> {
         let t0 = self.t0;
         let fmu = self.started(Some(q), false)?;
+        let rated_vrs: Vec<u32> = vrs
+            .iter()
+            .zip(rated)
+            .filter(|(_, &r)| r)
+            .map(|(&v, _)| v)
+            .collect();
         let mut rows = Vec::with_capacity(times.len());
         let mut now = 0.0;
         for &t in times {
@@ -485,9 +364,90 @@ impl<'a> ThroughStarts<'a> {
                 check(fmu.do_step(t0 + now, t - now), "a step along the cycle")?;
                 now = t;
             }
-            rows.push(read(fmu, vrs, "reading along the cycle")?);
+            let values = read(fmu, vrs, "reading along the cycle")?;
+            let mut found = rates(fmu, &rated_vrs)?.into_iter();
+            let row = values
+                .into_iter()
+                .zip(rated)
+                .map(|(x, &r)| Sample {
+                    t,
+                    x,
+                    rate: if r { found.next() } else { None },
+                })
+                .collect();
+            rows.push(row);
         }
         Ok(rows)
+    }
+}
+
+impl Shooter for ThroughStarts<'_> {
+    type Run = Ends;
+
+    /// A run over `period` from `q`, with the sensitivities (every run is exact).
+    fn run(&mut self, q: &[f64], period: f64, _: bool) -> Result<Ends, NoCycle> {
+        self.budget.check("a run over the cycle")?;
+        self.runs += 1;
+        self.ends(q, period)
+            .map_err(|e| e.during("a run over the cycle"))
+    }
+
+    fn residual(&self, _: &[f64], ends: &Ends) -> Vec<f64> {
+        periodic::residual(self.plan, self.direction, &ends.start.y, &ends.end.y)
+    }
+
+    fn scales(&self, _: &[f64], ends: &Ends) -> Vec<f64> {
+        scales_of(self.plan, &ends.start.y)
+    }
+
+    /// [S(T) − S(0) | ẏ(T)], its rows over their scales.
+    fn jacobian(&self, ends: &Ends, scales: &[f64]) -> Option<DMatrix<f64>> {
+        let (m, p) = (ends.end.y.len(), self.starts.parameters.vrs.len());
+        Some(DMatrix::from_fn(m, p + 1, |i, j| {
+            let entry = if j < p {
+                ends.end.s[i * p + j] - ends.start.s[i * p + j]
+            } else {
+                ends.dy[i]
+            };
+            entry / scales[i]
+        }))
+    }
+
+    fn step(
+        &self,
+        jacobian: &DMatrix<f64>,
+        r: &[f64],
+        scales: &[f64],
+    ) -> Result<Vec<f64>, NoCycle> {
+        let b = DVector::from_iterator(r.len(), r.iter().zip(scales).map(|(r, s)| -r / s));
+        least_squares(jacobian.clone(), b).ok_or_else(|| {
+            periodic::singular(
+                ", or the start values do not move the state on the section independently",
+            )
+        })
+    }
+
+    fn moved(&self, q: &[f64], step: &[f64], lambda: f64) -> Vec<f64> {
+        q.iter().zip(step).map(|(q, d)| q + lambda * d).collect()
+    }
+
+    fn step_size(&self, q: &[f64], period: f64, step: &[f64], _: &[f64]) -> f64 {
+        let p = q.len();
+        let values = step[..p]
+            .iter()
+            .zip(q)
+            .fold(0.0, |m: f64, (d, q)| m.max(d.abs() / q.abs().max(1.0)));
+        values.max(step[p].abs() / period)
+    }
+
+    fn guessed(&mut self, guess: &Shot) -> ((Vec<f64>, f64), Option<DMatrix<f64>>) {
+        self.direction = guess.direction;
+        ((guess.x0.clone(), guess.search.period), None)
+    }
+
+    fn warm_up(&mut self) -> Result<(Vec<f64>, f64), NoCycle> {
+        let (target, period, own) = self.transient()?;
+        Ok((self.invert(&target, own)?, period))
     }
 }
 
@@ -500,12 +460,13 @@ pub fn multipliers(
     plan: &CyclePlan,
     starts: &StartsPlan,
 ) -> Result<Vec<Multiplier>, NoCycle> {
-    let (k, scales) = (plan.state, scales_of(plan, &ends.y0));
-    let m = ends.y0.len();
-    let p = ends.s0.len() / m.max(1);
-    let s0 = DMatrix::from_fn(m, p, |i, j| ends.s0[i * p + j] / scales[i]);
+    let (start, end, dy) = (&ends.start, &ends.end, &ends.dy);
+    let (k, scales) = (plan.state, scales_of(plan, &start.y));
+    let m = start.y.len();
+    let p = start.s.len() / m.max(1);
+    let s0 = DMatrix::from_fn(m, p, |i, j| start.s[i * p + j] / scales[i]);
     let moved = DMatrix::from_fn(m, p, |i, j| {
-        (ends.s[i * p + j] - ends.dy[i] * ends.s[k * p + j] / ends.dy[k]) / scales[i]
+        (end.s[i * p + j] - dy[i] * end.s[k * p + j] / dy[k]) / scales[i]
     });
     let map = independent(s0.clone())
         .and_then(|svd| svd.solve(&moved, 0.0).ok())
@@ -517,11 +478,11 @@ pub fn multipliers(
             &s0 * DVector::from_column_slice(v),
         );
         let squares: Vec<f64> = a.iter().zip(b.iter()).map(|(a, b)| a * a + b * b).collect();
-        floquet::shares(plan.state_names.iter().map(String::as_str), &squares)
+        floquet::shares(plan.names().iter().map(String::as_str), &squares)
     }))
 }
 
 /// Each closing variable's residual scale: as on Model Exchange, with nominals of 1.
 fn scales_of(plan: &CyclePlan, y0: &[f64]) -> Vec<f64> {
-    scales(plan, y0, |_| 1.0)
+    periodic::scales(plan, y0, |_| 1.0)
 }

@@ -1,7 +1,8 @@
-//! The runner's integration of a Model Exchange FMU's continuous states, in the state
-//! sizes the methods are compiled for: the FMU's right-hand side scaled by its nominals,
-//! one accepted step at a time, the dense output between, and the retries of a step the
-//! FMU discards.
+//! The runner's integration of a Model Exchange FMU's continuous states, in the sizes the
+//! methods are compiled for: the FMU's right-hand side scaled by its nominals (with the
+//! variational equations of its flow where asked), one accepted step at a time, the dense
+//! output between, and the retries of a step the FMU discards. The steady cycle's legs
+//! ride on the same right-hand side and the same sizes.
 
 use std::cell::{Cell, RefCell};
 
@@ -11,16 +12,102 @@ use integrators::{
 
 use crate::fmi::{Instance, Status};
 
-/// The FMU's right-hand side as the integrators see it: states divided by their nominals.
-struct Scaled<'a> {
-    fmu: RefCell<&'a mut Instance>,
-    nominals: &'a [f64],
+/// The variational equations of the flow beside the states: the columns of
+/// Ψ = D⁻¹ Φ D (D the nominals, Φ = ∂x(t)/∂x(t0)) but one, Ψ' = D⁻¹ J D Ψ with J from the
+/// FMU's directional derivatives.
+pub struct Variational<'a> {
+    pub states: &'a [u32],
+    pub derivatives: &'a [u32],
+    /// The state whose column is not integrated (nothing reads it).
+    pub skipped: usize,
+}
+
+impl Variational<'_> {
+    /// The states whose columns are integrated, each with its place among the columns
+    /// (which follow the state in the integrated vector).
+    pub fn columns(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let skipped = self.skipped;
+        (0..self.states.len())
+            .filter(move |&j| j != skipped)
+            .enumerate()
+    }
+
+    /// The equations integrated for `n` states with the columns.
+    pub fn size(n: usize) -> usize {
+        n + n * n.saturating_sub(1)
+    }
+}
+
+/// The FMU's right-hand side as the integrators see it: states divided by their nominals,
+/// and with `variational` the columns of Ψ after them.
+pub struct Scaled<'a> {
+    pub fmu: RefCell<&'a mut Instance>,
+    pub nominals: &'a [f64],
+    variational: Option<Variational<'a>>,
     /// The worst status of a failed call (above Discard); once set, the FMU is not called
     /// again and every derivative is NaN, so that the integration stops.
     failure: Cell<Option<Status>>,
     /// Whether the last evaluation was discarded (the FMU refused the state: the
     /// integrator shortens the step).
     discarded: Cell<bool>,
+}
+
+impl<'a> Scaled<'a> {
+    pub fn new(
+        fmu: &'a mut Instance,
+        nominals: &'a [f64],
+        variational: Option<Variational<'a>>,
+    ) -> Self {
+        Scaled {
+            fmu: RefCell::new(fmu),
+            nominals,
+            variational,
+            failure: Cell::new(None),
+            discarded: Cell::new(false),
+        }
+    }
+
+    /// The status of the call that failed, where one did (Discard aside).
+    pub fn failure(&self) -> Option<Status> {
+        self.failure.get()
+    }
+
+    /// The states' derivatives at (t, x) (x as the FMU takes it), into `dx`, and the
+    /// columns' derivatives from the columns `psi` (scaled) where variational; `seed` and
+    /// `column` are scratch of the states' size.
+    fn evaluate(
+        &self,
+        (t, x): (f64, &[f64]),
+        dx: &mut [f64],
+        psi: (&[f64], &mut [f64]),
+        (seed, column): (&mut [f64], &mut [f64]),
+    ) -> Status {
+        let mut fmu = self.fmu.borrow_mut();
+        let mut s = fmu.set_state(t, x).then(|| fmu.get_derivatives(dx));
+        let Some(variational) = &self.variational else {
+            return s;
+        };
+        let n = x.len();
+        let (columns, rates) = psi;
+        for (c, _) in variational.columns() {
+            if !s.proceeds() {
+                break;
+            }
+            for i in 0..n {
+                seed[i] = columns[c * n + i] * self.nominals[i];
+            }
+            s = s.max(fmu.get_directional_derivative(
+                variational.derivatives,
+                variational.states,
+                seed,
+                column,
+            ));
+            for i in 0..n {
+                rates[c * n + i] = column[i] / self.nominals[i];
+            }
+        }
+        s
+    }
 }
 
 impl<const N: usize> OdeSystem<N> for Scaled<'_> {
@@ -35,14 +122,14 @@ impl<const N: usize> OdeSystem<N> for Scaled<'_> {
         for ((x, y), nominal) in x.iter_mut().zip(y).zip(self.nominals) {
             *x = y * nominal;
         }
-        let mut fmu = self.fmu.borrow_mut();
-        let mut s = fmu.set_time(t);
-        if s.proceeds() {
-            s = s.max(fmu.set_continuous_states(&x[..n]));
-        }
-        if s.proceeds() {
-            s = s.max(fmu.get_derivatives(&mut dy[..n]));
-        }
+        let (mut seed, mut column) = ([0.0; N], [0.0; N]);
+        let (states, columns) = dy.split_at_mut(n);
+        let s = self.evaluate(
+            (t, &x[..n]),
+            states,
+            (&y[n..], columns),
+            (&mut seed[..n], &mut column[..n]),
+        );
         self.discarded.set(s == Status::Discard);
         if !s.proceeds() {
             if s > Status::Discard {
@@ -57,8 +144,38 @@ impl<const N: usize> OdeSystem<N> for Scaled<'_> {
     }
 
     fn dimension(&self) -> usize {
+        let n = self.nominals.len();
+        match self.variational {
+            Some(_) => Variational::size(n),
+            None => n,
+        }
+    }
+
+    /// The steps are the states' own: a variational leg's derivative is then that of the
+    /// numerical flow.
+    fn controlled(&self) -> usize {
         self.nominals.len()
     }
+}
+
+/// What is made at one of the sizes the integrations are compiled for.
+pub trait AtSize {
+    type Made;
+    fn at<const N: usize>(self) -> Self::Made;
+}
+
+/// `job` at the smallest compiled size that holds `size` equations (padded with components
+/// that stay zero and that the norms and Jacobians leave out); `None` above the largest.
+pub fn at_size<J: AtSize>(size: usize, job: J) -> Option<J::Made> {
+    macro_rules! ladder {
+        ($($n:literal)*) => {
+            $(if size <= $n {
+                return Some(job.at::<$n>());
+            })*
+        };
+    }
+    ladder!(1 2 3 4 6 8 12 16 24 32 36 48 64 96 128);
+    None
 }
 
 /// Why the integration stopped.
@@ -116,15 +233,6 @@ struct SizedIntegration<const N: usize, M> {
     tolerances: Tolerances,
 }
 
-fn scaled<'a>(fmu: &'a mut Instance, nominals: &'a [f64]) -> Scaled<'a> {
-    Scaled {
-        fmu: RefCell::new(fmu),
-        nominals,
-        failure: Cell::new(None),
-        discarded: Cell::new(false),
-    }
-}
-
 impl<const N: usize, M: Stepping<N>> Integration for SizedIntegration<N, M> {
     fn restart(&mut self, t: f64, x: &[f64], nominals: &[f64]) {
         self.t = t;
@@ -143,7 +251,7 @@ impl<const N: usize, M: Stepping<N>> Integration for SizedIntegration<N, M> {
     }
 
     fn step(&mut self, fmu: &mut Instance, nominals: &[f64], limit: f64) -> Result<f64, Failure> {
-        let system = scaled(fmu, nominals);
+        let system = Scaled::new(fmu, nominals, None);
         if self.method.progress().next_step.is_none() {
             let mut f0 = [0.0; N];
             system.rhs(self.t, &self.y, &mut f0);
@@ -173,7 +281,7 @@ impl<const N: usize, M: Stepping<N>> Integration for SizedIntegration<N, M> {
             let result = self
                 .method
                 .integrate(&system, &mut self.t, &mut self.y, target, limit);
-            if let Some(status) = system.failure.get() {
+            if let Some(status) = system.failure() {
                 return Err(Failure::Fmu(status));
             }
             if let Err(e) = result {
@@ -202,7 +310,7 @@ impl<const N: usize, M: Stepping<N>> Integration for SizedIntegration<N, M> {
             self.now(x, nominals);
             return true;
         }
-        let system = scaled(fmu, nominals);
+        let system = Scaled::new(fmu, nominals, None);
         let Some(y) = self.method.dense_output(&system, t) else {
             return false;
         };
@@ -213,37 +321,40 @@ impl<const N: usize, M: Stepping<N>> Integration for SizedIntegration<N, M> {
     }
 }
 
-fn driver<const N: usize>(method: Method, tolerances: Tolerances) -> Box<dyn Integration> {
-    let (t, y) = (0.0, [0.0; N]);
-    match method {
-        Method::Dop853 => Box::new(SizedIntegration {
-            method: Dop853::<N>::new(tolerances),
-            t,
-            y,
-            tolerances,
-        }),
-        Method::Radau5 => Box::new(SizedIntegration {
-            method: Radau5::<N>::new(tolerances),
-            t,
-            y,
-            tolerances,
-        }),
+/// The integration a method makes at a compiled size.
+struct Driver {
+    method: Method,
+    tolerances: Tolerances,
+}
+
+impl AtSize for Driver {
+    type Made = Box<dyn Integration>;
+
+    fn at<const N: usize>(self) -> Box<dyn Integration> {
+        let (t, y, tolerances) = (0.0, [0.0; N], self.tolerances);
+        match self.method {
+            Method::Dop853 => Box::new(SizedIntegration {
+                method: Dop853::<N>::new(tolerances),
+                t,
+                y,
+                tolerances,
+            }),
+            Method::Radau5 => Box::new(SizedIntegration {
+                method: Radau5::<N>::new(tolerances),
+                t,
+                y,
+                tolerances,
+            }),
+        }
     }
 }
 
-/// An integration for `states` states: the smallest compiled size that holds them.
+/// An integration for `states` states (at most `MAX_STATES`, which `Shape::check` holds).
 pub(super) fn integration(
     states: usize,
     method: Method,
     tolerances: Tolerances,
 ) -> Box<dyn Integration> {
-    macro_rules! sized {
-        ($($n:literal)*) => {
-            $(if states <= $n {
-                return driver::<$n>(method, tolerances);
-            })*
-        };
-    }
-    sized!(1 2 3 4 6 8 12 16 24 32 48 64);
-    unreachable!("Shape::check refuses more than MAX_STATES states")
+    at_size(states, Driver { method, tolerances })
+        .expect("Shape::check refuses more than MAX_STATES states")
 }

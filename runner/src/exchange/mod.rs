@@ -41,8 +41,9 @@ pub const DEFAULT_TOLERANCE: f64 = 1e-6;
 /// dense output's error, show. On this project's mechanism, local errors held to the
 /// tolerance itself left errors far above it at the communication points
 /// (tests/python/test_sweep_model_exchange.py holds them to ten times it); the fraction is
-/// the one the FMU's own co-simulation uses for the same reason.
-const TOLERANCE_SAFETY: f64 = 1.0 / 30.0;
+/// the one the FMU's own co-simulation uses for the same reason, and the one a steady
+/// cycle's runs hold, whoever integrates them.
+pub const TOLERANCE_SAFETY: f64 = 1.0 / 30.0;
 /// The most iterations one event may take, and the most events one communication step may
 /// handle without time advancing: an FMU past either is looping.
 const MAX_EVENT_ITERATIONS: u32 = 1_000;
@@ -88,6 +89,7 @@ impl Shape {
 
 mod integration;
 
+pub(crate) use integration::{at_size, AtSize, Scaled, Variational};
 use integration::{integration, Failure, Integration};
 
 /// A Model Exchange instance and the runner's integration of it.
@@ -100,8 +102,9 @@ pub struct ExchangeRun {
     /// The event indicators at the integration's current point, and scratch for others.
     indicators: Vec<f64>,
     probe: Vec<f64>,
-    /// States as the FMU takes them (scratch).
+    /// States as the FMU takes them, and their derivatives (scratch).
     x: Vec<f64>,
+    probe_states: Vec<f64>,
     integration: Option<Box<dyn Integration>>,
     next_time_event: Option<f64>,
     /// An event located (or due) at this time, not handled yet; the integration's last
@@ -124,6 +127,7 @@ impl ExchangeRun {
             indicators: vec![0.0; shape.indicators],
             probe: vec![0.0; shape.indicators],
             x: vec![0.0; shape.states],
+            probe_states: vec![0.0; shape.states],
             shape,
             integration: None,
             next_time_event: None,
@@ -206,10 +210,7 @@ impl ExchangeRun {
             }
             worst = worst.max(s);
         }
-        let s = self
-            .fmu
-            .set_time(t)
-            .max(self.fmu.set_continuous_states(&self.x));
+        let s = self.fmu.set_state(t, &self.x);
         if !s.proceeds() {
             return s;
         }
@@ -243,10 +244,7 @@ impl ExchangeRun {
             integration.now(&mut self.x, &self.nominals);
         }
         self.events += 1;
-        let s = self
-            .fmu
-            .set_time(t)
-            .max(self.fmu.set_continuous_states(&self.x));
+        let s = self.fmu.set_state(t, &self.x);
         if !s.proceeds() {
             return s;
         }
@@ -282,10 +280,7 @@ impl ExchangeRun {
         let end = integration.now(&mut self.x, &self.nominals);
         let mut s = Status::Ok;
         if !integration.evaluates_at_end() {
-            s = self
-                .fmu
-                .set_time(end)
-                .max(self.fmu.set_continuous_states(&self.x));
+            s = self.fmu.set_state(end, &self.x);
             if !s.proceeds() {
                 return s;
             }
@@ -327,8 +322,7 @@ impl ExchangeRun {
             }
             let crossed_by_middle =
                 integration.state_at(&mut self.fmu, &self.nominals, middle, &mut self.x)
-                    && self.fmu.set_time(middle).proceeds()
-                    && self.fmu.set_continuous_states(&self.x).proceeds()
+                    && self.fmu.set_state(middle, &self.x).proceeds()
                     && self.fmu.get_event_indicators(&mut self.probe).proceeds()
                     && crossed(&self.indicators, &self.probe);
             if crossed_by_middle {
@@ -349,9 +343,7 @@ impl ExchangeRun {
             return Status::Error;
         }
         self.now = end;
-        self.fmu
-            .set_time(end)
-            .max(self.fmu.set_continuous_states(&self.x))
+        self.fmu.set_state(end, &self.x)
     }
 
     /// Integrate to `end`, handling every event on the way.
@@ -543,6 +535,26 @@ impl ExchangeRun {
             &self.nominals,
             self.shape.indicators,
         )
+    }
+
+    /// The first time derivatives of the outputs `vrs` where the integration left the FMU
+    /// (a communication point), into `rates`: ∂y/∂x · f from its directional derivatives,
+    /// `states` the continuous states' value references (the inputs are held over a step).
+    pub fn rates(&mut self, vrs: &[u32], states: &[u32], rates: &mut [f64]) -> Status {
+        let s = self.fmu.get_derivatives(&mut self.probe_states);
+        for (vr, rate) in vrs.iter().zip(rates.chunks_mut(1)) {
+            if !s.proceeds() {
+                return s;
+            }
+            let seed = &self.probe_states;
+            let s = self
+                .fmu
+                .get_directional_derivative(&[*vr], states, seed, rate);
+            if !s.proceeds() {
+                return s;
+            }
+        }
+        s
     }
 
     /// The initial event iteration: the states as initialised.

@@ -47,6 +47,18 @@ impl Status {
     pub fn proceeds(self) -> bool {
         self <= Status::Warning
     }
+
+    /// This status and the next call's, the worse of the two; the next call is made only
+    /// where this one lets the run go on (a master calls nothing after an Error but what
+    /// the standard allows then).
+    #[inline]
+    pub fn then(self, next: impl FnOnce() -> Status) -> Status {
+        if self.proceeds() {
+            self.max(next())
+        } else {
+            self
+        }
+    }
 }
 
 /// Which of an FMU's interfaces a library's instances use.
@@ -65,6 +77,14 @@ impl Interface {
             other => Err(format!(
                 "interface {other:?} is neither \"co_simulation\" nor \"model_exchange\""
             )),
+        }
+    }
+
+    /// The interface's name as the standard writes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Interface::CoSimulation => "Co-Simulation",
+            Interface::ModelExchange => "Model Exchange",
         }
     }
 
@@ -308,6 +328,13 @@ impl Instance {
         enter_continuous_time_mode(),
         completed_integrator_step(asks: &mut (bool, bool)),
     );
+
+    /// Model Exchange's time and continuous states, the states set only where the time
+    /// was.
+    pub fn set_state(&mut self, time: f64, states: &[f64]) -> Status {
+        self.set_time(time)
+            .then(|| self.set_continuous_states(states))
+    }
 
     /// What FMI 2.0 calls `fmi2_name` (such as `fmi2SetReal`), as this instance's version
     /// names it, for messages.

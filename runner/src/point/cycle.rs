@@ -5,17 +5,14 @@
 use std::time::{Duration, Instant};
 
 use super::{fresh_instance, set_up, Assignments, Outcome, PointResult, Runner, Stop};
-use crate::cycle::{self, CycleRecord, Linearisation, Restart, Shot, Start};
-use crate::cycle_plan::LinearPlan;
+use crate::cycle::{self, Budget, CycleRecord, Linearisation, Miss, NoCycle, Restart, Shot, Start};
+use crate::cycle_plan::{LinearPlan, Way};
+use crate::exchange::TOLERANCE_SAFETY;
 use crate::fmi::Instance;
 use crate::messages;
 use crate::plan::Plan;
 use crate::target::Running;
 use crate::unit::Unit;
-
-/// The local error the FMU holds in a cycle's runs through its start values, as a
-/// fraction of the plan's tolerance (as the runner's own integration of the cycle does).
-const FMU_TOLERANCE: f64 = 1.0 / 30.0;
 
 /// The point's start, again and again: what the shooting through start values restarts
 /// the Co-Simulation instance with.
@@ -26,14 +23,28 @@ struct PointStart<'r> {
     tolerance: f64,
 }
 
+/// A point's stop, as a search without a cycle: an FMU's error stays one.
+fn as_miss(Stop(outcome, why): Stop) -> NoCycle {
+    NoCycle {
+        why,
+        miss: if outcome == Outcome::Error {
+            Miss::FmuError
+        } else {
+            Miss::NoCycle
+        },
+    }
+}
+
 impl Restart for PointStart<'_> {
-    fn restart(&mut self) -> Result<&mut Instance, String> {
+    fn restart(&mut self) -> Result<&mut Instance, NoCycle> {
         let runner = &mut *self.runner;
-        let instance = fresh_instance(&runner.target, &mut runner.instance).map_err(|s| s.1)?;
-        set_up(instance, self.plan, self.assignments, Some(self.tolerance)).map_err(|s| s.1)?;
+        let instance = fresh_instance(&runner.target, &mut runner.instance).map_err(as_miss)?;
+        set_up(instance, self.plan, self.assignments, Some(self.tolerance)).map_err(as_miss)?;
         match instance {
             Running::Fmu(fmu) => Ok(fmu),
-            _ => Err("a cycle through the start values runs the Co-Simulation interface".into()),
+            _ => Err(NoCycle::because(
+                "a cycle through the start values runs the Co-Simulation interface".into(),
+            )),
         }
     }
 }
@@ -55,11 +66,12 @@ impl Runner {
             .continuation
             .then(|| self.continuation.guess(row, cycle_plan))
             .flatten();
-        let deadline = plan
-            .timeout_s
-            .map(|s| (started + Duration::from_secs_f64(s), s));
-        let found = if cycle_plan.through.is_some() {
-            self.through_starts(plan, assignments, row, tolerance, (guess, deadline))
+        let budget = Budget(
+            plan.timeout_s
+                .map(|s| (started + Duration::from_secs_f64(s), s)),
+        );
+        let found = if matches!(cycle_plan.way, Way::Starts(_)) {
+            self.through_starts(plan, assignments, row, tolerance, (guess, budget))
         } else {
             self.prepare(plan, assignments, row, true)?;
             let Some(Running::Exchange(run)) = self.instance.as_mut() else {
@@ -76,16 +88,14 @@ impl Runner {
                 nominals,
                 indicators,
             };
-            let budget = plan.stop - plan.start;
+            let transient = plan.stop - plan.start;
             cycle::analyse(
                 start,
                 cycle_plan,
                 tolerance,
-                budget,
+                (transient, budget),
                 guess.as_ref(),
-                deadline,
             )
-            .map_err(|failure| (failure.timeout, failure.why))
         };
         match found {
             Ok((mut record, shot)) => {
@@ -100,17 +110,17 @@ impl Runner {
                             .extend(kept[1..].iter().map(|column| column[j]));
                     }
                 }
-                result.t_end = plan.start + shot.period;
+                result.t_end = plan.start + shot.search.period;
                 result.cycle = Some(record);
                 self.continuation.record(row, shot);
                 Ok(())
             }
-            Err((timeout, why)) => {
+            Err(NoCycle { why, miss }) => {
                 self.continuation.forget();
-                let outcome = if timeout {
-                    Outcome::Timeout
-                } else {
-                    Outcome::NoCycle
+                let outcome = match miss {
+                    Miss::Timeout => Outcome::Timeout,
+                    Miss::NoCycle => Outcome::NoCycle,
+                    Miss::FmuError => Outcome::Error,
                 };
                 Err(Stop(outcome, why))
             }
@@ -125,30 +135,28 @@ impl Runner {
         assignments: &mut Assignments,
         row: &[f64],
         tolerance: f64,
-        (guess, deadline): (Option<Shot>, Option<(Instant, f64)>),
-    ) -> Result<(CycleRecord, Shot), (bool, String)> {
+        (guess, budget): (Option<Shot>, Budget),
+    ) -> Result<(CycleRecord, Shot), NoCycle> {
         let cycle_plan = plan.cycle.as_ref().expect("a cycle plan");
-        assignments.fill(row).map_err(|m| (false, m))?;
+        assignments.fill(row).map_err(NoCycle::because)?;
         let mut start = PointStart {
             runner: self,
             plan,
             assignments,
-            tolerance: tolerance * FMU_TOLERANCE,
+            tolerance: tolerance * TOLERANCE_SAFETY,
         };
         let run = (plan.start, plan.step, plan.stop - plan.start);
         let (mut record, shot, states) = cycle::analyse_through_starts(
             &mut start,
             cycle_plan,
-            run,
-            tolerance,
+            (run, tolerance),
             guess.as_ref(),
-            deadline,
-        )
-        .map_err(|failure| (failure.timeout, failure.why))?;
+            budget,
+        )?;
         if !states.is_empty() {
             (record.modes, record.linearisations) = self
                 .modes_on_exchange(plan, assignments, &shot, &states)
-                .map_err(|why| (false, format!("the modes along the cycle: {why}")))?;
+                .map_err(|e| e.during("the modes along the cycle"))?;
         }
         Ok((record, shot))
     }
@@ -161,27 +169,32 @@ impl Runner {
         assignments: &mut Assignments,
         shot: &Shot,
         states: &[(f64, Vec<f64>)],
-    ) -> Result<cycle::Along, String> {
+    ) -> Result<cycle::Along, NoCycle> {
         let cycle_plan = plan.cycle.as_ref().expect("a cycle plan");
-        let starts = cycle_plan.through.as_ref().expect("through start values");
-        let target = self
-            .exchange
-            .as_ref()
-            .ok_or("the FMU's Model Exchange interface was not loaded")?;
-        let instance = fresh_instance(target, &mut self.exchange_instance).map_err(|s| s.1)?;
-        set_up(instance, plan, assignments, plan.tolerance).map_err(|s| s.1)?;
-        let mut s = instance.set_real(&starts.parameters, &shot.x0);
-        if s.proceeds() {
-            s = instance.exit_initialization_mode();
-        }
+        let Way::Starts(starts) = &cycle_plan.way else {
+            return Err(NoCycle::because(
+                "the cycle was not found through start values".into(),
+            ));
+        };
+        let target = self.exchange.as_ref().ok_or_else(|| {
+            NoCycle::because("the FMU's Model Exchange interface was not loaded".into())
+        })?;
+        let instance = fresh_instance(target, &mut self.exchange_instance).map_err(as_miss)?;
+        set_up(instance, plan, assignments, plan.tolerance).map_err(as_miss)?;
+        let s = instance
+            .set_real(&starts.parameters.vrs, &shot.x0)
+            .then(|| instance.exit_initialization_mode());
         if !s.proceeds() {
             self.exchange_instance = None;
-            return Err(format!(
-                "initialising the Model Exchange instance returned {s:?}"
+            return Err(NoCycle::returned(
+                "initialising the Model Exchange instance",
+                s,
             ));
         }
         let Some(Running::Exchange(run)) = self.exchange_instance.as_mut() else {
-            return Err("the modes are found on the Model Exchange interface".into());
+            return Err(NoCycle::because(
+                "the modes are found on the Model Exchange interface".into(),
+            ));
         };
         let (fmu, t, _, _, _) = run.parts();
         cycle::modes_at(fmu, cycle_plan, t, states)
@@ -211,6 +224,6 @@ impl Runner {
             return Err("a linearisation reads the Model Exchange interface".into());
         };
         let (fmu, t, x, _, _) = run.parts();
-        cycle::linearise(fmu, t, x, linear)
+        cycle::linearise(fmu, t, x, linear).map_err(|e| e.why)
     }
 }

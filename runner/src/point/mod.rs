@@ -174,6 +174,8 @@ pub struct Runner {
     integers: Vec<i32>,
     booleans: Vec<i32>,
     read: Vec<f64>,
+    /// The rated variables' rates at the communication point.
+    rates: Vec<f64>,
     /// The last steady cycles found: the next point's shooting starts from them.
     continuation: Continuation,
     /// The FMU's Model Exchange interface beside its Co-Simulation one, where a cycle
@@ -252,6 +254,7 @@ impl Runner {
             integers: Vec::new(),
             booleans: Vec::new(),
             read: Vec::new(),
+            rates: Vec::new(),
             continuation: Continuation::default(),
             exchange: None,
             exchange_instance: None,
@@ -301,6 +304,37 @@ impl Runner {
         self.integers.resize(r.integer.len(), 0);
         self.booleans.resize(r.boolean.len(), 0);
         self.read.resize(r.len(), 0.0);
+        self.rates.resize(plan.rated.len(), 0.0);
+    }
+
+    /// The rated variables' rates at `t`, where a metric that wants them is in its window.
+    fn read_rates(&mut self, plan: &Plan, t: f64) -> Result<(), Stop> {
+        let wanted = plan
+            .metrics
+            .iter()
+            .any(|m| m.rate.is_some() && m.accumulator.within(t));
+        if !wanted {
+            return Ok(());
+        }
+        let instance = self.instance.as_mut().expect("prepared");
+        let s = instance.get_rates(&plan.rated, &plan.rate_states, &mut self.rates);
+        if !s.proceeds() {
+            let call = match plan.rate_states.is_empty() {
+                true => "fmi2GetRealOutputDerivatives",
+                false => "fmi2GetDirectionalDerivative",
+            };
+            return Err(failed_in(instance, call, "", s));
+        }
+        if let Some(i) = self.rates.iter().position(|x| !x.is_finite()) {
+            return Err(Stop(
+                Outcome::Error,
+                format!(
+                    "the FMU reported a rate of {} at t = {t} with a successful status",
+                    self.rates[i]
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// Read every metric and series variable into `self.read` (buffers sized).
@@ -350,8 +384,10 @@ impl Runner {
                 ),
             ));
         }
-        for (slot, acc) in plan.metrics.iter_mut() {
-            acc.push(t, self.read[*slot]);
+        self.read_rates(plan, t)?;
+        for m in plan.metrics.iter_mut() {
+            let rate = m.rate.map(|r| self.rates[r]);
+            m.accumulator.push(t, self.read[m.slot], rate);
         }
         if let Some((slots, every)) = &plan.series {
             if k.is_multiple_of(*every) || k == plan.n_steps {
@@ -432,8 +468,8 @@ impl Runner {
     ) -> PointResult {
         let started = Instant::now();
         messages::take();
-        for (_, acc) in plan.metrics.iter_mut() {
-            acc.clear();
+        for m in plan.metrics.iter_mut() {
+            m.accumulator.clear();
         }
         let mut result = PointResult {
             outcome: Outcome::Ok,
@@ -458,7 +494,7 @@ impl Runner {
         match ended {
             Ok(()) if plan.cycle.is_some() => result.message = said,
             Ok(()) => {
-                result.metrics = plan.metrics.iter().map(|(_, a)| a.value()).collect();
+                result.metrics = plan.metrics.iter().map(|m| m.accumulator.value()).collect();
                 result.message = said;
             }
             Err(Stop(outcome, what)) => {
