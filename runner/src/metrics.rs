@@ -66,31 +66,34 @@ pub struct Sample {
 }
 
 /// The largest of sign·x (sign ±1) near the sampled extreme `at`, from the samples either
-/// side of it (`None` at an end of the samples): the cubic through values and rates on
-/// each side whose rates are known, else the parabola through the three, else `at`
-/// itself. Never below the sampled value.
+/// side of it (`None` at an end of the samples). Where `at`'s rate is known it says on
+/// which side the extreme lies: there, the cubic through the values and rates at both
+/// ends where the neighbour's rate is known too, else the parabola through the three
+/// samples; no neighbour there, the extreme is `at` itself (an end of the window). Without
+/// `at`'s rate, the parabola. Never below the sampled value.
 pub fn refined(sign: f64, left: Option<Sample>, at: Sample, right: Option<Sample>) -> f64 {
-    let with_rates = |s: &Option<Sample>| s.is_some_and(|s| s.rate.is_some());
-    let best = if at.rate.is_some() && (with_rates(&left) || with_rates(&right)) {
-        [
-            left.filter(|_| with_rates(&left)),
-            right.filter(|_| with_rates(&right)),
-        ]
-        .into_iter()
-        .flatten()
-        .map(|side| {
-            let (a, b) = if side.t < at.t {
-                (side, at)
-            } else {
-                (at, side)
-            };
-            cubic_top(sign, a, b)
-        })
-        .fold(sign * at.x, f64::max)
-    } else if let (Some(a), Some(c)) = (left, right) {
-        parabola_top(sign, a, at, c)
-    } else {
-        sign * at.x
+    let parabola = || match (left, right) {
+        (Some(a), Some(c)) => parabola_top(sign, a, at, c),
+        _ => sign * at.x,
+    };
+    let best = match at.rate.map(|d| sign * d) {
+        None => parabola(),
+        Some(rising) => {
+            let toward = if rising > 0.0 { right } else { left };
+            match toward {
+                _ if rising == 0.0 => sign * at.x,
+                None => sign * at.x,
+                Some(side) if side.rate.is_some() => {
+                    let (a, b) = if side.t < at.t {
+                        (side, at)
+                    } else {
+                        (at, side)
+                    };
+                    cubic_top(sign, a, b)
+                }
+                Some(_) => parabola(),
+            }
+        }
     };
     sign * best.max(sign * at.x)
 }
@@ -176,6 +179,13 @@ impl Extreme {
         }
     }
 
+    /// Whether a sample of value `x` may end up beside the extreme or be it, so that its
+    /// rate is worth reading: the first, the one after the extreme, and any within
+    /// `reach` (twice the largest change between samples yet) of it.
+    fn near(&self, x: f64, reach: f64) -> bool {
+        self.latest || self.at.is_none_or(|at| self.sign * (x - at.x) >= -reach)
+    }
+
     fn push(&mut self, previous: Option<Sample>, sample: Sample) {
         let beyond = self
             .at
@@ -211,6 +221,8 @@ pub struct Accumulator {
     top: Extreme,
     bottom: Extreme,
     previous: Option<Sample>,
+    /// The largest change of the variable between two samples yet.
+    largest_change: f64,
     first_t: f64,
     integral: f64,
 }
@@ -227,6 +239,7 @@ impl Accumulator {
             top: Extreme::new(1.0),
             bottom: Extreme::new(-1.0),
             previous: None,
+            largest_change: 0.0,
             first_t: f64::NAN,
             integral: 0.0,
         }
@@ -246,9 +259,19 @@ impl Accumulator {
         t >= self.from && t <= self.to
     }
 
-    /// Whether the metric refines its extremes (and so wants the variable's rate).
+    /// Whether the metric refines its extremes (and so may want the variable's rate).
     pub fn refines(&self) -> bool {
         self.kind.is_extreme() && self.extremes == Extremes::Refined
+    }
+
+    /// Whether the rate at a sample (t, x) may serve the refined extremes: where the
+    /// sample may be an extreme or beside one. Reading it only there keeps the rates'
+    /// cost to the samples near the peaks; an extreme whose neighbour's rate went unread
+    /// is refined by the parabola instead.
+    #[inline]
+    pub fn wants_rate(&self, t: f64, x: f64) -> bool {
+        let reach = 2.0 * self.largest_change;
+        self.refines() && self.within(t) && (self.top.near(x, reach) || self.bottom.near(x, reach))
     }
 
     #[inline]
@@ -270,6 +293,7 @@ impl Accumulator {
                     before.x
                 };
                 self.integral += 0.5 * (t - before.t) * (y + before_y);
+                self.largest_change = self.largest_change.max((x - before.x).abs());
             }
         }
         self.count += 1;
@@ -401,6 +425,26 @@ mod tests {
         // The samples' error falls as h², the parabola's as h³ (h 2.5 times shorter).
         assert!(coarse[0] / fine[0] < 8.0, "{coarse:?} {fine:?}");
         assert!(coarse[1] / fine[1] > 12.0, "{coarse:?} {fine:?}");
+    }
+
+    #[test]
+    fn rates_are_wanted_near_the_extremes_alone_and_serve_as_all_would() {
+        let signal = |t: f64| (2.0 * t + 0.3).sin() + 0.2 * (5.0 * t).cos();
+        let rate = |t: f64| 2.0 * (2.0 * t + 0.3).cos() - (5.0 * t).sin();
+        for kind in [Kind::Max, Kind::Min, Kind::PeakToPeak] {
+            let mut every = Accumulator::new(kind, Extremes::Refined, 0.0, 30.0, 1e-12);
+            let mut asked = every.clone();
+            let mut wanted = 0;
+            for k in 0..=3000 {
+                let t = k as f64 * 0.01;
+                every.push(t, signal(t), Some(rate(t)));
+                let wants = asked.wants_rate(t, signal(t));
+                wanted += usize::from(wants);
+                asked.push(t, signal(t), wants.then(|| rate(t)));
+            }
+            assert_eq!(asked.value(), every.value(), "{kind:?}");
+            assert!(wanted < 3001 / 3, "{kind:?}: {wanted}");
+        }
     }
 
     #[test]

@@ -307,14 +307,15 @@ impl Runner {
         self.rates.resize(plan.rated.len(), 0.0);
     }
 
-    /// The rated variables' rates at `t`, where a metric that wants them is in its window.
-    fn read_rates(&mut self, plan: &Plan, t: f64) -> Result<(), Stop> {
+    /// The rated variables' rates at `t`, where a metric wants them at this sample;
+    /// whether they were read.
+    fn read_rates(&mut self, plan: &Plan, t: f64) -> Result<bool, Stop> {
         let wanted = plan
             .metrics
             .iter()
-            .any(|m| m.rate.is_some() && m.accumulator.within(t));
+            .any(|m| m.rate.is_some() && m.accumulator.wants_rate(t, self.read[m.slot]));
         if !wanted {
-            return Ok(());
+            return Ok(false);
         }
         let instance = self.instance.as_mut().expect("prepared");
         let s = instance.get_rates(&plan.rated, &plan.rate_states, &mut self.rates);
@@ -334,7 +335,7 @@ impl Runner {
                 ),
             ));
         }
-        Ok(())
+        Ok(true)
     }
 
     /// Read every metric and series variable into `self.read` (buffers sized).
@@ -384,9 +385,9 @@ impl Runner {
                 ),
             ));
         }
-        self.read_rates(plan, t)?;
+        let rated = self.read_rates(plan, t)?;
         for m in plan.metrics.iter_mut() {
-            let rate = m.rate.map(|r| self.rates[r]);
+            let rate = m.rate.filter(|_| rated).map(|r| self.rates[r]);
             m.accumulator.push(t, self.read[m.slot], rate);
         }
         if let Some((slots, every)) = &plan.series {
