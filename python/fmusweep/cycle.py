@@ -50,7 +50,14 @@ from .sensitivity_slots import Offer, read_offer, slot_parameter, slot_variable
 from .native import RunnerError
 from .records import PointResult, new_plan
 
-__all__ = ["CycleSpec", "CYCLE_COLUMNS", "cycle_columns", "Linearisation", "linearise"]
+__all__ = ["CycleSpec", "CYCLE_COLUMNS", "CHAIN_POINTS", "cycle_columns", "Linearisation",
+           "linearise"]
+
+# A sweep of steady cycles that continues each point from its neighbours' cycles does so
+# in chains of at most this many points along a row of its design (fmusweep.designs'
+# chains): a point's start is then the design's alone, and the sweep the same bit for bit
+# however its batches are dealt out.
+CHAIN_POINTS = 32
 
 # The columns a sweep of cycles writes of its own (the multipliers and modes as lists).
 CYCLE_COLUMNS = ("cycle_period", "cycle_multiplier", "cycle_mode", "cycle_margin",

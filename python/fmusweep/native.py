@@ -207,7 +207,9 @@ class NativeRunner:
         return description
 
     def _configure(self, plan: Plan) -> list[str]:
-        answer = self._request({"op": "configure", "plan": plan})
+        # The chains are the client's: the runner hears of them with each run.
+        theirs = {k: v for k, v in plan.items() if k != "chain"}
+        answer = self._request({"op": "configure", "plan": theirs})
         # The numbers in a row of a point's series (its time first): the runner's count.
         self.series_width = int(answer["series_width"])
         reads: list[str] = answer["reads"]
@@ -238,18 +240,26 @@ class NativeRunner:
         listed = np.asarray(rows, dtype=float).tolist()
         return float(self._request({"op": "bare", "names": names, "rows": listed})["seconds"])
 
-    def run(self, names: list[str], rows: Any) -> list[PointResult]:
+    def run(self, names: list[str], rows: Any,
+            chains: list[int] | None = None) -> list[PointResult]:
         """Run every row; one result dict per row, in order, whatever happens to the
         runner on the way. Each has status, message, metrics, t_end, steps, wall_s and,
-        when the plan records one, series (an array of rows t, variables…)."""
+        when the plan records one, series (an array of rows t, variables…). `chains` are
+        the lengths of the runs of rows that continue each other's steady cycles (by
+        default the rows are one)."""
         values = np.asarray(rows, dtype=float)
+        starts = np.zeros(len(values), dtype=bool)
+        starts[np.cumsum([0] + list(chains or [len(values)]))[:-1]] = True
         results: list[PointResult] = []
         while len(results) < len(values):
-            answered, lost = self._run_until_failure(names, values[len(results):], careful=False)
+            answered, lost = self._run_until_failure(names, values[len(results):],
+                                                     _lengths(starts[len(results):]), False)
             results += answered
             if lost:
                 # Which point was it? Only a runner that flushes every reply can say.
-                results += self._run_until_failure(names, values[len(results):], careful=True)[0]
+                rest = starts[len(results):]
+                results += self._run_until_failure(names, values[len(results):],
+                                                   _lengths(rest), True)[0]
         return results
 
     def _hard_deadline(self) -> float | None:
@@ -258,7 +268,7 @@ class NativeRunner:
             return None
         return time.monotonic() + HARD_DEADLINE_FACTOR * budget + HARD_DEADLINE_GRACE_S
 
-    def _run_until_failure(self, names: list[str], rows: Any,
+    def _run_until_failure(self, names: list[str], rows: Any, chains: list[int],
                            careful: bool) -> tuple[list[PointResult], bool]:
         """The rows' results in order, and whether the runner was lost (killed by the FMU
         or by the hard deadline; it is then restarted). With `careful` the runner flushes
@@ -269,7 +279,8 @@ class NativeRunner:
         width = self.series_width
         results: list[PointResult] = []
         try:
-            self._send({"op": "run", "names": names, "rows": rows.tolist(), "flush_each": careful})
+            self._send({"op": "run", "names": names, "rows": rows.tolist(), "flush_each": careful,
+                        "chains": chains})
             while True:
                 header = self._reply(self._hard_deadline())
                 if header is None:
@@ -301,6 +312,15 @@ class NativeRunner:
             results.append(failed_result("crashed", message, plan))
         self._restart()
         return results, True
+
+
+def _lengths(starts: Any) -> list[int]:
+    """The lengths of the chains that `starts` (where a row starts one) cut rows into; the
+    first row starts one whatever it says (nothing before it ran in the request)."""
+    at = np.flatnonzero(starts).tolist()
+    if len(starts) and (not at or at[0] != 0):
+        at = [0] + at
+    return np.diff(at + [len(starts)]).tolist()
 
 
 def failed_result(status: str, message: str, plan: Plan) -> PointResult:

@@ -49,7 +49,10 @@ class Plan(TypedDict):
     timeout_s: float | None
     interface: NotRequired[str | None]  # "co_simulation" or "model_exchange"
     integrator: NotRequired[str | None]  # "dop853" or "radau5" (Model Exchange)
-    cycle: NotRequired[Any]  # the steady cycle's plan (fmusweep.cycle.CyclePlan)
+    cycle: NotRequired[Any]  # the steady cycle's plan (fmusweep.cycle.CycleSpec.plan)
+    # The client's own, not the runner's: how a sweep of continued steady cycles cuts its
+    # points into chains (fmusweep.designs.base.chains_of's row and most).
+    chain: NotRequired[dict[str, int] | None]
 
 
 def new_plan(start: float, stop: float, step: float, *, tolerance: float | None = None,

@@ -57,7 +57,7 @@ import tomllib
 from dataclasses import dataclass, field
 from typing import Any, Callable, TypeVar
 
-from .cycle import CYCLE_COLUMNS, CycleSpec
+from .cycle import CHAIN_POINTS, CYCLE_COLUMNS, CycleSpec
 from .designs import KINDS, Design, generate, kind_of
 from .columns import SERIES_COLUMNS, SWEEP_COLUMNS, refuse_collisions
 from .errors import Collector, SpecError, refuse
@@ -372,7 +372,10 @@ class Spec:
             assert description is not None, "a steady cycle's plan reads the FMU's description"
             cycle = self.cycle.plan([{"field": f"outputs.metrics.{m.name}", **m.entry}
                                      for m in self.metrics], description)
-            return self.scenario.plan([], None, self.system, cycle)
+            plan = self.scenario.plan([], None, self.system, cycle)
+            if self.cycle.continued:
+                plan["chain"] = self.points.chain_rule(CHAIN_POINTS)
+            return plan
         metrics = [MetricPlan({"variable": m.variable, "kind": m.kind, "from": m.start,
                                 "to": m.end, "field": f"outputs.metrics.{m.name}",
                                 "extremes": m.extremes}) for m in self.metrics]

@@ -26,7 +26,7 @@ from .records import Batch, PointResult, Points, Rows
 from .results import Results, SweepSummary
 from .spec import Spec
 from .store import coupling_columns
-from .cycle import cycle_columns
+from .cycle import CHAIN_POINTS, cycle_columns
 from .ssp import check_ssp
 from .show import show_sweep
 from .study import Study, Target, load_spec, spec_name
@@ -40,11 +40,6 @@ BATCH_SECONDS = 0.5
 # last ones do not leave workers idle.
 BATCHES_PER_WORKER = 4
 CALIBRATION_POINTS = 4
-# A sweep of steady cycles that continues each point from its neighbours' cycles runs
-# in chains of at most this many points along a row of its design, each chain one batch
-# (the runner forgets the cycles it found at the end of a batch): a point's start is then
-# the design's alone, and the sweep the same bit for bit on any number of workers.
-CHAIN_POINTS = 32
 # Without an engine named, a sweep whose points left take less work than this (seconds,
 # from the calibration points) runs in this process: starting a LocalCluster and
 # preparing its workers costs about this much (bench-sweep's report gives the startup).
@@ -133,12 +128,24 @@ def _chunks(todo: Points, first: int, size: int) -> Iterator[Points]:
         yield todo[i:i + size]
 
 
-def _chunks_of(spec: Spec, design: Design, todo: Points) -> Iterator[Points] | None:
-    """A sweep of steady cycles continued from neighbours runs in chains, a batch each;
-    None for any other sweep, whose batches are sized to their work."""
+def _chains(spec: Spec, design: Design, todo: Points) -> list[Points] | None:
+    """The chains of a sweep of steady cycles continued from neighbours, which a batch
+    holds whole (None for any other sweep)."""
     if spec.cycle is None or not spec.cycle.continued:
         return None
-    return iter(design.chains(todo, CHAIN_POINTS))
+    return design.chains(todo, CHAIN_POINTS)
+
+
+def _whole_chains(chains: list[Points], size: int) -> Iterator[Points]:
+    """Consecutive chains joined into chunks of about `size` points, none cut."""
+    chunk: list[Points] = []
+    for chain in chains:
+        chunk.append(chain)
+        if sum(len(c) for c in chunk) >= size:
+            yield np.concatenate(chunk)
+            chunk = []
+    if chunk:
+        yield np.concatenate(chunk)
 
 
 def _remaining(total: int, done: Points) -> Points:
@@ -237,10 +244,10 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
     size, batches, dispatch_s, held, note = 0, 0, 0.0, None, "nothing left to run"
     try:
         if len(todo):
-            chunks = _chunks_of(spec, design, todo)
+            chains = _chains(spec, design, todo)
             # Calibrate the batch size and the engine on the first points, here; they are
             # kept.
-            first = next(chunks) if chunks is not None else todo[:CALIBRATION_POINTS]
+            first = todo[:CALIBRATION_POINTS] if chains is None else chains[0]
             calibration = target.run_batch(target.archive, study.plan, names,
                                            design.rows_at(first), first)
             keep(calibration)
@@ -248,13 +255,10 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
             note = _choose_engine(study, per_point, len(todo) - len(first))
             expected_workers = 1 if study.pool.serial else (
                 study.pool.requested_workers or os.cpu_count() or 1)
-            if chunks is None:
-                size = _batch_size(batch_size, per_point, len(todo) - len(first),
-                                   expected_workers)
-                chunks = _chunks(todo, len(first), size)
-                batches = math.ceil((len(todo) - len(first)) / size) + 1
-            else:
-                size, batches = CHAIN_POINTS, len(design.chains(todo, CHAIN_POINTS))
+            size = _batch_size(batch_size, per_point, len(todo) - len(first), expected_workers)
+            chunks = (_chunks(todo, len(first), size) if chains is None
+                      else _whole_chains(chains[1:], size))
+            batches = math.ceil((len(todo) - len(first)) / size) + 1
             with study.running() as pool:
                 t0 = time.perf_counter()
                 for batch in pool.stream(names, design.rows_at, chunks,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import sys
 
+from .designs.base import chains_of
 from .fmu import Archive, local_runner
 from .native import NativeRunner
 from .records import Batch, Plan, Points, Rows
@@ -41,7 +42,9 @@ def prepare_worker(fmu: Archive, plan: Plan) -> str:
 
 def run_batch(fmu: Archive, plan: Plan, names: list[str], rows: Rows, points: Points) -> Batch:
     trace("start", points)
-    results = _configured_runner(fmu, plan).run(names, rows)
+    rule = plan.get("chain")
+    chains = [len(c) for c in chains_of(points, **rule)] if rule else None
+    results = _configured_runner(fmu, plan).run(names, rows, chains)
     trace("end", points)
     return {"points": points, "results": results, "worker": worker_name()}
 

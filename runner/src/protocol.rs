@@ -43,6 +43,9 @@ enum Request {
         rows: Vec<Vec<f64>>,
         #[serde(default)]
         flush_each: bool,
+        /// The lengths of the runs of rows that continue each other's steady cycles, in
+        /// order; by default the request's rows are one.
+        chains: Option<Vec<usize>>,
     },
     /// Set each row's values in initialisation mode only: what does the FMU refuse?
     Check {
@@ -200,7 +203,8 @@ impl Session {
                 names,
                 rows,
                 flush_each,
-            } => self.run(&names, &rows, flush_each, out),
+                chains,
+            } => self.run(&names, &rows, (flush_each, chains), out),
             Request::Check { names, rows } => self.check(&names, &rows, out),
             Request::Linearise { names, rows } => self.linearise(&names, &rows, out),
             Request::Bare { names, rows } => {
@@ -240,18 +244,37 @@ impl Session {
         &mut self,
         names: &[String],
         rows: &[Vec<f64>],
-        flush_each: bool,
+        (flush_each, chains): (bool, Option<Vec<usize>>),
         out: &mut impl Write,
     ) -> std::io::Result<()> {
+        let chains = chains.unwrap_or_else(|| vec![rows.len()]);
+        if chains.iter().sum::<usize>() != rows.len() {
+            let e = format!(
+                "chains of {} rows for {} rows",
+                chains.iter().sum::<usize>(),
+                rows.len()
+            );
+            return reply(out, &json!({"error": e}));
+        }
         let (plan, runner, mut assignments) = match self.prepared(names, rows) {
             Ok(p) => p,
             Err(e) => return reply(out, &json!({"error": e})),
         };
-        // A request's points continue each other's steady cycles, and nothing before
-        // them: the same rows give the same answers however a sweep deals them out.
-        runner.forget_cycle();
+        // A chain's points continue each other's steady cycles, and nothing before them:
+        // the same chains give the same answers however a sweep deals them out.
+        let starts: Vec<usize> = chains
+            .iter()
+            .scan(0, |at, length| {
+                let start = *at;
+                *at += length;
+                Some(start)
+            })
+            .collect();
         let mut flushed = Instant::now();
         for (i, row) in rows.iter().enumerate() {
+            if starts.contains(&i) {
+                runner.forget_cycle();
+            }
             let r = runner.run_point(plan, &mut assignments, row);
             let width = plan.series_width();
             reply(

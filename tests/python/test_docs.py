@@ -135,8 +135,20 @@ def test_every_quoted_report_names_the_commit_and_machine_it_measured():
 
 MEASURED = re.compile(
     r"(?<![\w.\-])(?:\d\.\d+e[-+]?\d+"
-    r"|\d+(?:[,\u2009\u202f ]\d{3})*(?:\.\d+)?\s?(?:%|×|ns\b|µs\b|ms\b|s\b|MiB\b|MB\b|KiB\b|kB\b"
+    r"|\d+(?:[,\u2009\u202f ]\d{3})*(?:\.\d+)?\s?(?:%|×(?!\s?\d)|ns\b|µs\b|ms\b|s\b|MiB\b|MB\b|KiB\b|kB\b"
     r"|bytes\b|instructions\b|points/s\b|evaluations\b))")
+
+# A mantissa of one digit other than 1 times a power of ten, in either notation.
+POWERS = re.compile(r"(?<![\w.\-])(?:[2-9]e[-+]?\d+|\d(?:\.\d+)?\s?×\s?10[⁻⁰¹²³⁴⁵⁶⁷⁸⁹]+)")
+# A number of times: not a matrix's or a grid's size (2 × 2), nor a bound in units of a
+# setting (10 × the tolerance, 2 × the budget, 6 × h).
+TIMES = re.compile(r"(?<![\w.\-])\d+(?:\.\d+)?\s?×(?!\s?\d)"
+                   r"(?!\s?(?:the\s+)?(?:tolerance|tol|budget|h)\b)")
+# A multiple in words, as a comparison (twice as fast, ten times longer).
+WORDS = re.compile(r"\b(?:twice|thrice|(?:two|three|four|five|six|seven|eight|nine|ten|"
+                   r"eleven|twelve|twenty|thirty|forty|fifty|a hundred|a thousand)\s+times)"
+                   r"(?=\s+(?:as|more|less|fewer|faster|slower|longer|shorter|larger|smaller|"
+                   r"higher|lower|cheaper|dearer)\b)", re.IGNORECASE)
 
 # Numbers with the look of a measurement that are not one, with the reason.
 NOT_MEASURED = {
@@ -146,6 +158,11 @@ NOT_MEASURED = {
     "≥ 1.8×": "a target",
     "1280 × 800": "a window's size",
     "in 13 ms": "a test's input ramp",
+    "h = 4e-4, 2e-4, 1e-4": "the forward Euler steps of a test",
+    "at most 2e-12 relative": "the projection's bound, a constant of the code",
+    "down to 5e-324 s": "the smallest positive double",
+    "| all 8 decimals equal | 2e-8 |": "the bound a test holds the published decimals to",
+    "of 1e-4 and 2e-4 of the value": "the difference steps of a test",
 }
 
 
@@ -154,12 +171,26 @@ def significant(number):
     return len(re.sub(r"\D", "", digits).strip("0"))
 
 
+def measured_figures(prose):
+    """The figures of `prose` with the look of a measurement: a number with two or more
+    significant digits and a unit of time, size, share or ratio; a mantissa with decimals,
+    or of one digit other than 1, times a power of ten (``5.1e-10``, ``4e-16``,
+    ``2.5 × 10⁵``); any number of times (``100×``) but a bound (``≥ 5×``); a multiple in
+    words (``twice``, ``ten times``). Settings and targets are round (1e-8, 10 s, 50 %,
+    10⁵) and pass."""
+    found = [m.group(0) for m in MEASURED.finditer(prose) if significant(m.group(0)) >= 2]
+    found += [m.group(0) for m in POWERS.finditer(prose)]
+    found += [m.group(0) for m in TIMES.finditer(prose)
+              if not re.search(r"(≥|≤|>|<|at least|at most)\s*$", prose[:m.start()])
+              and significant(m.group(0)) < 2]
+    found += [m.group(0) for m in WORDS.finditer(prose)]
+    return found
+
+
 def test_no_measured_figure_is_stated_without_its_report():
-    """A number with the look of a measurement (two or more significant digits with a unit
-    of time, size, share or ratio, or a mantissa with decimals) in README.md or docs/*.md
-    must be a quote of a report row (above) or be named in NOT_MEASURED with why; settings
-    and targets are round (1e-8, 10 s, 50 %) and pass. Code blocks and inline code are
-    commands and code, not statements of a measurement."""
+    """A number with the look of a measurement (`measured_figures`) in README.md or
+    docs/*.md must be a quote of a report row (above) or be named in NOT_MEASURED with why.
+    Code blocks and inline code are commands and code, not statements of a measurement."""
     unlinked = []
     for doc in documents():
         fenced = False
@@ -173,22 +204,25 @@ def test_no_measured_figure_is_stated_without_its_report():
             prose = re.sub(r"`[^`]*`|\]\([^)]*\)", " ", prose)
             for phrase in NOT_MEASURED:
                 prose = prose.replace(phrase, " ")
-            for match in MEASURED.finditer(prose):
-                if significant(match.group(0)) >= 2:
-                    unlinked.append(f"{doc.relative_to(ROOT)}:{i}: {match.group(0)}")
+            unlinked += [f"{doc.relative_to(ROOT)}:{i}: {f}" for f in measured_figures(prose)]
     assert not unlinked, (f"{len(unlinked)} measured-looking figures quote no report row:\n"
                           + "\n".join(unlinked))
 
 
 def test_the_figure_checks_catch_a_wrong_figure():
     """The checks above can fail: a figure off in its last printed digit, a label naming
-    two rows, and an unlinked measurement are each caught."""
+    two rows, and an unlinked measurement of every look are each caught."""
     assert agrees("5.1e-10", "5.08e-10") and agrees("47", "47.3") and agrees("82.5", "82.5")
     assert not agrees("5.2e-10", "5.08e-10") and not agrees("48", "47.3")
     assert not agrees("5.08e-10", "5.1e-10")  # more digits than the report prints
     assert values("2 159 545 calls, 1,096 and −1.5e-3") == ["2159545", "1096", "-1.5e-3"]
     assert [m.group(0) for m in MEASURED.finditer("took 27.3 ns, 47×, 1e-8 and 10 s; 5.1e-10")] == [
         "27.3 ns", "47×", "10 s", "5.1e-10"]
+    assert measured_figures("stays ≤ 4e-16 m, 100× faster, 2.5 × 10⁵ runs, twice as fast, "
+                            "ten times longer") == [
+        "4e-16", "2.5 × 10⁵", "100×", "twice", "ten times"]
+    assert measured_figures("tol 1e-8, 10⁵ points, at least 5× faster, ≥ 2× the speed, a 2×2 "
+                            "block, a 20 × 20 grid, 10 × tol, named twice") == []
 
 
 def test_the_readme_fmpy_example_prints_what_it_says(fmu_path):

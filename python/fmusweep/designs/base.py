@@ -16,7 +16,7 @@ from ..fields import finite as _finite
 from ..fields import low_high, setting, whole
 from ..records import Points, Rows
 
-__all__ = ["Design", "DesignKind", "IndexChart"]
+__all__ = ["Design", "DesignKind", "IndexChart", "chains_of"]
 
 MAX_POINTS = 100_000_000
 T = TypeVar("T")
@@ -58,19 +58,15 @@ class Design:
         sensitivity estimators and small designs, should ask)."""
         return self.rows_at(np.arange(len(self), dtype=np.int64))
 
-    def chains(self, points: Points, most: int) -> list[Points]:
-        """`points` (ascending) cut into chains, each of consecutive points of the design
-        along one row of a grid (its last parameter varying; a design of listed rows is one
-        row), at most `most` long: a chain starts at a row's start, every `most` points
-        along a row, and where the points skip one. Where a chain starts depends on the
-        design alone."""
-        points = np.asarray(points, dtype=np.int64)
-        if not len(points):
-            return []
+    def chain_rule(self, most: int) -> dict[str, int]:
+        """How its points make chains (``chains``): along one row of a grid (its last
+        parameter varying; a design of listed rows is one row), at most `most` long."""
         row = len(self.axes[-1]) if self.axes is not None else len(self)
-        starts = np.ones(len(points), dtype=bool)
-        starts[1:] = (np.diff(points) != 1) | ((points[1:] % row) % most == 0)
-        return np.split(points, np.flatnonzero(starts)[1:])
+        return {"row": row, "most": most}
+
+    def chains(self, points: Points, most: int) -> list[Points]:
+        """`points` (ascending) cut into chains by ``chain_rule``."""
+        return chains_of(points, **self.chain_rule(most))
 
     def column_values(self, j: int) -> Rows:
         """Every value column j takes (a grid's axis: each value once)."""
@@ -78,6 +74,19 @@ class Design:
             return self.axes[j]
         assert self.stored is not None
         return self.stored[:, j]
+
+
+def chains_of(points: Points, row: int, most: int) -> list[Points]:
+    """`points` (ascending) cut into chains, each of consecutive points of a design along
+    one of its rows of `row` points, at most `most` long: a chain starts at a row's start,
+    every `most` points along a row, and where the points skip one. Where a chain starts
+    depends on the design alone."""
+    points = np.asarray(points, dtype=np.int64)
+    if not len(points):
+        return []
+    starts = np.ones(len(points), dtype=bool)
+    starts[1:] = (np.diff(points) != 1) | ((points[1:] % row) % most == 0)
+    return np.split(points, np.flatnonzero(starts)[1:])
 
 
 @dataclass(frozen=True)
