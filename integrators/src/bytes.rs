@@ -2,6 +2,15 @@
 //! little-endian fields in a fixed order, no pointers. The integrators write their memory
 //! with it; whoever frames the bytes (a header, a version, a checksum) does so above.
 
+/// Writes a field named, in the layout, by the expression it is written from:
+/// `put!(w.f64(self.time))` is `w.named("self.time").f64(self.time)`.
+#[macro_export]
+macro_rules! put {
+    ($w:ident . $kind:ident ( $($value:tt)* )) => {
+        $w.named(stringify!($($value)*)).$kind($($value)*)
+    };
+}
+
 /// Appends fields to a payload.
 pub struct Writer {
     bytes: Vec<u8>,
@@ -22,6 +31,17 @@ impl Default for Writer {
 impl Writer {
     fn field(&mut self, kind: u8) {
         self.layout = (self.layout ^ u64::from(kind)).wrapping_mul(FNV_PRIME);
+    }
+
+    /// Names the next field in the layout (not in the bytes): with every field named, two
+    /// fields of one kind swapped, or one written from another value, change the layout
+    /// as a field of another kind does. [`put!`](crate::put) names a field by the
+    /// expression it is written from.
+    pub fn named(&mut self, name: &str) -> &mut Self {
+        for byte in name.bytes().chain([0]) {
+            self.field(byte);
+        }
+        self
     }
 
     pub fn f64(&mut self, value: f64) {
@@ -222,5 +242,27 @@ mod tests {
         };
         assert_eq!(layout(b"fub"), layout(b"fub"));
         assert_ne!(layout(b"fub"), layout(b"ufb"));
+    }
+
+    #[test]
+    fn two_named_fields_of_one_kind_swapped_change_the_layout() {
+        let (time, speed) = (1.0, 2.0);
+        let mut written = Writer::default();
+        crate::put!(written.f64(time));
+        crate::put!(written.f64(speed));
+        let mut swapped = Writer::default();
+        crate::put!(swapped.f64(speed));
+        crate::put!(swapped.f64(time));
+        let mut unnamed = Writer::default();
+        unnamed.f64(time);
+        unnamed.f64(speed);
+        assert_ne!(written.layout(), swapped.layout());
+        assert_ne!(written.layout(), unnamed.layout());
+        assert_eq!(written.into_bytes(), {
+            let mut same = Writer::default();
+            crate::put!(same.f64(time));
+            crate::put!(same.f64(speed));
+            same.into_bytes()
+        });
     }
 }

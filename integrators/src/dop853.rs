@@ -19,6 +19,7 @@ use super::{
     Stepper, Tolerances,
 };
 use crate::bytes::{same_bits, FormatError, Reader, Writer};
+use crate::put;
 
 const STAGES: usize = 12;
 /// Stage slots: the twelve stages, f(t + h, y_new) (the next step's first stage), and the
@@ -539,19 +540,19 @@ impl<const N: usize> Stepper<N> for Dop853<N> {
     fn serialize_into(&self, w: &mut Writer) {
         self.progress.serialize_into(w);
         self.stages.iter().for_each(|stage| w.f64s(stage));
-        w.bool(self.first_stage_valid);
-        w.bool(self.last_step.is_some());
+        put!(w.bool(self.first_stage_valid));
+        put!(w.bool(self.last_step.is_some()));
         if let Some(step) = &self.last_step {
-            w.f64s(&[step.t_old, step.h]);
-            w.f64s(&step.y_old);
-            w.f64s(&step.y_new);
+            put!(w.f64s(&[step.t_old, step.h]));
+            put!(w.f64s(&step.y_old));
+            put!(w.f64s(&step.y_new));
         }
-        w.bool(self.dense.is_some());
+        put!(w.bool(self.dense.is_some()));
         if let Some(dense) = &self.dense {
             dense.iter().for_each(|row| w.f64s(row));
         }
-        w.u64(self.stiffness.history as u64);
-        w.f64(self.log2_last_error);
+        put!(w.u64(self.stiffness.history as u64));
+        put!(w.f64(self.log2_last_error));
     }
 
     /// The integrator written by [`Dop853::serialize_into`].

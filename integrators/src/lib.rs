@@ -171,9 +171,9 @@ impl Statistics {
     }
 
     fn serialize_into(&self, w: &mut Writer) {
-        w.u64(self.n_steps);
-        w.u64(self.n_rejected);
-        w.u64(self.n_rhs);
+        put!(w.u64(self.n_steps));
+        put!(w.u64(self.n_rejected));
+        put!(w.u64(self.n_rhs));
     }
 
     fn deserialize_from(r: &mut Reader) -> Result<Self, FormatError> {
@@ -215,9 +215,9 @@ impl Progress {
 
     /// Where every integrator's serialized form begins.
     fn serialize_into(&self, w: &mut Writer) {
-        w.f64s(&[self.tolerances.rtol, self.tolerances.atol]);
-        w.bool(self.next_step.is_some());
-        w.f64(self.next_step.unwrap_or(0.0));
+        put!(w.f64s(&[self.tolerances.rtol, self.tolerances.atol]));
+        put!(w.bool(self.next_step.is_some()));
+        put!(w.f64(self.next_step.unwrap_or(0.0)));
         self.stats.serialize_into(w);
     }
 

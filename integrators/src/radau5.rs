@@ -19,6 +19,7 @@ use super::{
     SolverError, Statistics, Stepper, Tolerances,
 };
 use crate::bytes::{same_bits, FormatError, Reader, Writer};
+use crate::put;
 
 use super::radau5_tableau::{ALPHA_BETA, C, E, GAMMA, T, T_INV};
 
@@ -593,26 +594,26 @@ impl<const N: usize> Stepper<N> for Radau5<N> {
     /// Everything the integrator remembers, in the byte form of [`crate::bytes`].
     fn serialize_into(&self, w: &mut Writer) {
         self.progress.serialize_into(w);
-        w.f64s(&self.f0);
-        w.bool(self.f0_valid);
+        put!(w.f64s(&self.f0));
+        put!(w.bool(self.f0_valid));
         self.jacobian.iter().for_each(|row| w.f64s(row));
-        w.bool(self.jacobian_valid);
-        w.bool(self.jacobian_current);
+        put!(w.bool(self.jacobian_valid));
+        put!(w.bool(self.jacobian_current));
         // The LU factors and the spectral radius are recomputed from the Jacobian on
         // restore (bit-identical: both are deterministic), so only the step size is stored.
-        w.bool(self.factors.is_some());
-        w.f64(self.factors.map_or(0.0, |factors| factors.h));
-        w.f64(self.contraction);
-        w.bool(self.previous.is_some());
+        put!(w.bool(self.factors.is_some()));
+        put!(w.f64(self.factors.map_or(0.0, |factors| factors.h)));
+        put!(w.f64(self.contraction));
+        put!(w.bool(self.previous.is_some()));
         let (h_old, error_old) = self.previous.unwrap_or((0.0, 0.0));
-        w.f64s(&[h_old, error_old]);
-        w.bool(self.last_step.is_some());
+        put!(w.f64s(&[h_old, error_old]));
+        put!(w.bool(self.last_step.is_some()));
         if let Some(step) = &self.last_step {
-            w.f64s(&[step.t_old, step.h]);
-            w.f64s(&step.y_old);
+            put!(w.f64s(&[step.t_old, step.h]));
+            put!(w.f64s(&step.y_old));
             step.z.iter().for_each(|zi| w.f64s(zi));
         }
-        w.u64(self.non_stiff_steps as u64);
+        put!(w.u64(self.non_stiff_steps as u64));
     }
 
     /// The integrator written by [`Radau5::serialize_into`].

@@ -21,6 +21,7 @@ use super::{
     Stepper, Tolerances,
 };
 use crate::bytes::{same_bits, FormatError, Reader, Writer};
+use crate::put;
 
 const SAFETY: f64 = 0.9;
 const FACTOR_MIN: f64 = 0.2;
@@ -273,13 +274,13 @@ impl<const N: usize> Stepper<N> for Rk4<N> {
 
     fn serialize_into(&self, w: &mut Writer) {
         self.progress.serialize_into(w);
-        w.bool(self.first.is_some());
-        w.f64s(&self.first.unwrap_or([0.0; N]));
-        w.bool(self.last_step.is_some());
+        put!(w.bool(self.first.is_some()));
+        put!(w.f64s(&self.first.unwrap_or([0.0; N])));
+        put!(w.bool(self.last_step.is_some()));
         if let Some(step) = &self.last_step {
-            w.f64s(&[step.t_old, step.h]);
+            put!(w.f64s(&[step.t_old, step.h]));
             for vector in [&step.y_old, &step.y_new, &step.f_old, &step.f_new] {
-                w.f64s(vector);
+                put!(w.f64s(vector));
             }
         }
     }

@@ -26,6 +26,7 @@ use super::{
     Dop853, OdeSystem, Progress, Radau5, Rk4, SolverError, Statistics, Stepper, Tolerances,
 };
 use crate::bytes::{FormatError, Reader, Writer};
+use crate::put;
 
 /// Radau IIA ends a step on every communication point, so it can only beat a
 /// stability-limited DOP853 when the communication step is several DOP853 steps long.
@@ -299,18 +300,18 @@ impl<const N: usize> Integrator<N> {
 
     /// Everything the integrator remembers, in the byte form of [`crate::bytes`].
     pub fn serialize_into(&self, w: &mut Writer) {
-        w.u8(match self.choice {
+        put!(w.u8(match self.choice {
             Choice::Auto => 0,
             Choice::Fixed(Method::Dop853) => 1,
             Choice::Fixed(Method::Radau5) => 2,
-        });
-        w.u8(match self.method() {
+        }));
+        put!(w.u8(match self.method() {
             Method::Dop853 => 1,
             Method::Radau5 => 2,
-        });
+        }));
         on_active!(&self.active, s => s.serialize_into(w));
-        w.bool(self.short_step.is_some());
-        w.f64(self.short_step.unwrap_or(0.0));
+        put!(w.bool(self.short_step.is_some()));
+        put!(w.f64(self.short_step.unwrap_or(0.0)));
     }
 
     /// The integrator written by [`Integrator::serialize_into`].

@@ -15,6 +15,7 @@ use crate::model::{Chart, Coordinates, Independent, ModelError, State};
 use crate::plant::Plant;
 use crate::variables::STATES as STATE_NAMES;
 use integrators::bytes::{same_bits, FormatError, Reader, Writer};
+use integrators::put;
 
 /// The number of continuous states.
 pub const CONTINUOUS_STATES: usize = STATE_NAMES.len();
@@ -117,9 +118,9 @@ impl Exchange {
     }
 
     pub fn serialize_into(&self, w: &mut Writer) {
-        w.u8(self.at.chart as u8);
-        w.f64s(&[self.at.branch, self.at.turns]);
-        w.f64s(&self.x);
+        put!(w.u8(self.at.chart as u8));
+        put!(w.f64s(&[self.at.branch, self.at.turns]));
+        put!(w.f64s(&self.x));
     }
 
     /// The exchange written by [`Exchange::serialize_into`], checked against the plant

@@ -13,6 +13,7 @@ use crate::model::sensitivity::{self, Sensitive, Sensitivities, SLOTS};
 use crate::model::{self, Inputs, Parameters, State, STATE_SIZE};
 use crate::plant::{InputDerivatives, Plant};
 use integrators::bytes::{FormatError, Reader, Writer};
+use integrators::put;
 use integrators::{Dop853, OdeSystem, SolverError, Stepper, Tolerances};
 
 /// (y, S) as the integrator sees it: y first, then S row by row.
@@ -155,9 +156,9 @@ impl<const P: usize, const N: usize> Run<P, N> {
     }
 
     fn serialize_into(&self, w: &mut Writer) {
-        w.f64(self.time);
-        w.f64s(&self.point);
-        w.bool(self.restart);
+        put!(w.f64(self.time));
+        put!(w.f64s(&self.point));
+        put!(w.bool(self.restart));
         self.solver.serialize_into(w);
     }
 

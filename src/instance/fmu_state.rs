@@ -10,6 +10,7 @@ use crate::description::DEFAULT_EXPERIMENT;
 use crate::drivers::{self, CoSimulation, Exchange, Experiment};
 use crate::plant::{Activity, Plant};
 use integrators::bytes::{FormatError, Writer};
+use integrators::put;
 
 /// The driver of an instance, by interface; each exists once initialisation (or, in
 /// initialization mode, a read) has assembled the plant, so that in initialization mode a
@@ -104,15 +105,15 @@ impl FmuState {
 
     fn write(&self) -> Writer {
         let mut w = Writer::default();
-        w.u8(self.interface() as u8);
-        w.u8(self.version as u8);
-        w.u8(self.state.code());
+        put!(w.u8(self.interface() as u8));
+        put!(w.u8(self.version as u8));
+        put!(w.u8(self.state.code()));
         let e = &self.experiment;
-        w.f64s(&[e.tolerance, e.start]);
-        w.bool(e.stop.is_some());
-        w.f64(e.stop.unwrap_or(e.start));
+        put!(w.f64s(&[e.tolerance, e.start]));
+        put!(w.bool(e.stop.is_some()));
+        put!(w.f64(e.stop.unwrap_or(e.start)));
         self.plant.serialize_into(&mut w);
-        w.bool(self.driver.is_started());
+        put!(w.bool(self.driver.is_started()));
         match &self.driver {
             Driver::CoSimulation(Some(driver)) => driver.serialize_into(&mut w),
             Driver::ModelExchange(Some(exchange)) => exchange.serialize_into(&mut w),

@@ -7,35 +7,36 @@ use crate::model::sensitivity;
 use crate::model::{self, Chart, Inputs, Parameters, STATE_SIZE};
 use crate::variables::{Branch, SENSITIVITY_SLOTS};
 use integrators::bytes::{FormatError, Reader, Writer};
+use integrators::put;
 use integrators::text::number;
 
 impl Plant {
     /// Everything that determines the plant's future, for a serialized FMU state.
     pub fn serialize_into(&self, w: &mut Writer) {
         for i in 0..model::PARAMETERS.len() {
-            w.f64(self.params.get(i).unwrap_or(f64::NAN));
+            put!(w.f64(self.params.get(i).unwrap_or(f64::NAN)));
         }
-        w.f64s(&[self.inputs.motor_torque, self.inputs.load_torque]);
-        w.f64s(&[self.inputs_set.motor_torque, self.inputs_set.load_torque]);
-        w.f64s(&self.input_derivatives.motor_torque);
-        w.f64s(&self.input_derivatives.load_torque);
-        w.bool(self.params.builtin_laws);
-        w.u8(self.solver_kind as u8);
-        w.u8(self.branch as u8);
-        w.u8(self.codes.solver as u8);
-        w.u8(self.codes.branch as u8);
-        w.f64(self.time);
-        w.f64s(&self.state);
-        w.f64(self.residual);
-        w.u8(self.chart as u8);
-        w.bool(self.changed);
+        put!(w.f64s(&[self.inputs.motor_torque, self.inputs.load_torque]));
+        put!(w.f64s(&[self.inputs_set.motor_torque, self.inputs_set.load_torque]));
+        put!(w.f64s(&self.input_derivatives.motor_torque));
+        put!(w.f64s(&self.input_derivatives.load_torque));
+        put!(w.bool(self.params.builtin_laws));
+        put!(w.u8(self.solver_kind as u8));
+        put!(w.u8(self.branch as u8));
+        put!(w.u8(self.codes.solver as u8));
+        put!(w.u8(self.codes.branch as u8));
+        put!(w.f64(self.time));
+        put!(w.f64s(&self.state));
+        put!(w.f64(self.residual));
+        put!(w.u8(self.chart as u8));
+        put!(w.bool(self.changed));
         // The values of the slots in use alone: an unused slot's are zero.
         for k in 0..SENSITIVITY_SLOTS {
-            w.u8(self.sensitivity_choice[k] as u8);
-            w.u8(self.codes.sensitivity[k] as u8);
+            put!(w.u8(self.sensitivity_choice[k] as u8));
+            put!(w.u8(self.codes.sensitivity[k] as u8));
             if self.slot_choice(k) != 0 {
                 for row in &self.sensitivities {
-                    w.f64(row[k]);
+                    put!(w.f64(row[k]));
                 }
             }
         }

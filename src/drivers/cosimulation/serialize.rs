@@ -3,6 +3,7 @@
 //! communication point, its memory what its own steps on this system give.
 
 use super::*;
+use integrators::put;
 
 impl InFlight {
     /// What [`CoSimulation::serialize_into`] wrote of a crossing under way.
@@ -34,35 +35,35 @@ impl InFlight {
 impl CoSimulation {
     /// Everything that determines the integrator's future, for a serialized FMU state.
     pub fn serialize_into(&self, w: &mut Writer) {
-        w.f64(self.integrator_time);
-        w.f64s(&self.integrator_state);
-        w.f64s(&[
+        put!(w.f64(self.integrator_time));
+        put!(w.f64s(&self.integrator_state));
+        put!(w.f64s(&[
             self.integrator_inputs.motor_torque,
             self.integrator_inputs.load_torque,
-        ]);
-        w.bool(self.restart);
+        ]));
+        put!(w.bool(self.restart));
         self.solver.serialize_into(w);
-        w.bool(self.carried.is_some());
+        put!(w.bool(self.carried.is_some()));
         let carried = self.carried.unwrap_or(CarriedStage {
             f: [0.0; STATE_SIZE],
             inputs: Inputs::default(),
         });
-        w.f64s(&carried.f);
-        w.f64s(&[carried.inputs.motor_torque, carried.inputs.load_torque]);
-        w.bool(self.crossing_pending);
+        put!(w.f64s(&carried.f));
+        put!(w.f64s(&[carried.inputs.motor_torque, carried.inputs.load_torque]));
+        put!(w.bool(self.crossing_pending));
         // A crossing under way, only where there is one: no unused numbers to check.
-        w.bool(self.in_flight.is_some());
+        put!(w.bool(self.in_flight.is_some()));
         if let Some(flight) = &self.in_flight {
             let c = &flight.crossing;
-            w.f64s(&[
+            put!(w.f64s(&[
                 flight.start,
                 flight.inputs.motor_torque,
                 flight.inputs.load_torque,
-            ]);
-            w.f64s(&flight.from);
-            w.f64s(&[c.duration, c.node.0, c.node.1, c.time_to_node]);
-            w.f64s(&c.state);
-            w.f64s(&[c.arriving[0], c.arriving[1], c.leaving[0], c.leaving[1]]);
+            ]));
+            put!(w.f64s(&flight.from));
+            put!(w.f64s(&[c.duration, c.node.0, c.node.1, c.time_to_node]));
+            put!(w.f64s(&c.state));
+            put!(w.f64s(&[c.arriving[0], c.arriving[1], c.leaving[0], c.leaving[1]]));
         }
         if let Some(tracker) = &self.sensitivities {
             tracker.serialize_into(w);
