@@ -11,6 +11,8 @@ macro_rules! put {
     };
 }
 
+pub use crate::put;
+
 /// Appends fields to a payload.
 pub struct Writer {
     bytes: Vec<u8>,

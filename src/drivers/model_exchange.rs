@@ -14,8 +14,8 @@ use crate::model::chart::{coordinates_for, full_state, handover_indicator_at, in
 use crate::model::{Chart, Coordinates, Independent, ModelError, State};
 use crate::plant::Plant;
 use crate::variables::STATES as STATE_NAMES;
+use integrators::bytes::put;
 use integrators::bytes::{same_bits, FormatError, Reader, Writer};
-use integrators::put;
 
 /// The number of continuous states.
 pub const CONTINUOUS_STATES: usize = STATE_NAMES.len();

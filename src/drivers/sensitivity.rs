@@ -12,8 +12,8 @@
 use crate::model::sensitivity::{self, Sensitive, Sensitivities, SLOTS};
 use crate::model::{self, Inputs, Parameters, State, STATE_SIZE};
 use crate::plant::{InputDerivatives, Plant};
+use integrators::bytes::put;
 use integrators::bytes::{FormatError, Reader, Writer};
-use integrators::put;
 use integrators::{Dop853, OdeSystem, SolverError, Stepper, Tolerances};
 
 /// (y, S) as the integrator sees it: y first, then S row by row.

@@ -9,8 +9,8 @@ use super::status::Failure;
 use crate::description::DEFAULT_EXPERIMENT;
 use crate::drivers::{self, CoSimulation, Exchange, Experiment};
 use crate::plant::{Activity, Plant};
+use integrators::bytes::put;
 use integrators::bytes::{FormatError, Writer};
-use integrators::put;
 
 /// The driver of an instance, by interface; each exists once initialisation (or, in
 /// initialization mode, a read) has assembled the plant, so that in initialization mode a

@@ -6,8 +6,8 @@ use super::{check_inputs, solver_kind, Codes, InputDerivatives, Plant};
 use crate::model::sensitivity;
 use crate::model::{self, Chart, Inputs, Parameters, STATE_SIZE};
 use crate::variables::{Branch, SENSITIVITY_SLOTS};
+use integrators::bytes::put;
 use integrators::bytes::{FormatError, Reader, Writer};
-use integrators::put;
 use integrators::text::number;
 
 impl Plant {

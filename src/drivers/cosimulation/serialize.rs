@@ -3,7 +3,7 @@
 //! communication point, its memory what its own steps on this system give.
 
 use super::*;
-use integrators::put;
+use integrators::bytes::put;
 
 impl InFlight {
     /// What [`CoSimulation::serialize_into`] wrote of a crossing under way.
