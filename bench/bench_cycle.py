@@ -12,7 +12,7 @@ grid. Both find a peak the same way: between the samples, by the cubic through t
 and rates at the two samples around the largest (the metrics' default; the FMU's output
 derivatives on co-simulation, its directional derivatives on Model Exchange). Each way's
 settings are searched in this run, one timing each: the cycle sweep at tolerances 1e-7,
-1e-8, 1e-9 and 2048 or 256 samples over the cycle (shooting on Model Exchange with
+1e-8, 1e-9 and 2048, 256 or 64 samples over the cycle (shooting on Model Exchange with
 continuation from the neighbours' cycles and without, and through the FMU's start values
 and sensitivities on its Co-Simulation interface, continued and not); the transients (the
 FMU's own co-simulation from rest at tol 1e-7 or 1e-8, the metrics over their last 10 s) at
@@ -43,7 +43,7 @@ REFERENCE_TOLERANCE = 1e-11
 TRANSIENT_TOLERANCES = (1e-7, 1e-8)
 WINDOW = 10.0
 CYCLE_TOLERANCES = (1e-7, 1e-8, 1e-9)
-SAMPLES = (256, 2048)
+SAMPLES = (64, 256, 2048)
 STOPS = (40.0, 80.0, 160.0, 320.0, 640.0)
 STEPS = (2e-2, 1e-2, 5e-3, 2e-3, 1e-3, 5e-4)
 # The timings of the settings found, of which the median is reported.

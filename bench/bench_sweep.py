@@ -25,6 +25,7 @@ import numpy as np
 
 from fmusweep import run_sweep
 from fmusweep.fmu import Archive, local_runner
+from fmusweep.records import new_plan
 
 PAPER_LAWS = {"Mm_a0": 100.0, "Mm_a1": -20.0, "Mm_a2": -1.0, "Mr_b0": 20.0, "Mr_b1": -0.05}
 METRICS = {"peak_rod_force": {"variable": "rod_force", "kind": "peak_abs"},
@@ -54,9 +55,9 @@ def per_worker_rates(fmu, n, repeats):
     """Points/s of one worker: the bare loop, the runner through its Python client
     (metrics only, and with every communication point's series), and simulate_fmu."""
     runner = local_runner(Archive.read(fmu))
-    plan = {"start": 0.0, "stop": 10.0, "step": 0.01, "tolerance": 1e-8, "fixed": PAPER_LAWS,
+    plan = {**new_plan(0.0, 10.0, 0.01, tolerance=1e-8), "fixed": PAPER_LAWS,
             "metrics": [{"variable": m["variable"], "kind": m["kind"], "from": m.get("from")}
-                        for m in METRICS.values()], "series": None, "timeout_s": None}
+                        for m in METRICS.values()]}
     runner.configure(plan)
     r = rows(n)
 
@@ -117,10 +118,9 @@ def interface_rates(fmu, n, repeats):
     Model Exchange run's worst state error at every communication point against the
     Co-Simulation at tol 1e-12, scaled by 1 + |reference|."""
     fmi3 = fmu.with_name("CyclicMechanism-fmi3.fmu")
-    plan = {"start": 0.0, "stop": 10.0, "step": 0.01, "tolerance": 1e-8, "fixed": PAPER_LAWS,
+    plan = {**new_plan(0.0, 10.0, 0.01, tolerance=1e-8), "fixed": PAPER_LAWS,
             "metrics": [{"variable": m["variable"], "kind": m["kind"], "from": m.get("from")}
-                        for m in METRICS.values() if m["variable"] != "n_rhs"],
-            "series": None, "timeout_s": None}
+                        for m in METRICS.values() if m["variable"] != "n_rhs"]}
     kinds = {"co_simulation_fmi2": (fmu, "co_simulation", None, n),
              "model_exchange_fmi2": (fmu, "model_exchange", None, n),
              "model_exchange_fmi2_radau5": (fmu, "model_exchange", "radau5", max(10, n // 20))}
@@ -248,8 +248,8 @@ def memory_growth(fmu, total):
     """The runner's and the worker's resident memory after 10 % and after all of `total`
     one-second points, in batches of 1000 as a worker would run them."""
     runner = local_runner(Archive.read(fmu))
-    runner.configure({"start": 0.0, "stop": 1.0, "step": 0.01, "tolerance": 1e-8,
-                      "fixed": PAPER_LAWS, "metrics": [{"variable": "rod_force", "kind": "peak_abs"}]})
+    runner.configure({**new_plan(0.0, 1.0, 0.01, tolerance=1e-8), "fixed": PAPER_LAWS,
+                      "metrics": [{"variable": "rod_force", "kind": "peak_abs"}]})
     r = rows(1000)
     marks = {}
     for b in range(total // 1000):

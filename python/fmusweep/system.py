@@ -58,6 +58,7 @@ from .errors import Collector, SpecError, refuse
 from .fields import finite
 from .fmu import Archive, local_runner, open_for_checks
 from .native import NativeRunner, RunnerError, describe_unpacked
+from .records import new_plan
 from .ssd import SspContents
 
 __all__ = ["System", "load_system"]
@@ -523,8 +524,7 @@ def load_system(target: Archive) -> tuple[NativeRunner, dict[str, Any]]:
     component that cannot be loaded, say) is refused as a whole."""
     try:
         local = local_runner(target)
-        local.configure({"start": 0.0, "stop": 1.0, "step": 1.0, "tolerance": None, "fixed": {},
-                         "inputs": {}, "metrics": [], "series": None, "timeout_s": None})
+        local.configure(new_plan(0.0, 1.0, 1.0))
         loaded = local.check([], [[]])[0]
     except RunnerError as e:
         raise SpecError("system", f"the system does not load: {e}") from None

@@ -65,7 +65,7 @@ def _campbell(diagram: object, path: pathlib.Path) -> pathlib.Path:
     from .campbell import Campbell
     assert isinstance(diagram, Campbell)
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(8, 5.5))
+    fig, ax = plt.subplots(figsize=(9.5, 5.5))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     right = max(float(s.cycle_hz.max()) for s in diagram.slices) * 1.05
     top = max(float(np.nanmax(s.modes_hz)) for s in diagram.slices) * 1.1
@@ -88,7 +88,7 @@ def _campbell(diagram: object, path: pathlib.Path) -> pathlib.Path:
                                                  else ""))
     ax.set_ylabel("mode frequency (Hz), mean along the cycle")
     ax.set_title(f"Campbell diagram, {diagram.caption}", fontsize=10)
-    ax.legend(loc="upper left", fontsize=7, ncol=2 if len(diagram.slices) > 4 else 1)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, borderaxespad=0)
     return save(fig, path)
 
 

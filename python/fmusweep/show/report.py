@@ -216,7 +216,7 @@ def _campbell_section(diagram: Campbell) -> str:
               "line": {"dash": "dash", "width": 1, "color": "#999"},
               "showlegend": k == 1, "hoverinfo": "skip"} for k in diagram.orders]
     axis = "cycle frequency 1/T (Hz)" + (f", along {diagram.along}" if diagram.along else "")
-    return (f"{head}<p class=\"note\">{html.escape(diagram.caption.capitalize())}: the "
+    return (f"{head}<p class=\"note\">{html.escape(diagram.caption[:1].upper() + diagram.caption[1:])}: the "
             "modes of the state equations linearised along each cycle (mean frequency), "
             "against the cycle's frequency; dashed, k times the cycle's frequency; crosses, "
             "where a harmonic of order k meets a mode in that slice (a resonance).</p>"
