@@ -18,7 +18,7 @@ import numpy as np
 
 from bench_sweep import arguments, write_results
 from fmusweep import fit
-from fmusweep.fitting.sensitivities import read_offer, slot_parameter, slot_variable
+from fmusweep.sensitivity_slots import read_offer, slot_parameter, slot_variable
 from fmusweep.fmu import Archive, local_runner
 from fmusweep.spec import Scenario
 
