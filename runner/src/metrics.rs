@@ -179,11 +179,20 @@ impl Extreme {
         }
     }
 
-    /// Whether a sample of value `x` may end up beside the extreme or be it, so that its
-    /// rate is worth reading: the first, the one after the extreme, and any within
-    /// `reach` (twice the largest change between samples yet) of it.
-    fn near(&self, x: f64, reach: f64) -> bool {
-        self.latest || self.at.is_none_or(|at| self.sign * (x - at.x) >= -reach)
+    /// Whether a sample of value `x` (after one of `previous`) may end up beside the
+    /// extreme or be it, so that its rate is worth reading: the first; one beyond the
+    /// extreme that rose from the sample before by less than half the largest change
+    /// between samples yet (`largest`; rising as steeply as ever, it is no peak yet); one
+    /// short of it, right after it or by less than twice that change.
+    fn near(&self, x: f64, previous: Option<f64>, largest: f64) -> bool {
+        let Some(at) = self.at else {
+            return true;
+        };
+        let rise = self.sign * (x - at.x);
+        match previous {
+            Some(p) if rise > 0.0 => self.sign * (x - p) < 0.5 * largest,
+            _ => self.latest || rise >= -2.0 * largest,
+        }
     }
 
     fn push(&mut self, previous: Option<Sample>, sample: Sample) {
@@ -270,8 +279,10 @@ impl Accumulator {
     /// is refined by the parabola instead.
     #[inline]
     pub fn wants_rate(&self, t: f64, x: f64) -> bool {
-        let reach = 2.0 * self.largest_change;
-        self.refines() && self.within(t) && (self.top.near(x, reach) || self.bottom.near(x, reach))
+        let (previous, largest) = (self.previous.map(|s| s.x), self.largest_change);
+        self.refines()
+            && self.within(t)
+            && (self.top.near(x, previous, largest) || self.bottom.near(x, previous, largest))
     }
 
     #[inline]
@@ -445,6 +456,18 @@ mod tests {
             assert_eq!(asked.value(), every.value(), "{kind:?}");
             assert!(wanted < 3001 / 3, "{kind:?}: {wanted}");
         }
+        // A variable that only rises, ever faster: its largest value is the window's last,
+        // which needs no rate, and few are read.
+        let mut ramp = Accumulator::new(Kind::Max, Extremes::Refined, 0.0, 10.0, 1e-12);
+        let mut wanted = 0;
+        for k in 0..=1000 {
+            let t = k as f64 * 0.01;
+            let wants = ramp.wants_rate(t, t * t);
+            wanted += usize::from(wants);
+            ramp.push(t, t * t, wants.then_some(2.0 * t));
+        }
+        assert_eq!(ramp.value(), Some(100.0));
+        assert!(wanted < 10, "{wanted}");
     }
 
     #[test]

@@ -174,8 +174,9 @@ pub struct Runner {
     integers: Vec<i32>,
     booleans: Vec<i32>,
     read: Vec<f64>,
-    /// The rated variables' rates at the communication point.
+    /// The rated variables' rates at the communication point, and which were read there.
     rates: Vec<f64>,
+    wanted: Vec<bool>,
     /// The last steady cycles found: the next point's shooting starts from them.
     continuation: Continuation,
     /// The FMU's Model Exchange interface beside its Co-Simulation one, where a cycle
@@ -255,6 +256,7 @@ impl Runner {
             booleans: Vec::new(),
             read: Vec::new(),
             rates: Vec::new(),
+            wanted: Vec::new(),
             continuation: Continuation::default(),
             exchange: None,
             exchange_instance: None,
@@ -305,37 +307,43 @@ impl Runner {
         self.booleans.resize(r.boolean.len(), 0);
         self.read.resize(r.len(), 0.0);
         self.rates.resize(plan.rated.len(), 0.0);
+        self.wanted.resize(plan.rated.len(), false);
     }
 
-    /// The rated variables' rates at `t`, where a metric wants them at this sample;
-    /// whether they were read.
-    fn read_rates(&mut self, plan: &Plan, t: f64) -> Result<bool, Stop> {
-        let wanted = plan
-            .metrics
-            .iter()
-            .any(|m| m.rate.is_some() && m.accumulator.wants_rate(t, self.read[m.slot]));
-        if !wanted {
-            return Ok(false);
+    /// The rates at `t` of the rated variables that a metric wants at this sample (marked
+    /// in `self.wanted`).
+    fn read_rates(&mut self, plan: &Plan, t: f64) -> Result<(), Stop> {
+        self.wanted.fill(false);
+        for m in &plan.metrics {
+            if let Some(r) = m.rate {
+                self.wanted[r] |= m.accumulator.wants_rate(t, self.read[m.slot]);
+            }
         }
         let instance = self.instance.as_mut().expect("prepared");
-        let s = instance.get_rates(&plan.rated, &plan.rate_states, &mut self.rates);
-        if !s.proceeds() {
-            let call = match plan.rate_states.is_empty() {
-                true => "fmi2GetRealOutputDerivatives",
-                false => "fmi2GetDirectionalDerivative",
-            };
-            return Err(failed_in(instance, call, "", s));
+        for (r, vr) in plan.rated.iter().enumerate() {
+            if !self.wanted[r] {
+                continue;
+            }
+            let rate = &mut self.rates[r..=r];
+            let s = instance.get_rates(&[*vr], &plan.rate_states, rate);
+            if !s.proceeds() {
+                let call = match plan.rate_states.is_empty() {
+                    true => "fmi2GetRealOutputDerivatives",
+                    false => "fmi2GetDirectionalDerivative",
+                };
+                return Err(failed_in(instance, call, "", s));
+            }
+            if !rate[0].is_finite() {
+                return Err(Stop(
+                    Outcome::Error,
+                    format!(
+                        "the FMU reported a rate of {} at t = {t} with a successful status",
+                        rate[0]
+                    ),
+                ));
+            }
         }
-        if let Some(i) = self.rates.iter().position(|x| !x.is_finite()) {
-            return Err(Stop(
-                Outcome::Error,
-                format!(
-                    "the FMU reported a rate of {} at t = {t} with a successful status",
-                    self.rates[i]
-                ),
-            ));
-        }
-        Ok(true)
+        Ok(())
     }
 
     /// Read every metric and series variable into `self.read` (buffers sized).
@@ -385,9 +393,9 @@ impl Runner {
                 ),
             ));
         }
-        let rated = self.read_rates(plan, t)?;
+        self.read_rates(plan, t)?;
         for m in plan.metrics.iter_mut() {
-            let rate = m.rate.filter(|_| rated).map(|r| self.rates[r]);
+            let rate = m.rate.filter(|&r| self.wanted[r]).map(|r| self.rates[r]);
             m.accumulator.push(t, self.read[m.slot], rate);
         }
         if let Some((slots, every)) = &plan.series {
