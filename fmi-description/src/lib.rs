@@ -37,6 +37,9 @@ pub struct Variable {
     pub start: Option<String>,
     pub min: Option<String>,
     pub max: Option<String>,
+    /// Its unit as declared on the variable (FMI 2.0's type element, FMI 3.0's variable).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<String>,
     pub declared_type: Option<String>,
     pub description: Option<String>,
     /// The element that declares the type, as the standard names it (`Real`, `Float64`,
@@ -365,6 +368,7 @@ fn variable(e: &BytesStart, base_type: BaseType, fmi_type: &str) -> Result<Varia
         start: None,
         min: None,
         max: None,
+        unit: None,
         declared_type: None,
         description: attribute(e, "description")?,
         fmi_type: fmi_type.into(),
@@ -399,6 +403,7 @@ fn fmi3_variable(e: &BytesStart, tag: &[u8]) -> Result<Variable, String> {
     variable.start = attribute(e, "start")?;
     variable.min = attribute(e, "min")?;
     variable.max = attribute(e, "max")?;
+    variable.unit = attribute(e, "unit")?;
     variable.declared_type = attribute(e, "declaredType")?;
     variable.derivative_of = optional_number(e, "derivative")?;
     Ok(variable)
@@ -555,6 +560,7 @@ impl Parse {
                     variable.start = attribute(e, "start")?;
                     variable.min = attribute(e, "min")?;
                     variable.max = attribute(e, "max")?;
+                    variable.unit = attribute(e, "unit")?;
                     variable.declared_type = attribute(e, "declaredType")?;
                     variable.derivative_of = optional_number(e, "derivative")?;
                 }

@@ -49,7 +49,7 @@ pub fn check_tolerance(tolerance: f64) -> Result<(), String> {
         Ok(())
     } else {
         Err(format!(
-            "coupling_tolerance must be a number in (0, 1), got {tolerance}"
+            "system.coupling_tolerance: must be a number in (0, 1), got {tolerance}"
         ))
     }
 }

@@ -158,9 +158,6 @@ pub const DEFAULT_SAMPLES: usize = 2048;
 const MOST_SAMPLES: usize = 1 << 20;
 const MOST_MODE_POINTS: usize = 4096;
 
-/// The fields of a `[cycle]` table that have been renamed, with their new names.
-const RENAMED: [(&str, &str); 1] = [("period", "advance")];
-
 /// The `[cycle]` table's own fields, each read and checked.
 struct Table {
     state: Option<String>,
@@ -180,9 +177,15 @@ impl Table {
         let state = fields.required("state", "the variable whose advance closes a cycle", state);
         let mut advance = fields.number("advance");
         // A table that still says `period` hears of the new name alone.
-        if value.get("period").is_none() {
-            let what = "the cyclic variable's advance over one cycle (2π for a revolution)";
-            advance = fields.required("advance", what, advance);
+        match fields.get("period") {
+            Some(period) => {
+                let rule = renamed_period(period.as_f64());
+                fields.refuse("period", rule);
+            }
+            None => {
+                let what = "the cyclic variable's advance over one cycle (2π for a revolution)";
+                advance = fields.required("advance", what, advance);
+            }
         }
         if let Some(a) = advance.filter(|a| *a <= 0.0) {
             fields.refuse(
@@ -210,8 +213,44 @@ impl Table {
                 );
             }
         }
-        fields.finish(&RENAMED);
+        fields.finish(&[]);
         Some(table)
+    }
+}
+
+/// What a table that still says `period` is told: the new name, and that it is in the
+/// state's unit where its value looks like degrees.
+fn renamed_period(value: Option<f64>) -> String {
+    let said = "unknown field: it is called advance now, the state's advance over one cycle in \
+                its own unit (2π = 6.283185307179586 for a revolution in rad)";
+    match value.filter(|v| looks_like_degrees(*v)) {
+        Some(v) => format!("{said}; {v} looks like degrees"),
+        None => said.to_string(),
+    }
+}
+
+/// A whole number of right angles, in degrees: 90, 180, 360, 720, …
+fn looks_like_degrees(value: f64) -> bool {
+    value >= 90.0 && value % 90.0 == 0.0
+}
+
+/// An advance in degrees where the state is an angle in rad: refused with the radians.
+fn refuse_degrees(table: &Table, description: &Description, refusals: &mut Refusals) {
+    let (Some(advance), Some(state)) = (table.advance, table.state.as_deref()) else {
+        return;
+    };
+    let in_rad = description
+        .variable(state)
+        .is_ok_and(|v| v.unit.as_deref() == Some("rad"));
+    if in_rad && looks_like_degrees(advance) {
+        refusals.refuse(
+            "cycle.advance",
+            format!(
+                "{advance} rad is {:.3} revolutions of {state}: the advance is in its unit, rad \
+                 (2π = 6.283185307179586 for one revolution); {advance} looks like degrees",
+                advance / std::f64::consts::TAU
+            ),
+        );
     }
 }
 
@@ -234,6 +273,7 @@ impl CyclePlan {
             Way::Starts(starts) => &starts.closing.names,
         };
         let (state, shifted) = closed_by(&table, closing, &way, description, refusals);
+        refuse_degrees(&table, description, refusals);
         check_modes(&table, &way, description, refusals);
         let linear = linear_of(spec.linearise, table.modes, description, refusals);
         let mut plan = CyclePlan {
@@ -598,6 +638,9 @@ impl LinearPlan {
     }
 }
 
+mod fields;
 mod starts;
 #[cfg(test)]
 mod tests;
+
+pub use fields::declared as declared_fields;

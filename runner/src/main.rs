@@ -7,6 +7,9 @@
 //! `fmu-runner describe DIR`: print the description of the FMU unpacked in DIR as JSON,
 //! read by the one reader of it (`fmi-description`) without loading its binary: what
 //! fmusweep checks a system's components against before anything runs.
+//!
+//! `fmu-runner fields`: print, as JSON, the fields of the tables whose rules the runner
+//! holds (a steady cycle's), for the docs' field tables.
 
 use std::io::BufWriter;
 use std::path::Path;
@@ -18,10 +21,17 @@ fn main() {
     let dir = match args.as_slice() {
         [_, command, dir] if command == "serve" => dir,
         [_, command, dir] if command == "describe" => describe(Path::new(dir)),
+        [_, command] if command == "fields" => {
+            println!(
+                "{}",
+                serde_json::json!(fmu_runner::cycle_plan::declared_fields())
+            );
+            std::process::exit(0)
+        }
         _ => {
             eprintln!(
                 "usage: fmu-runner serve|describe <directory of an unpacked FMI 2.0 or 3.0 FMU, \
-                 or of a system (serve)>"
+                 or of a system (serve)>, or fmu-runner fields"
             );
             std::process::exit(2);
         }

@@ -346,7 +346,7 @@ fn finite(what: &str, x: f64) -> Result<f64, String> {
 /// cycle's interface and the one asked must agree.
 fn interface_of(
     asked: Option<&str>,
-    cycle: Option<&CyclePlan>,
+    cycle: Option<Interface>,
     loaded: Option<Interface>,
     refusals: &mut Refusals,
 ) -> Option<Interface> {
@@ -361,10 +361,9 @@ fn interface_of(
         }
         return None;
     };
-    let Some(cycle) = cycle else {
+    let Some(wanted) = cycle else {
         return Some(asked.unwrap_or(default));
     };
-    let wanted = cycle.way.interface();
     if asked.is_some_and(|a| a != wanted) {
         refusals.refuse(
             "scenario.interface",
@@ -408,10 +407,16 @@ impl Plan {
                 refusals.note(&field, resolve_input(description, &name, table))
             })
             .collect();
+        // The way a cycle is found fixes its interface, checked even where the cycle's own
+        // table has mistakes.
+        let cycle_interface = spec.cycle.as_ref().map(|c| match c.starts {
+            Some(_) => Interface::CoSimulation,
+            None => Interface::ModelExchange,
+        });
         let cycle = cycle_of(&mut spec, description, (&inputs, loaded), &mut refusals);
         let interface = interface_of(
             spec.interface.as_deref(),
-            cycle.as_ref(),
+            cycle_interface,
             loaded,
             &mut refusals,
         );
@@ -624,6 +629,7 @@ mod tests {
             start: None,
             min: None,
             max: None,
+            unit: None,
             declared_type: None,
             description: None,
             fmi_type: String::new(),

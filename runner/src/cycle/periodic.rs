@@ -181,8 +181,10 @@ impl Settling {
             )
         } else {
             format!(
-                "the transient before the shooting: the motion is not cyclic: {name} \
-                 stopped or turned back before advancing by one cycle's advance ({})",
+                "the transient before the shooting: {name} did not advance by one cycle's \
+                 advance ({}) within the scenario's time, stop − start = {time} s, and at \
+                 its end it was not moving on (it stopped or turned back): if the motion \
+                 is cyclic once started, give scenario.stop more time",
                 plan.advance
             )
         })

@@ -251,7 +251,7 @@ impl<'a> ThroughStarts<'a> {
         let mut dy = rates(fmu, &starts.closing.vrs)?;
         let theta0 = y[k];
         let (mut direction, mut cycles, mut settling) = (0.0, 0.0, Settling::default());
-        let mut crossings = 0;
+        let (mut crossings, mut advanced_last) = (0, false);
         while t < end {
             budget.check("the transient before the shooting")?;
             let hh = h.min(end - t);
@@ -281,10 +281,13 @@ impl<'a> ThroughStarts<'a> {
                     return Ok((section, period, own));
                 }
             }
+            advanced_last = (y1[k] - y[k]) * direction > 0.0;
             (y, dy) = (y1, dy1);
         }
         self.runs += crossings;
-        let moving = direction != 0.0 && dy[k] * direction > 0.0;
+        // Moving on at the end: by its rate, or (where the unit gives no rates) by its
+        // last step.
+        let moving = direction != 0.0 && (dy[k] * direction > 0.0 || advanced_last);
         Err(settling.unsettled(plan, self.transient, moving))
     }
 

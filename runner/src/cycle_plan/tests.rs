@@ -181,3 +181,68 @@ fn refuses_every_mistake_of_the_start_values_at_once() {
     let said = refused(through(&STARTS, json!({"modes": 2})), &without);
     assert_eq!(said[0].0, "cycle.modes", "{said:?}");
 }
+
+/// The fields a refusal of an unknown one lists as those the reader knows.
+fn known_by_the_reader(refused: &[(String, String)], field: &str) -> Vec<String> {
+    let (_, rule) = refused
+        .iter()
+        .find(|(f, _)| f == field)
+        .unwrap_or_else(|| panic!("{field} not refused in {refused:?}"));
+    let listed = rule
+        .split_once("(the fields are: ")
+        .and_then(|(_, rest)| rest.strip_suffix(')'))
+        .unwrap_or_else(|| panic!("no list of fields in {rule:?}"));
+    let mut names: Vec<String> = listed.split(", ").map(str::to_string).collect();
+    names.sort();
+    names
+}
+
+fn declared_names(table: &fields::TableDoc) -> Vec<String> {
+    let mut names: Vec<String> = table.fields.iter().map(|f| f.name.to_string()).collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn the_declared_fields_are_the_ones_the_reader_knows() {
+    let table = json!({"state": "loop_angle", "advance": TAU, "qqqqqqqqqq": 1});
+    let metrics = json!([{"field": "outputs.metrics.a", "variable": "rod_force", "kind": "max",
+                          "qqqqqqqqqq": 1}]);
+    let refused = resolved(&spec(table, metrics), &mechanism()).unwrap_err();
+    let mut cycle = known_by_the_reader(&refused, "cycle.qqqqqqqqqq");
+    // `period` is read only to be told its new name.
+    cycle.retain(|name| name != "period");
+    assert_eq!(cycle, declared_names(&fields::cycle_table()));
+    // A metric's `field` is the client's, and a window is read only to be refused.
+    let mut metric = known_by_the_reader(&refused, "outputs.metrics.a.qqqqqqqqqq");
+    metric.retain(|name| !["field", "from", "to"].contains(&name.as_str()));
+    assert_eq!(metric, declared_names(&fields::cycle_metric()));
+}
+
+#[test]
+fn an_advance_in_degrees_of_an_angle_in_rad_is_told_it_is_in_radians() {
+    let d = mechanism();
+    for table in [
+        json!({"state": "loop_angle", "advance": 360.0}),
+        json!({"state": "loop_angle", "period": 360.0}),
+    ] {
+        let refused = resolved(&spec(table.clone(), json!([])), &d).unwrap_err();
+        let (field, rule) = &refused[0];
+        assert!(
+            rule.contains("360 looks like degrees"),
+            "{table}: {refused:?}"
+        );
+        assert!(rule.contains("6.283185307179586"), "{rule}");
+        assert!(
+            field == "cycle.advance" || field == "cycle.period",
+            "{field}"
+        );
+    }
+    // The same number of a state in another unit, or not a whole number of right angles,
+    // is not a mistake.
+    assert!(resolved(
+        &spec(json!({"state": "loop_angle", "advance": 6.0}), json!([])),
+        &d
+    )
+    .is_ok());
+}

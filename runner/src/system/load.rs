@@ -54,6 +54,9 @@ impl SystemLibrary {
         let file: SystemFile =
             serde_json::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
         let (components, descriptions) = load_components(dir, &file.components)?;
+        if let Some(tolerance) = file.coupling_tolerance {
+            check_rollback(tolerance, &components, &descriptions)?;
+        }
         let names: Vec<&str> = file.components.iter().map(|c| c.name.as_str()).collect();
         let (links, link_names, fed) = connect(&file, &names, &components, &descriptions)?;
         let (routes, variables) = routes(&names, &descriptions, &fed);
@@ -65,9 +68,6 @@ impl SystemLibrary {
             variables,
             ..Description::default()
         };
-        if let Some(tolerance) = file.coupling_tolerance {
-            check_rollback(tolerance, &components, &descriptions)?;
-        }
         let system = SystemLibrary {
             components,
             routes,
@@ -171,7 +171,9 @@ fn routes(
     (routes, variables)
 }
 
-/// A coupling tolerance needs a positive tolerance and components that can roll back.
+/// A coupling tolerance needs a positive tolerance and components that can roll back (the
+/// refusal names the field, `system.coupling_tolerance: rule` or the component's
+/// `system.components.NAME: rule`, which the client reports by it).
 fn check_rollback(
     tolerance: f64,
     components: &[Component],
@@ -181,8 +183,9 @@ fn check_rollback(
     for (c, d) in components.iter().zip(descriptions) {
         if !(d.can_get_and_set_state && c.library.exports_state()) {
             return Err(format!(
-                "component {}: a coupling tolerance needs components that can save and \
-                 restore their FMU state (canGetAndSetFMUstate), and this one cannot",
+                "system.components.{}: cannot save its FMU state (canGetAndSetFMUstate), \
+                 which system.coupling_tolerance needs: a step is taken again from every \
+                 component's saved state",
                 c.name.to_string_lossy()
             ));
         }
