@@ -28,8 +28,9 @@ from .native import NativeRunner, RunnerError
 from .results import Results, load_results
 from .indices import morris_effects, sobol_indices
 from .spec import Spec, SpecError
+from .errors import SpecWarning
 
-__all__ = ["run_sweep", "fit", "FitResult", "FitSpec", "load_results", "Results", "SweepSummary", "Spec", "SpecError",
+__all__ = ["run_sweep", "fit", "FitResult", "FitSpec", "load_results", "Results", "SweepSummary", "Spec", "SpecError", "SpecWarning",
            "Design", "generate", "NativeRunner", "RunnerError", "sobol_indices",
            "morris_effects", "linearise", "Linearisation"]
 

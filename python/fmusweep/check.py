@@ -1,8 +1,10 @@
-"""The checks of a specification that need the FMU: every name is a variable of the right
-kind, and every value the design and the scenario set is one the FMU accepts. The FMU is
-asked itself (its values are set in initialisation mode, nothing runs), so its own rules
-(J > 0, k ≥ 0, …) apply, whatever FMU it is; refusals become SpecErrors naming the field.
-A sweep and a fit share these checks; each names its own fields.
+"""The checks of a specification that need the FMU, over whatever of the spec was read
+(``spec.SweepReading``, ``fitting.spec.FitReading``), in the same pass as the spec's own:
+every name is a variable of the right kind, and every value the design and the scenario set
+is one the FMU accepts. The FMU is asked itself (its values are set in initialisation mode,
+nothing runs), so its own rules (J > 0, k ≥ 0, …) apply, whatever FMU it is; refusals
+become SpecErrors naming the field. The runner is asked for its own rules of the plan (a
+steady cycle's) the same way.
 """
 
 from __future__ import annotations
@@ -13,16 +15,18 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .errors import Collector, SpecError, did_you_mean
-from .records import Plan, Rows
+from .records import MetricPlan, Plan, Rows, new_plan
 
 if TYPE_CHECKING:
-    from .designs import Design
+    from .fitting.spec import FitReading
     from .native import NativeRunner
-    from .spec import Scenario, Spec
+    from .spec import SweepReading
 
-__all__ = ["check_against_fmu", "Variables", "names_missing"]
+__all__ = ["sweep_against_target", "fit_against_target", "Variables", "out_of_range"]
 
 SETTABLE = ("parameter", "input")
+# What a fit may measure.
+READABLE = ("output", "local")
 VALUE_TYPES = ("real", "integer", "enumeration", "boolean")
 
 # A variable as the runner describes it: name, causality, type, …
@@ -48,24 +52,18 @@ class Variables:
             raise SpecError(where, f"{name} is of type {v['type']}; expected {' or '.join(types)}")
         return v
 
-    def check_scenario(self, scenario: Scenario, errors: Collector) -> None:
-        errors.run(lambda: self.check_interface(scenario))
-        for name in scenario.parameters:
-            errors.run(lambda: self.get(name, f"scenario.parameters.{name}", SETTABLE, VALUE_TYPES))
-        for name in scenario.inputs:
-            errors.run(lambda: self.driven(name, f"scenario.inputs.{name}"))
-
-    def check_interface(self, scenario: Scenario) -> None:
+    def check_interface(self, asked: tuple[str | None, str | None]) -> None:
         """The interface asked for is the FMU's; an integrator is asked for only where the
         runner integrates (Model Exchange)."""
+        interface, integrator = asked
         co_simulation = bool(self.description.get("model_identifier"))
         exchange = bool(self.description.get("exchange_identifier"))
         for name, has in (("co_simulation", co_simulation), ("model_exchange", exchange)):
-            if scenario.interface == name and not has:
+            if interface == name and not has:
                 raise SpecError("scenario.interface", f"the FMU has no {name} interface")
-        runs_exchange = scenario.interface == "model_exchange" or (
-            scenario.interface is None and not co_simulation)
-        if scenario.integrator is not None and not runs_exchange:
+        runs_exchange = interface == "model_exchange" or (
+            interface is None and not co_simulation)
+        if integrator is not None and not runs_exchange:
             raise SpecError("scenario.integrator", "applies to Model Exchange only: this FMU "
                                                    "runs through its co_simulation interface, "
                                                    "which integrates itself (set interface = "
@@ -101,29 +99,180 @@ def what_for(causalities: Collection[str]) -> str:
     return "set" if set(causalities) <= set(SETTABLE) else "read"
 
 
-def check_against_fmu(spec: Spec, design: Design, description: dict[str, Any],
-                      runner: NativeRunner) -> None:
-    """Every name against the FMU, every mistake reported at once; then the values."""
+def sweep_against_target(reading: SweepReading, description: dict[str, Any],
+                         runner: NativeRunner) -> list[SpecError]:
+    """Every name the sweep's spec uses against the FMU, every value it sets against the
+    FMU's declared range and its own rules, and the runner's rules of the plan, over
+    whatever of the spec was read: every mistake at once."""
     variables = Variables(description)
     errors = Collector()
-    variables.check_scenario(spec.scenario, errors)
-    for m in spec.metrics:
-        errors.run(lambda: variables.get(m.variable, f"outputs.metrics.{m.name}.variable", None,
+    raw = reading.raw
+    table = reading.scenario.table
+    if reading.system is None:  # a system's interface is the runner's rule
+        errors.run(lambda: variables.check_interface(_interface_of(table)))
+    for name in _keys(raw, "scenario", "parameters"):
+        errors.run(lambda: variables.get(name, f"scenario.parameters.{name}", SETTABLE,
                                          VALUE_TYPES))
-    if spec.cycle is not None:
-        spec.cycle.check(description, errors)
-    for name in spec.series_variables if spec.cycle is None else []:
-        errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
-    refused_by_runner(runner, spec.plan(description), errors)
-    columns = [design.column_values(j) for j in range(len(design.names))]
-    errors.run(lambda: variables.check_columns(design.names, columns, "design.parameters"))
-    first = design.rows_at(np.zeros(1, dtype=np.int64))
-    plan, good = values_to_ask(spec.plan(description), design.names, "design.parameters", errors)
+    for name in _keys(raw, "scenario", "inputs"):
+        errors.run(lambda: variables.driven(name, f"scenario.inputs.{name}"))
+    for name in _keys(raw, "design", "parameters"):
+        errors.run(lambda: variables.get(name, f"design.parameters.{name}", SETTABLE,
+                                         VALUE_TYPES))
+    if reading.cycle is None:
+        _readable(raw, variables, errors)
+    else:
+        reading.cycle.check(description, errors)
+    named = [n for n in reading.columns if f"design.parameters.{n}" not in _fields(errors)]
+    errors.run(lambda: variables.check_columns(named, [reading.columns[n] for n in named],
+                                               "design.parameters"))
+    refused = _fields(errors) | {e.field for e in reading.errors}
+    refused_by_runner(runner, _probe_plan(reading, description, refused), errors)
+    plan, good = values_to_ask(_probe_plan(reading, description, set(), reads=False),
+                               list(reading.columns), "design.parameters", errors)
     if plan is not None:
-        errors.run(lambda: ask_the_fmu(plan, [design.names[j] for j in good], first[:, good],
-                                       [columns[j] for j in good], runner, "design.parameters",
-                                       "scenario.parameters"))
-    errors.raise_any()
+        names = [list(reading.columns)[j] for j in good]
+        first = np.array([[reading.columns[n][0] for n in names]])
+        errors.run(lambda: ask_the_fmu(plan, names, first, [reading.columns[n] for n in names],
+                                       runner, "design.parameters", "scenario.parameters"))
+    # What the FMU took of its declared range (an FMU need not hold its own min and max).
+    errors.errors += out_of_range(description, [(f"scenario.parameters.{n}", n, [v])
+                                                for n, v in reading.scenario.fixed.items()]
+                                  + [(f"design.parameters.{n}", n, list(values))
+                                     for n, values in reading.columns.items()], errors)
+    return errors.errors
+
+
+def _interface_of(table: Any) -> tuple[str | None, str | None]:
+    if table is None:
+        return None, None
+    return table.get("interface"), table.get("integrator")
+
+
+def _keys(raw: dict[str, Any], *path: str) -> list[str]:
+    """The names of the table at `path` of a spec as written."""
+    return list(_table(raw, *path))
+
+
+def _fields(errors: Collector) -> set[str]:
+    return {e.field for e in errors.errors}
+
+
+def _readable(raw: dict[str, Any], variables: Variables, errors: Collector) -> None:
+    """The variables a transient's metrics and series read, as written."""
+    for metric, entry in _table(raw, "outputs", "metrics").items():
+        variable = entry.get("variable") if isinstance(entry, dict) else None
+        if isinstance(variable, str):
+            errors.run(lambda: variables.get(variable, f"outputs.metrics.{metric}.variable",
+                                             None, VALUE_TYPES))
+    listed = _table(raw, "outputs", "series").get("variables")
+    for name in listed if isinstance(listed, list) else []:
+        if isinstance(name, str):
+            errors.run(lambda: variables.get(name, "outputs.series.variables", None,
+                                             VALUE_TYPES))
+
+
+def _probe_plan(reading: SweepReading, description: dict[str, Any], refused: set[str],
+                reads: bool = True) -> Plan:
+    """The plan of what was read, for the runner's rules and the FMU's: the scenario's
+    times where they were read (else a short run), and, with `reads`, the metrics (but
+    those with a field `refused` already) and the cycle."""
+    table = reading.scenario.table
+    times = reading.scenario.times()
+    start, stop, step = times if times is not None else (0.0, 1.0, 1.0)
+    interface, integrator = _interface_of(table)
+    plan = new_plan(start, stop, step, tolerance=table.get("tolerance") if table else None,
+                    interface=interface)
+    plan["fixed"], plan["inputs"] = dict(reading.scenario.fixed), dict(reading.scenario.inputs)
+    plan["integrator"] = integrator
+    if not reads:
+        return plan
+    if reading.cycle is not None:
+        plan["cycle"] = reading.cycle.plan([{"field": f"outputs.metrics.{m.name}", **m.entry}
+                                            for m in reading.metrics], description)
+    elif times is not None:
+        plan["metrics"] = [MetricPlan({"variable": m.variable, "kind": m.kind, "from": m.start,
+                                       "to": m.end, "field": f"outputs.metrics.{m.name}",
+                                       "extremes": m.extremes}) for m in reading.metrics
+                           if not any(f == f"outputs.metrics.{m.name}"
+                                      or f.startswith(f"outputs.metrics.{m.name}.")
+                                      for f in refused)]
+    return plan
+
+
+def fit_against_target(reading: FitReading, description: dict[str, Any],
+                       runner: NativeRunner) -> list[SpecError]:
+    """Every name a fit's spec uses against the FMU, and every value it sets against the
+    FMU's declared range and its own rules, over whatever was read: every mistake at once."""
+    variables = Variables(description)
+    errors = Collector()
+    for e in reading.experiments:
+        _scenario_names(e.scenario, e.where, variables, errors)
+        for name in _measured(reading, e):
+            errors.run(lambda: variables.get(name, f"{e.where}data.file", READABLE, VALUE_TYPES,
+                                             what="output"))
+    for p in reading.fitted:
+        column = np.array([p.start, p.low, p.high])
+        errors.run(lambda: variables.check_columns([p.variable], [column],
+                                                   _parameters_field(p.experiment)))
+    for e in reading.experiments:
+        errors.run(lambda: _ask_about_experiment(reading, e, runner, errors))
+    # What the FMU took of its declared range (an FMU need not hold its own min and max).
+    fixed = [(f"{e.where}scenario.parameters.{n}" if e.where else f"scenario.parameters.{n}",
+              n, [v]) for e in reading.experiments for n, v in e.scenario.fixed.items()]
+    fitted = [(f"{_parameters_field(p.experiment)}.{p.variable}", p.variable,
+               [p.start, p.low, p.high]) for p in reading.fitted]
+    errors.errors += out_of_range(description, fixed + fitted, errors)
+    return errors.errors
+
+
+def _scenario_names(scenario: Any, where: str, variables: Variables, errors: Collector) -> None:
+    table = scenario.table
+    if table is None:
+        return
+    prefix = f"{where}scenario" if where else "scenario"
+    errors.run(lambda: variables.check_interface(_interface_of(table)))
+    for name in table.get("parameters") or {}:
+        errors.run(lambda: variables.get(name, f"{prefix}.parameters.{name}", SETTABLE,
+                                         VALUE_TYPES))
+    for name in table.get("inputs") or {}:
+        errors.run(lambda: variables.driven(name, f"{prefix}.inputs.{name}"))
+
+
+def _measured(reading: FitReading, e: Any) -> list[str]:
+    """An experiment's measured columns: its data's, or its file's header where the data
+    could not be read against the scenario."""
+    if e.data is not None:
+        return list(e.data.columns)
+    return []
+
+
+def _parameters_field(experiment: str | None) -> str:
+    return "fit.parameters" if experiment is None else f"experiment.{experiment}.parameters"
+
+
+def _ask_about_experiment(reading: FitReading, e: Any, runner: NativeRunner,
+                          errors: Collector) -> None:
+    """The values of experiment `e` the FMU refuses, but for those whose names `errors`
+    holds refused already."""
+    fitted = [p for p in reading.fitted if p.experiment in (None, e.name)]
+    fields = [_parameters_field(p.experiment) for p in fitted]
+    times = e.scenario.times()
+    start, stop, step = times if times is not None else (0.0, 1.0, 1.0)
+    table = e.scenario.table
+    interface, integrator = _interface_of(table)
+    plan = new_plan(start, stop, step, tolerance=table.get("tolerance") if table else None,
+                    interface=interface)
+    plan["fixed"], plan["inputs"] = dict(e.scenario.fixed), dict(e.scenario.inputs)
+    plan["integrator"] = integrator
+    asked, _ = values_to_ask(plan, [], "", errors)
+    if asked is None:
+        return
+    refused = _fields(errors)
+    good = [k for k, p in enumerate(fitted) if f"{fields[k]}.{p.variable}" not in refused]
+    rows = np.array([[fitted[k].start for k in good], [fitted[k].low for k in good],
+                     [fitted[k].high for k in good]])
+    ask_the_fmu(asked, [fitted[k].variable for k in good], rows[:1], list(rows.T), runner,
+                "fit.parameters", "scenario.parameters", [fields[k] for k in good])
 
 
 def refused_by_runner(runner: NativeRunner, plan: Plan, errors: Collector) -> None:
@@ -264,66 +413,22 @@ def _reason(message: str) -> str:
     return message
 
 
-def names_missing(raw: dict[str, Any], description: dict[str, Any]) -> list[SpecError]:
-    """The names a spec's tables use that the FMU lacks (or cannot set or read as they are
-    used), read from the tables as written: for a spec whose own fields have mistakes, so
-    that one run reports both kinds."""
-    variables = Variables(description)
-    errors = Collector()
-
-    for table, causalities, types in (("parameters", SETTABLE, VALUE_TYPES),
-                                      ("inputs", ("input",), ("real",))):
-        for name in _table(raw, "scenario", table):
-            errors.run(lambda: variables.get(name, f"scenario.{table}.{name}", causalities, types))
-    for where, names in (("design.parameters", _table(raw, "design", "parameters")),
-                         ("fit.parameters", _table(raw, "fit", "parameters"))):
-        for name in names:
-            errors.run(lambda: variables.get(name, f"{where}.{name}", SETTABLE, VALUE_TYPES))
-    for metric, entry in _table(raw, "outputs", "metrics").items():
-        variable = entry.get("variable") if isinstance(entry, dict) else None
-        if isinstance(variable, str):
-            errors.run(lambda: variables.get(variable, f"outputs.metrics.{metric}.variable", None,
-                                             VALUE_TYPES))
-    listed = _table(raw, "outputs", "series").get("variables")
-    for name in listed if isinstance(listed, list) else []:
-        if isinstance(name, str):
-            errors.run(lambda: variables.get(name, "outputs.series.variables", None, VALUE_TYPES))
-    return errors.errors
-
-
-def values_out_of_range(raw: dict[str, Any], description: dict[str, Any]) -> list[SpecError]:
-    """The numbers a spec's tables set that lie outside the FMU's declared min and max,
-    read from the tables as written: for a spec whose own fields have mistakes, so that one
-    run reports these too (the FMU itself is asked about every value once the spec's own
-    fields are right)."""
+def out_of_range(description: dict[str, Any], values: list[tuple[str, str, list[float]]],
+                 errors: Collector) -> list[SpecError]:
+    """Each (field, variable, values) whose values lie outside the variable's declared min
+    and max, but for fields refused already."""
     bounds = {v["name"]: (_bound(v.get("min"), -np.inf), _bound(v.get("max"), np.inf))
               for v in description.get("variables", []) if v.get("type") in ("real", "integer")}
-    errors: list[SpecError] = []
-
-    def check(field: str, name: str, values: object) -> None:
-        numbers = [v for v in (values if isinstance(values, list) else [values])
-                   if isinstance(v, (int, float)) and not isinstance(v, bool)]
+    refused = _fields(errors)
+    found = []
+    for field, name, numbers in values:
         low, high = bounds.get(name, (-np.inf, np.inf))
-        outside = [v for v in numbers if not low <= v <= high]
-        if outside:
-            shown = ", ".join(f"{v:g}" for v in outside)
-            errors.append(SpecError(field, f"{name} = {shown}: outside the FMU's range "
-                                           f"[{low:g}, {high:g}]"))
-
-    for name, value in _table(raw, "scenario", "parameters").items():
-        check(f"scenario.parameters.{name}", name, value)
-    for name, entry in _table(raw, "fit", "parameters").items():
-        for key in ("start", "range"):
-            if isinstance(entry, dict) and key in entry:
-                check(f"fit.parameters.{name}.{key}", name, entry[key])
-    for name, entry in _table(raw, "design", "parameters").items():
-        if isinstance(entry, dict):
-            values = entry.get("values", entry.get("range"))
-            linspace = entry.get("linspace")
-            if isinstance(linspace, list):
-                values = linspace[:2]
-            check(f"design.parameters.{name}", name, values)
-    return errors
+        outside = sorted({float(v) for v in numbers if not low <= v <= high})
+        if outside and field not in refused:
+            shown = ", ".join(f"{v:g}" for v in outside[:8]) + (", …" if len(outside) > 8 else "")
+            found.append(SpecError(field, f"{name} = {shown}: outside the FMU's range "
+                                          f"[{low:g}, {high:g}]"))
+    return found
 
 
 def _table(raw: dict[str, Any], *path: str) -> dict[str, Any]:

@@ -86,7 +86,12 @@ class _QuietWhileEnding(logging.Filter):
         return not _ENDING.is_set()
 
 
-_EVENT_LOOP_LOGGERS = ("tornado.application", "asyncio")
+# Where the cluster's event loop logs calls cut short by an interrupt (a closed comm's
+# traceback among them). A logger's filter does not reach its children: each is named.
+_EVENT_LOOP_LOGGERS = ("tornado.application", "asyncio", "distributed", "distributed.client",
+                       "distributed.core", "distributed.comm.tcp", "distributed.batched",
+                       "distributed.utils", "distributed.worker", "distributed.nanny",
+                       "distributed.scheduler", "distributed.deploy.spec")
 
 
 def _end_with_parent() -> None:
@@ -103,11 +108,19 @@ def _end_with_parent() -> None:
 T = TypeVar("T")
 
 
+ENGINE_CHOICE = ("Without --serial, --workers or --scheduler the engine is chosen after the "
+                 "first points, which run here: serial when the rest would take less time "
+                 "serially than starting a LocalCluster and sharing the rest among its "
+                 "workers, else a LocalCluster of one worker per core; the run's last lines "
+                 "say which and why.")
+
+
 def _engine_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fmu", help="the FMU, when the spec names none (or to override it)")
-    parser.add_argument("--workers", type=int, help="LocalCluster worker processes (default: every core)")
-    parser.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
-    parser.add_argument("--serial", action="store_true", help="no Dask: run in this process")
+    engine = parser.add_argument_group("engine", ENGINE_CHOICE)
+    engine.add_argument("--workers", type=int, help="LocalCluster worker processes (default: every core)")
+    engine.add_argument("--scheduler", help="address of an existing Dask scheduler, tcp://HOST:PORT")
+    engine.add_argument("--serial", action="store_true", help="no Dask: run in this process")
     parser.add_argument("--no-plots", action="store_true",
                         help="no plots and no report.html (sensitivity indices are still computed)")
 
@@ -132,11 +145,14 @@ def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
     except ENGINE_ERRORS as e:
         print(f"{prog}: {_as_option(e)}", file=sys.stderr)
         return 2
+    except Exception:
+        if not _ENDING.is_set():
+            raise
+        # A call cut short by the interrupt (a closed comm, a cancelled future) is the
+        # interrupt's own end, said as such.
+        return _interrupted(prog, kept, False)
     except KeyboardInterrupt as e:
-        ended = "terminated" if isinstance(e, Terminated) else "interrupted"
-        print(f"{prog}: {ended}; {kept}: run the same command again with --resume",
-              file=sys.stderr)
-        return 143 if isinstance(e, Terminated) else 130
+        return _interrupted(prog, kept, isinstance(e, Terminated))
     finally:
         signal.signal(signal.SIGTERM, previous)
         if interrupt is signal.default_int_handler:
@@ -145,6 +161,12 @@ def _guarded(prog: str, kept: str, run: Callable[[], T]) -> T | int:
             logging.getLogger(name).removeFilter(quiet)
         _ENDING.clear()
         warnings.showwarning = shown
+
+
+def _interrupted(prog: str, kept: str, terminated: bool) -> int:
+    ended = "terminated" if terminated else "interrupted"
+    print(f"{prog}: {ended}; {kept}: run the same command again with --resume", file=sys.stderr)
+    return 143 if terminated else 130
 
 
 def main(argv: Sequence[str] | None = None) -> int:

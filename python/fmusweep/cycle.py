@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any, overload
 
@@ -45,12 +46,15 @@ import numpy as np
 import numpy.typing as npt
 import pyarrow as pa
 
-from .errors import Collector, SpecError, did_you_mean, refuse
+from .errors import Collector, SpecError, SpecErrors, did_you_mean, refuse
+from .fields import finite
+from .schema.core import Loc, Parts, Table, at, read
+from .schema.core import field as declared
 from .sensitivity_slots import Offer, read_offer, slot_parameter, slot_variable
 from .native import RunnerError
 from .records import PointResult, new_plan
 
-__all__ = ["CycleSpec", "CYCLE_COLUMNS", "CHAIN_POINTS", "cycle_columns", "Linearisation",
+__all__ = ["CycleSpec", "CycleStarts", "CYCLE_COLUMNS", "CHAIN_POINTS", "cycle_columns", "Linearisation",
            "linearise"]
 
 # A sweep of steady cycles that continues each point from its neighbours' cycles does so
@@ -72,6 +76,19 @@ def _names(value: object) -> list[str]:
     return [v for v in value if isinstance(v, str)] if isinstance(value, list) else []
 
 
+class CycleStarts(Table):
+    """The one field of ``[cycle]`` the client reads itself: the start values, whose slots
+    it finds in the FMU's offer of sensitivities (the runner holds the table's other rules)."""
+    starts: list[str] = declared(
+        "through the Co-Simulation interface: the start values that set the state on the "
+        "section (the FMU offers sensitivities to each)", [], shows="list of names")
+
+    @classmethod
+    def rules(cls, parts: Parts, where: Loc) -> Iterator[SpecError]:
+        if any(not name for name in parts.get("starts") or []):
+            yield SpecError(at(where + ("starts",)), "must be a list of start values' names")
+
+
 @dataclass(frozen=True)
 class CycleSpec:
     """The ``[cycle]`` table as written; what this package reads of it."""
@@ -86,10 +103,9 @@ class CycleSpec:
         table = raw["cycle"]
         if not isinstance(table, dict):
             raise SpecError("cycle", f"must be a table, got {table!r}")
-        starts = table.get("starts", [])
-        if not isinstance(starts, list) or not all(isinstance(v, str) and v for v in starts):
-            raise SpecError("cycle.starts", f"must be a list of start values' names, got "
-                                            f"{starts!r}")
+        found = read(CycleStarts, {k: v for k, v in table.items() if k == "starts"}, ("cycle",))
+        if found.errors:
+            raise found.errors[0] if len(found.errors) == 1 else SpecErrors(found.errors)
         return CycleSpec(table)
 
     @property
@@ -227,10 +243,10 @@ class Linearisation:
     states: list[str]
     inputs: list[str]
     outputs: list[str]
-    a: npt.NDArray[np.float64]
-    b: npt.NDArray[np.float64]
-    c: npt.NDArray[np.float64]
-    d: npt.NDArray[np.float64]
+    A: npt.NDArray[np.float64]
+    B: npt.NDArray[np.float64]
+    C: npt.NDArray[np.float64]
+    D: npt.NDArray[np.float64]
     frequencies: list[float]
     dampings: list[float]
     t: float = 0.0
@@ -256,6 +272,7 @@ def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None =
     from .fmu import Archive, local_runner
     runner = local_runner(Archive.read(fmu))
     names = list(parameters or {})
+    _check_settable(runner.describe(), parameters or {})
     row = [[float((parameters or {})[n]) for n in names]]
     if along is None:
         runner.configure(new_plan(0.0, 1.0, 1.0, interface="model_exchange"))
@@ -282,6 +299,23 @@ def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None =
     if result["status"] != "ok" or found_cycle is None:
         raise RunnerError(f"{result['status']}: {result['message']}")
     return [_linearisation(lin) for lin in found_cycle["linearisations"]]
+
+
+def _check_settable(description: dict[str, Any], parameters: dict[str, Any]) -> None:
+    """Each of linearise's parameters names a parameter or input of the FMU and gives it a
+    finite number: every mistake raised together."""
+    causality = {v["name"]: v["causality"] for v in description["variables"]}
+    errors = Collector()
+    for name, value in parameters.items():
+        where = f"parameters.{name}"
+        if name not in causality:
+            errors.run(lambda: refuse(where, f"the FMU has no variable {name!r}"
+                                             f"{did_you_mean(name, causality)}"))
+        elif causality[name] not in ("parameter", "input"):
+            errors.run(lambda: refuse(where, f"{name} has causality {causality[name]}: only "
+                                             "parameters and inputs can be set"))
+        errors.run(lambda: finite(value, where))
+    errors.raise_any()
 
 
 def _linearisation(lin: dict[str, Any]) -> Linearisation:

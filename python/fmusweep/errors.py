@@ -20,6 +20,14 @@ class SpecError(ValueError):
         self.rule = rule
 
 
+class Unread(SpecError):
+    """A value a later check needs but which was not read, its own mistakes reported
+    where it was read: stops that check, and is not reported again."""
+
+    def __init__(self, field_name: str):
+        super().__init__(field_name, "was not read")
+
+
 def refuse(field_name: str, rule: str) -> None:
     """Raise the SpecError: for a check written as a lambda, which cannot raise."""
     raise SpecError(field_name, rule)
@@ -61,8 +69,17 @@ class Collector:
 
 
 def did_you_mean(name: str, known: Iterable[str]) -> str:
-    """", did you mean 'x'?" for the known name closest to a misspelt one, else ""."""
-    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    """", did you mean 'x'?" for the known name closest to a misspelt one, else "". In a
+    coupled system a name given without its component ('k34') is told the one name that
+    ends with it ('mechanism.k34'), or the choice when several components have it."""
+    known = list(known)
+    prefixed = sorted(k for k in known if "." not in name and k.endswith("." + name)
+                      and "." not in k[:-len(name) - 1])
+    if len(prefixed) == 1:
+        return f"; did you mean {prefixed[0]!r}?"
+    if prefixed:
+        return "; did you mean one of " + ", ".join(repr(k) for k in prefixed) + "?"
+    close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
     return f"; did you mean {close[0]!r}?" if close else ""
 
 

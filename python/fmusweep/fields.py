@@ -1,5 +1,6 @@
-"""Checks of a specification's fields, shared by the sweep's and the fit's: each raises a
-SpecError that names the field (``where``) and the rule."""
+"""The settings of a specification read by the FMU's types: a number, true or false for a
+Boolean, an item's name for an Enumeration (the schema keeps them as written; what they
+mean is the FMU's to say). Each mistake raises a SpecError naming the field."""
 
 from __future__ import annotations
 
@@ -7,16 +8,15 @@ import contextlib
 import contextvars
 import math
 from collections.abc import Iterator
-from typing import Any
 
 from .errors import SpecError, did_you_mean
 
-__all__ = ["only", "table", "number", "finite", "whole", "low_high", "setting", "typed_by",
-           "VariableTypes"]
+__all__ = ["finite", "setting", "typed_by", "VariableTypes"]
 
-# The FMU's variables' types and Enumeration items by name, while a spec is read against
-# it: a setting may then be an item's name or true/false, checked against the variable.
-VariableTypes = dict[str, tuple[str, dict[str, int]]]
+# The FMU's variables' types, Enumeration items and units by name, while a spec is read
+# against it: a setting may then be an item's name or true/false, checked against the
+# variable.
+VariableTypes = dict[str, tuple[str, dict[str, int], str | None]]
 _TYPES: contextvars.ContextVar[VariableTypes] = contextvars.ContextVar("types", default={})
 
 
@@ -34,53 +34,33 @@ def setting(value: object, where: str, name: str) -> float:
     """A value that variable `name` takes: a number; true or false for a Boolean (1 or 0, as
     the runner passes Booleans); an item's name for an Enumeration (its value)."""
     known = _TYPES.get().get(name)
+    kind, items, unit = known if known is not None else (None, {}, None)
     if isinstance(value, bool):
-        if known is not None and known[0] != "boolean":
-            raise SpecError(where, f"{name} is of type {known[0]}: true and false set a Boolean")
+        if kind is not None and kind != "boolean":
+            raise SpecError(where, f"{name} is of type {kind}: true and false set a Boolean")
         return float(value)
     if isinstance(value, str):
-        if known is None or not known[1]:
-            kind = "an Enumeration of the FMU" if known is None else f"of type {known[0]}"
-            raise SpecError(where, f"{value!r} names an item, and {name} is not {kind} with "
+        if kind == "boolean" and value.lower() in ("true", "false"):
+            raise SpecError(where, f"write {value.lower()} without quotes: {name} is a Boolean, "
+                                   f"not the string {value!r}")
+        if kind in ("real", "integer"):
+            raise SpecError(where, f"expected a number{_unit(unit)}, got the string {value!r}")
+        if not items:
+            what = "an Enumeration of the FMU" if kind is None else f"of type {kind}"
+            raise SpecError(where, f"{value!r} names an item, and {name} is not {what} with "
                                    "items: give a number")
-        items = known[1]
         if value not in items:
             raise SpecError(where, f"{name} has no item {value!r} (its items: "
                                    f"{', '.join(items)}){did_you_mean(value, items)}")
         return float(items[value])
+    if kind == "boolean":
+        raise SpecError(where, f"{name} is a Boolean: write true or false, got {value!r}")
     return finite(value, where)
 
 
-def only(table_: dict[str, Any], where: str, allowed: set[str]) -> None:
-    """No field but the allowed ones (``where`` "spec": the top level)."""
-    unknown = sorted(set(table_) - allowed)
-    if unknown:
-        raise SpecError(f"{where}.{unknown[0]}" if where != "spec" else unknown[0],
-                        f"unknown field; expected one of {', '.join(sorted(allowed))}")
-
-
-def table(parent: dict[str, Any], key: str, where: str, required: bool = False) -> dict[str, Any]:
-    value = parent.get(key)
-    name = key if where == "spec" else f"{where}.{key}"
-    if value is None:
-        if required:
-            raise SpecError(name, "is missing")
-        return {}
-    if not isinstance(value, dict):
-        raise SpecError(name, f"must be a table, got {type(value).__name__}")
-    return value
-
-
-def number(value: object, where: str) -> float:
-    """A finite number, which must be there."""
-    if value is None:
-        raise SpecError(where, "is missing")
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SpecError(where, f"must be a number, got {value!r}")
-    converted = float(value)
-    if not math.isfinite(converted):
-        raise SpecError(where, f"must be finite, got {converted}")
-    return converted
+def _unit(unit: str | None) -> str:
+    """ " (N·m·s/rad)" for the FMU's unit "N.m.s/rad"; "" without one."""
+    return f" ({unit.replace('.', '·')})" if unit else ""
 
 
 def finite(value: object, where: str) -> float:
@@ -88,21 +68,3 @@ def finite(value: object, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise SpecError(where, f"must be a finite number, got {value!r}")
     return float(value)
-
-
-def whole(value: object, where: str, low: int, high: int | None = None) -> int:
-    if (not isinstance(value, int) or isinstance(value, bool) or value < low
-            or (high is not None and value > high)):
-        bound = f"in [{low}, {high}]" if high is not None else f"≥ {low}"
-        raise SpecError(where, f"must be a whole number {bound}, got {value!r}")
-    return value
-
-
-def low_high(r: object, where: str) -> tuple[float, float]:
-    """A range = [low, high] with low < high."""
-    if not (isinstance(r, list) and len(r) == 2):
-        raise SpecError(where, f"must be [low, high], got {r!r}")
-    low, high = finite(r[0], where), finite(r[1], where)
-    if not low < high:
-        raise SpecError(where, f"needs low < high, got [{low}, {high}]")
-    return low, high

@@ -74,8 +74,8 @@ def open_for_checks(fmu: str | os.PathLike[str] | None, spec_fmu: str | os.PathL
     process's runner for it, and its description, for the checks before anything runs."""
     path = fmu or spec_fmu or os.environ.get("FMUSWEEP_FMU")
     if not path:
-        raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), pass fmu=, "
-                               "or set FMUSWEEP_FMU")
+        raise SpecError("fmu", "no FMU: name one in the spec (fmu = \"…\"), give --fmu FILE "
+                               "on the command line (fmu= from Python), or set FMUSWEEP_FMU")
     # What named it: the spec or the caller (fmu = …, fmu=, --fmu), or the environment.
     named_by = "fmu" if fmu or spec_fmu else "FMUSWEEP_FMU"
     try:

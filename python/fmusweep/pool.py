@@ -100,7 +100,7 @@ class Pool:
     def _start(self) -> None:
         from distributed import Client, LocalCluster
         if self.scheduler:
-            self.client = Client(self.scheduler, timeout="30s")
+            self.client = Client(self.scheduler, timeout="10s")
         else:
             with _children_ignore_interrupts():
                 self._cluster = LocalCluster(
@@ -277,6 +277,36 @@ def check_engine(workers: object, scheduler: object, serial: bool) -> None:
     if workers is not None and scheduler is not None:
         raise SpecError("workers", "sizes the LocalCluster started here; with scheduler the "
                                    "points run on that cluster's own workers: give one of the two")
+    if isinstance(scheduler, str) and scheduler.strip():
+        _reachable(scheduler.strip())
+
+
+# How long the scheduler's address may take to answer before the run is refused, seconds.
+REACH_S = 5.0
+
+
+def _reachable(address: str) -> None:
+    """A scheduler at a TCP address answers within REACH_S, or the run is refused before
+    anything runs (Dask's own connect waits 30 s, after the first points have run)."""
+    import socket
+    from urllib.parse import urlsplit
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme not in ("tcp", "tls"):
+        return  # another transport (inproc, ucx): Dask's own connect says
+    try:
+        host, port = parts.hostname, parts.port
+    except ValueError:
+        host, port = None, None
+    if not host or port is None:
+        raise SpecError("scheduler", f"must be a Dask scheduler's address, tcp://HOST:PORT, "
+                                     f"got {address!r}")
+    try:
+        socket.create_connection((host, port), timeout=REACH_S).close()
+    except OSError as e:
+        reason = "no answer" if isinstance(e, TimeoutError) else (e.strerror or str(e))
+        raise EngineError(f"cannot reach the Dask scheduler at {address}: {reason} within "
+                          f"{REACH_S:g} s (start one with `dask scheduler`, or leave out "
+                          "--scheduler to run on a LocalCluster here)") from None
 
 
 def without_message_log(serial: bool = False) -> ContextManager[object]:

@@ -38,10 +38,11 @@ A specification is a TOML file or the equivalent dict::
     state = "loop_angle"               # transient (fmusweep.cycle); the metrics are then
     advance = 6.283185307179586        # over one cycle
 
-Everything here is checked before anything runs: each mistake is a SpecError that names
-the field (``design.parameters.k34.linspace``) and the rule it breaks. Checks that need
-the FMU (variable names, causalities, the FMU's own rules on values) are in
-``fmusweep.check``.
+Everything here is checked before anything runs, in one pass: the tables against their
+declaration (``fmusweep.schema``), then the rules between tables over whatever was read;
+each mistake is a SpecError that names the field (``design.parameters.k34.linspace``) and
+the rule it breaks. Checks that need the FMU (variable names, causalities, the FMU's own
+rules on values) are in ``fmusweep.check``, over the same reading, in the same pass.
 """
 
 from __future__ import annotations
@@ -55,30 +56,34 @@ import os
 import pathlib
 import tomllib
 from dataclasses import dataclass, field
-from typing import Any, Callable, TypeVar
+from typing import Any
 
-from .cycle import CHAIN_POINTS, CYCLE_COLUMNS, CycleSpec
-from .designs import KINDS, Design, generate, kind_of
+import numpy as np
+
 from .columns import SERIES_COLUMNS, SWEEP_COLUMNS, refuse_collisions
-from .errors import Collector, SpecError, refuse
+from .cycle import CHAIN_POINTS, CYCLE_COLUMNS, CycleSpec, CycleStarts
+from .designs import KINDS, Design, DesignTable, make
+from .designs.base import LogRangeEntry, RangeEntry, column_values
+from .errors import Collector, SpecError, SpecErrors, Unread
+from .fields import setting
+from .records import InputTable, MetricPlan, Plan, SeriesPlan
+from .schema.core import Parts, Table, read
+from .schema.scenario import INTEGRATORS, INTERFACES, InputFile, InputPoints, ScenarioTable
+from .schema.sweep import METRIC_KINDS, MetricEntry, sweep_tables
 from .ssd import SspContents, read_ssp
 from .system import System
-from .fields import number as _number
-from .fields import only as _only
-from .fields import setting
-from .fields import table as _table
-from .records import InputTable, MetricPlan, Plan, SeriesPlan
 
-T = TypeVar("T")
+__all__ = ["SpecError", "Spec", "Scenario", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS",
+           "SweepReading", "read_sweep", "INTERFACES", "INTEGRATORS"]
 
-__all__ = ["SpecError", "Spec", "Scenario", "MetricSpec", "METRIC_KINDS", "DESIGN_KINDS"]
-
-METRIC_KINDS = ("final", "min", "max", "peak_abs", "mean", "rms", "peak_to_peak")
 # The FMUs' own tolerance under a coupling tolerance, as a fraction of it: on the DC motor
 # and the mechanism the coupling error dominates the run's error over a wide range of FMU
 # tolerances (bench-coupling's report), and a tenth keeps a margin.
 FMU_TOLERANCE_RATIO = 0.1
 DESIGN_KINDS = tuple(KINDS)
+# A column of a sampled design whose table has mistakes is asked about at this many values
+# spread over its range (fmusweep.check probes as many of a column's values).
+CANDIDATES = 256
 
 
 @dataclass(frozen=True)
@@ -95,15 +100,6 @@ class MetricSpec:
     extremes: str | None = None
     # The entry as written (a metric over a steady cycle, whose rules are the runner's).
     entry: dict[str, Any] = field(default_factory=dict)
-
-
-# The interfaces a single FMU may run through (``[scenario] interface``): a Model Exchange
-# FMU's states are integrated by the runner (DOP853 or Radau IIA, as ``integrator`` says) at
-# the scenario's tolerance.
-INTERFACES = ("co_simulation", "model_exchange")
-# What integrates a Model Exchange FMU (``[scenario] integrator``): DOP853 by default, or
-# Radau IIA for a stiff one.
-INTEGRATORS = ("dop853", "radau5")
 
 
 @dataclass(frozen=True)
@@ -128,26 +124,15 @@ class Scenario:
         return round((self.stop - self.start) / self.step)
 
     @staticmethod
-    def of(raw: dict[str, Any], base_dir: pathlib.Path = pathlib.Path(".")) -> "Scenario":
-        """The [scenario] table (its input files relative to `base_dir`), every mistake of
-        its fields reported at once."""
-        scenario = _table(raw, "scenario", "spec", required=True)
-        errors = Collector()
-        errors.run(lambda: _only(scenario, "scenario", {
-            "start", "stop", "step", "tolerance", "timeout", "parameters", "inputs",
-            "interface", "integrator"}))
-        times = errors.run(lambda: _times(scenario))
-        tolerance = errors.run(lambda: _positive(scenario, "tolerance"))
-        timeout = errors.run(lambda: _positive(scenario, "timeout", " seconds"))
-        parameters = _each(scenario, "parameters", errors,
-                           lambda name, value, where: _setting(value, where, name))
-        inputs = _each(scenario, "inputs", errors,
-                       lambda name, value, where: _input(value, where, name, base_dir))
-        interface = errors.run(lambda: _one_of(scenario, "interface", INTERFACES))
-        integrator = errors.run(lambda: _one_of(scenario, "integrator", INTEGRATORS))
-        errors.raise_any()
-        assert times is not None
-        return Scenario(*times, tolerance, timeout, parameters, inputs, interface, integrator)
+    def of(raw: dict[str, Any], base_dir: pathlib.Path = pathlib.Path("."),
+           where: str = "scenario") -> "Scenario":
+        """The [scenario] table of `raw` (its input files relative to `base_dir`), every
+        mistake of it reported at once."""
+        found = read(ScenarioTable, raw.get("scenario"), (where,))
+        settled = SettledScenario.of(found.value, base_dir, where)
+        raise_all(found.errors + settled.errors)
+        assert settled.scenario is not None
+        return settled.scenario
 
     def off_grid_breakpoints(self, system: System | None) -> list[str]:
         """A warning for each input table with breakpoints between communication points,
@@ -171,10 +156,7 @@ class Scenario:
         """`name` is varied at `where` (a design column, a fitted parameter): refused if
         the scenario fixes it or drives it as an input, since one of the two would be
         ignored without a word."""
-        for table, settings in (("parameters", self.parameters), ("inputs", self.inputs)):
-            if name in settings:
-                raise SpecError(where, f"{name} is also set in scenario.{table}: {what} it or "
-                                       f"set it there, not both")
+        also_set(name, where, what, self.parameters, self.inputs)
 
     def plan(self, metrics: list[MetricPlan], series: SeriesPlan | None,
              system: System | None = None, cycle: Any = None) -> Plan:
@@ -190,88 +172,305 @@ class Scenario:
                 "interface": self.interface, "integrator": self.integrator, "cycle": cycle}
 
 
-def _times(scenario: dict[str, Any]) -> tuple[float, float, float]:
-    """start, stop and step: a whole number of steps from start to stop."""
-    start = _number(scenario.get("start", 0.0), "scenario.start")
-    stop = _number(scenario.get("stop"), "scenario.stop")
-    step = _number(scenario.get("step"), "scenario.step")
-    if step <= 0:
-        raise SpecError("scenario.step", f"must be > 0, got {step}")
-    if stop <= start:
-        raise SpecError("scenario.stop", f"must be > scenario.start ({start}), got {stop}")
-    steps = (stop - start) / step
-    if abs(steps - round(steps)) > 1e-6:
-        raise SpecError("scenario.step", f"stop − start = {stop - start} is not a whole number of steps of {step}")
-    return start, stop, step
+def also_set(name: str, where: str, what: str, parameters: dict[str, Any],
+             inputs: dict[str, Any]) -> None:
+    for table, settings in (("parameters", parameters), ("inputs", inputs)):
+        if name in settings:
+            raise SpecError(where, f"{name} is also set in scenario.{table}: {what} it or "
+                                   f"set it there, not both")
 
 
-def _positive(scenario: dict[str, Any], key: str, unit: str = "") -> float | None:
-    """An optional number > 0."""
-    value = scenario.get(key)
-    if value is None:
+def named_fmu(tables: Any) -> str | None:
+    """The FMU a spec's tables name, where they name one that was read."""
+    fmu = tables.get("fmu") if tables is not None else None
+    return fmu if isinstance(fmu, str) else None
+
+
+def raise_all(errors: list[SpecError]) -> None:
+    """Every mistake at once (each field's first rule, in the order found)."""
+    kept: dict[tuple[str, str], SpecError] = {}
+    for e in errors:
+        if not isinstance(e, Unread):
+            kept.setdefault((e.field, e.rule), e)
+    found = list(kept.values())
+    if len(found) == 1:
+        raise found[0]
+    if found:
+        raise SpecErrors(found)
+
+
+@dataclass
+class SettledScenario:
+    """What was read of a [scenario] table (complete or not): its fixed values as numbers
+    (by the FMU's types, ``fields.setting``) and its inputs' tables (files read), each
+    mistake kept; the Scenario where nothing is wrong."""
+    table: Any
+    fixed: dict[str, float]
+    inputs: dict[str, InputTable]
+    errors: list[SpecError]
+    scenario: Scenario | None
+
+    @staticmethod
+    def of(table: Any, base_dir: pathlib.Path, where: str = "scenario") -> SettledScenario:
+        errors = Collector()
+        fixed: dict[str, float] = {}
+        for name, value in ((table.get("parameters") if table is not None else None) or {}).items():
+            number = errors.run(lambda: setting(value, f"{where}.parameters.{name}", name))
+            if number is not None:
+                fixed[name] = number
+        inputs: dict[str, InputTable] = {}
+        for name, entry in ((table.get("inputs") if table is not None else None) or {}).items():
+            found = errors.run(lambda: _input(entry, f"{where}.inputs.{name}", name, base_dir))
+            if found is not None:
+                inputs[name] = found
+        scenario = None
+        if isinstance(table, ScenarioTable) and not errors.errors:
+            scenario = Scenario(table.start, table.stop, table.step, table.tolerance,
+                                table.timeout, fixed, inputs, table.interface, table.integrator)
+        return SettledScenario(table, fixed, inputs, errors.errors, scenario)
+
+    def times(self) -> tuple[float, float, float] | None:
+        """start, stop and step, where they were read and agree."""
+        t = self.table
+        if t is None or not all(t.get(k) is not None for k in ("start", "stop", "step")):
+            return None
+        start, stop, step = t.get("start"), t.get("stop"), t.get("step")
+        if stop <= start or abs((stop - start) / step - round((stop - start) / step)) > 1e-6:
+            return None
+        return start, stop, step
+
+
+def _input(entry: Any, where: str, name: str, base_dir: pathlib.Path) -> InputTable:
+    """A constant, a table of times and values, or a CSV file's time column and a column
+    of it (named like the input unless ``column`` says)."""
+    if isinstance(entry, InputPoints):
+        return {"times": list(entry.times), "values": list(entry.values)}
+    if isinstance(entry, InputFile):
+        return _input_file(entry.file, entry.column or name, where, base_dir)
+    if isinstance(entry, float):
+        return {"times": [0.0], "values": [entry]}
+    raise Unread(where)
+
+
+def _input_file(file: str, column: str, where: str, base_dir: pathlib.Path) -> InputTable:
+    path = base_dir / file
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as e:
+        raise SpecError(f"{where}.file", f"cannot read {path}: {e}") from None
+    rows = [row for row in csv.reader(text.splitlines()) if any(cell.strip() for cell in row)]
+    header = [cell.strip() for cell in rows[0]] if rows else []
+    for needed in ("time", column):
+        if needed not in header:
+            raise SpecError(f"{where}.file", f"{path} has no {needed} column (its header: "
+                                             f"{', '.join(header)})")
+    t, v = header.index("time"), header.index(column)
+    times, values = [], []
+    for line, row in enumerate(rows[1:], start=2):
+        try:
+            at_time, value = float(row[t]), float(row[v])
+        except (ValueError, IndexError):
+            at_time = value = math.nan
+        if not (math.isfinite(at_time) and math.isfinite(value)):
+            raise SpecError(f"{where}.file", f"{path} line {line}: time and {column} must be "
+                                             "finite numbers")
+        times.append(at_time)
+        values.append(value)
+    if not times:
+        raise SpecError(f"{where}.file", f"{path} has a header and no data")
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise SpecError(f"{where}.file", f"{path}: the times must be strictly increasing")
+    return {"times": times, "values": values}
+
+
+# --- a sweep's spec, read ---------------------------------------------------------------
+@dataclass
+class SweepReading:
+    """One pass over a sweep's spec without the FMU: what was read (complete or not) and
+    every mistake found; the checks against the FMU (``fmusweep.check``) take it from
+    here, and ``spec()`` makes the Spec of a reading without mistakes."""
+    raw: dict[str, Any]
+    base_dir: pathlib.Path
+    tables: Any
+    errors: list[SpecError]
+    scenario: SettledScenario
+    # Each design column read (and its values as numbers): its values, or where the design
+    # has mistakes, the values its entry gives (a range's spread over it).
+    columns: dict[str, np.ndarray]
+    design: Design | None
+    metrics: list[MetricSpec]
+    series_variables: list[str]
+    series_every: int
+    cycle: CycleSpec | None
+    system: System | None
+    ssp: str | None
+
+    @property
+    def fmu(self) -> str | None:
+        return named_fmu(self.tables)
+
+    def spec(self) -> Spec:
+        raise_all(self.errors)
+        assert self.scenario.scenario is not None and self.design is not None
+        design_table = self.tables.design
+        series = self.series_variables if self.cycle is None else self.cycle.keep
+        return Spec(raw=self.raw, base_dir=self.base_dir,
+                    fmu=(self.base_dir / self.fmu) if self.fmu else None,
+                    ssp=(self.base_dir / self.ssp) if self.ssp else None, system=self.system,
+                    scenario=self.scenario.scenario, design_kind=design_table.kind,
+                    design=self.raw.get("design", {}), seed=design_table.get("seed"),
+                    metrics=self.metrics, points=self.design, series_variables=series,
+                    series_every=self.series_every if self.cycle is None else 0,
+                    cycle=self.cycle)
+
+
+def read_sweep(raw: dict[str, Any], base_dir: pathlib.Path) -> SweepReading:
+    """Every table of a sweep's spec read, and the rules between them checked over whatever
+    was read: every mistake in one list. Settings are read by the FMU's types where the
+    caller reads inside ``fields.typed_by``."""
+    raw = copy.deepcopy(raw)
+    errors: list[SpecError] = []
+    contents = _ssp_contents(raw, base_dir, errors)
+    found = read(sweep_tables(raw), raw)
+    errors += found.errors
+    tables = found.value
+    part = (lambda name: tables.get(name)) if tables is not None else (lambda name: None)
+    scenario = SettledScenario.of(part("scenario"), base_dir)
+    errors += scenario.errors
+    columns, design = _design(part("design"), errors)
+    cycle_table = part("cycle")
+    cycle = CycleSpec(cycle_table) if isinstance(cycle_table, dict) else None
+    if cycle is not None:
+        errors += read(CycleStarts, {k: v for k, v in cycle.table.items() if k == "starts"},
+                       ("cycle",)).errors
+    metrics, series, every = _outputs(part("outputs"), scenario, cycle is not None, errors)
+    _between_tables(scenario, list(columns) or list(_names(part("design"))), metrics, cycle,
+                    errors)
+    system = _system(raw, part("system"), contents, base_dir, errors)
+    return SweepReading(raw, base_dir, tables, errors, scenario, columns, design, metrics,
+                        series, every, cycle, system, part("ssp"))
+
+
+def _names(design: Any) -> dict[str, Any]:
+    parameters = design.get("parameters") if design is not None else None
+    return parameters if isinstance(parameters, dict) else {}
+
+
+def _design(table: Any, errors: list[SpecError]) -> tuple[dict[str, np.ndarray], Design | None]:
+    """The design's points where its table was read whole, and each column's values (a
+    sampled design with mistakes: its entries' ranges, spread)."""
+    collector = Collector()
+    columns: dict[str, np.ndarray] = {}
+    for name, entry in _names(table).items():
+        values = collector.run(lambda: _candidates(entry, name))
+        if values is not None:
+            columns[name] = np.asarray(values, dtype=float)
+    errors += collector.errors
+    if not isinstance(table, DesignTable) or collector.errors:
+        return columns, None
+    design = make(table)
+    return {name: design.column_values(j) for j, name in enumerate(design.names)}, design
+
+
+def _candidates(entry: Any, name: str) -> list[float]:
+    if isinstance(entry, (RangeEntry, LogRangeEntry)):
+        low, high = entry.range
+        if isinstance(entry, LogRangeEntry) and entry.log and low > 0:
+            return [float(x) for x in np.geomspace(low, high, CANDIDATES)]
+        return [float(x) for x in np.linspace(low, high, CANDIDATES)]
+    if isinstance(entry, Parts):
+        raise Unread(f"design.parameters.{name}")
+    return column_values(entry, name)
+
+
+def _outputs(table: Any, scenario: SettledScenario, on_cycle: bool, errors: list[SpecError]
+             ) -> tuple[list[MetricSpec], list[str], int]:
+    """The metrics read (each window against the run), and the series' variables and
+    interval (a number of the scenario's steps)."""
+    if table is None:
+        return [], [], 0
+    times = scenario.times()
+    metrics = []
+    for name, entry in (table.get("metrics") or {}).items():
+        if on_cycle:
+            variable, kind = entry.get("variable"), entry.get("kind")
+            metrics.append(MetricSpec(name, variable if isinstance(variable, str) else "",
+                                      kind if isinstance(kind, str) else "", None, None,
+                                      entry=dict(entry)))
+        elif isinstance(entry, MetricEntry):
+            if times is not None:
+                errors += _window_mistakes(times, entry.start, entry.end,
+                                           f"outputs.metrics.{name}")
+            metrics.append(MetricSpec(name, entry.variable, entry.kind, entry.start, entry.end,
+                                      extremes=entry.extremes))
+    series = table.get("series") if not on_cycle else None
+    variables: list[str] = []
+    every = 0
+    if series is not None:
+        listed = series.get("variables")
+        variables = list(listed) if isinstance(listed, list) else []
+        interval = series.get("interval")
+        if times is not None:
+            step = times[2]
+            interval = step if interval is None else interval
+            every = round(interval / step)
+            if every < 1 or abs(interval / step - every) > 1e-6:
+                errors.append(SpecError("outputs.series.interval", f"must be a whole multiple of "
+                                        f"scenario.step ({step:g}), got {interval:g}"))
+    return metrics, variables, every
+
+
+def _between_tables(scenario: SettledScenario, columns: list[str], metrics: list[MetricSpec],
+                    cycle: CycleSpec | None, errors: list[SpecError]) -> None:
+    """A design column the scenario sets too; a column of the results two names claim."""
+    collector = Collector()
+    table = scenario.table
+    parameters = (table.get("parameters") if table is not None else None) or {}
+    inputs = (table.get("inputs") if table is not None else None) or {}
+    for name in columns:
+        collector.run(lambda: also_set(name, f"design.parameters.{name}", "vary", parameters,
+                                       inputs))
+    named = ([(name, f"design.parameters.{name}", "the design parameter") for name in columns]
+             + [(m.name, f"outputs.metrics.{m.name}", "the metric name") for m in metrics])
+    own = SWEEP_COLUMNS + SERIES_COLUMNS + (CYCLE_COLUMNS if cycle is not None else ())
+    refuse_collisions(named, own, collector)
+    errors += collector.errors
+
+
+def _ssp_contents(raw: dict[str, Any], base_dir: pathlib.Path,
+                  errors: list[SpecError]) -> SspContents | None:
+    """An SSP file's contents, its default experiment and parameter values taken into the
+    scenario where the spec sets none."""
+    ssp = raw.get("ssp")
+    if not isinstance(ssp, str):
         return None
-    value = _number(value, f"scenario.{key}")
-    if value <= 0:
-        raise SpecError(f"scenario.{key}", f"must be > 0{unit}, got {value}")
-    return value
-
-
-def _one_of(scenario: dict[str, Any], key: str, allowed: tuple[str, ...]) -> str | None:
-    value = scenario.get(key)
-    if value is not None and value not in allowed:
-        raise SpecError(f"scenario.{key}", f"must be one of {', '.join(map(repr, allowed))}, "
-                                           f"got {value!r}")
-    return value
-
-
-def _each(scenario: dict[str, Any], key: str, errors: Collector,
-          read: Callable[[str, object, str], T]) -> dict[str, T]:
-    """The entries of table scenario.KEY, each read by `read(name, value, field)`; each
-    entry's mistake kept in `errors`."""
-    entries = errors.run(lambda: _table(scenario, key, "scenario")) or {}
-    found: dict[str, T] = {}
-    for name, value in entries.items():
-        where = f"scenario.{key}.{name}"
-        read_one = errors.run(lambda: read(name, value, where))
-        if read_one is not None:
-            found[name] = read_one
-    return found
-
-
-def what_runs(raw: dict[str, Any], base_dir: pathlib.Path) -> tuple[str | None, str | None, System | None]:
-    """The spec's FMU path, SSP path or [system], at most one of them (each checked); a
-    [system] beside an SSP file chooses how the file's system runs. For an SSP file, the
-    system it describes natively (None on FMPy's path), its default experiment and
-    parameter values taken into `raw`'s scenario where the spec sets none."""
-    fmu, ssp = raw.get("fmu"), raw.get("ssp")
-    for key, value in (("fmu", fmu), ("ssp", ssp)):
-        if value is not None and not isinstance(value, str):
-            raise SpecError(key, "must be a path (a string)")
-    named = [key for key in ("fmu", "ssp", "system") if raw.get(key) is not None]
-    if ssp is not None and "system" in named:
-        named.remove("system")
-    if len(named) > 1:
-        raise SpecError(named[1], f"a spec names one of an FMU, an SSP system or a [system], "
-                                  f"not {' and '.join(named)}")
-    if ssp is not None:
-        return fmu, ssp, _ssp_system(raw, base_dir / ssp)
-    system = System.of(raw["system"], base_dir) if "system" in raw else None
-    return fmu, ssp, system
-
-
-def _ssp_system(raw: dict[str, Any], path: pathlib.Path) -> System | None:
-    """The SSP file's system for the native runner, or None for FMPy's path
-    (``[system] engine = "fmpy"``)."""
-    contents = read_ssp(path)
+    try:
+        contents = read_ssp(base_dir / ssp)
+    except SpecError as e:
+        errors.append(e)
+        return None
     _take_ssp_defaults(raw, contents)
-    table = raw.get("system")
-    if isinstance(table, dict) and table.get("engine") == "fmpy":
-        extra = sorted(set(table) - {"engine"})
-        if extra:
-            raise SpecError(f"system.{extra[0]}", "FMPy's SSP path holds inputs over each step "
-                                                  "at the scenario's step: it takes no other option")
+    return contents
+
+
+def _system(raw: dict[str, Any], table: Any, contents: SspContents | None,
+            base_dir: pathlib.Path, errors: list[SpecError]) -> System | None:
+    """The coupled system a spec runs: its [system] table, or its SSP file's (None on
+    FMPy's SSP path)."""
+    ssp = raw.get("ssp")
+    if isinstance(ssp, str):
+        if contents is None or (table is not None and not isinstance(table, Table)):
+            return None
+        if table is not None and table.get("engine") == "fmpy":
+            return None
+        try:
+            return System.from_ssp(base_dir / ssp, contents, table)
+        except SpecError as e:
+            errors.append(e)
+            return None
+    if table is None:
         return None
-    return System.from_ssp(path, contents, table)
+    return System.from_table(table, base_dir)
 
 
 def _take_ssp_defaults(raw: dict[str, Any], contents: SspContents) -> None:
@@ -330,39 +529,8 @@ class Spec:
     @staticmethod
     def from_dict(raw: dict[str, Any], base_dir: str | os.PathLike[str]) -> Spec:
         """The spec of `raw`, every mistake of its own fields reported at once (the names
-        are checked against the FMU afterwards, also all at once)."""
-        raw = copy.deepcopy(raw)
-        base_dir = pathlib.Path(base_dir)
-        errors = Collector()
-        errors.run(lambda: _only(raw, "spec", {"fmu", "ssp", "system", "scenario", "design",
-                                               "outputs", "cycle"}))
-        cycle = errors.run(lambda: CycleSpec.of(raw))
-        on_cycle = isinstance(raw.get("cycle"), dict)
-        runs = errors.run(lambda: what_runs(raw, base_dir))
-        scenario = errors.run(lambda: Scenario.of(raw, base_dir))
-        header = errors.run(lambda: _design_header(raw, scenario))
-        # The design's own fields are checked where its points are generated.
-        points = errors.run(lambda: generate(header[1], header[0], header[2])
-                            if header is not None else None)
-        outputs = errors.run(lambda: _outputs(raw, scenario, on_cycle))
-        if header is not None and outputs is not None:
-            own = SWEEP_COLUMNS + SERIES_COLUMNS + (CYCLE_COLUMNS if on_cycle else ())
-            refuse_collisions(_column_names(header[0], outputs), own, errors)
-        errors.raise_any()
-        assert runs and scenario and header and outputs
-        fmu, ssp, system = runs
-        if system is not None and scenario.interface == "model_exchange":
-            raise SpecError("scenario.interface", "a coupled system runs its components' "
-                                                  "co-simulation interfaces")
-        design, kind, seed = header
-        metrics, series_variables, every = outputs
-        if cycle is not None:
-            series_variables, every = cycle.keep, 0
-        assert points is not None
-        return Spec(raw=raw, base_dir=base_dir, fmu=(base_dir / fmu) if fmu else None,
-                    ssp=(base_dir / ssp) if ssp else None, system=system, scenario=scenario,
-                    design_kind=kind, design=design, seed=seed, metrics=metrics, points=points,
-                    series_variables=series_variables, series_every=every, cycle=cycle)
+        are checked against the FMU by ``fmusweep.study``, in the same pass)."""
+        return read_sweep(raw, pathlib.Path(base_dir)).spec()
 
     # --- derived ---------------------------------------------------------------------
     def plan(self, description: dict[str, Any] | None = None) -> Plan:
@@ -412,192 +580,30 @@ def read_source(source: object, base_dir: str | os.PathLike[str] | None,
     raise SpecError("spec", f"expected a path, a dict or {also}, got {type(source).__name__}")
 
 
-def _design_header(raw: dict[str, Any],
-                   scenario: Scenario | None) -> tuple[dict[str, Any], str, int | None]:
-    """The [design] table, its kind and seed; its columns must not be set by the scenario
-    too (whose own mistakes are reported apart)."""
-    design = _table(raw, "design", "spec", required=True)
-    kind = design.get("kind", "grid")
-    needs_seed = kind_of(kind).needs_seed
-    seed = design.get("seed")
-    if seed is not None and (not isinstance(seed, int) or isinstance(seed, bool) or seed < 0):
-        raise SpecError("design.seed", f"must be a whole number ≥ 0, got {seed!r}")
-    if needs_seed and seed is None:
-        raise SpecError("design.seed", f"a {kind} design needs a seed, so that it can be repeated")
-    if not _table(design, "parameters", "design"):
-        raise SpecError("design.parameters", "names no parameter: the design is empty")
-    if scenario is not None:
-        errors = Collector()
-        for name in design["parameters"]:
-            errors.run(lambda: scenario.refuse_also_set(name, f"design.parameters.{name}", "vary"))
-        errors.raise_any()
-    return design, kind, seed
-
-
-def _outputs(raw: dict[str, Any], scenario: Scenario | None,
-             on_cycle: bool = False) -> tuple[list[MetricSpec], list[str], int]:
-    """The [outputs] table: the metrics, and the series' variables and interval (as a
-    number of the scenario's steps, once the scenario is known); with a [cycle], metrics
-    over one cycle and no series (the cycle keeps its own)."""
-    outputs = _table(raw, "outputs", "spec", required=True)
-    _only(outputs, "outputs", {"metrics", "series"})
-    errors = Collector()
-    read = _cycle_metric if on_cycle else _metric
-    metrics = [errors.run(lambda: read(name, m, scenario))
-               for name, m in _table(outputs, "metrics", "outputs").items()]
-    series = _table(outputs, "series", "outputs")
-    if series and on_cycle:
-        errors.run(lambda: refuse("outputs.series", "a sweep of steady cycles has no transient "
-                                                    "to record: cycle.keep keeps variables over "
-                                                    "one cycle"))
-        series = {}
-    series_variables: list[str] = []
-    every = 0
-    if series:
-        _only(series, "outputs.series", {"variables", "interval"})
-        listed = series.get("variables")
-        if isinstance(listed, list) and listed and all(isinstance(v, str) for v in listed):
-            series_variables = listed
-        else:
-            errors.run(lambda: refuse("outputs.series.variables",
-                                       "must be a non-empty list of variable names"))
-        if scenario is not None:
-            step = scenario.step
-            interval = _number(series.get("interval", step), "outputs.series.interval")
-            every = round(interval / step)
-            if every < 1 or abs(interval / step - every) > 1e-6:
-                errors.run(lambda: refuse("outputs.series.interval",
-                                           f"must be a whole multiple of scenario.step ({step}), "
-                                           f"got {interval}"))
-    errors.raise_any()
-    if not metrics and not series_variables and not on_cycle:
-        raise SpecError("outputs", "asks for nothing: give outputs.metrics or outputs.series")
-    return [m for m in metrics if m is not None], series_variables, every
-
-
-
-# --- field checks -----------------------------------------------------------------------
-def _setting(value: object, where: str, name: str) -> float:
-    """A fixed parameter's value (``fields.setting``), which must be there."""
-    if value is None:
-        raise SpecError(where, "is missing")
-    return setting(value, where, name)
-
-
-def _input(value: object, where: str, name: str, base_dir: pathlib.Path) -> InputTable:
-    """A constant, a table of times and values, or a CSV file's time column and a column
-    of it (named like the input unless ``column`` says)."""
-    if not isinstance(value, dict):
-        return {"times": [0.0], "values": [_number(value, where)]}
-    if "file" in value:
-        _only(value, where, {"file", "column"})
-        return _input_file(value, where, name, base_dir)
-    _only(value, where, {"times", "values", "file", "column"})
-    times, values = value.get("times"), value.get("values")
-    if not (isinstance(times, list) and isinstance(values, list) and times and len(times) == len(values)):
-        raise SpecError(where, "a table needs times and values: lists of equal, non-zero length")
-    times = [_number(t, f"{where}.times") for t in times]
-    values = [_number(v, f"{where}.values") for v in values]
-    if any(b <= a for a, b in zip(times, times[1:])):
-        raise SpecError(f"{where}.times", "must be strictly increasing")
-    return {"times": times, "values": values}
-
-
-def _input_file(value: dict[str, Any], where: str, name: str,
-                base_dir: pathlib.Path) -> InputTable:
-    file, column = value.get("file"), value.get("column", name)
-    if not isinstance(file, str):
-        raise SpecError(f"{where}.file", "must name a CSV file (a path relative to the spec)")
-    if not isinstance(column, str):
-        raise SpecError(f"{where}.column", f"must name a column of {file}, got {column!r}")
-    path = base_dir / file
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as e:
-        raise SpecError(f"{where}.file", f"cannot read {path}: {e}") from None
-    rows = [row for row in csv.reader(text.splitlines()) if any(cell.strip() for cell in row)]
-    header = [cell.strip() for cell in rows[0]] if rows else []
-    for needed in ("time", column):
-        if needed not in header:
-            raise SpecError(f"{where}.file", f"{path} has no {needed} column (its header: "
-                                             f"{', '.join(header)})")
-    t, v = header.index("time"), header.index(column)
-    times, values = [], []
-    for line, row in enumerate(rows[1:], start=2):
-        try:
-            times.append(_number(float(row[t]), f"{where}.file"))
-            values.append(_number(float(row[v]), f"{where}.file"))
-        except (ValueError, IndexError, SpecError):
-            raise SpecError(f"{where}.file", f"{path} line {line}: time and {column} must be "
-                                             "finite numbers") from None
-    if not times:
-        raise SpecError(f"{where}.file", f"{path} has a header and no data")
-    if any(b <= a for a, b in zip(times, times[1:])):
-        raise SpecError(f"{where}.file", f"{path}: the times must be strictly increasing")
-    return {"times": times, "values": values}
-
-
-def _column_names(design: dict[str, Any],
-                  outputs: tuple[list[MetricSpec], list[str], int]) -> list[tuple[str, str, str]]:
-    """The names the spec gives columns of the results, each with its field, in the order
-    they are claimed."""
-    metrics = outputs[0]
-    return ([(name, f"design.parameters.{name}", "the design parameter")
-             for name in design.get("parameters", {})]
-            + [(m.name, f"outputs.metrics.{m.name}", "the metric name") for m in metrics])
-
-
-def _metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec:
-    where = f"outputs.metrics.{name}"
-    if not isinstance(m, dict):
-        raise SpecError(where, "must be a table with variable and kind")
-    _only(m, where, {"variable", "kind", "from", "to", "extremes"})
-    if not isinstance(m.get("variable"), str):
-        raise SpecError(f"{where}.variable", "must name a variable")
-    extremes = m.get("extremes")
-    if extremes is not None and not isinstance(extremes, str):
-        raise SpecError(f"{where}.extremes", f"must be \"refined\" or \"sampled\", got "
-                                             f"{extremes!r}")
-    if m.get("kind") not in METRIC_KINDS:
-        raise SpecError(f"{where}.kind", f"must be one of {', '.join(METRIC_KINDS)}, got {m.get('kind')!r}")
-    start = _number(m["from"], f"{where}.from") if "from" in m else None
-    end = _number(m["to"], f"{where}.to") if "to" in m else None
-    if start is not None and end is not None and end < start:
-        raise SpecError(f"{where}.to", f"must be ≥ from ({start}), got {end}")
-    if scenario is not None:
-        _window_holds_a_point(scenario, start, end, where)
-    return MetricSpec(name, m["variable"], m["kind"], start, end, extremes=extremes)
-
-
-def _cycle_metric(name: str, m: object, scenario: Scenario | None) -> MetricSpec:
-    """A metric over one steady cycle, as written: the runner holds its rules (no window,
-    a kind the cycle has, an order for a harmonic)."""
-    if not isinstance(m, dict):
-        raise SpecError(f"outputs.metrics.{name}", "must be a table with variable and kind")
-    variable, kind = m.get("variable"), m.get("kind")
-    return MetricSpec(name, variable if isinstance(variable, str) else "",
-                      kind if isinstance(kind, str) else "", None, None, entry=dict(m))
-
-
 # A communication point this close to a window's end, in steps, belongs to the window (the
 # runner's own slack, runner/src/metrics.rs).
 WINDOW_SLACK = 1e-9
 
 
-def _window_holds_a_point(scenario: Scenario, start: float | None, end: float | None,
-                          where: str) -> None:
+def _window_mistakes(times: tuple[float, float, float], start: float | None, end: float | None,
+                     where: str) -> list[SpecError]:
     """A metric's window lies in the run and holds at least one communication point, which
     the metric is computed from (else every row would say NaN with status ok)."""
+    run_start, run_stop, step = times
+    found = []
     for key, value in (("from", start), ("to", end)):
-        if value is not None and not scenario.start <= value <= scenario.stop:
-            raise SpecError(f"{where}.{key}", f"must lie in the run [scenario.start, "
-                                              f"scenario.stop] = [{scenario.start:g}, "
-                                              f"{scenario.stop:g}], got {value:g}")
-    low = scenario.start if start is None else start
-    high = scenario.stop if end is None else end
-    first = math.ceil((low - scenario.start) / scenario.step - WINDOW_SLACK)
-    last = math.floor((high - scenario.start) / scenario.step + WINDOW_SLACK)
+        if value is not None and not run_start <= value <= run_stop:
+            found.append(SpecError(f"{where}.{key}", f"must lie in the run [scenario.start, "
+                                                     f"scenario.stop] = [{run_start:g}, "
+                                                     f"{run_stop:g}], got {value:g}"))
+    if found:
+        return found
+    low = run_start if start is None else start
+    high = run_stop if end is None else end
+    first = math.ceil((low - run_start) / step - WINDOW_SLACK)
+    last = math.floor((high - run_start) / step + WINDOW_SLACK)
     if first > last:
-        raise SpecError(where, f"the window [{low:g}, {high:g}] holds no communication point "
-                               f"(every {scenario.step:g} s from {scenario.start:g}): widen it "
-                               "or shorten scenario.step")
+        found.append(SpecError(where, f"the window [{low:g}, {high:g}] holds no communication "
+                                      f"point (every {step:g} s from {run_start:g}): widen it "
+                                      "or shorten scenario.step"))
+    return found

@@ -88,6 +88,30 @@ def atomic_write_text(text: str, path: pathlib.Path) -> None:
     os.replace(tmp, path)
 
 
+def changed_fields(before: Any, after: Any, at: str = "") -> list[str]:
+    """Each field of a spec that differs between two readings, with its two values: the
+    words of a refused resume."""
+    if isinstance(before, dict) and isinstance(after, dict):
+        out = []
+        for key in sorted(set(before) | set(after), key=str):
+            where = f"{at}.{key}" if at else str(key)
+            if key not in after:
+                out.append(f"{where} removed (was {_short(before[key])})")
+            elif key not in before:
+                out.append(f"{where} added ({_short(after[key])})")
+            else:
+                out += changed_fields(before[key], after[key], where)
+        return out
+    if before != after:
+        return [f"{at or 'the spec'} {_short(before)} → {_short(after)}"]
+    return []
+
+
+def _short(value: Any) -> str:
+    said = repr(value)
+    return said if len(said) <= 60 else said[:57] + "…"
+
+
 class ResultStore:
     def __init__(self, out: str | os.PathLike[str], meta: dict[str, Any], resume: bool):
         self.out = pathlib.Path(out)
@@ -115,8 +139,12 @@ class ResultStore:
         for key, what in (("spec_digest", spec), ("fmu_sha256", "the FMU"),
                           ("format", "the results format")):
             if stored.get(key) != meta.get(key):
+                changed = (changed_fields(stored.get("spec"), meta.get("spec"))
+                           if key == "spec_digest" else [])
+                said = (f": {', '.join(changed)}" if changed else
+                        f" ({key} {stored.get(key)} → {meta.get(key)})")
                 raise ValueError(f"cannot resume in {self.out}: {what} changed since the "
-                                 f"{self.kind} began ({key} {stored.get(key)} → {meta.get(key)})")
+                                 f"{self.kind} began{said}")
 
     def _drop_orphans(self) -> None:
         """Temporary files of a killed write, and series parts whose points part never

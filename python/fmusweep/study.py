@@ -19,80 +19,74 @@ from typing import TYPE_CHECKING, Any, Callable, TypeVar
 
 import numpy as np
 
-from .check import names_missing, values_out_of_range
-from .errors import SpecError, SpecErrors
+from .errors import SpecError
 from .fields import typed_by
 from .fmu import Archive, open_for_checks
 from .native import NativeRunner, RunnerError
 from .pool import Pool, without_message_log
 from .records import BatchFunction, Plan, PrepareFunction, Rows
-from .spec import read_source
-from .ssp import describe_ssp, prepare_ssp_worker, run_ssp_batch
+from .spec import raise_all, read_source, read_sweep
+from .ssp import check_ssp, describe_ssp, prepare_ssp_worker, run_ssp_batch
 from .store import FORMAT, ResultStore, versions
-from .system import System, open_target
+from .system import System
 from .worker import prepare_worker, run_batch
 
 if TYPE_CHECKING:
     from .fitting.spec import FitSpec
     from .spec import Spec
 
-__all__ = ["Target", "Study", "point_ids", "load_spec", "spec_name", "RESULTS"]
+__all__ = ["Target", "Study", "point_ids", "checked", "checked_sweep", "checked_fit",
+           "spec_name", "RESULTS"]
 
 S = TypeVar("S")
 
 
-def load_spec(load: Callable[[], S], source: object, fmu: str | None) -> S:
-    """load()'s spec, read against the FMU's variables where it can be opened (so that a
-    setting may name an Enumeration's item or be true/false); when its own fields have
-    mistakes, those and every name the FMU lacks, in one error, so that one run reports
-    both kinds."""
-    description = _description(source, fmu)
-    types = {v["name"]: (v["type"], v.get("items", {}))
-             for v in (description or {}).get("variables", [])}
-    try:
-        with typed_by(types):
-            return load()
-    except SpecError as refused:
-        raw = _raw(source)
-        if not description or not raw:
-            raise
-        raise _with_names_missing(refused, raw, description) from None
+def checked_sweep(source: object, fmu: str | None) -> tuple[Spec, Target]:
+    """A sweep's spec and what it runs, checked in one pass (``checked``)."""
+    spec, target = checked("sweep", source, fmu)
+    return spec, target
 
 
-def _with_names_missing(refused: SpecError, raw: dict[str, Any],
-                        description: dict[str, Any]) -> SpecError:
-    """The refusal, with every name of the spec that `description` lacks and every number
-    outside the FMU's declared range (under a field the refusal does not name already)."""
-    known = refused.errors if isinstance(refused, SpecErrors) else [refused]
-    fields = {e.field for e in known}
-    found = names_missing(raw, description)
-    named = {e.field for e in found}
-    # A name the FMU lacks says enough of its values.
-    found += [e for e in values_out_of_range(raw, description)
-              if not any(e.field.startswith(n) for n in named)]
-    extra = [e for e in found if e.field not in fields]
-    return SpecErrors(known + extra) if extra else refused
+def checked_fit(source: object, fmu: str | None) -> tuple[FitSpec, Target]:
+    """A fit's spec and what it runs, checked in one pass (``checked``)."""
+    spec, target = checked("fit", source, fmu)
+    return spec, target
 
 
-def _raw(source: object) -> dict[str, Any] | None:
-    try:
-        return read_source(source, None, "a spec")[0]
-    except SpecError:
-        return None
+def checked(kind: str, source: object, fmu: str | None) -> tuple[Any, Target]:
+    """The spec of `source` (a ``sweep`` or a ``fit``) and what it runs, checked in one pass:
+    its tables, the rules between them, the file or system that runs, every name and value
+    against it and the runner's rules of the plan, every mistake raised together."""
+    from .check import fit_against_target, sweep_against_target
+    from .fitting.spec import read_fit
+    raw, base_dir = _source(source)
+    read = read_sweep if kind == "sweep" else read_fit
+    against = sweep_against_target if kind == "sweep" else fit_against_target
+    first = read(raw, base_dir)
+    errors: list[SpecError] = []
+    target = Target.opened(first, raw, base_dir, fmu, errors)
+    description = target.description if target is not None else {}
+    types = {v["name"]: (v["type"], v.get("items", {}), v.get("unit"))
+             for v in description.get("variables", []) if "type" in v}
+    with typed_by(types):
+        reading: Any = read(raw, base_dir) if types else first
+        errors = reading.errors + errors
+        if target is not None and target.local is not None:
+            errors += against(reading, description, target.local)
+        raise_all(errors)
+        spec = reading.spec()
+    assert target is not None
+    if target.local is None:
+        check_ssp(spec, spec.points, description)
+    return spec, target
 
 
-def _description(source: object, fmu: str | None) -> dict[str, Any] | None:
-    """The description of the spec's FMU; None when the spec cannot be read or its FMU
-    opened (a [system] or an SSP file is not opened for this)."""
-    try:
-        raw, base_dir = read_source(source, None, "a spec")
-        named = raw.get("fmu")
-        if fmu is None and (raw.get("system") is not None or raw.get("ssp") is not None):
-            return None
-        spec_fmu = base_dir / named if isinstance(named, str) else None
-        return open_for_checks(fmu, spec_fmu)[2]
-    except (SpecError, OSError, ValueError, RunnerError):
-        return None
+def _source(source: object) -> tuple[dict[str, Any], pathlib.Path]:
+    """A spec's table and the folder its paths are relative to (a Spec's own, as read)."""
+    raw, base_dir = getattr(source, "raw", None), getattr(source, "base_dir", None)
+    if isinstance(raw, dict) and isinstance(base_dir, pathlib.Path):
+        return raw, base_dir
+    return read_source(source, None, "a spec")
 
 
 # Where a study writes when the caller names no folder: one folder a run, below this one
@@ -149,42 +143,67 @@ class Target:
     prepare: PrepareFunction
 
     @staticmethod
-    def open(spec: Spec | FitSpec, fmu: str | None) -> Target:
+    def opened(reading: Any, raw: dict[str, Any], base_dir: pathlib.Path, fmu: str | None,
+               errors: list[SpecError]) -> Target | None:
         """The FMU the caller names, else the spec's SSP file, [system] or FMU, else
-        $FMUSWEEP_FMU."""
-        ssp = getattr(spec, "ssp", None)
-        system: System | None = spec.system
-        if ssp is not None and system is None and fmu is None:
-            archive = _read_ssp(ssp)
+        $FMUSWEEP_FMU, opened for the checks; its mistakes added to `errors` (None where it
+        cannot be opened, or a [system] or SSP file whose own tables have mistakes)."""
+        ssp = reading.ssp
+        system: System | None = reading.system
+        if fmu is None and (ssp is not None or raw.get("system") is not None) and system is None:
+            if ssp is None or raw.get("system") is None or _engine(raw) != "fmpy":
+                return None
+            archive = _archive_of(base_dir / ssp, errors)
+            if archive is None:
+                return None
             return Target(archive, {"ssp_name": archive.name, "ssp_sha256": archive.sha256},
                           describe_ssp(archive), None, run_ssp_batch, prepare_ssp_worker)
-        try:
-            archive, local, description = open_target(system, fmu, spec.fmu, spec.scenario.step)
-        except SpecError as refused:
-            if system is None or fmu is not None:
-                raise
-            raise _with_names_missing(refused, spec.raw, system.described()) from None
         if system is not None and fmu is None:
+            times = _times_of(reading)
+            opened = system.opened(times[2] if times is not None else 1.0, errors)
+            if opened is None:
+                return None
+            archive, local, description = opened
             identity: dict[str, Any] = {
                 "system": {name: str(path) for name, path in system.components.items()},
                 "connections": [str(c) for c in system.connections]}
             if ssp is not None:
-                file = _read_ssp(ssp)
-                identity.update(ssp_name=file.name, ssp_sha256=file.sha256)
-        else:
-            identity = {"fmu_name": archive.name, "fmu_guid": description["guid"]}
-        return Target(archive, identity, description, local, run_batch, prepare_worker)
+                file = _archive_of(base_dir / ssp, errors)
+                if file is not None:
+                    identity.update(ssp_name=file.name, ssp_sha256=file.sha256)
+            return Target(archive, identity, description, local, run_batch, prepare_worker)
+        try:
+            archive, local, description = open_for_checks(
+                fmu, base_dir / reading.fmu if reading.fmu else None)
+        except SpecError as e:
+            errors.append(e)
+            return None
+        return Target(archive, {"fmu_name": archive.name, "fmu_guid": description["guid"]},
+                      description, local, run_batch, prepare_worker)
 
     @property
     def sha256(self) -> str:
         return self.archive.sha256
 
 
-def _read_ssp(path: str | pathlib.Path) -> Archive:
+def _archive_of(path: pathlib.Path, errors: list[SpecError]) -> Archive | None:
     try:
         return Archive.read(path)
     except (OSError, ValueError) as e:
-        raise SpecError("ssp", str(e)) from None
+        errors.append(SpecError("ssp", str(e)))
+        return None
+
+
+def _engine(raw: dict[str, Any]) -> object:
+    table = raw.get("system")
+    return table.get("engine") if isinstance(table, dict) else None
+
+
+def _times_of(reading: Any) -> tuple[float, float, float] | None:
+    """The scenario's start, stop and step where they were read (a fit's first
+    experiment's)."""
+    scenario = reading.scenario if hasattr(reading, "scenario") else reading.experiments[0].scenario
+    return scenario.times()  # type: ignore[no-any-return]
 
 
 class Study:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import os
 import pathlib
+import shutil
 import sys
 import time
 import warnings
@@ -17,7 +18,6 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from .check import check_against_fmu
 from .designs import Design
 from .errors import SpecError, SpecWarning, refuse_in_spawned_child
 from .pool import check_engine
@@ -27,9 +27,8 @@ from .results import Results, SweepSummary
 from .spec import Spec
 from .store import coupling_columns
 from .cycle import CHAIN_POINTS, cycle_columns
-from .ssp import check_ssp
 from .show import show_sweep
-from .study import Study, Target, load_spec, spec_name
+from .study import Study, Target, checked_sweep, spec_name
 
 
 __all__ = ["run_sweep", "SweepSummary", "BATCH_SECONDS"]
@@ -40,10 +39,25 @@ BATCH_SECONDS = 0.5
 # last ones do not leave workers idle.
 BATCHES_PER_WORKER = 4
 CALIBRATION_POINTS = 4
-# Without an engine named, a sweep whose points left take less work than this (seconds,
-# from the calibration points) runs in this process: starting a LocalCluster and
-# preparing its workers costs about this much (bench-sweep's report gives the startup).
-SERIAL_BELOW_S = 2.0
+# Without an engine named, the points left run where they take less time, from the work
+# the calibration points measure: a LocalCluster costs its start-up (its workers started
+# and prepared, seconds) and shares the work among its workers at this efficiency (the
+# client, the scheduler and the workers share the cores); bench-engine's report measures
+# both against each worked sweep.
+CLUSTER_START_S = 1.6
+CLUSTER_EFFICIENCY = 0.7
+# What a sweep writes, for the disk check: a series value in Parquet (its time, point and
+# variable compress to about 2 bytes beside its 8; bench-sweep's report measures it), and a
+# point's row of points.parquet at most.
+SERIES_BYTES_PER_VALUE = 10
+POINT_ROW_BYTES = 200
+SAY_ABOVE_BYTES = 1e9
+
+
+def _whole_numbered(description: dict[str, Any], names: list[str]) -> set[str]:
+    """The design's columns that set Integer or Enumeration variables: written as integers."""
+    types = {v["name"]: v.get("type") for v in description.get("variables", [])}
+    return {n for n in names if types.get(n) in ("integer", "enumeration")}
 
 
 def _tables(spec: Spec, study: Study, names: list[str], rows: Rows,
@@ -53,8 +67,10 @@ def _tables(spec: Spec, study: Study, names: list[str], rows: Rows,
     results = batch["results"]
     columns = {"point": pa.array(points, pa.int64()),
                "point_id": pa.array(study.ids(names, rows), pa.string())}
+    whole = _whole_numbered(study.target.description, names)
     for j, name in enumerate(names):
-        columns[name] = pa.array(rows[:, j], pa.float64())
+        columns[name] = (pa.array(rows[:, j].astype(np.int64), pa.int64()) if name in whole
+                         else pa.array(rows[:, j], pa.float64()))
     columns["status"] = pa.array([r["status"] for r in results], pa.string())
     columns["message"] = pa.array([r["message"] for r in results], pa.string())
     for k, metric in enumerate(spec.metrics):
@@ -181,17 +197,6 @@ class _Keeper:
             self.on_batch(self.saved, len(self.design))
 
 
-def open_sweep(spec: Spec, design: Design, fmu: str | None) -> Target:
-    """What the sweep runs, checked against the spec and its design."""
-    target = Target.open(spec, fmu)
-    if target.local is None:
-        check_ssp(spec, design, target.description)
-    else:
-        check_against_fmu(spec, design, target.description, target.local)
-        target.local.configure(spec.plan(target.description))
-    return target
-
-
 def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | None = None,
               out: str | None = None, workers: int | None = None, scheduler: str | None = None,
               serial: bool = False, resume: bool = False, batch_size: int | None = None,
@@ -203,7 +208,8 @@ def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | No
     (default: the spec's FMU, else its SSP system, else $FMUSWEEP_FMU).
     out: the output directory (default: a new ``results/NAME-DATE-TIME`` here, NAME the
     spec file's stem; with resume, the newest such folder of the same spec). workers: LocalCluster
-    size (default: every core, or serial when the points take less than SERIAL_BELOW_S).
+    size (default: every core, or serial where the points left would take less time
+    here than on a LocalCluster, its start-up included: ``_choose_engine``).
     scheduler: the address of an existing Dask scheduler (``tcp://host:8786``) instead of
     a LocalCluster. serial: no Dask, this process only.
     resume: finish a sweep that ``out`` already holds, redoing only missing points.
@@ -215,11 +221,12 @@ def run_sweep(spec: Spec | str | pathlib.Path | dict[str, Any], *, fmu: str | No
     if batch_size is not None:
         _batch_size(batch_size, 0.0, 1, 1)
     given = spec
-    spec = load_spec(lambda: Spec.load(given), given, fmu)
+    spec, target = checked_sweep(given, fmu)
     for said in spec.scenario.off_grid_breakpoints(spec.system):
         warnings.warn(said, SpecWarning, stacklevel=2)
     design = spec.points
-    target = open_sweep(spec, design, fmu)
+    if target.local is not None:
+        target.local.configure(spec.plan(target.description))
     record = {"design": {"kind": design.kind, "names": design.names, "points": len(design)},
               "metrics": [m.name for m in spec.metrics]}
     study = Study("sweep", spec, target, spec.plan(target.description), out=out, resume=resume, record=record,
@@ -239,6 +246,7 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
     design = spec.points
     done = study.store.done_points()
     todo = _remaining(len(design), done)
+    check_disk(spec, len(todo), study.store.out)
     keep = _Keeper(spec, study, design, len(design) - len(todo), progress, on_batch)
     names = design.names
     size, batches, dispatch_s, held, note = 0, 0, 0.0, None, "nothing left to run"
@@ -288,15 +296,50 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
     return results
 
 
+def written_bytes(spec: Spec, points: int) -> tuple[int, int]:
+    """About how many bytes `points` points of the sweep write, and how many series values
+    that is (each point's samples of each recorded variable)."""
+    samples = 0
+    if spec.series_variables:
+        samples = spec.scenario.steps // max(spec.series_every, 1) + 1
+    values = points * samples * len(spec.series_variables)
+    return values * SERIES_BYTES_PER_VALUE + points * POINT_ROW_BYTES, values
+
+
+def check_disk(spec: Spec, points: int, out: pathlib.Path) -> None:
+    """A sweep that would write more than the disk holding `out` has free is refused
+    before it starts; one that writes more than SAY_ABOVE_BYTES says so first."""
+    need, values = written_bytes(spec, points)
+    if need <= SAY_ABOVE_BYTES:
+        return
+    where = out.resolve()
+    while not where.exists():
+        where = where.parent
+    free = shutil.disk_usage(where).free
+    samples = values // max(points * len(spec.series_variables), 1)
+    said = (f"about {need / 1e9:.3g} GB ({points} points × {samples} samples × "
+            f"{len(spec.series_variables)} variables of series)")
+    if need > free:
+        raise SpecError("outputs.series", f"the sweep would write {said} to {where}, which has "
+                                          f"{free / 1e9:.3g} GB free: record fewer variables, "
+                                          "give a longer interval, or sweep fewer points")
+    warnings.warn(f"the sweep will write {said} to {out} ({free / 1e9:.3g} GB free)",
+                  SpecWarning, stacklevel=3)
+
+
 def _choose_engine(study: Study, per_point: float, remaining: int) -> str:
-    """Serial when the caller named no engine and the points left take less work here
-    than starting a LocalCluster costs; why, in words."""
+    """Serial when the caller named no engine and the points left would take less time
+    here than on a LocalCluster, its start-up included; why, in words."""
     pool = study.pool
     if pool.named:
         return "as asked"
     work = per_point * remaining
-    if work < SERIAL_BELOW_S:
+    workers = os.cpu_count() or 1
+    on_cluster = CLUSTER_START_S + work / (workers * CLUSTER_EFFICIENCY)
+    if on_cluster >= work:
         pool.serial = True
-        return (f"serial: the {remaining} points left take about {work:.2g} s here, less than "
-                f"starting a LocalCluster costs (name --workers or --scheduler to use one)")
-    return f"a LocalCluster: the {remaining} points left take about {work:.2g} s serially"
+        return (f"serial: the {remaining} points left take about {work:.2g} s here, a "
+                f"LocalCluster of {workers} workers about {on_cluster:.2g} s with its "
+                "start-up (name --workers or --scheduler to use one)")
+    return (f"a LocalCluster of {workers} workers: the {remaining} points left take about "
+            f"{work:.2g} s serially, about {on_cluster:.2g} s there with its start-up")

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import dataclasses
 import hashlib
 import io
 import json
@@ -54,16 +55,13 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-from .errors import Collector, SpecError, refuse
-from .fields import finite
-from .fmu import Archive, local_runner, open_for_checks
+from .errors import Collector, SpecError, SpecErrors
+from .fmu import Archive, local_runner
 from .native import NativeRunner, RunnerError, describe_unpacked
 from .records import new_plan
 from .ssd import SspContents
 
-__all__ = ["System", "load_system"]
-
-NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
+__all__ = ["System", "Connection", "load_system"]
 
 
 @dataclass(frozen=True)
@@ -94,56 +92,35 @@ class System:
     # the spec's [system] table, or an SSP file.
     origin: str = "system"
 
-    # --- the spec's fields ---------------------------------------------------------------
+    # --- the spec's table ---------------------------------------------------------------
     @staticmethod
-    def of(table: object, base_dir: pathlib.Path) -> System:
-        if not isinstance(table, dict):
-            raise SpecError("system", "must be a table with components and connections")
-        fields = {"components", "connections", *OPTIONS}
-        errors = Collector()
-        unknown = sorted(set(table) - fields)
-        for key in unknown:
-            errors.run(lambda: refuse(f"system.{key}", "unknown field; expected "
-                                      + ", ".join(sorted(fields))))
-        options = errors.run(lambda: _options(table, ENGINES))
+    def from_table(table: Any, base_dir: pathlib.Path) -> System | None:
+        """The system of a [system] table (``schema.sweep.SystemTable``), or of what was
+        read of one with mistakes (its options' defaults where they are wrong, its
+        connections that were read), so that its components and connections are checked in
+        the same pass; None without components."""
         components = table.get("components")
-        if not isinstance(components, dict) or not components:
-            errors.run(lambda: refuse("system.components", "must name at least one component: "
-                                                           "name = \"file.fmu\""))
-            components = {}
-        paths = {}
-        for name, path in components.items():
-            errors.run(lambda: _component(name, path))
-            paths[name] = base_dir / path if isinstance(path, str) else base_dir
-        connections = table.get("connections", [])
-        if not isinstance(connections, list):
-            errors.run(lambda: refuse("system.connections", "must be a list of "
-                                      "[\"component.output\", \"component.input\"] pairs"))
-            connections = []
-        parsed = [errors.run(lambda: _connection(i, c, paths)) for i, c in enumerate(connections)]
-        parsed_connections = [c for c in parsed if c is not None]
-        if errors.errors and len(parsed_connections) == len(connections) and paths:
-            # The options' mistakes and the connections' own, in the same run.
-            errors.run(lambda: System(paths, parsed_connections).check())
-        errors.raise_any()
-        assert options is not None
-        engine, derivatives, tolerance = options
-        return System(paths, parsed_connections, engine, derivatives, tolerance)
+        if not components:
+            return None
+        connections = [Connection(source, output, target, input_)
+                       for (source, output), (target, input_)
+                       in [c for c in table.get("connections") or [] if c is not None]
+                       if source in components and target in components]
+        engine = table.get("engine") or "native"
+        derivatives = table.get("input_derivatives")
+        return System({name: base_dir / path for name, path in components.items()},
+                      connections, engine,
+                      (2 if engine == "native" else 0) if derivatives is None else derivatives,
+                      table.get("coupling_tolerance"))
 
     @staticmethod
-    def from_ssp(path: pathlib.Path, contents: SspContents, table: object) -> System:
+    def from_ssp(path: pathlib.Path, contents: SspContents, table: Any) -> System:
         """The system an SSP file describes (`contents`, read from `path`), its components
         unpacked into this process's folder for them; `table` is the spec's [system]
-        beside it, which may only choose how it runs."""
-        options = {} if table is None else table
-        if not isinstance(options, dict):
-            raise SpecError("system", "must be a table")
-        unknown = sorted(set(options) - set(OPTIONS))
-        if unknown:
-            raise SpecError(f"system.{unknown[0]}", "the SSP file gives the components and "
-                            "connections; beside ssp, [system] takes " + ", ".join(OPTIONS))
-        # "fmpy" is handled before a system is made (it runs no system of the runner's).
-        engine, derivatives, tolerance = _options(options, (*ENGINES, "fmpy"))
+        beside it (``schema.sweep.SspSystemOptions``), which may only choose how it runs."""
+        engine = table.engine if table is not None else "native"
+        derivatives = table.input_derivatives if table is not None else None
+        tolerance = table.coupling_tolerance if table is not None else None
         directory = _unpacked_components(path, contents)
         connections = [Connection(c.source, c.output, c.target, c.input)
                        for c in contents.connections]
@@ -153,36 +130,37 @@ class System:
                     raise SpecError("ssp", f"{path.name}: connection {i} ({c}) names no component "
                                            f"of the system ({', '.join(contents.components)})")
         return System({name: directory / f"{name}.fmu" for name in contents.components},
-                      connections, engine, derivatives, tolerance, origin="ssp")
+                      connections, engine,
+                      (2 if engine == "native" else 0) if derivatives is None else derivatives,
+                      tolerance, origin="ssp")
 
     # --- checks against the components -------------------------------------------------
-    def check(self) -> dict[str, Any]:
-        """Each component's model description; each connection checked against them."""
-        descriptions = {name: _description(f"{self.origin}.components.{name}", path)
-                        for name, path in self.components.items()}
-        if self.engine == "native":
-            for name, description in descriptions.items():
-                _refuse_python_written(f"{self.origin}.components.{name}", description)
-        if self.coupling_tolerance is not None:
-            for name, description in descriptions.items():
-                if not description["can_get_and_set_state"]:
-                    raise SpecError(f"{self.origin}.components.{name}",
-                                    "system.coupling_tolerance takes a step again from every "
-                                    "component's saved state, and this FMU cannot save its "
-                                    "state (canGetAndSetFMUstate is false)")
-        fed: dict[tuple[str, str], int] = {}
+    def check(self) -> tuple[dict[str, Any], list[Connection], list[SpecError]]:
+        """Each component's model description (those that can be read), the connections
+        that hold against them, and every mistake of the components and connections."""
         errors = Collector()
-        for i, c in enumerate(self.connections):
-            errors.run(lambda: self._check_connection(i, c, descriptions, fed))
-        errors.raise_any()
-        loop = _algebraic_loop(self.connections, descriptions)
+        descriptions = {}
+        for name, path in self.components.items():
+            where = f"{self.origin}.components.{name}"
+            description = errors.run(lambda: _description(where, path))
+            if description is not None:
+                descriptions[name] = description
+                if self.engine == "native":
+                    errors.run(lambda: _refuse_python_written(where, description))
+        fed: dict[tuple[str, str], int] = {}
+        good = [c for i, c in enumerate(self.connections)
+                if c.source in descriptions and c.target in descriptions
+                and errors.run(lambda: self._check_connection(i, c, descriptions, fed))]
+        loop = _algebraic_loop(good, descriptions)
         if loop:
-            raise SpecError(f"{self.origin}.connections", "an algebraic loop (each output depends "
-                            "directly on the input before it): " + " → ".join(loop))
-        return descriptions
+            errors.run(lambda: _refuse(f"{self.origin}.connections", "an algebraic loop (each "
+                                       "output depends directly on the input before it): "
+                                       + " → ".join(loop)))
+            good = []
+        return descriptions, good, errors.errors
 
     def _check_connection(self, i: int, c: Connection, descriptions: dict[str, Any],
-                          fed: dict[tuple[str, str], int]) -> None:
+                          fed: dict[tuple[str, str], int]) -> bool:
         where = f"{self.origin}.connections[{i}]"
         errors = Collector()
         source = errors.run(lambda: _variable(descriptions[c.source], c.source, c.output, where))
@@ -202,6 +180,7 @@ class System:
             raise SpecError(where, f"{c.target}.{c.input} is fed twice (also by connection "
                                    f"{fed[(c.target, c.input)]})")
         fed[(c.target, c.input)] = i
+        return True
 
     def described(self) -> dict[str, Any]:
         """The system's variables as the runner names them (``component.variable``), from
@@ -234,11 +213,45 @@ class System:
         components and connections (native), or the container FMU. Its checksum is the
         system's digest (with the step), so that a rebuild of the same system resumes the
         same sweep."""
-        descriptions = self.check()
+        descriptions, _, errors = self.check()
+        if errors:
+            raise errors[0] if len(errors) == 1 else SpecErrors(errors)
+        return self._built(descriptions, step)
+
+    def _built(self, descriptions: dict[str, Any], step: float) -> Archive:
         archive = (self._native(descriptions) if self.engine == "native"
                    else self._container(descriptions, step))
         archive.sha256 = hashlib.sha256(f"{self.digest()}|{step!r}".encode()).hexdigest()
         return archive
+
+    def opened(self, step: float, errors: list[SpecError]
+               ) -> tuple[Archive, NativeRunner, dict[str, Any]] | None:
+        """The system built and loaded in this process's runner, for the checks before
+        anything runs, every mistake of it added to `errors`: of its components and
+        connections, and the runner's refusals of its options (the coupling tolerance's rule
+        is the runner's). Built with the connections that hold, so that the runner's
+        refusals come in the same pass; None where it cannot be loaded."""
+        descriptions, good, found = self.check()
+        errors += found
+        if len(descriptions) < len(self.components):
+            return None
+        built = dataclasses.replace(self, connections=good)
+        try:
+            archive = built._built(descriptions, step)
+            local, description = load_system(archive)
+        except SpecError as e:
+            if not found or e.field != "system":
+                errors.append(e)
+            if built.coupling_tolerance is None or e.field == "system":
+                return None
+            # The rest is checked against the system as it runs without the option.
+            try:
+                archive = dataclasses.replace(built, coupling_tolerance=None)._built(
+                    descriptions, step)
+                local, description = load_system(archive)
+            except SpecError:
+                return None
+        return archive, local, description
 
     # --- the engines -------------------------------------------------------------------------
     def _native(self, descriptions: dict[str, Any]) -> Archive:
@@ -291,36 +304,6 @@ class System:
         return Archive(data, "system.fmu")
 
 
-def _component(name: str, path: object) -> None:
-    where = f"system.components.{name}"
-    if not NAME.match(name):
-        raise SpecError(where, "a component's name is lowercase letters, digits and _, "
-                               "starting with a letter (it prefixes its variables' names)")
-    if not isinstance(path, str):
-        raise SpecError(where, "must be the path of an FMU (a string)")
-
-
-def _options(table: dict[str, Any], engines: tuple[str, ...]) -> tuple[str, int, float | None]:
-    """The engine, the input derivatives and the coupling tolerance a table chooses, every
-    mistake of them at once."""
-    errors = Collector()
-    engine = table.get("engine", "native")
-    if engine not in engines:
-        errors.run(lambda: refuse("system.engine", f"must be one of {', '.join(engines)}, "
-                                                   f"got {engine!r}"))
-        engine = "native"
-    derivatives = table.get("input_derivatives", 2 if engine == "native" else 0)
-    if isinstance(derivatives, bool) or derivatives not in (0, 1, 2):
-        errors.run(lambda: refuse("system.input_derivatives",
-                                  f"must be 0, 1 or 2, got {derivatives!r}"))
-    elif engine == "container" and derivatives != 0:
-        errors.run(lambda: refuse("system.input_derivatives", "the container holds inputs over "
-                                  "a step: only 0 with engine = \"container\""))
-    tolerance = errors.run(lambda: _coupling_tolerance(table.get("coupling_tolerance"), engine))
-    errors.raise_any()
-    return engine, derivatives, tolerance
-
-
 def _refuse_python_written(where: str, description: dict[str, Any]) -> None:
     """A component written in Python (PythonFMU) runs Python at every step: the native
     runner, whose point is running none, refuses it by name."""
@@ -356,19 +339,6 @@ def _remove_ssp_folders() -> None:
         shutil.rmtree(folder, ignore_errors=True)
 
 
-def _coupling_tolerance(value: object, engine: str) -> float | None:
-    if value is None:
-        return None
-    where = "system.coupling_tolerance"
-    if engine != "native":
-        raise SpecError(where, "only the native engine chooses its steps: not with "
-                               "engine = \"container\"")
-    tolerance = finite(value, where)
-    if not 0 < tolerance < 1:
-        raise SpecError(where, f"must be a number in (0, 1), got {tolerance}")
-    return tolerance
-
-
 @contextlib.contextmanager
 def _toolbox_log_quiet() -> Iterator[None]:
     """The toolbox logs its progress and remarks at INFO and WARNING (a loop of connections
@@ -381,23 +351,6 @@ def _toolbox_log_quiet() -> Iterator[None]:
         yield
     finally:
         toolbox.setLevel(level)
-
-
-def _connection(i: int, pair: object, components: dict[str, Any]) -> Connection:
-    where = f"system.connections[{i}]"
-    if not (isinstance(pair, list) and len(pair) == 2 and all(isinstance(p, str) for p in pair)):
-        raise SpecError(where, f"must be [\"component.output\", \"component.input\"], got {pair!r}")
-    ends = []
-    for end in pair:
-        component, dot, variable = end.partition(".")
-        if not dot or not variable:
-            raise SpecError(where, f"{end!r} is not component.variable")
-        if component not in components:
-            raise SpecError(where, f"no component {component!r} (the components: "
-                                   f"{', '.join(sorted(components))})")
-        ends.append((component, variable))
-    (source, output), (target, input_) = ends
-    return Connection(source, output, target, input_)
 
 
 def _description(where: str, path: pathlib.Path) -> dict[str, Any]:
@@ -507,16 +460,8 @@ def _algebraic_loop(connections: list[Connection], descriptions: dict[str, Any])
     return None
 
 
-def open_target(system: System | None, fmu: str | os.PathLike[str] | None,
-                spec_fmu: str | os.PathLike[str] | None,
-                step: float) -> tuple[Archive, NativeRunner, dict[str, Any]]:
-    """What a sweep or a fit runs, for the checks before anything runs: the FMU the caller
-    names, else the spec's [system] (built for communication step `step`), else the spec's
-    FMU or $FMUSWEEP_FMU. Its bytes, this process's runner for it, and its description."""
-    if system is not None and fmu is None:
-        target = system.build(step)
-        return (target, *load_system(target))
-    return open_for_checks(fmu, spec_fmu)
+def _refuse(where: str, rule: str) -> None:
+    raise SpecError(where, rule)
 
 
 def load_system(target: Archive) -> tuple[NativeRunner, dict[str, Any]]:
@@ -527,7 +472,20 @@ def load_system(target: Archive) -> tuple[NativeRunner, dict[str, Any]]:
         local.configure(new_plan(0.0, 1.0, 1.0))
         loaded = local.check([], [[]])[0]
     except RunnerError as e:
-        raise SpecError("system", f"the system does not load: {e}") from None
+        raise _refused(str(e)) from None
     if loaded["status"] != "ok":
-        raise SpecError("system", f"the system does not load: {loaded['message']}")
+        raise _refused(loaded["message"])
     return local, local.describe()
+
+
+# A refusal of a [system] field in the runner's words: "system.FIELD: rule".
+_FIELD_REFUSAL = re.compile(r"(system\.[a-z_]+(?:\.[A-Za-z_][A-Za-z0-9_]*)?): (.*)", re.S)
+
+
+def _refused(message: str) -> SpecError:
+    """The runner's refusal of a system: by the field it names (a rule the runner holds,
+    such as the coupling tolerance's), else of the system as a whole."""
+    said = _FIELD_REFUSAL.search(message)
+    if said is not None:
+        return SpecError(said.group(1), said.group(2).strip())
+    return SpecError("system", f"the system does not load: {message}")

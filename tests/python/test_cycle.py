@@ -191,8 +191,8 @@ def test_modes_are_the_spectrum_of_small_free_oscillations(fmu_path, phi2):
                                                                         expected)
     assert np.allclose(found.dampings, 0.0, atol=1e-9)
     # The linearisation's other blocks: the motor torque accelerates body 1 alone.
-    assert found.inputs == ["M_m", "M_r"] and found.b.shape == (6, 2)
-    assert found.b[3, 0] == pytest.approx(1 / j1) and found.b[:3].any() == False  # noqa: E712
+    assert found.inputs == ["M_m", "M_r"] and found.B.shape == (6, 2)
+    assert found.B[3, 0] == pytest.approx(1 / j1) and found.B[:3].any() == False  # noqa: E712
 
 
 def test_rod_force_resonates_where_order_lines_cross_a_mode(fmu_path, tmp_path):
@@ -227,7 +227,7 @@ def test_points_without_a_steady_cycle_say_why(fmu_path, tmp_path):
     why, with no number in a metric or a cycle column; the good point beside them runs."""
     spec = cycle_spec({"omega1_0": 4.0, "omega2_0": 4.0, "phi2_0": 1.5707963267948966,
                        "l3": 0.5},
-                      listed(builtin_laws=[0, 0, 0, 1], d34=[0.0, 0.5, 0.0, 0.05],
+                      listed(builtin_laws=[False, False, False, True], d34=[0.0, 0.5, 0.0, 0.05],
                              L=[0.7, 0.7, 0.95, 0.7]), metrics={"swing": METRICS["swing"]},
                       tolerance=1e-9)
     spec["scenario"]["stop"] = 60.0
@@ -402,8 +402,8 @@ def test_the_linearisation_along_the_cycle_is_the_fmus_own(fmu_path, tmp_path, t
                                      / (2 * h))
         n = len(x)
         by_x, by_u = np.column_stack(columns["x"]), np.column_stack(columns["u"])
-        for mine, theirs in ((lin.a, by_x[:n]), (lin.c, by_x[n:]), (lin.b, by_u[:n]),
-                             (lin.d, by_u[n:])):
+        for mine, theirs in ((lin.A, by_x[:n]), (lin.C, by_x[n:]), (lin.B, by_u[:n]),
+                             (lin.D, by_u[n:])):
             assert np.abs(mine - theirs).max() <= 1e-8 * max(1.0, np.abs(theirs).max()), \
                 (lin.t, mine, theirs)
     fmu.terminate()

@@ -77,7 +77,7 @@ def test_through_the_start_values_points_without_a_cycle_say_why(fmu_path, tmp_p
     """A conservative run, a free run that dies away, a change-point linkage: rows that say
     why, with no number in a metric or a cycle column; the good point beside them runs."""
     spec = spec_of(THROUGH_STARTS,
-                   listed(builtin_laws=[0, 0, 0, 1], d34=[0.0, 0.5, 0.0, 0.05],
+                   listed(builtin_laws=[False, False, False, True], d34=[0.0, 0.5, 0.0, 0.05],
                           L=[0.7, 0.7, 0.95, 0.7]),
                    {"omega1_0": 4.0, "omega2_0": 4.0, "phi2_0": math.pi / 2},
                    metrics={"swing": METRICS["swing"]}, stop=60.0)

@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 
+import pytest
 from conftest import ROOT
 
 TEXT = (".md", ".rs", ".py", ".toml", ".html", ".txt")
@@ -236,3 +237,38 @@ def test_the_readme_fmpy_example_prints_what_it_says(fmu_path):
     printed = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                              check=True).stdout.split()
     assert [f"{float(v):.8f}" for v in printed] == list(promised), (printed, promised)
+
+
+def _field_check(root):
+    return subprocess.run([sys.executable, "-m", "fmusweep.schema.docs", "--check",
+                           "--root", str(root)], capture_output=True, text=True)
+
+
+def test_the_docs_field_tables_are_the_declared_schema():
+    checked = _field_check(ROOT)
+    assert checked.returncode == 0, checked.stderr
+
+
+def test_a_field_without_its_line_in_the_docs_fails_the_check(tmp_path):
+    for page in ("docs/sweeps.md", "docs/fitting.md", "docs/cycle.md"):
+        (tmp_path / page).parent.mkdir(exist_ok=True)
+        (tmp_path / page).write_text((ROOT / page).read_text())
+    page = tmp_path / "docs/sweeps.md"
+    lines = page.read_text().splitlines(keepends=True)
+    tolerance = next(i for i, line in enumerate(lines) if line.startswith("| tolerance |"))
+    page.write_text("".join(lines[:tolerance] + lines[tolerance + 1:]))
+    checked = _field_check(tmp_path)
+    assert checked.returncode == 1
+    assert "docs/sweeps.md: its field tables differ" in checked.stderr
+
+
+def test_every_declared_field_has_a_meaning():
+    from fmusweep.schema.core import Table, field
+    from fmusweep.schema.docs import table_rows
+
+    class Unexplained(Table):
+        said: float = field("what it is", 1.0)
+        unsaid: float = 2.0
+
+    with pytest.raises(ValueError, match="Unexplained.unsaid has no meaning"):
+        list(table_rows(Unexplained))

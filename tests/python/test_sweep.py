@@ -44,8 +44,9 @@ def test_a_grid_without_plots_leaves_its_points_on_disk(fmu_path, tmp_path):
     assert len(results.points) == 12
 
 
-def test_a_boolean_parameter_is_fixed_by_true_or_false_and_swept_by_0_or_1(fmu_path, tmp_path):
-    """builtin_laws off leaves the mechanism without torque: at rest it stays at rest."""
+def test_a_boolean_parameter_is_fixed_and_swept_by_true_or_false(fmu_path, tmp_path):
+    """builtin_laws off leaves the mechanism without torque: at rest it stays at rest. A
+    number for a Boolean is refused, with what to write."""
     metrics = {"omega1": {"variable": "omega1", "kind": "final"},
                "energy": {"variable": "energy", "kind": "max"}}
     fixed = {"scenario": {"stop": 1.0, "step": 0.01, "parameters": {"builtin_laws": False}},
@@ -54,12 +55,18 @@ def test_a_boolean_parameter_is_fixed_by_true_or_false_and_swept_by_0_or_1(fmu_p
     p = run_sweep(fixed, fmu=fmu_path, out=tmp_path / "fixed", serial=True, progress=False).points
     assert (p["status"] == "ok").all() and (p["omega1"] == 0.0).all() and (p["energy"] == 0.0).all()
     swept = dict(fixed, scenario={"stop": 1.0, "step": 0.01},
-                 design={"kind": "list", "parameters": {"builtin_laws": {"values": [0, 1]}}})
+                 design={"kind": "list", "parameters": {"builtin_laws": {"values": [False, True]}}})
     p = run_sweep(swept, fmu=fmu_path, out=tmp_path / "swept", serial=True, progress=False).points
     assert list(p["omega1"] == 0.0) == [True, False] and p["omega1"].iloc[1] > 3.0, p
-    with pytest.raises(SpecError, match="builtin_laws"):
-        run_sweep(dict(swept, design={"kind": "list", "parameters": {"builtin_laws": {"values": [0, 2]}}}),
-                  fmu=fmu_path, out=tmp_path / "bad", serial=True, progress=False)
+    for values in ([0, 1], [0, 2]):
+        with pytest.raises(SpecError, match="builtin_laws is a Boolean: write true or false"):
+            run_sweep(dict(swept, design={"kind": "list",
+                                          "parameters": {"builtin_laws": {"values": values}}}),
+                      fmu=fmu_path, out=tmp_path / "bad", serial=True, progress=False)
+    fixed["scenario"]["parameters"]["builtin_laws"] = 0
+    with pytest.raises(SpecError, match="scenario.parameters.builtin_laws: builtin_laws is a "
+                                        "Boolean: write true or false, got 0"):
+        run_sweep(fixed, fmu=fmu_path, out=tmp_path / "bad", serial=True, progress=False)
 
 
 def _broken(change):
@@ -432,19 +439,29 @@ def test_a_new_design_kind_is_one_module(fmu_path, tmp_path, monkeypatch):
     knowing it."""
     from scipy.stats import qmc
 
-    from fmusweep import designs
-    from fmusweep.designs.base import (Design, DesignKind, count_of, not_too_many, per_column,
-                                       range_of)
+    from typing import Literal
 
-    def make(names, params, d, seed):
-        bounds = per_column(names, lambda name: range_of(name, params[name], allow_log=False))
-        n = count_of(d, "points", "design.points")
-        not_too_many(n)
-        unit = qmc.Halton(d=len(names), seed=seed).random(n)
-        low, high = (np.array([b[k] for b in bounds]) for k in (0, 1))
+    from fmusweep import designs
+    from fmusweep.designs.base import Design, DesignKind, DesignTable, RangeEntry
+    from fmusweep.schema import field
+
+    class HaltonTable(DesignTable):
+        about = "A seeded Halton sequence over each column's range."
+        kind: Literal["halton"] = field("the kind of design")
+        seed: int = field("the sequence's scrambling seed", ge=0)
+        points: int = field("the number of points", ge=1)
+        parameters: dict[str, RangeEntry] = field("each column: range = [low, high]")
+
+        @classmethod
+        def count(cls, parts):
+            return parts.get("points")
+
+    def make(table, names):
+        unit = qmc.Halton(d=len(names), seed=table.seed).random(table.points)
+        low, high = (np.array([table.parameters[n].range[k] for n in names]) for k in (0, 1))
         return Design("halton", names, stored=low + unit * (high - low))
 
-    halton = DesignKind("halton", frozenset({"seed", "points"}), needs_seed=True, make=make)
+    halton = DesignKind("halton", HaltonTable, make=make)
     monkeypatch.setitem(designs.KINDS, "halton", halton)
     spec = {"scenario": {"stop": 0.2, "step": 0.01, "tolerance": 1e-6},
             "design": {"kind": "halton", "seed": 5, "points": 6,

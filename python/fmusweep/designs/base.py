@@ -5,21 +5,27 @@ readers of the fields the kinds have in common."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Annotated, Any
 
 import numpy as np
+from annotated_types import MinLen
 
-from ..errors import Collector, SpecError
-from ..fields import finite as _finite
-from ..fields import low_high, setting, whole
+from ..errors import SpecError, did_you_mean
+from ..fields import setting
 from ..records import Points, Rows
+from ..schema.core import Loc, Parts, Table, at
+from ..schema.core import field as declared
+from ..schema.values import Range, Setting, Spacing
 
-__all__ = ["Design", "DesignKind", "IndexChart", "chains_of"]
+__all__ = ["Design", "DesignKind", "DesignTable", "IndexChart", "chains_of", "column_values",
+           "SettingList", "ValuesEntry", "GridAxis", "RangeEntry", "LogRangeEntry",
+           "salib_problem", "MAX_POINTS"]
 
 MAX_POINTS = 100_000_000
-T = TypeVar("T")
+# A non-empty list of a variable's values.
+SettingList = Annotated[list[Setting], MinLen(1)]
 
 
 @dataclass
@@ -106,97 +112,148 @@ class IndexChart:
 
 @dataclass(frozen=True)
 class DesignKind:
-    """One kind of design: its name, the fields of its table besides ``kind`` and
-    ``parameters``, whether it needs a seed, and how its points are made
-    (``make(names, parameters, table, seed)``). A kind whose points give indices has
+    """One kind of design: its name, its ``[design]`` table (a ``DesignTable``: its fields,
+    their rules and how many points they make), and how its points are made
+    (``make(table, names)``). A kind whose points give indices has
     ``indices(design, values, seed)``, the indices of one metric's values over every point,
     and ``chart(metric, indices)``, how they are drawn. ``metric_view(varying)``: how the
     metrics are drawn against the ``varying`` columns (``lines``, ``heatmap``, ``scatter``)."""
     name: str
-    fields: frozenset[str]
-    needs_seed: bool
-    make: Callable[[list[str], dict[str, Any], dict[str, Any], int | None], Design]
+    table: type[DesignTable]
+    make: Callable[[Any, list[str]], Design]
     indices: Callable[[Design, Rows, int], dict[str, Any]] | None = None
     chart: Callable[[str, dict[str, Any]], IndexChart] | None = None
     metric_view: Callable[[int], str] = lambda varying: "scatter"
 
 
-def per_column(names: list[str], read: Callable[[str], T]) -> list[T]:
-    """read(name) for each column, every column's mistake reported at once."""
-    errors = Collector()
-    found = [errors.run(lambda: read(name)) for name in names]
-    errors.raise_any()
-    return [f for f in found if f is not None]
+# Every kind by name: filled by the package from its modules (``designs.KINDS``).
+KINDS: dict[str, DesignKind] = {}
 
 
-def not_too_many(count: int) -> None:
-    if count < 1:
-        raise SpecError("design", "has no point")
-    if count > MAX_POINTS:
-        raise SpecError("design", f"has {count} points, more than the {MAX_POINTS} one sweep takes")
+# --- the [design] table ---------------------------------------------------------------------
+class DesignTable(Table):
+    """What every kind's table has: its kind and its parameters; each kind's table adds its
+    own fields and says how many points they make (``count``)."""
+    about = "The points of the sweep: a kind, its parameters and the kind's own fields."
+    kind: str = declared("the kind of design", "grid", shows="grid | list | lhs | sobol | morris")
+    parameters: dict[str, Any] = declared("the design's columns: each varied parameter")
+
+    @classmethod
+    def variant(cls, raw: object) -> Any:
+        if cls is not DesignTable:
+            return cls
+        kind = raw.get("kind", "grid") if isinstance(raw, dict) else "grid"
+        found = KINDS.get(kind) if isinstance(kind, str) else None
+        if found is None:
+            raise SpecError("kind", f"must be one of {', '.join(KINDS)}, got {kind!r}"
+                                    f"{did_you_mean(str(kind), KINDS)}")
+        return found.table
+
+    @classmethod
+    def count(cls, parts: Parts) -> int | None:
+        """How many points the table's fields make (None while one it needs is wrong)."""
+        return None
+
+    @classmethod
+    def rules(cls, parts: Parts, where: Loc) -> Iterator[SpecError]:
+        parameters = parts.get("parameters")
+        if parameters == {}:
+            yield SpecError(at(where + ("parameters",)), "names no parameter: the design is "
+                                                         "empty")
+        count = cls.count(parts) if parameters else None
+        if count is not None and count > MAX_POINTS:
+            yield SpecError(at(where), f"has {count} points, more than the {MAX_POINTS} one "
+                                       "sweep takes")
 
 
-def count_of(d: dict[str, Any], key: str, where: str) -> int:
-    return whole(d.get(key), where, 1)
+class SampledTable(DesignTable):
+    """A design drawn by a seeded sampler (lhs, sobol, morris)."""
+    seed: int = declared("the sampler's seed, so that the design can be repeated", ge=0)
 
 
-def values_of(name: str, entry: object) -> list[float]:
-    where = f"design.parameters.{name}"
-    if not isinstance(entry, dict) or set(entry) != {"values"}:
-        raise SpecError(where, "a list design takes values = [...] for each parameter")
-    return value_list(entry["values"], f"{where}.values", name)
+class ValuesEntry(Table):
+    about = "A column's values, listed."
+    values: SettingList = declared("the values it takes: numbers, true/false for a Boolean, "
+                                "items' names for an Enumeration", shows="list of values")
 
 
-def value_list(values: object, where: str, name: str) -> list[float]:
-    """Values of variable `name`: numbers, true/false for a Boolean, item names for an
-    Enumeration (``fields.setting``)."""
-    if not isinstance(values, list):
-        raise SpecError(where, f"must be a list of values, got {values!r}")
-    if not values:
-        raise SpecError(where, "is empty")
-    return [setting(v, where, name) for v in values]
+class LinspaceEntry(Table):
+    about = "A column's values evenly spaced."
+    linspace: Spacing = declared("count values from start to stop, evenly spaced",
+                              shows="[start, stop, count]")
 
 
-def axis_of(name: str, entry: object) -> list[float]:
+class LogspaceEntry(Table):
+    about = "A column's values evenly spaced in log."
+    logspace: Spacing = declared("count values from start to stop (both > 0, the values "
+                              "themselves, not exponents), evenly spaced in log",
+                              shows="[start, stop, count]")
+
+    @classmethod
+    def rules(cls, parts: Parts, where: Loc) -> Iterator[SpecError]:
+        spacing = parts.get("logspace")
+        if spacing is not None and (spacing[0] <= 0 or spacing[1] <= 0):
+            yield SpecError(at(where + ("logspace",)), f"takes values > 0 (not exponents), got "
+                                                       f"{spacing[0]:g} and {spacing[1]:g}")
+
+
+AXES: dict[str, Any] = {"values": ValuesEntry, "linspace": LinspaceEntry, "logspace": LogspaceEntry}
+
+
+class GridAxis(Table):
+    """A grid's column: a list of values, or one of ``values``, ``linspace``, ``logspace``."""
+
+    @classmethod
+    def variant(cls, raw: object) -> Any:
+        if isinstance(raw, list):
+            return SettingList
+        given = [key for key in AXES if isinstance(raw, dict) and key in raw]
+        if len(given) != 1 or (isinstance(raw, dict) and len(raw) != 1):
+            raise SpecError("", "give exactly one of values = [...], linspace = [start, stop, "
+                                "count], logspace = [start, stop, count]")
+        return AXES[given[0]]
+
+
+class RangeEntry(Table):
+    about = "A column's range, sampled uniformly."
+    hints = {"log": "a sobol or morris design samples each range uniformly: log = true is an "
+                    "lhs design's"}
+    range: Range = declared("the least and greatest value sampled", shows="[low, high]")
+
+
+class LogRangeEntry(Table):
+    about = "A column's range, sampled uniformly or log-uniformly."
+    range: Range = declared("the least and greatest value sampled", shows="[low, high]")
+    log: bool = declared("sample log-uniformly (low > 0)", False)
+
+    @classmethod
+    def rules(cls, parts: Parts, where: Loc) -> Iterator[SpecError]:
+        bounds = parts.get("range")
+        if parts.get("log") and bounds is not None and bounds[0] <= 0:
+            yield SpecError(at(where + ("range",)), f"a log range needs low > 0, got "
+                                                    f"{bounds[0]:g}")
+
+
+def column_values(entry: Any, name: str) -> list[float]:
+    """The values a column's entry gives (a grid's axis, a list's values): numbers, the
+    settings converted by the FMU's types (``fields.setting``)."""
     where = f"design.parameters.{name}"
     if isinstance(entry, list):
-        return value_list(entry, where, name)
-    if not isinstance(entry, dict) or len(entry) != 1 or next(iter(entry)) not in ("values", "linspace", "logspace"):
-        raise SpecError(where, "give exactly one of values = [...], linspace = [start, stop, count], "
-                               "logspace = [start, stop, count]")
-    (how, arg), = entry.items()
-    where = f"{where}.{how}"
-    if how == "values":
-        return value_list(arg, where, name)
-    if not (isinstance(arg, list) and len(arg) == 3):
-        raise SpecError(where, f"must be [start, stop, count], got {arg!r}")
-    start, stop = _finite(arg[0], where), _finite(arg[1], where)
-    count = arg[2]
-    if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-        raise SpecError(where, f"count must be a whole number ≥ 1, got {count!r}")
-    if how == "linspace":
+        return [setting(v, where, name) for v in entry]
+    if isinstance(entry, ValuesEntry):
+        return [setting(v, f"{where}.values", name) for v in entry.values]
+    if isinstance(entry, LinspaceEntry):
+        start, stop, count = entry.linspace
         return [float(x) for x in np.linspace(start, stop, count)]
-    if start <= 0 or stop <= 0:
-        raise SpecError(where, f"logspace takes values > 0 (not exponents), got {start} and {stop}")
-    return [float(x) for x in np.geomspace(start, stop, count)]
+    if isinstance(entry, LogspaceEntry):
+        start, stop, count = entry.logspace
+        return [float(x) for x in np.geomspace(start, stop, count)]
+    raise TypeError(f"not a column's values: {entry!r}")
 
 
-def salib_problem(names: list[str], params: dict[str, Any]) -> dict[str, Any]:
+def salib_problem(names: list[str], table: Any) -> dict[str, Any]:
     """SALib's problem over each parameter's ``range = [low, high]``."""
-    bounds = per_column(names, lambda name: range_of(name, params[name], allow_log=False))
     return {"num_vars": len(names), "names": names,
-            "bounds": [[low, high] for low, high, _ in bounds]}
+            "bounds": [list(table.parameters[name].range) for name in names]}
 
 
-def range_of(name: str, entry: object, allow_log: bool) -> tuple[float, float, bool]:
-    where = f"design.parameters.{name}"
-    keys = {"range", "log"} if allow_log else {"range"}
-    if not isinstance(entry, dict) or "range" not in entry or set(entry) - keys:
-        raise SpecError(where, f"give range = [low, high]{' (and log = true)' if allow_log else ''}")
-    low, high = low_high(entry["range"], f"{where}.range")
-    log = entry.get("log", False)
-    if not isinstance(log, bool):
-        raise SpecError(f"{where}.log", f"must be true or false, got {log!r}")
-    if log and low <= 0:
-        raise SpecError(f"{where}.range", f"a log range needs low > 0, got {low}")
-    return low, high, log

@@ -7,18 +7,79 @@ index."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Iterator
+from typing import Any, Literal
 
 import numpy as np
 
-from .base import Design, DesignKind, axis_of, not_too_many, per_column
+from ..errors import SpecError
+from ..schema.core import Loc, Parts, at
+from ..schema.core import field as declared
+from .base import Design, DesignKind, DesignTable, GridAxis, LinspaceEntry, LogspaceEntry, \
+    ValuesEntry
 
 
-def make(names: list[str], params: dict[str, Any], d: dict[str, Any],
-         seed: int | None) -> Design:
-    axes = per_column(names, lambda name: axis_of(name, params[name]))
-    not_too_many(math.prod(len(a) for a in axes))
-    return Design("grid", names, axes=[np.asarray(a, dtype=float) for a in axes])
+class GridTable(DesignTable):
+    about = "A full-factorial grid: every combination of the columns' values."
+    kind: Literal["grid"] = declared("the kind of design", "grid")
+    parameters: dict[str, GridAxis] = declared(
+        "each column: values = [...], linspace = [start, stop, count] or logspace = [start, "
+        "stop, count] (or a list of values)", shows="table of name = axis")
+
+    @classmethod
+    def count(cls, parts: Parts) -> int | None:
+        return math.prod(_length(axis) for axis in parts.get("parameters").values())
+
+    @classmethod
+    def rules(cls, parts: Parts, where: Loc) -> Iterator[SpecError]:
+        yield from super().rules(parts, where)
+        for name, axis in (parts.get("parameters") or {}).items():
+            values = axis.values if isinstance(axis, ValuesEntry) else axis
+            if isinstance(values, list):
+                twice = repeated(values)
+                if twice:
+                    field = ("parameters", name) + (("values",) if values is not axis else ())
+                    yield SpecError(at(where + field), f"lists {_shown(twice)} more than once: "
+                                                       "the grid would run the same points again")
+            elif isinstance(axis, (LinspaceEntry, LogspaceEntry)):
+                key = "linspace" if isinstance(axis, LinspaceEntry) else "logspace"
+                start, stop, count = getattr(axis, key)
+                if start == stop and count > 1:
+                    yield SpecError(at(where + ("parameters", name, key)),
+                                    f"gives {start:g} {count} times (start = stop): the grid "
+                                    "would run the same points again")
+
+
+def repeated(values: list[Any]) -> list[Any]:
+    """The values a list holds more than once (1 and 1.0 are one value), in their order."""
+    seen: list[Any] = []
+    twice: list[Any] = []
+    for v in values:
+        same = [s for s in seen if v == s and (type(v) is bool) == (type(s) is bool)]
+        if not same:
+            seen.append(v)
+        elif not any(v == t for t in twice):
+            twice.append(same[0])
+    return twice
+
+
+def _shown(values: list[Any]) -> str:
+    return ", ".join(str(v).lower() if isinstance(v, bool) else f"{v!r}" for v in values)
+
+
+def _length(axis: Any) -> int:
+    if isinstance(axis, ValuesEntry):
+        return len(axis.values)
+    if isinstance(axis, (LinspaceEntry, LogspaceEntry)):
+        return int((axis.linspace if isinstance(axis, LinspaceEntry) else axis.logspace)[2])
+    return len(axis) if isinstance(axis, list) else 1
+
+
+def make(table: GridTable, names: list[str]) -> Design:
+    from .base import column_values
+    axes = [np.asarray(column_values(table.parameters[name], name), dtype=float)
+            for name in names]
+    return Design("grid", names, axes=axes)
 
 
 def metric_view(varying: int) -> str:
@@ -26,4 +87,4 @@ def metric_view(varying: int) -> str:
     return {1: "lines", 2: "heatmap"}.get(varying, "scatter")
 
 
-KIND = DesignKind("grid", frozenset(), needs_seed=False, make=make, metric_view=metric_view)
+KIND = DesignKind("grid", GridTable, make=make, metric_view=metric_view)

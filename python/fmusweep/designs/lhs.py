@@ -3,21 +3,34 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Literal
 
 import numpy as np
 
-from .base import Design, DesignKind, count_of, not_too_many, per_column, range_of
+from ..schema.core import Parts
+from ..schema.core import field as declared
+from .base import Design, DesignKind, SampledTable, LogRangeEntry
 
 
-def make(names: list[str], params: dict[str, Any], d: dict[str, Any],
-         seed: int | None) -> Design:
-    bounds = per_column(names, lambda name: range_of(name, params[name], allow_log=True))
-    n = count_of(d, "samples", "design.samples")
-    not_too_many(n)
+class LhsTable(SampledTable):
+    about = "A seeded Latin hypercube over each column's range."
+    kind: Literal["lhs"] = declared("the kind of design")
+    samples: int = declared("the number of points", ge=1)
+    parameters: dict[str, LogRangeEntry] = declared(
+        "each column: range = [low, high], and log = true to sample log-uniformly",
+        shows="table of name = { range, log }")
+
+    @classmethod
+    def count(cls, parts: Parts) -> int | None:
+        samples = parts.get("samples")
+        return samples if isinstance(samples, int) else None
+
+
+def make(table: LhsTable, names: list[str]) -> Design:
     from scipy.stats import qmc
-    unit = qmc.LatinHypercube(d=len(names), seed=seed).random(n)
+    unit = qmc.LatinHypercube(d=len(names), seed=table.seed).random(table.samples)
     rows = np.empty_like(unit)
+    bounds = [(*table.parameters[name].range, table.parameters[name].log) for name in names]
     for j, (low, high, log) in enumerate(bounds):
         if log:
             rows[:, j] = np.exp(np.log(low) + unit[:, j] * (np.log(high) - np.log(low)))
@@ -26,4 +39,4 @@ def make(names: list[str], params: dict[str, Any], d: dict[str, Any],
     return Design("lhs", names, stored=rows)
 
 
-KIND = DesignKind("lhs", frozenset({"seed", "samples"}), needs_seed=True, make=make)
+KIND = DesignKind("lhs", LhsTable, make=make)

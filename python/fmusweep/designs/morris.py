@@ -4,28 +4,43 @@ finished sweep gives each metric's μ, μ* and σ per parameter."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import SpecError
 from ..records import Rows
-from .base import Design, DesignKind, IndexChart, count_of, not_too_many, salib_problem
+from ..schema.core import Parts, checked
+from ..schema.core import field as declared
+from .base import Design, DesignKind, SampledTable, IndexChart, RangeEntry, salib_problem
 
 
-def make(names: list[str], params: dict[str, Any], d: dict[str, Any],
-         seed: int | None) -> Design:
-    problem = salib_problem(names, params)
-    r = count_of(d, "trajectories", "design.trajectories")
-    levels = d.get("levels", 4)
-    if not isinstance(levels, int) or isinstance(levels, bool) or levels < 2 or levels % 2:
-        raise SpecError("design.levels", f"must be an even whole number ≥ 2, got {levels!r}")
-    not_too_many(r * (len(names) + 1))
+def _even(levels: int) -> int:
+    if levels % 2:
+        raise ValueError(f"must be an even whole number ≥ 2, got {levels}")
+    return levels
+
+
+class MorrisTable(SampledTable):
+    about = "Morris' trajectories for elementary effects, over each column's range."
+    kind: Literal["morris"] = declared("the kind of design")
+    trajectories: int = declared("r: r·(D + 1) points for D columns", ge=1)
+    levels: Annotated[int, checked(_even)] = declared("the grid's levels, even", 4, ge=2)
+    parameters: dict[str, RangeEntry] = declared("each column: range = [low, high]",
+                                                 shows="table of name = { range }")
+
+    @classmethod
+    def count(cls, parts: Parts) -> int | None:
+        r = parts.get("trajectories")
+        return r * (len(parts.get("parameters")) + 1) if isinstance(r, int) else None
+
+
+def make(table: MorrisTable, names: list[str]) -> Design:
+    problem = salib_problem(names, table)
     from SALib.sample.morris import sample as morris_sample
-    rows = morris_sample(problem, r, num_levels=levels, seed=seed)
+    rows = morris_sample(problem, table.trajectories, num_levels=table.levels, seed=table.seed)
     return Design("morris", names, stored=np.asarray(rows, dtype=float), problem=problem,
-                  levels=levels)
+                  levels=table.levels)
 
 
 def morris_effects(problem: dict[str, Any], rows: npt.ArrayLike, values: npt.ArrayLike,
@@ -51,5 +66,4 @@ def chart(metric: str, found: dict[str, Any]) -> IndexChart:
                             "σ (spread: interaction or nonlinearity)"))
 
 
-KIND = DesignKind("morris", frozenset({"seed", "trajectories", "levels"}), needs_seed=True,
-                  make=make, indices=indices, chart=chart)
+KIND = DesignKind("morris", MorrisTable, make=make, indices=indices, chart=chart)

@@ -5,30 +5,47 @@ indices, S1 and ST, with their 95 % confidence half-widths."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import SpecError
 from ..records import Rows
-from .base import Design, DesignKind, IndexChart, count_of, not_too_many, salib_problem
+from ..schema.core import Parts, checked
+from ..schema.core import field as declared
+from .base import Design, DesignKind, SampledTable, IndexChart, RangeEntry, salib_problem
 
 
-def make(names: list[str], params: dict[str, Any], d: dict[str, Any],
-         seed: int | None) -> Design:
-    problem = salib_problem(names, params)
-    n = count_of(d, "samples", "design.samples")
+def _power_of_two(n: int) -> int:
     if n & (n - 1):
-        raise SpecError("design.samples", f"a Sobol' design needs a power of two, got {n}")
-    second = d.get("second_order", False)
-    if not isinstance(second, bool):
-        raise SpecError("design.second_order", f"must be true or false, got {second!r}")
-    not_too_many(n * (2 * len(names) + 2 if second else len(names) + 2))
+        raise ValueError(f"a Sobol' design needs a power of two, got {n}")
+    return n
+
+
+class SobolTable(SampledTable):
+    about = "Saltelli's design for Sobol' indices, over each column's range."
+    kind: Literal["sobol"] = declared("the kind of design")
+    samples: Annotated[int, checked(_power_of_two)] = declared(
+        "N, a power of two: N·(D + 2) points for D columns", ge=1)
+    second_order: bool = declared("second-order indices too: N·(2D + 2) points", False)
+    parameters: dict[str, RangeEntry] = declared("each column: range = [low, high]",
+                                                 shows="table of name = { range }")
+
+    @classmethod
+    def count(cls, parts: Parts) -> int | None:
+        n, d = parts.get("samples"), len(parts.get("parameters"))
+        if not isinstance(n, int):
+            return None
+        return n * (2 * d + 2 if parts.get("second_order") else d + 2)
+
+
+def make(table: SobolTable, names: list[str]) -> Design:
+    problem = salib_problem(names, table)
     from SALib.sample import sobol
-    rows = sobol.sample(problem, n, calc_second_order=second, seed=seed)
+    rows = sobol.sample(problem, table.samples, calc_second_order=table.second_order,
+                        seed=table.seed)
     return Design("sobol", names, stored=np.asarray(rows, dtype=float), problem=problem,
-                  second_order=second)
+                  second_order=table.second_order)
 
 
 def sobol_indices(problem: dict[str, Any], values: npt.ArrayLike, second_order: bool = False,
@@ -56,5 +73,4 @@ def chart(metric: str, found: dict[str, Any]) -> IndexChart:
                       ("", "Sobol' index"))
 
 
-KIND = DesignKind("sobol", frozenset({"seed", "samples", "second_order"}), needs_seed=True,
-                  make=make, indices=indices, chart=chart)
+KIND = DesignKind("sobol", SobolTable, make=make, indices=indices, chart=chart)

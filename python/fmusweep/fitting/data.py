@@ -14,16 +14,12 @@ import hashlib
 import math
 import pathlib
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..errors import Collector, SpecError
-from ..fields import only
 from ..records import Points, Rows
-
-if TYPE_CHECKING:
-    from ..spec import Scenario
 
 __all__ = ["Data"]
 
@@ -48,35 +44,39 @@ class Data:
         return self.steps // self.every
 
     @staticmethod
-    def check(table: dict[str, Any], base_dir: pathlib.Path, where: str = "data") -> None:
-        """The data table's file and σ alone, for a scenario with mistakes of its own."""
-        path, content = _read(table, base_dir, where)
+    def check_file(file: str, sigma: dict[str, float] | None, base_dir: pathlib.Path,
+                   where: str) -> None:
+        """The file of a data table with other mistakes: read, and its columns against
+        the σ that was read."""
+        path, content = _read(file, base_dir, where)
         columns, _, _ = _parse(content, path, where)
-        _sigma(table.get("sigma"), columns, where)
+        if sigma is not None:
+            _sigma(sigma, columns, where)
 
     @staticmethod
-    def of(table: dict[str, Any], base_dir: pathlib.Path, scenario: Scenario,
-           where: str = "data") -> Data:
-        """The data table at `where` (``data``, or an experiment's ``experiment.NAME.data``),
-        the mistakes of its σ and of its times raised together."""
-        path, content = _read(table, base_dir, where)
-        columns, times, values = _parse(content, path, where)
+    def of(table: Any, base_dir: pathlib.Path, times: tuple[float, float, float] | None,
+           where: str = "data") -> Data | None:
+        """The data table at `where` (``data``, or an experiment's ``experiment.NAME.data``;
+        a ``schema.fit.DataTable``) on the scenario's grid `times` (start, stop, step), the
+        mistakes of its σ and of its times raised together; None where the grid is not known
+        (the file and σ are still checked)."""
+        path, content = _read(table.file, base_dir, where)
+        columns, data_times, values = _parse(content, path, where)
         errors = Collector()
-        steps = errors.run(lambda: _grid_steps(times, scenario, path, where))
-        sigma_given = errors.run(lambda: _sigma(table.get("sigma"), columns, where))
+        sigma_given = errors.run(lambda: _sigma(table.sigma, columns, where))
+        steps = errors.run(lambda: _grid_steps(data_times, times, path, where)) if times else None
         errors.raise_any()
+        if times is None:
+            return None
         assert sigma_given is not None and steps is not None
         sigma, given = sigma_given
-        every = math.gcd(scenario.steps, *steps.tolist())
-        return Data(path, hashlib.sha256(content).hexdigest(), times, columns, values, sigma,
-                    given, steps, every)
+        start, stop, step = times
+        every = math.gcd(round((stop - start) / step), *steps.tolist())
+        return Data(path, hashlib.sha256(content).hexdigest(), data_times, columns, values,
+                    sigma, given, steps, every)
 
 
-def _read(table: dict[str, Any], base_dir: pathlib.Path, where: str) -> tuple[pathlib.Path, bytes]:
-    only(table, where, {"file", "sigma"})
-    name = table.get("file")
-    if not isinstance(name, str):
-        raise SpecError(f"{where}.file", "must name a CSV file (a path relative to the spec)")
+def _read(name: str, base_dir: pathlib.Path, where: str) -> tuple[pathlib.Path, bytes]:
     path = base_dir / name
     try:
         return path, path.read_bytes()
@@ -127,43 +127,40 @@ def _parse(content: bytes, path: pathlib.Path, where: str) -> tuple[list[str], R
     return columns, t, table[:, keep]
 
 
-def _grid_steps(times: Rows, scenario: Scenario, path: pathlib.Path, where: str) -> Points:
+def _grid_steps(times: Rows, grid: tuple[float, float, float], path: pathlib.Path,
+                where: str) -> Points:
+    start, stop, step = grid
     decreasing = np.flatnonzero(np.diff(times) <= 0)
     if len(decreasing):
         line = int(decreasing[0]) + 3
         raise SpecError(f"{where}.file", f"{path} line {line}: time {times[decreasing[0] + 1]} does "
                                      f"not increase (the times must be strictly increasing)")
     for i, t in enumerate(times):
-        if not scenario.start - GRID_SLACK * scenario.step <= t <= scenario.stop + GRID_SLACK * scenario.step:
+        if not start - GRID_SLACK * step <= t <= stop + GRID_SLACK * step:
             raise SpecError(f"{where}.file", f"{path} line {i + 2}: time {t} lies outside the scenario "
-                                         f"[{scenario.start}, {scenario.stop}]")
-    k = (times - scenario.start) / scenario.step
+                                         f"[{start}, {stop}]")
+    k = (times - start) / step
     steps = np.round(k).astype(np.int64)
     off = np.flatnonzero(np.abs(k - steps) > GRID_SLACK)
     if len(off):
         i = int(off[0])
         raise SpecError(f"{where}.file", f"{path} line {i + 2}: time {times[i]} is not on the "
-                                     f"scenario's communication grid (start {scenario.start} + k·"
-                                     f"{scenario.step}); the model is compared at communication "
+                                     f"scenario's communication grid (start {start} + k·"
+                                     f"{step}); the model is compared at communication "
                                      "points: choose a step that divides the sampling interval, "
                                      "or resample the data")
     return steps
 
 
-def _sigma(table: object, columns: list[str], where: str) -> tuple[Rows, list[bool]]:
+def _sigma(table: dict[str, float], columns: list[str], where: str) -> tuple[Rows, list[bool]]:
     sigma = np.ones(len(columns))
     given = [False] * len(columns)
-    if table is None:
+    if not table:
         return sigma, given
-    if not isinstance(table, dict):
-        raise SpecError(f"{where}.sigma", f"must be a table of column = standard deviation, got {table!r}")
     for name, value in table.items():
         field = f"{where}.sigma.{name}"
         if name not in columns:
             raise SpecError(field, f"names no measured column of {where}.file ({', '.join(columns)})")
-        if (isinstance(value, bool) or not isinstance(value, (int, float))
-                or not math.isfinite(value) or value <= 0):
-            raise SpecError(field, f"must be a finite number > 0, got {value!r}")
         j = columns.index(name)
         sigma[j], given[j] = float(value), True
     missing = [c for c, g in zip(columns, given) if not g]

@@ -15,9 +15,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pyarrow as pa
 
-from ..check import VALUE_TYPES, Variables, ask_the_fmu, values_to_ask
-from ..errors import Collector
-from ..native import NativeRunner
 from ..records import PointResult, Points, Rows
 from ..store import ResultStore, coupling_columns
 from .data import Data
@@ -29,9 +26,7 @@ if TYPE_CHECKING:
     from ..study import Study
     from .spec import Experiment, FitSpec
 
-__all__ = ["Problem", "Evaluation", "Trial", "check_fit_against_fmu"]
-
-READABLE = ("output", "local")
+__all__ = ["Problem", "Evaluation", "Trial"]
 
 
 @dataclass
@@ -63,45 +58,6 @@ class Trial:
             if not run.ok:
                 return run.message if len(self.runs) == 1 else f"experiment {name}: {run.message}"
         return ""
-
-
-def check_fit_against_fmu(spec: FitSpec, description: dict[str, Any],
-                          runner: NativeRunner) -> None:
-    """Every name against the FMU, every mistake reported at once; then the values."""
-    variables = Variables(description)
-    errors = Collector()
-    for e in spec.experiments:
-        variables.check_scenario(e.scenario, errors)
-        where = "data.file" if e.name == SINGLE_EXPERIMENT else f"experiment.{e.name}.data.file"
-        for name in e.data.columns:
-            errors.run(lambda: variables.get(name, where, READABLE, VALUE_TYPES, what="output"))
-    for p in spec.fitted:
-        column = np.array([p.start, p.low, p.high])
-        errors.run(lambda: variables.check_columns([p.variable], [column],
-                                                   _parameters_field(p.experiment)))
-    for e in spec.experiments:
-        errors.run(lambda: _ask_about(spec, e, runner, errors))
-    errors.raise_any()
-
-
-def _ask_about(spec: FitSpec, e: Experiment, runner: NativeRunner, errors: Collector) -> None:
-    """The values of experiment `e` the FMU refuses, but for those whose names `errors`
-    holds refused already."""
-    fitted = [spec.fitted[j] for j in e.columns]
-    fields = [_parameters_field(p.experiment) for p in fitted]
-    plan, _ = values_to_ask(e.plan(spec.system), [], "", errors)
-    if plan is None:
-        return
-    refused = {err.field for err in errors.errors}
-    good = [k for k, p in enumerate(fitted) if f"{fields[k]}.{p.variable}" not in refused]
-    rows = np.array([[fitted[k].start for k in good], [fitted[k].low for k in good],
-                     [fitted[k].high for k in good]])
-    ask_the_fmu(plan, [e.variables[k] for k in good], rows[:1], list(rows.T), runner,
-                "fit.parameters", "scenario.parameters", [fields[k] for k in good])
-
-
-def _parameters_field(experiment: str | None) -> str:
-    return "fit.parameters" if experiment is None else f"experiment.{experiment}.parameters"
 
 
 class Problem:

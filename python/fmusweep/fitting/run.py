@@ -15,9 +15,9 @@ import numpy as np
 from ..errors import SpecWarning, refuse_in_spawned_child
 from ..pool import check_engine
 from ..store import ResultStore, atomic_write_text
-from ..study import Study, Target, load_spec, spec_name
+from ..study import Study, Target, checked_fit, spec_name
 from .method import Start, solve_all, starting_points
-from .problem import Problem, check_fit_against_fmu
+from .problem import Problem
 from .profile import Profile, profile_all
 from .profile import summary_of as profile_summary
 from .spec import FitSpec
@@ -72,13 +72,11 @@ def fit(spec: FitSpec | str | pathlib.Path | dict[str, Any], *, fmu: str | None 
     refuse_in_spawned_child("fit")
     check_engine(workers, scheduler, serial)
     given = spec
-    spec = load_spec(lambda: FitSpec.load(given), given, fmu)
+    spec, target = checked_fit(given, fmu)
     for said in dict.fromkeys(w for e in spec.experiments
                               for w in e.scenario.off_grid_breakpoints(spec.system)):
         warnings.warn(said, SpecWarning, stacklevel=2)
-    target = Target.open(spec, fmu)
-    assert target.local is not None  # a fit names no SSP file
-    check_fit_against_fmu(spec, target.description, target.local)
+    assert target.local is not None  # a fit runs an SSP file natively only
     plan = spec.experiments[0].plan(spec.system)
     target.local.configure(plan)
     serial, engine_note = _choose_engine(spec, target, serial, workers, scheduler)

@@ -40,8 +40,9 @@ fitted for it alone, such as a start value each run had but nobody measured::
 ``[fit.parameters]`` are then shared by every experiment; an experiment's own parameter is
 called ``NAME.variable`` in the results (``run_up.omega1_0``).
 
-Each mistake is a SpecError naming the field; the checks that need the FMU are in
-``fmusweep.fitting.problem``.
+Every table is read against its declaration (``fmusweep.schema.fit``) and the rules between
+tables checked over whatever was read, in one pass; each mistake is a SpecError naming the
+field. The checks that need the FMU are in ``fmusweep.check``, in the same pass.
 """
 
 from __future__ import annotations
@@ -58,23 +59,20 @@ from typing import Any
 import numpy as np
 
 from ..columns import FIT_COLUMNS, refuse_collisions
-from ..errors import Collector, SpecError, SpecErrors, refuse
-from ..fields import finite, low_high, only, table, whole
-from ..spec import Scenario, read_source, what_runs
-from ..system import System
+from ..errors import Collector, SpecError
 from ..records import Plan, SeriesPlan
+from ..schema.core import Table, read
+from ..schema.fit import INTERVALS, JACOBIANS, MAX_STARTS, FitParameterEntry, fit_tables
+from ..schema.scenario import ScenarioTable
+from ..spec import Scenario, SettledScenario, _ssp_contents, _system, named_fmu, raise_all, \
+    read_source
+from ..system import System
 from .data import Data
 
-__all__ = ["FitSpec", "FitParameter", "Experiment", "INTERVALS", "SINGLE_EXPERIMENT"]
+__all__ = ["FitSpec", "FitParameter", "Experiment", "INTERVALS", "SINGLE_EXPERIMENT",
+           "FitReading", "read_fit", "MAX_STARTS", "JACOBIANS"]
 
-MAX_STARTS = 1000
 DEFAULT_MAX_ITERATIONS = 100
-# How a fit's 95 % intervals are found: from the Jacobian at the optimum (Wald), from the
-# profile of the cost with the other parameters re-optimised, or both side by side.
-INTERVALS = ("wald", "profile", "both")
-# Where the Jacobian comes from: forward differences, or the FMU's own sensitivities
-# wherever it offers them (docs/sensitivities.md) and differences for the rest.
-JACOBIANS = ("differences", "sensitivities")
 # The name of the one experiment a [data] table makes.
 SINGLE_EXPERIMENT = "data"
 
@@ -169,27 +167,8 @@ class FitSpec:
     @staticmethod
     def from_dict(raw: dict[str, Any], base_dir: str | os.PathLike[str]) -> FitSpec:
         """The fit spec of `raw`, every mistake of its own fields reported at once (the
-        names are checked against the FMU afterwards, also all at once)."""
-        raw = copy.deepcopy(raw)
-        base = pathlib.Path(base_dir)
-        errors = Collector()
-        errors.run(lambda: only(raw, "spec", {"fmu", "ssp", "system", "scenario", "data",
-                                              "experiment", "fit"}))
-        runs = errors.run(lambda: what_runs(raw, base))
-        shared = errors.run(lambda: _shared_parameters(raw)) or []
-        experiments = errors.run(lambda: _experiments(raw, base, shared, errors)) or []
-        settings = errors.run(lambda: _fit_table(raw, experiments, shared))
-        errors.raise_any()
-        assert runs is not None and settings is not None
-        fmu, ssp, system = runs
-        if ssp is not None and system is None:
-            raise SpecError("system.engine", "a fit runs an SSP file natively only: not "
-                                             "with engine = \"fmpy\"")
-        shared_fitted, starts, seed, max_iterations, relative_step, intervals, profiled, \
-            jacobian = settings
-        numbered, fitted = _numbered(experiments, shared_fitted)
-        return FitSpec(raw, base, (base / fmu) if fmu else None, system, numbered, fitted,
-                       starts, seed, max_iterations, relative_step, intervals, profiled, jacobian)
+        names are checked against the FMU by ``fmusweep.study``, in the same pass)."""
+        return read_fit(raw, pathlib.Path(base_dir)).spec()
 
     def digest(self) -> str:
         """A hash of everything that decides the results: the spec and the data files'
@@ -210,207 +189,241 @@ class FitSpec:
 
 
 @dataclass
-class _Parsed:
-    """An experiment as read, before its parameters have their places in the vector."""
+class ParsedExperiment:
+    """An experiment as read (complete or not), before its parameters have their places in
+    the parameter vector."""
     name: str
-    scenario: Scenario
-    data: Data
+    where: str  # "" for the [data] table's, else "experiment.NAME."
+    scenario: SettledScenario
+    data: Data | None
     own: list[FitParameter]
 
 
-def _shared_parameters(raw: dict[str, Any]) -> list[tuple[str, Any]]:
-    fit = table(raw, "fit", "spec", required=True)
-    entries = table(fit, "parameters", "fit", required=True)
-    return list(entries.items())
+@dataclass
+class FitReading:
+    """One pass over a fit's spec without the FMU: what was read and every mistake found;
+    the checks against the FMU take it from here, ``spec()`` makes the FitSpec."""
+    raw: dict[str, Any]
+    base_dir: pathlib.Path
+    tables: Any
+    errors: list[SpecError]
+    experiments: list[ParsedExperiment]
+    shared: list[FitParameter]
+    system: System | None
+    ssp: str | None
+
+    @property
+    def fmu(self) -> str | None:
+        return named_fmu(self.tables)
+
+    @property
+    def fitted(self) -> list[FitParameter]:
+        return self.shared + [p for e in self.experiments for p in e.own]
+
+    def spec(self) -> FitSpec:
+        raise_all(self.errors)
+        fit = self.tables.fit
+        experiments, fitted = _numbered(self.experiments, self.shared)
+        names = [p.name for p in fitted]
+        profiled = (list(dict.fromkeys(fit.profile)) if fit.profile is not None
+                    else (names if fit.intervals != "wald" else []))
+        tolerance = experiments[0].scenario.tolerance
+        # A forward difference's error is the step plus the model's own error over the step;
+        # the square root of the integrator's tolerance balances the two.
+        step = fit.relative_step if fit.relative_step is not None else (
+            math.sqrt(tolerance) if tolerance else 1e-4)
+        return FitSpec(self.raw, self.base_dir,
+                       (self.base_dir / self.fmu) if self.fmu else None, self.system,
+                       experiments, fitted, fit.starts, fit.seed, fit.max_iterations,
+                       float(step), fit.intervals, profiled, fit.jacobian)
 
 
-def _experiments(raw: dict[str, Any], base: pathlib.Path, shared: list[tuple[str, Any]],
-                 errors: Collector) -> list[_Parsed]:
-    """The [data] table's one experiment, or the [[experiment]] tables' (their mistakes
-    collected in `errors`, each by field)."""
+def read_fit(raw: dict[str, Any], base_dir: pathlib.Path) -> FitReading:
+    """Every table of a fit's spec read, and the rules between them checked over whatever
+    was read: every mistake in one list."""
+    raw = copy.deepcopy(raw)
+    errors: list[SpecError] = []
+    contents = _ssp_contents(raw, base_dir, errors)
+    found = read(fit_tables(raw), raw)
+    errors += [_by_experiment_name(e, raw) for e in found.errors]
+    tables = found.value
+    part = (lambda name: tables.get(name)) if tables is not None else (lambda name: None)
+    options = part("system")
+    if raw.get("ssp") is not None and options is not None and options.get("engine") == "fmpy":
+        errors.append(SpecError("system.engine", "a fit runs an SSP file natively only: not "
+                                                 "with engine = \"fmpy\""))
+    fit = part("fit")
+    shared_entries = (fit.get("parameters") if fit is not None else None) or {}
+    experiments = _experiments(raw, part, base_dir, set(shared_entries), errors)
+    shared = _shared(shared_entries, experiments, errors)
+    _between_tables(fit, shared, experiments, errors)
+    system = _system(raw, part("system"), contents, base_dir, errors)
+    return FitReading(raw, base_dir, tables, errors, experiments, shared, system, part("ssp"))
+
+
+def _by_experiment_name(error: SpecError, raw: dict[str, Any]) -> SpecError:
+    """A mistake in the k-th [[experiment]] named by the experiment's name, where it has
+    one (experiment.braked.data, not experiment[0].data)."""
+    if not error.field.startswith("experiment["):
+        return error
+    index, _, rest = error.field[len("experiment["):].partition("]")
     listed = raw.get("experiment")
+    if not index.isdigit() or not isinstance(listed, list) or int(index) >= len(listed):
+        return error
+    entry = listed[int(index)]
+    name = entry.get("name") if isinstance(entry, dict) else None
+    if not isinstance(name, str) or rest == ".name" or not name.isidentifier():
+        return error
+    return SpecError(f"experiment.{name}{rest}", error.rule)
+
+
+def _experiments(raw: dict[str, Any], part: Any, base_dir: pathlib.Path, shared: set[str],
+                 errors: list[SpecError]) -> list[ParsedExperiment]:
+    """The [data] table's one experiment, or each [[experiment]] table's."""
+    listed = part("experiment")
     if listed is None:
-        scenario = errors.run(lambda: Scenario.of(raw, base))
-        data_table = errors.run(lambda: table(raw, "data", "spec", required=True))
-        if data_table is None:
-            return []
-        if scenario is None:
-            # The data file is read even when the scenario has mistakes.
-            errors.run(lambda: Data.check(data_table, base))
-            return []
-        data = errors.run(lambda: Data.of(data_table, base, scenario))
-        return [_Parsed(SINGLE_EXPERIMENT, scenario, data, [])] if data is not None else []
-    if "data" in raw:
-        raise SpecError("data", "give either one [data] table or [[experiment]] tables, not both")
-    if not isinstance(listed, list) or not listed or not all(isinstance(e, dict) for e in listed):
-        raise SpecError("experiment", "must be [[experiment]] tables, at least one")
-    shared_names = {name for name, _ in shared}
-    parsed: list[_Parsed] = []
+        scenario = SettledScenario.of(part("scenario"), base_dir)
+        errors += scenario.errors
+        return [ParsedExperiment(SINGLE_EXPERIMENT, "", scenario,
+                                 _data(part("data"), base_dir, scenario, "data", errors), [])]
+    parsed: list[ParsedExperiment] = []
     for k, entry in enumerate(listed):
-        one = errors.run(lambda: _experiment(raw, entry, k, base, shared_names,
-                                             {e.name for e in parsed}))
-        if one is not None:
-            parsed.append(one)
-    weighed = [e.name for e in parsed if all(e.data.sigma_given)]
-    if weighed and len(weighed) < len(parsed):
-        unweighed = next(e.name for e in parsed if e.name not in weighed)
-        errors.run(lambda: refuse(f"experiment.{unweighed}.data.sigma",
-                                  f"is missing while experiment {weighed[0]} gives σ: give "
-                                  "every experiment's columns a σ, or none (then they share "
-                                  "one σ estimated from the residuals)"))
+        name = entry.get("name") if entry is not None else None
+        if not isinstance(name, str):
+            continue
+        where = f"experiment.{name}"
+        if name in {e.name for e in parsed}:
+            errors.append(SpecError(f"{where}.name", "names another experiment too"))
+            continue
+        scenario = _merged_scenario(raw, (raw.get("experiment") or [{}])[k], where, base_dir,
+                                    errors)
+        data = _data(entry.get("data"), base_dir, scenario, f"{where}.data", errors)
+        own = []
+        for variable, fitted in (entry.get("parameters") or {}).items():
+            field_name = f"{where}.parameters.{variable}"
+            if variable in shared:
+                errors.append(SpecError(field_name, f"{variable} is fitted for every "
+                                        "experiment in fit.parameters: fit it there or here, "
+                                        "not both"))
+                continue
+            parameter = _parameter(variable, fitted, scenario, field_name,
+                                   f"{name}.{variable}", name, errors)
+            if parameter is not None:
+                own.append(parameter)
+        parsed.append(ParsedExperiment(name, f"{where}.", scenario, data, own))
+    weighed = [e.name for e in parsed if e.data is not None and all(e.data.sigma_given)]
+    unweighed = [e.name for e in parsed if e.data is not None and e.name not in weighed]
+    if weighed and unweighed:
+        errors.append(SpecError(f"experiment.{unweighed[0]}.data.sigma",
+                                f"is missing while experiment {weighed[0]} gives σ: give every "
+                                "experiment's columns a σ, or none (then they share one σ "
+                                "estimated from the residuals)"))
     return parsed
 
 
-def _experiment(raw: dict[str, Any], entry: dict[str, Any], k: int, base: pathlib.Path,
-                shared: set[str], taken: set[str]) -> _Parsed:
-    name = entry.get("name")
-    if not isinstance(name, str) or not name.isidentifier():
-        raise SpecError(f"experiment[{k}].name", f"must be a name (letters, digits, _), got {name!r}")
-    if name in taken:
-        raise SpecError(f"experiment.{name}.name", "names another experiment too")
-    where = f"experiment.{name}"
-    only(entry, where, {"name", "data", "scenario", "parameters"})
-    own = table(entry, "scenario", where)
-    scenario = _scenario_of(raw, own, where, base)
-    data = Data.of(table(entry, "data", where, required=True), base, scenario, f"{where}.data")
-    errors = Collector()
-    fitted = [errors.run(lambda: _own_parameter(variable, value, scenario, where, shared))
-              for variable, value in table(entry, "parameters", where).items()]
-    errors.raise_any()
-    return _Parsed(name, scenario, data, [p for p in fitted if p is not None])
-
-
-def _scenario_of(raw: dict[str, Any], own: dict[str, Any], where: str,
-                 base_dir: pathlib.Path) -> Scenario:
+def _merged_scenario(raw: dict[str, Any], entry: Any, where: str, base_dir: pathlib.Path,
+                     errors: list[SpecError]) -> SettledScenario:
     """The shared [scenario] with an experiment's changes; a mistake in a field the
     experiment sets is named as the experiment's."""
-    base = table(raw, "scenario", "spec")
+    shared, changes = raw.get("scenario"), entry.get("scenario") if isinstance(entry, dict) else None
+    base: dict[str, Any] = shared if isinstance(shared, dict) else {}
+    own: dict[str, Any] = changes if isinstance(changes, dict) else {}
     merged = {**base, **own}
     for key in ("parameters", "inputs"):
         if isinstance(base.get(key), dict) and isinstance(own.get(key), dict):
             merged[key] = {**base[key], **own[key]}
-    try:
-        return Scenario.of({"scenario": merged}, base_dir)
-    except SpecError as refused:
-        each = refused.errors if isinstance(refused, SpecErrors) else [refused]
-        named = [_as_experiments(e, own, where) for e in each]
-        raise (named[0] if len(named) == 1 else SpecErrors(named)) from None
+    found = read(ScenarioTable, merged, ("scenario",))
+    scenario = SettledScenario.of(found.value, base_dir)
+    for e in found.errors + scenario.errors:
+        parts = e.field.split(".")
+        in_own = len(parts) > 1 and parts[1] in own and (
+            len(parts) < 4 or parts[1] not in ("parameters", "inputs")
+            or parts[2] in own[parts[1]])
+        errors.append(SpecError(f"{where}.{e.field}", e.rule) if in_own else e)
+    return scenario
 
 
-def _as_experiments(refused: SpecError, own: dict[str, Any], where: str) -> SpecError:
-    """A scenario's mistake in a field the experiment sets, named as the experiment's."""
-    parts = refused.field.split(".")
-    if parts[0] == "scenario" and (len(parts) == 1 or parts[1] in own):
-        return SpecError(f"{where}.{refused.field}", refused.rule)
-    return refused
+def _data(table: Any, base_dir: pathlib.Path, scenario: SettledScenario, where: str,
+          errors: list[SpecError]) -> Data | None:
+    """The measured data, its times against the scenario's grid where that was read."""
+    if table is None:
+        return None
+    collector = Collector()
+    if not isinstance(table, Table):
+        # A table with mistakes: its file is still read, against whatever σ was read.
+        if isinstance(table.get("file"), str):
+            collector.run(lambda: Data.check_file(table.get("file"), table.get("sigma"),
+                                                  base_dir, where))
+        errors += collector.errors
+        return None
+    data = collector.run(lambda: Data.of(table, base_dir, scenario.times(), where))
+    errors += collector.errors
+    return data
 
 
-def _own_parameter(variable: str, entry: object, scenario: Scenario, where: str,
-                   shared: set[str]) -> FitParameter:
-    field_name = f"{where}.parameters.{variable}"
-    if variable in shared:
-        raise SpecError(field_name, f"{variable} is fitted for every experiment in "
-                                    "fit.parameters: fit it there or here, not both")
-    experiment = where.split(".", 1)[1]
-    return _parameter(variable, entry, scenario, field_name, f"{experiment}.{variable}",
-                      experiment)
+def _shared(entries: dict[str, Any], experiments: list[ParsedExperiment],
+            errors: list[SpecError]) -> list[FitParameter]:
+    """The parameters fitted for every experiment, each checked against every experiment's
+    scenario."""
+    shared = []
+    scenarios: list[SettledScenario | None] = [e.scenario for e in experiments] or [None]
+    for name, entry in entries.items():
+        found = [_parameter(name, entry, scenario, f"fit.parameters.{name}", name, None, errors)
+                 for scenario in scenarios]
+        if found[0] is not None and all(p is not None for p in found):
+            shared.append(found[0])
+    return shared
 
 
-def _numbered(parsed: list[_Parsed],
+def _between_tables(fit: Any, shared: list[FitParameter],
+                    experiments: list[ParsedExperiment], errors: list[SpecError]) -> None:
+    """Something to fit; the profiled parameters among those fitted; no fitted parameter
+    named like a column of the results."""
+    own = [p for e in experiments for p in e.own]
+    entries = (fit.get("parameters") if fit is not None else None)
+    if entries == {} and not any(e.own for e in experiments):
+        errors.append(SpecError("fit.parameters", "names no parameter: there is nothing to fit"))
+    names = [p.name for p in shared + own]
+    for name in (fit.get("profile") if fit is not None else None) or []:
+        if name not in names and names:
+            errors.append(SpecError("fit.profile", f"{name!r} is not fitted (fitted: "
+                                                   f"{', '.join(names)})"))
+    fields = ([f"fit.parameters.{p.name}" for p in shared]
+              + [f"experiment.{p.experiment}.parameters.{p.variable}" for p in own])
+    collector = Collector()
+    refuse_collisions([(name, where, "the fitted parameter")
+                       for name, where in zip(names, fields)], FIT_COLUMNS, collector)
+    errors += collector.errors
+
+
+def _numbered(parsed: list[ParsedExperiment],
               shared: list[FitParameter]) -> tuple[list[Experiment], list[FitParameter]]:
     """The experiments with their columns of the parameter vector: the shared parameters
     first, then each experiment's own."""
     fitted = list(shared)
     experiments = []
     for e in parsed:
+        assert e.scenario.scenario is not None and e.data is not None
         columns = list(range(len(shared))) + list(range(len(fitted), len(fitted) + len(e.own)))
         fitted.extend(e.own)
-        experiments.append(Experiment(e.name, e.scenario, e.data, columns,
+        experiments.append(Experiment(e.name, e.scenario.scenario, e.data, columns,
                                       [fitted[j].variable for j in columns]))
     return experiments, fitted
 
 
-def _fit_table(raw: dict[str, Any], experiments: list[_Parsed], shared: list[tuple[str, Any]]
-               ) -> tuple[list[FitParameter], int, int | None, int, float, str, list[str], str]:
-    """The [fit] table: the shared parameters (each checked against every experiment's
-    scenario), the starts, the seed, the iterations, the Jacobian's relative step and the
-    intervals; every mistake of it reported at once."""
-    fit = table(raw, "fit", "spec", required=True)
-    errors = Collector()
-    errors.run(lambda: only(fit, "fit", {"parameters", "starts", "seed", "max_iterations",
-                                         "relative_step", "intervals", "profile", "jacobian"}))
-    fitted: list[FitParameter] = []
-    scenarios: list[Scenario | None] = [e.scenario for e in experiments] or [None]
-    for name, entry in shared:
-        each = errors.run(lambda: [_parameter(name, entry, scenario, f"fit.parameters.{name}",
-                                              name, None) for scenario in scenarios])
-        if each:
-            fitted.append(each[0])
-    if not shared and not any(e.own for e in experiments):
-        errors.run(lambda: refuse("fit.parameters", "names no parameter: there is nothing to fit"))
-    starts = errors.run(lambda: whole(fit.get("starts", 1), "fit.starts", 1, MAX_STARTS))
-    seed = fit.get("seed")
-    if seed is not None:
-        seed = errors.run(lambda: whole(seed, "fit.seed", 0, None))
-    elif starts is not None and starts > 1:
-        errors.run(lambda: refuse("fit.seed", "more than one start needs a seed, so that the "
-                                               "fit can be repeated"))
-    max_iterations = errors.run(lambda: whole(fit.get("max_iterations", DEFAULT_MAX_ITERATIONS),
-                                              "fit.max_iterations", 1, None))
-    # A forward difference's error is the step plus the model's own error over the step;
-    # the square root of the integrator's tolerance balances the two.
-    tolerance = experiments[0].scenario.tolerance if experiments else None
-    default_step = math.sqrt(tolerance) if tolerance else 1e-4
-    relative_step = fit.get("relative_step", default_step)
-    if (isinstance(relative_step, bool) or not isinstance(relative_step, (int, float))
-            or not 0 < relative_step < 0.1):
-        errors.run(lambda: refuse("fit.relative_step",
-                                   f"must be a number in (0, 0.1), got {relative_step!r}"))
-    names = ([name for name, _ in shared]
-             + [f"{e.name}.{p.variable}" for e in experiments for p in e.own])
-    fields = ([f"fit.parameters.{name}" for name, _ in shared]
-              + [f"experiment.{e.name}.parameters.{p.variable}" for e in experiments for p in e.own])
-    refuse_collisions([(name, where, "the fitted parameter") for name, where in zip(names, fields)],
-                      FIT_COLUMNS, errors)
-    intervals, profiled = errors.run(lambda: _intervals(fit, names)) or ("wald", [])
-    jacobian = fit.get("jacobian", "differences")
-    if jacobian not in JACOBIANS:
-        errors.run(lambda: refuse("fit.jacobian", f"must be one of {', '.join(map(repr, JACOBIANS))}, "
-                                                  f"got {jacobian!r}"))
-    errors.raise_any()
-    assert starts is not None and max_iterations is not None
-    return (fitted, starts, seed, max_iterations, float(relative_step), intervals, profiled,
-            str(jacobian))
-
-
-def _intervals(fit: dict[str, Any], names: list[str]) -> tuple[str, list[str]]:
-    intervals = fit.get("intervals", "wald")
-    if intervals not in INTERVALS:
-        raise SpecError("fit.intervals", f"must be one of {', '.join(map(repr, INTERVALS))}, "
-                                         f"got {intervals!r}")
-    profile = fit.get("profile")
-    if profile is None:
-        return intervals, (names if intervals != "wald" else [])
-    if intervals == "wald":
-        raise SpecError("fit.profile", "profiles parameters for intervals = \"profile\" or "
-                                       "\"both\": set fit.intervals too")
-    if not isinstance(profile, list) or not profile or not all(isinstance(n, str) for n in profile):
-        raise SpecError("fit.profile", f"must be a list of fitted parameters' names, got {profile!r}")
-    for name in profile:
-        if name not in names:
-            raise SpecError("fit.profile", f"{name!r} is not fitted (fitted: {', '.join(names)})")
-    return intervals, list(dict.fromkeys(profile))
-
-
-def _parameter(variable: str, entry: object, scenario: Scenario | None, where: str, name: str,
-               experiment: str | None) -> FitParameter:
-    """A fitted parameter's entry (checked against `scenario` where there is one)."""
-    if not isinstance(entry, dict) or set(entry) != {"start", "range"}:
-        raise SpecError(where, "give start = x and range = [low, high]")
-    if scenario is not None:
-        scenario.refuse_also_set(variable, where, "fit")
-    low, high = low_high(entry["range"], f"{where}.range")
-    start = finite(entry["start"], f"{where}.start")
-    if not low <= start <= high:
-        raise SpecError(f"{where}.start", f"must lie in its range [{low}, {high}], got {start}")
-    return FitParameter(name, start, low, high, variable, experiment)
+def _parameter(variable: str, entry: Any, scenario: SettledScenario | None, where: str,
+               name: str, experiment: str | None, errors: list[SpecError]) -> FitParameter | None:
+    """A fitted parameter's entry, read without mistakes (its own are reported by the
+    schema), that its experiment's scenario does not set too."""
+    if scenario is not None and scenario.table is not None:
+        parameters = scenario.table.get("parameters") or {}
+        inputs = scenario.table.get("inputs") or {}
+        for table, settings in (("parameters", parameters), ("inputs", inputs)):
+            if variable in settings:
+                errors.append(SpecError(where, f"{variable} is also set in scenario.{table}: "
+                                               "fit it or set it there, not both"))
+                return None
+    if not isinstance(entry, FitParameterEntry):
+        return None
+    low, high = entry.range
+    return FitParameter(name, entry.start, low, high, variable, experiment)
