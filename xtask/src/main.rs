@@ -134,6 +134,13 @@ const JOBS: &[Job] = &[
         run: motor::job_bench,
     },
     Job {
+        name: "bench-engine",
+        operands: &[],
+        about: "each worked sweep serially, on a LocalCluster and as the engine choice runs it, and the disk estimate against what sweeps wrote, into target/bench-engine and docs/bench/engine.md",
+        flags: &[QUICK],
+        run: sweep::job_bench_engine,
+    },
+    Job {
         name: "bench-cycle",
         operands: &[],
         about: "steady cycles by shooting against transient runs on a lightly damped grid, 2 workers, into target/bench-cycle and docs/bench/cycle.md",

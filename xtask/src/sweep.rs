@@ -43,6 +43,17 @@ pub(crate) fn job_bench(parsed: &Parsed) -> Result {
     run_bench_script("bench/bench_sweep.py", "target/bench-sweep", parsed)
 }
 
+/// `cargo xtask bench-engine`: each worked sweep serially, on a LocalCluster and as the
+/// engine choice runs it, and the disk estimate against what sweeps wrote
+/// (docs/bench/engine.md).
+pub(crate) fn job_bench_engine(parsed: &Parsed) -> Result {
+    let fmu = fmu::build_fmu(false)?.fmu;
+    let motor = crate::builders::build_motor()?;
+    crate::builders::build_flywheel_load()?;
+    crate::builders::build_motor_ssp(&fmu, &motor)?;
+    run_bench_script("bench/bench_engine.py", "target/bench-engine", parsed)
+}
+
 /// `cargo xtask bench-cycle`: steady cycles against transients (docs/bench/cycle.md).
 pub(crate) fn job_bench_cycle(parsed: &Parsed) -> Result {
     run_bench_script("bench/bench_cycle.py", "target/bench-cycle", parsed)
