@@ -6,6 +6,7 @@ few points with the phase portrait of the first two."""
 from __future__ import annotations
 
 import pathlib
+import textwrap
 import warnings
 from typing import TYPE_CHECKING
 
@@ -87,50 +88,56 @@ def _campbell(diagram: object, path: pathlib.Path) -> pathlib.Path:
     ax.set_xlabel("cycle frequency 1/T (Hz)" + (f", along {diagram.along}" if diagram.along
                                                  else ""))
     ax.set_ylabel("mode frequency (Hz), mean along the cycle")
-    ax.set_title(f"Campbell diagram, {diagram.caption}", fontsize=10)
+    ax.set_title("\n".join(textwrap.wrap(f"Campbell diagram, {diagram.caption}", 100)),
+                 fontsize=10)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, borderaxespad=0)
     return save(fig, path)
 
 
 def _label_orders(ax: object, orders: list[int], right: float, top: float) -> None:
     """Each order line's label where it leaves the plot (the right edge, or the top), the
-    labels along the top kept apart."""
-    placed: list[float] = []
+    labels along each edge kept apart (a label too close to the last one placed on its
+    edge is left out: its line is the next one's neighbour)."""
+    along_top: list[float] = []
+    along_right: list[float] = []
     for k in orders:
         end = min(right, top / k)
         at_top = end < right
-        if at_top and placed and end - placed[-1] < 0.035 * right:
+        placed, at, room = (along_top, end, 0.035 * right) if at_top else (
+            along_right, k * end, 0.05 * top)
+        if placed and abs(at - placed[-1]) < room:
             continue
-        if at_top:
-            placed.append(end)
+        placed.append(at)
         ax.annotate(f"{k}×", (end, k * end), fontsize=7, color="0.4",  # type: ignore[attr-defined]
                     xytext=(2, -9) if at_top else (-14, 2), textcoords="offset points")
 
 
 def _cycles(drawn: dict[int, pd.DataFrame], path: pathlib.Path) -> pathlib.Path:
+    """One cycle of each kept variable against the time into it, a panel a variable, and
+    beside them, where there are two or more, the phase portrait of the first two, as tall
+    as the panels together."""
     plt = pyplot()
     variables = list(dict.fromkeys(v for rows in drawn.values() for v in rows["variable"]))
     portrait = len(variables) >= 2
-    fig, axes = plt.subplots(len(variables), 2 if portrait else 1,
-                             figsize=(11 if portrait else 7, 2.4 * len(variables)),
-                             squeeze=False)
+    fig = plt.figure(figsize=(11 if portrait else 7, max(2.4 * len(variables), 3.6)))
+    grid = fig.add_gridspec(len(variables), 2 if portrait else 1)
+    left = [fig.add_subplot(grid[j, 0]) for j in range(len(variables))]
+    phase = fig.add_subplot(grid[:, 1]) if portrait else None
     for point, rows in drawn.items():
         by = {v: rows[rows["variable"] == v].sort_values("time") for v in variables}
         for j, v in enumerate(variables):
             t = by[v]["time"].to_numpy()
             period = t[-1] + (t[1] - t[0]) if len(t) > 1 else 1.0
-            axes[j][0].plot(t / period, by[v]["value"], lw=1, label=f"point {point}")
-            axes[j][0].set_ylabel(v)
-        if portrait:
+            left[j].plot(t / period, by[v]["value"], lw=1, label=f"point {point}")
+            left[j].set_ylabel(v)
+        if phase is not None:
             a, b = variables[:2]
-            axes[0][1].plot(by[a]["value"], by[b]["value"], lw=1)
-    axes[-1][0].set_xlabel("time into the cycle / period")
-    axes[0][0].set_title("one cycle of the kept variables")
-    axes[0][0].legend(fontsize=7, ncol=2)
-    if portrait:
-        axes[0][1].set_xlabel(variables[0])
-        axes[0][1].set_ylabel(variables[1])
-        axes[0][1].set_title("phase portrait")
-        for j in range(1, len(variables)):
-            axes[j][1].axis("off")
+            phase.plot(by[a]["value"], by[b]["value"], lw=1)
+    left[-1].set_xlabel("time into the cycle / period")
+    left[0].set_title("one cycle of the kept variables")
+    left[0].legend(fontsize=7, ncol=2)
+    if phase is not None:
+        phase.set_xlabel(variables[0])
+        phase.set_ylabel(variables[1])
+        phase.set_title("phase portrait")
     return save(fig, path)

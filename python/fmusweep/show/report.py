@@ -319,8 +319,11 @@ def _heatmap_section(k: int, metric: str, points: pd.DataFrame, varied: list[str
     layout = {"title": {"text": metric + (" (log colour scale)" if log else "")},
               "xaxis": {"title": {"text": varied[0]}}, "yaxis": {"title": {"text": varied[1]}},
               "plot_bgcolor": FAILED_CELL}
-    return (f"<h2>{html.escape(metric)} over the grid</h2><p class=\"note\">Grey cells: "
-            "failed points (hover one for why).</p>" + _plot(f"heatmap-{k}", [trace], layout))
+    failed = bool((points["status"] != "ok").any())
+    note = ("<p class=\"note\">Grey cells: failed points (hover one for why).</p>" if failed
+            else "")
+    return (f"<h2>{html.escape(metric)} over the grid</h2>{note}"
+            + _plot(f"heatmap-{k}", [trace], layout))
 
 
 FAILED_CELL = "#c8c8c8"
@@ -337,7 +340,8 @@ def _design_section(points: pd.DataFrame, varied: list[str], failed: pd.Series,
         grid_layout = {"xaxis": {"title": {"text": varied[0]}},
                        "yaxis": {"title": {"text": varied[1]}}}
         return ("<h2>The design</h2><p class=\"note\">A grid of "
-                f"{len(grid[0])} × {len(grid[1])} points; red cells failed.</p>"
+                f"{len(grid[0])} × {len(grid[1])} points"
+                f"{'; red cells failed' if failed.any() else ''}.</p>"
                 + _plot("design", [trace], grid_layout, 420))
     groups = [("ok", ~failed, OK, "circle"), ("failed", failed, FAILED, "x")]
     if len(varied) <= 2:
@@ -387,8 +391,9 @@ def _metric_section(k: int, metric: str, points: pd.DataFrame, varied: list[str]
         layout[f"xaxis{axis}"] = {"title": {"text": name}}
         layout[f"yaxis{axis}"] = {"title": {"text": metric if j == 0 else ""},
                                   **({"type": "log"} if log else {})}
-    return (f"<h2>{html.escape(metric)}</h2><p class=\"note\">Failed points (✕, red) are drawn "
-            "below the others: they have no value.</p>" + _plot(f"metric-{k}", data, layout))
+    note = ("<p class=\"note\">Failed points (✕, red) are drawn below the others: they have "
+            "no value.</p>" if failed.any() else "")
+    return f"<h2>{html.escape(metric)}</h2>{note}" + _plot(f"metric-{k}", data, layout)
 
 
 def _index_section(chart: IndexChart) -> str:
@@ -411,7 +416,7 @@ def _index_section(chart: IndexChart) -> str:
 def _failed_table(points: pd.DataFrame, names: list[str]) -> str:
     failed = points[points["status"] != "ok"]
     if failed.empty:
-        return "<h2>Failed points</h2><p>None.</p>"
+        return ""
     head = "".join(f"<th>{html.escape(h)}</th>" for h in ["point", *names, "status", "message"])
     rows = "".join("<tr>" + "".join(f"<td>{html.escape(str(v))}</td>" for v in
                                     [r["point"], *(f"{r[n]:.6g}" for n in names), r["status"], r["message"]])

@@ -106,16 +106,27 @@ def _heatmap(points: pd.DataFrame, names: list[str], metric: str,
     return save(fig, path)
 
 
+def marker_for(count: int) -> tuple[float, float]:
+    """A scatter's marker area (points²) and opacity: small and light where thousands of
+    points overlap, large and solid where a few must stay visible."""
+    if count > 2000:
+        return 4.0, 0.5
+    if count > 200:
+        return 10.0, 0.7
+    return 30.0, 0.9
+
+
 def _scatter_matrix(points: pd.DataFrame, names: list[str], metrics: list[str],
                     path: pathlib.Path) -> pathlib.Path:
     plt = pyplot()
     fig, axes = plt.subplots(len(metrics), len(names), figsize=(2.6 * len(names) + 1, 2.4 * len(metrics) + 0.8),
                              squeeze=False, sharey="row")
     ok = points[points["status"] == "ok"]
+    size, alpha = marker_for(len(ok))
     for i, metric in enumerate(metrics):
         for j, name in enumerate(names):
             ax = axes[i, j]
-            ax.scatter(ok[name], ok[metric], s=4, alpha=0.5, lw=0)
+            ax.scatter(ok[name], ok[metric], s=size, alpha=alpha, lw=0)
             ax.grid(alpha=0.3)
             if _spans_decades(ok[metric]):
                 ax.set_yscale("log")
