@@ -441,11 +441,37 @@ class Page {
     }
     ctx.fillStyle = "#1d2330";
     ctx.font = "12px system-ui, sans-serif";
-    for (const [label, p] of [["O2", O2], ["O3", O3], ["A2", A2], ["A3", A3]]) {
-      const [px, py] = P(p);
-      ctx.fillText(label, px + 7, py - 7);
+    const placed = [];
+    // The pivots' names below the ground line, the joints' beyond their links' ends; each
+    // name where it meets no name placed before it.
+    for (const [label, p, from] of [["O2", O2, null], ["O3", O3, null], ["A2", A2, O2], ["A3", A3, O3]]) {
+      const box = labelBox(ctx, label, P(p), from && P(from), placed);
+      placed.push(box);
+      ctx.fillText(label, box.x, box.y + box.h);
     }
   }
+}
+
+/** Where a point's name goes: the first of its candidate places (beyond the link from
+ * `from`, else below; then around the point) whose box meets none of `placed`. */
+function labelBox(ctx, text, [px, py], from, placed) {
+  const w = ctx.measureText(text).width, h = 10, gap = 9;
+  const candidates = [];
+  if (from) {
+    const [dx, dy] = [px - from[0], py - from[1]];
+    const n = Math.hypot(dx, dy) || 1;
+    candidates.push([px + (dx / n) * (gap + w / 2) - w / 2, py + (dy / n) * (gap + h / 2) - h / 2]);
+  } else {
+    candidates.push([px - w / 2, py + gap]);
+  }
+  candidates.push([px + gap, py - gap - h], [px - gap - w, py - gap - h], [px + gap, py + gap],
+                  [px - gap - w, py + gap], [px - w / 2, py - 2 * gap - h]);
+  const meets = (a) => placed.some((b) => a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h);
+  for (const [x, y] of candidates) {
+    const box = { x, y, w, h };
+    if (!meets(box)) return box;
+  }
+  return { x: candidates[0][0], y: candidates[0][1], w, h };
 }
 
 Mechanism.load().then((mechanism) => {
