@@ -17,7 +17,7 @@ use crate::setup::*;
 pub(crate) fn build_bench_harness() -> Result<PathBuf> {
     let target = root().join("target/bench-build");
     run(cargo()
-        .args(["build", "--release", "--quiet", "--package", "bench"])
+        .args(["build", "--release", "--package", "bench"])
         .env("CARGO_TARGET_DIR", &target))?;
     Ok(target.join("release/bench"))
 }

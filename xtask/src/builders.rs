@@ -190,7 +190,7 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
     crate::setup::run(
         Command::new(&maturin)
             .current_dir(root().join("python"))
-            .args(["build", "--release", "--quiet", "--zig", "--compatibility"])
+            .args(["build", "--release", "--zig", "--compatibility"])
             .arg(format!("manylinux{}", MANYLINUX_FOR_BASELINE))
             .arg("--out")
             .arg(&out)

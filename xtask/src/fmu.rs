@@ -47,7 +47,7 @@ pub(crate) fn build_fmu(all_platforms: bool) -> Result<Packed> {
     // `cargo test`. With it they differ, and the library's cdylib (whose file name carries
     // no hash) would be rebuilt by each in turn, changed or not.
     run(cargo()
-        .args(["run", "--release", "--quiet", "--bin", "fmu-assets", "--"])
+        .args(["run", "--release", "--bin", "fmu-assets", "--"])
         .arg(&assets))?;
     let fmu = root.join(format!("target/fmu/{MODEL_IDENTIFIER}.fmu"));
     let fmu3 = root.join(format!("target/fmu/{MODEL_IDENTIFIER}-fmi3.fmu"));

@@ -47,6 +47,7 @@ pub(crate) fn build_wasm() -> Result<PathBuf> {
     let target_dir = platforms::cross_target_dir().join(WASM_TARGET);
     let cwd = platforms::cross_target_dir();
     fs::create_dir_all(&cwd).map_err(|e| format!("{}: {e}", cwd.display()))?;
+    println!("xtask: building the page's WebAssembly module (wasm32, Debian's rustc)");
     run(Command::new(DEBIAN_CARGO)
         .current_dir(&cwd)
         .args(["build", "--manifest-path"])

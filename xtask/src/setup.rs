@@ -215,7 +215,7 @@ pub(crate) fn build_portable(selection: &[&str], artifact: &str) -> Result<PathB
     let path = path_with_venv(&python)?;
     let target = "x86_64-unknown-linux-gnu";
     run(cargo()
-        .args(["zigbuild", "--release", "--quiet"])
+        .args(["zigbuild", "--release"])
         .args(selection)
         .args([
             "--target",
