@@ -323,3 +323,17 @@ def test_a_small_sweep_without_an_engine_named_runs_serially_and_says_why(fmu_pa
         summary.engine_choice
     assert "a LocalCluster of" in summary.engine_choice and "with its start-up" in \
         summary.engine_choice, summary.engine_choice
+
+
+@pytest.mark.parametrize("starts", [None, STARTS])
+def test_a_cycle_search_out_of_scenario_time_says_so_and_names_stop(fmu_path, tmp_path, starts):
+    spec = grid(stop=1.0)
+    spec["design"] = {"kind": "list", "parameters": {"d34": {"values": [0.1]}}}
+    spec["cycle"] = {"state": "phi1", "advance": TAU, **({"starts": starts} if starts else {})}
+    spec["outputs"] = {"metrics": {"peak": {"variable": "rod_force", "kind": "max"}}}
+    points = run_sweep(spec, fmu=fmu_path, out=tmp_path / "out", serial=True, progress=False,
+                       plots=False).points
+    assert list(points["status"]) == ["no_cycle"], points
+    said = points["message"][0]
+    assert "within the scenario's time, stop − start = 1 s" in said, said
+    assert "give scenario.stop more time" in said and "turned back" not in said, said
