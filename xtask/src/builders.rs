@@ -187,6 +187,10 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
         fs::remove_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
     }
     let maturin = python.with_file_name("maturin");
+    // A folder of its own: the FMU's portable build writes the same target triple with
+    // other flags, and sharing one folder rebuilt every dependency of each, by turns.
+    let build = root().join("target/wheel-build");
+    println!("xtask: building the fmusweep wheel (maturin, the runner against glibc 2.17)");
     crate::setup::run(
         Command::new(&maturin)
             .current_dir(root().join("python"))
@@ -195,10 +199,11 @@ pub(crate) fn build_wheel() -> Result<PathBuf> {
             .arg("--out")
             .arg(&out)
             .env("PATH", path_with_venv(&python)?)
+            .env("CARGO_TARGET_DIR", &build)
             // As for cargo-zigbuild: bindgen gets the C headers from here, not from zig.
             .env("BINDGEN_EXTRA_CLANG_ARGS", c_header_args()?),
     )?;
-    check_glibc(&root().join("target/x86_64-unknown-linux-gnu/release/fmu-runner"))?;
+    check_glibc(&build.join("x86_64-unknown-linux-gnu/release/fmu-runner"))?;
     let wheel =
         wheel_in(&out).ok_or_else(|| format!("maturin wrote no wheel to {}", out.display()))?;
     fs::write(&stamp, key).map_err(|e| format!("{}: {e}", stamp.display()))?;
