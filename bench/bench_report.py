@@ -98,20 +98,30 @@ def plotly_alone(tmp: pathlib.Path) -> dict:
     return {"bytes": page.stat().st_size, **opened(page)}
 
 
+def say(doing: str) -> None:
+    """A line before each step, none of which is short."""
+    print(f"bench-report: {doing}", flush=True)
+
+
 def main():
     fmu, out, quick, r = arguments()
     with tempfile.TemporaryDirectory() as tmp:
+        say("opening a page of Plotly alone in headless Chromium")
         r["plotly_alone"] = plotly_alone(pathlib.Path(tmp))
         side = 30 if quick else 100
+        say(f"sweeping a {side} × {side} grid with series on 2 workers, then opening its report")
         t0 = time.perf_counter()
         results = run_sweep(sweep_spec(side), fmu=str(fmu), out=str(pathlib.Path(tmp) / "sweep"),
                             workers=2, progress=False)
         counts = results.points["status"].value_counts().to_dict()
         r["sweep"] = {"points": side * side, "statuses": counts, "wall_s": time.perf_counter() - t0,
                       "bytes": results.report_html.stat().st_size, **opened(results.report_html)}
+        say("opening the report with every plot drawn at once")
         eager = eager_copy(results, pathlib.Path(tmp) / "eager")
         r["sweep_eager"] = {"bytes": eager.stat().st_size, **opened(eager, DRAWN)}
+        say("timing later calls of `cargo xtask sweep` to their first point")
         r["later_call"] = first_point_of_later_calls(pathlib.Path(tmp))
+        say("fitting examples/fit/two_experiments.toml, then opening its report")
         spec = tomllib.loads(TWO_EXPERIMENTS.read_text())
         for e in spec["experiment"]:
             e["data"]["file"] = str(TWO_EXPERIMENTS.parent / e["data"]["file"])
