@@ -61,15 +61,14 @@ fn check_state_count(name: &str, n: usize) -> Outcome {
 
 impl Instance {
     /// The categories enabled at instantiation. FMI 2.0: all (debug logging decides the
-    /// debug ones). FMI 3.0: errors always, as the standard's own Reference-FMUs log them,
-    /// so that a master that has not asked for messages still hears why a call failed;
-    /// every other category (warnings, discards, calls, solver) as `loggingOn` says ("If
-    /// loggingOn = fmi3False, then any logging is disabled"). `fmi3SetDebugLogging`
-    /// switches any of them on or off by name, or all at once.
+    /// debug ones). FMI 3.0: the statuses' categories always, as the standard's own
+    /// Reference-FMUs do, so that a master that has not asked for silence hears every
+    /// refusal with its reason; the debug categories (calls, solver) as `loggingOn` says.
+    /// `fmi3SetDebugLogging` switches any of them off by name, or all at once.
     fn enabled_at_first(version: Version, debug_logging: bool) -> [bool; LOG_CATEGORIES.len()] {
         std::array::from_fn(|i| {
-            let error = i == Category::Error as usize || i == Category::Fatal as usize;
-            version == Version::Fmi2 || debug_logging || error
+            let debug = i == Category::Calls as usize || i == Category::Solver as usize;
+            version == Version::Fmi2 || debug_logging || !debug
         })
     }
 
