@@ -47,7 +47,7 @@ import numpy.typing as npt
 import pyarrow as pa
 
 from .errors import Collector, SpecError, SpecErrors, did_you_mean, refuse
-from .fields import finite
+from .fields import SETTABLE, Variables, finite
 from .schema.core import Loc, Parts, Table, at, read
 from .schema.core import field as declared
 from .sensitivity_slots import Offer, read_offer, slot_parameter, slot_variable
@@ -272,7 +272,12 @@ def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None =
     from .fmu import Archive, local_runner
     runner = local_runner(Archive.read(fmu))
     names = list(parameters or {})
-    _check_settable(runner.describe(), parameters or {})
+    variables, errors = Variables(runner.describe()), Collector()
+    for name, value in (parameters or {}).items():
+        where = f"parameters.{name}"
+        errors.run(lambda: variables.get(name, where, SETTABLE, what="parameter or input"))
+        errors.run(lambda: finite(value, where))
+    errors.raise_any()
     row = [[float((parameters or {})[n]) for n in names]]
     if along is None:
         runner.configure(new_plan(0.0, 1.0, 1.0, interface="model_exchange"))
@@ -299,23 +304,6 @@ def linearise(fmu: str | os.PathLike[str], parameters: dict[str, float] | None =
     if result["status"] != "ok" or found_cycle is None:
         raise RunnerError(f"{result['status']}: {result['message']}")
     return [_linearisation(lin) for lin in found_cycle["linearisations"]]
-
-
-def _check_settable(description: dict[str, Any], parameters: dict[str, Any]) -> None:
-    """Each of linearise's parameters names a parameter or input of the FMU and gives it a
-    finite number: every mistake raised together."""
-    causality = {v["name"]: v["causality"] for v in description["variables"]}
-    errors = Collector()
-    for name, value in parameters.items():
-        where = f"parameters.{name}"
-        if name not in causality:
-            errors.run(lambda: refuse(where, f"the FMU has no variable {name!r}"
-                                             f"{did_you_mean(name, causality)}"))
-        elif causality[name] not in ("parameter", "input"):
-            errors.run(lambda: refuse(where, f"{name} has causality {causality[name]}: only "
-                                             "parameters and inputs can be set"))
-        errors.run(lambda: finite(value, where))
-    errors.raise_any()
 
 
 def _linearisation(lin: dict[str, Any]) -> Linearisation:

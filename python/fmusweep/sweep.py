@@ -60,14 +60,14 @@ def _whole_numbered(description: dict[str, Any], names: list[str]) -> set[str]:
     return {n for n in names if types.get(n) in ("integer", "enumeration")}
 
 
-def _tables(spec: Spec, study: Study, names: list[str], rows: Rows,
-            batch: Batch) -> tuple[pa.Table, pa.Table | None]:
-    """A batch's rows of points.parquet and of the series, `rows` its points' values."""
+def _tables(spec: Spec, study: Study, names: list[str], rows: Rows, batch: Batch,
+            whole: set[str]) -> tuple[pa.Table, pa.Table | None]:
+    """A batch's rows of points.parquet and of the series, `rows` its points' values (the
+    columns in `whole` as integers)."""
     points = np.asarray(batch["points"], dtype=np.int64)
     results = batch["results"]
     columns = {"point": pa.array(points, pa.int64()),
                "point_id": pa.array(study.ids(names, rows), pa.string())}
-    whole = _whole_numbered(study.target.description, names)
     for j, name in enumerate(names):
         columns[name] = (pa.array(rows[:, j].astype(np.int64), pa.int64()) if name in whole
                          else pa.array(rows[:, j], pa.float64()))
@@ -183,10 +183,12 @@ class _Keeper:
         self.point_seconds = 0.0
         self.statuses: dict[str, int] = {}
         self.bar = _Progress(len(design), saved, progress)
+        self.whole = _whole_numbered(study.target.description, design.names)
 
     def __call__(self, batch: Batch) -> None:
         rows = self.design.rows_at(batch["points"])
-        points_table, series_table = _tables(self.spec, self.study, self.design.names, rows, batch)
+        points_table, series_table = _tables(self.spec, self.study, self.design.names, rows,
+                                             batch, self.whole)
         self.study.store.write_batch(points_table, series_table)
         for r in batch["results"]:
             self.statuses[r["status"]] = self.statuses.get(r["status"], 0) + 1
@@ -296,28 +298,31 @@ def _run(spec: Spec, study: Study, target: Target, started: float, *, batch_size
     return results
 
 
+def series_samples(spec: Spec) -> int:
+    """How many samples of each recorded variable a point's series holds."""
+    if not spec.series_variables:
+        return 0
+    return spec.scenario.steps // max(spec.series_every, 1) + 1
+
+
 def written_bytes(spec: Spec, points: int) -> tuple[int, int]:
     """About how many bytes `points` points of the sweep write, and how many series values
     that is (each point's samples of each recorded variable)."""
-    samples = 0
-    if spec.series_variables:
-        samples = spec.scenario.steps // max(spec.series_every, 1) + 1
-    values = points * samples * len(spec.series_variables)
+    values = points * series_samples(spec) * len(spec.series_variables)
     return values * SERIES_BYTES_PER_VALUE + points * POINT_ROW_BYTES, values
 
 
 def check_disk(spec: Spec, points: int, out: pathlib.Path) -> None:
     """A sweep that would write more than the disk holding `out` has free is refused
     before it starts; one that writes more than SAY_ABOVE_BYTES says so first."""
-    need, values = written_bytes(spec, points)
+    need, _ = written_bytes(spec, points)
     if need <= SAY_ABOVE_BYTES:
         return
     where = out.resolve()
     while not where.exists():
         where = where.parent
     free = shutil.disk_usage(where).free
-    samples = values // max(points * len(spec.series_variables), 1)
-    said = (f"about {need / 1e9:.3g} GB ({points} points × {samples} samples × "
+    said = (f"about {need / 1e9:.3g} GB ({points} points × {series_samples(spec)} samples × "
             f"{len(spec.series_variables)} variables of series)")
     if need > free:
         raise SpecError("outputs.series", f"the sweep would write {said} to {where}, which has "

@@ -234,6 +234,12 @@ class LogRangeEntry(Table):
                                                     f"{bounds[0]:g}")
 
 
+def same_setting(value: Any) -> tuple[bool, Any]:
+    """What makes two settings of a column the same point: their value, a Boolean apart
+    from a number (true is not 1 in a spec; 1 and 1.0 are one value)."""
+    return isinstance(value, bool), value
+
+
 def column_values(entry: Any, name: str) -> list[float]:
     """The values a column's entry gives (a grid's axis, a list's values): numbers, the
     settings converted by the FMU's types (``fields.setting``)."""

@@ -16,7 +16,7 @@ from ..errors import SpecError
 from ..schema.core import Loc, Parts, at
 from ..schema.core import field as declared
 from .base import Design, DesignKind, DesignTable, GridAxis, LinspaceEntry, LogspaceEntry, \
-    ValuesEntry
+    ValuesEntry, same_setting
 
 
 class GridTable(DesignTable):
@@ -51,16 +51,16 @@ class GridTable(DesignTable):
 
 
 def repeated(values: list[Any]) -> list[Any]:
-    """The values a list holds more than once (1 and 1.0 are one value), in their order."""
-    seen: list[Any] = []
-    twice: list[Any] = []
+    """The values a list holds more than once, each as first written, in their order."""
+    first: dict[tuple[bool, Any], Any] = {}
+    twice: dict[tuple[bool, Any], Any] = {}
     for v in values:
-        same = [s for s in seen if v == s and (type(v) is bool) == (type(s) is bool)]
-        if not same:
-            seen.append(v)
-        elif not any(v == t for t in twice):
-            twice.append(same[0])
-    return twice
+        key = same_setting(v)
+        if key in first:
+            twice.setdefault(key, first[key])
+        else:
+            first[key] = v
+    return list(twice.values())
 
 
 def _shown(values: list[Any]) -> str:

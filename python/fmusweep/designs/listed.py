@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import SpecError, SpecWarning
 from ..schema.core import Loc, Parts, at
 from ..schema.core import field as declared
-from .base import Design, DesignKind, DesignTable, ValuesEntry, column_values
+from .base import Design, DesignKind, DesignTable, ValuesEntry, column_values, same_setting
 
 
 class ListTable(DesignTable):
@@ -39,9 +39,9 @@ class ListTable(DesignTable):
         # said, not refused.
         entries = parts.get("parameters") or {}
         rows = list(zip(*(entry.values for entry in entries.values())))
-        first: dict[tuple[Any, ...], int] = {}
+        first: dict[tuple[tuple[bool, Any], ...], int] = {}
         for i, row in enumerate(rows):
-            key = tuple((type(v) is bool, v) for v in row)
+            key = tuple(same_setting(v) for v in row)
             if key in first:
                 shown = ", ".join(f"{n} = {v}" for n, v in zip(entries, row))
                 warnings.warn(f"{at(where + ('parameters',))}: points {first[key]} and {i} are "

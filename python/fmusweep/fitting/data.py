@@ -14,7 +14,6 @@ import hashlib
 import math
 import pathlib
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -44,36 +43,26 @@ class Data:
         return self.steps // self.every
 
     @staticmethod
-    def check_file(file: str, sigma: dict[str, float] | None, base_dir: pathlib.Path,
-                   where: str) -> None:
-        """The file of a data table with other mistakes: read, and its columns against
-        the σ that was read."""
+    def of(file: str, sigma: dict[str, float], base_dir: pathlib.Path,
+           times: tuple[float, float, float] | None, where: str = "data") -> Data | None:
+        """The measured `file` of the data table at `where` (``data``, or an experiment's
+        ``experiment.NAME.data``) with its σ, on the scenario's grid `times` (start, stop,
+        step), the mistakes of its σ and of its times raised together; None where the grid
+        is not known (the file and σ are still checked)."""
         path, content = _read(file, base_dir, where)
-        columns, _, _ = _parse(content, path, where)
-        if sigma is not None:
-            _sigma(sigma, columns, where)
-
-    @staticmethod
-    def of(table: Any, base_dir: pathlib.Path, times: tuple[float, float, float] | None,
-           where: str = "data") -> Data | None:
-        """The data table at `where` (``data``, or an experiment's ``experiment.NAME.data``;
-        a ``schema.fit.DataTable``) on the scenario's grid `times` (start, stop, step), the
-        mistakes of its σ and of its times raised together; None where the grid is not known
-        (the file and σ are still checked)."""
-        path, content = _read(table.file, base_dir, where)
         columns, data_times, values = _parse(content, path, where)
         errors = Collector()
-        sigma_given = errors.run(lambda: _sigma(table.sigma, columns, where))
+        sigma_given = errors.run(lambda: _sigma(sigma, columns, where))
         steps = errors.run(lambda: _grid_steps(data_times, times, path, where)) if times else None
         errors.raise_any()
         if times is None:
             return None
         assert sigma_given is not None and steps is not None
-        sigma, given = sigma_given
+        weights, given = sigma_given
         start, stop, step = times
         every = math.gcd(round((stop - start) / step), *steps.tolist())
         return Data(path, hashlib.sha256(content).hexdigest(), data_times, columns, values,
-                    sigma, given, steps, every)
+                    weights, given, steps, every)
 
 
 def _read(name: str, base_dir: pathlib.Path, where: str) -> tuple[pathlib.Path, bytes]:

@@ -348,15 +348,16 @@ def _data(table: Any, base_dir: pathlib.Path, scenario: SettledScenario, where: 
     """The measured data, its times against the scenario's grid where that was read."""
     if table is None:
         return None
-    collector = Collector()
-    if not isinstance(table, Table):
-        # A table with mistakes: its file is still read, against whatever σ was read.
-        if isinstance(table.get("file"), str):
-            collector.run(lambda: Data.check_file(table.get("file"), table.get("sigma"),
-                                                  base_dir, where))
-        errors += collector.errors
+    complete = isinstance(table, Table)
+    file = table.file if complete else table.get("file")
+    if not isinstance(file, str):
         return None
-    data = collector.run(lambda: Data.of(table, base_dir, scenario.times(), where))
+    # A table with mistakes: its file is still read, against whatever σ was read, and
+    # gives no data.
+    sigma = table.sigma if complete else table.get("sigma")
+    collector = Collector()
+    data = collector.run(lambda: Data.of(file, sigma or {}, base_dir,
+                                         scenario.times() if complete else None, where))
     errors += collector.errors
     return data
 
